@@ -1,0 +1,26 @@
+"""ema_casadi: a direct-drive electromechanical actuator with ballscrew as one CasADi
+model, at switchable fidelity, for simulation, linearisation, margins, nonlinear
+frequency response, gain tuning and export.
+
+Quick start::
+
+    import ema_casadi as ema
+    params = ema.load_parameters("models/cesa_ema.toml")
+    model = ema.build_model(params, {"motor": "pmsm", "screw": "elastic"})
+    res = ema.simulate(model, 0.2, x_cmd=ema.Signal.step(1e-3, 0.01))
+    res["x_rod"]          # rod position (m)
+"""
+
+from .assembly import INPUTS, OUTPUTS, Model, build_model
+from .params import DEFAULT_VARIANTS, VARIANTS, ParameterError, Parameters, load_parameters
+from .signals import Signal, SignalError, parse_signal
+from .simulate import SimResult, SimulationError, simulate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "INPUTS", "OUTPUTS", "Model", "build_model",
+    "DEFAULT_VARIANTS", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
+    "Signal", "SignalError", "parse_signal",
+    "SimResult", "SimulationError", "simulate",
+]

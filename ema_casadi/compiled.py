@@ -1,0 +1,121 @@
+"""Compile CasADi Functions to native code with an on-disk cache.
+
+The generated C source is hashed; the shared library lives in the cache folder under
+that hash, so a second run (or another process) loads it without recompiling. Where
+no C compiler is found, or compilation fails, the Function runs in CasADi's virtual
+machine instead (slower, same results) and a warning says so once.
+
+Cache folder: ``$EMA_CASADI_CACHE`` or ``~/.cache/ema_casadi``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import warnings
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["compile_function", "cache_dir", "compiler", "BufferCall"]
+
+_lock = threading.Lock()
+_loaded: dict[str, ca.Function] = {}
+_warned = False
+
+
+def cache_dir() -> Path:
+    """The folder holding compiled models."""
+    d = Path(os.environ.get("EMA_CASADI_CACHE", Path.home() / ".cache" / "ema_casadi"))
+    d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def compiler() -> str | None:
+    """The C compiler used (``$CC``, else cc or gcc on PATH), or None."""
+    for name in (os.environ.get("CC"), "cc", "gcc"):
+        if name and shutil.which(name):
+            return shutil.which(name)
+    return None
+
+
+def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dict]:
+    """Return a native version of ``f`` (or ``f`` itself without a compiler).
+
+    Returns (function, info) where info holds ``compiled`` (bool), ``cached`` (bool,
+    loaded without compiling) and ``compile_time`` (s).
+    """
+    global _warned
+    info = {"compiled": False, "cached": False, "compile_time": 0.0}
+    if not jit:
+        return f, info
+    cc = compiler()
+    if cc is None:
+        if not _warned:
+            warnings.warn("no C compiler found: running the model in CasADi's VM (slower)", stacklevel=3)
+            _warned = True
+        return f, info
+    import time
+
+    t0 = time.perf_counter()
+    name = f.name()
+    gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    gen.add(f)
+    src = gen.dump()
+    key = hashlib.sha256((src + ca.__version__ + sys.platform).encode()).hexdigest()[:20]
+    so = cache_dir() / f"{name}_{key}.so"
+    with _lock:
+        if str(so) in _loaded:
+            info.update(compiled=True, cached=True)
+            return _loaded[str(so)], info
+        if not so.exists():
+            with tempfile.TemporaryDirectory() as tmp:
+                c_file = Path(tmp) / f"{name}.c"
+                c_file.write_text(src)
+                tmp_so = Path(tmp) / so.name
+                cmd = [cc, "-O2", "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
+                proc = subprocess.run(cmd, capture_output=True, text=True)
+                if proc.returncode != 0:
+                    warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=3)
+                    return f, info
+                # atomic: other processes see the whole library or none
+                shutil.move(str(tmp_so), str(so.with_suffix(".so.tmp")))
+                os.replace(so.with_suffix(".so.tmp"), so)
+        else:
+            info["cached"] = True
+        g = ca.external(name, str(so))
+        _loaded[str(so)] = g
+    info["compiled"] = True
+    info["compile_time"] = time.perf_counter() - t0
+    return g, info
+
+
+class BufferCall:
+    """Call a Function on NumPy arrays without CasADi's per-element conversions.
+
+    CasADi's ordinary call converts every input and output element through Python
+    (~100 ns each), which dominates long rollouts; ``Function.buffer`` reads and
+    writes column-major NumPy memory directly.
+    """
+
+    def __init__(self, f: ca.Function):
+        self.f = f
+        self.buf, self.eval = f.buffer()
+        self.out = [np.zeros(f.size_out(i), order="F") for i in range(f.n_out())]
+        for i, o in enumerate(self.out):
+            self.buf.set_res(i, memoryview(o.reshape(-1, order="F")))
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        keep = []
+        for i, a in enumerate(args):
+            a = np.asfortranarray(np.asarray(a, dtype=float).reshape(self.f.size_in(i), order="F"))
+            keep.append(a)
+            self.buf.set_arg(i, memoryview(a.reshape(-1, order="F")))
+        self.eval()
+        return [o.copy(order="F") for o in self.out]

@@ -1,0 +1,96 @@
+"""Electronic control unit: cascade position -> velocity -> current (SPEC §2.1).
+
+Each loop is a PI (or P) law with an output clamp and back-calculation anti-windup:
+the integrator state ``z`` is kept in output units and is driven back by the clamp
+excess at the rate K_i/K_p (tracking time = integral time). Back-calculation is
+continuous, so variable-step solvers and linearisation see no switching, and at an
+unsaturated operating point the anti-windup term vanishes from the Jacobian.
+
+Loop breaks (the paper's "Gain = 1" block): each loop's feedback is
+``loop_flag*measurement + d`` where ``d`` is an injection input. With the flag at 1 and
+``d = 0`` the loop is closed; with the flag at 0 the loop is open at that point and
+the response to ``d`` is minus the open-loop transfer L.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+__all__ = ["clamp", "pi_law", "position_law", "velocity_law", "current_law_simple", "current_law_foc"]
+
+SQRT3 = 3**0.5
+
+
+def clamp(u, lo, hi):
+    """Saturate ``u`` to [lo, hi]."""
+    return ca.fmin(ca.fmax(u, lo), hi)
+
+
+def pi_law(e, z, K_p, K_i, u_lim, u_ff=0):
+    """PI with symmetric clamp +-u_lim, feed-forward and back-calculation anti-windup.
+
+    Returns (u_sat, u_unsat, z_dot). ``z`` is the integral part in output units.
+    """
+    u = K_p * e + z + u_ff
+    u_sat = clamp(u, -u_lim, u_lim)
+    z_dot = K_i * e + (K_i / K_p) * (u_sat - u)
+    return u_sat, u, z_dot
+
+
+def position_law(x_cmd, x_fb, z_x, P, integral: bool):
+    """Position loop on rod position (m) -> motor speed command omega_cmd (rad/s).
+
+    omega_cmd = (2 pi/p)(K_x e + K_i_x int e), clamped to the rate limit
+    omega_max = 2 pi v_max / p. Returns (omega_cmd, z_x_dot or None).
+    """
+    k = 2 * ca.pi / P.p
+    e = x_cmd - x_fb
+    omega_max = k * P.v_max
+    if not integral:
+        return clamp(k * P.K_x * e, -omega_max, omega_max), None
+    w, _, z_dot = pi_law(e, z_x, k * P.K_x, k * P.K_i_x, omega_max)
+    return w, z_dot
+
+
+def velocity_law(omega_cmd, omega_fb, z_w, P):
+    """Speed PI (rad/s) -> current command (A, q axis), clamped to +-I_max.
+
+    Returns (i_cmd, z_w_dot)."""
+    i_cmd, _, z_dot = pi_law(omega_cmd - omega_fb, z_w, P.K_p_w, P.K_p_w / P.T_i_w, P.I_max)
+    return i_cmd, z_dot
+
+
+def current_law_simple(i_cmd, i_fb, omega, z_i, P):
+    """Current PI of the 1-phase (dc-equivalent) motor -> winding voltage (V).
+
+    Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
+    (the power-invariant equivalent of SPEC §2.3), plus back-EMF feed-forward
+    K_e*omega, the counterpart of FOC decoupling. Returns (v, z_i_dot).
+    """
+    K_e = 1.5 * P.pp * P.psi
+    v_lim = 1.5 * P.k_v * P.V_dc / SQRT3
+    v, _, z_dot = pi_law(i_cmd - i_fb, z_i, 1.5 * P.K_p_i, 1.5 * P.K_i_i, v_lim, u_ff=K_e * omega)
+    return v, z_dot
+
+
+def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P):
+    """Field-oriented current control in the rotor dq frame -> (v_d, v_q) (V).
+
+    i_d* = 0; PI on i_d and i_q with back-EMF / cross-coupling decoupling
+    (v_d -= omega_e L_q i_q, v_q += omega_e (L_d i_d + psi)); the voltage vector is
+    scaled onto the linear-SVPWM circle |v_dq| <= k_v V_dc / sqrt(3).
+    Returns (v_d, v_q, z_d_dot, z_q_dot).
+    """
+    omega_e = P.pp * omega
+    e_d = 0 - i_d_fb
+    e_q = i_q_cmd - i_q_fb
+    v_d_u = P.K_p_i * e_d + z_d - omega_e * P.L_q * i_q
+    v_q_u = P.K_p_i * e_q + z_q + omega_e * (P.L_d * i_d + P.psi)
+    v_lim = P.k_v * P.V_dc / SQRT3
+    mag = ca.sqrt(v_d_u**2 + v_q_u**2 + 1e-12)
+    scale = ca.fmin(1, v_lim / mag)
+    v_d, v_q = scale * v_d_u, scale * v_q_u
+    w_aw = P.K_i_i / P.K_p_i
+    z_d_dot = P.K_i_i * e_d + w_aw * (v_d - v_d_u)
+    z_q_dot = P.K_i_i * e_q + w_aw * (v_q - v_q_u)
+    return v_d, v_q, z_d_dot, z_q_dot

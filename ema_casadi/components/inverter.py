@@ -1,0 +1,36 @@
+"""Power electronics (SPEC §2.2).
+
+``ideal`` (averaged): the controller's voltage reaches the windings unchanged (the
+voltage limit is applied by the current controller). Its losses are the averaged
+conduction and switching losses of a two-level bridge carrying the same currents.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+__all__ = ["ideal", "averaged_losses"]
+
+
+def ideal(v):
+    """Averaged inverter: winding voltage = commanded voltage (V)."""
+    return v
+
+
+def averaged_losses(I_hat, P):
+    """Averaged losses of a 3-leg two-level bridge (W) for phase-current amplitude I_hat (A).
+
+    Each leg conducts its phase current through an IGBT or a diode at every instant,
+    so with sinusoidal phase currents of amplitude I_hat: mean|i| = 2 I_hat/pi,
+    mean i^2 = I_hat^2/2. Conduction: 3 (V_0 mean|i| + r mean i^2) with the IGBT and
+    diode data averaged; switching: 3 f_sw E_sw (V_dc/V_sw_ref)(mean|i|/I_sw_ref).
+    At standstill the phase currents are DC; the same formula is used (documented
+    approximation). Returns (P_cond, P_sw).
+    """
+    i_abs = 2 * I_hat / ca.pi
+    i_sq = I_hat**2 / 2
+    V0 = 0.5 * (P.V_CE0 + P.V_F0)
+    r = 0.5 * (P.r_CE + P.r_F)
+    P_cond = 3 * (V0 * i_abs + r * i_sq)
+    P_sw = 3 * P.f_sw * P.E_sw * (P.V_dc / P.V_sw_ref) * (i_abs / P.I_sw_ref)
+    return P_cond, P_sw

@@ -1,0 +1,400 @@
+"""Parameter sets: TOML file -> typed, validated, SI-unit objects (SPEC §3).
+
+A parameter file holds one table per group (``[screw]``, ``[friction]``, ``[motor]``,
+``[power]``, ``[control]``, ``[thermal]``, ``[actuator]``) and an optional ``[model]``
+table with the default variants. Every value carries its unit, which must be the SI
+unit the schema names::
+
+    [screw]
+    p = { value = 5.0e-3, unit = "m" }   # lead per revolution
+
+Names are the SPEC's symbols. Inside the toolkit the parameters travel as one flat
+numeric vector (:meth:`Parameters.vector`) so that the assembled CasADi Function takes
+them as an input: changing a value never rebuilds a model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "ParameterError",
+    "Parameters",
+    "load_parameters",
+    "GROUPS",
+    "VARIANTS",
+    "DEFAULT_VARIANTS",
+    "validate_variants",
+]
+
+
+class ParameterError(ValueError):
+    """A parameter file or variant choice is invalid. The message is one line that
+    names the file and the key and says what was expected."""
+
+
+# Value checks ---------------------------------------------------------------------
+POS = "positive"  # > 0
+NONNEG = "non-negative"  # >= 0
+FRAC = "fraction"  # 0 < x <= 1
+INT = "positive integer"
+
+
+def _p(unit: str, check: str, doc: str):
+    return field(metadata={"unit": unit, "check": check, "doc": doc})
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Actuator envelope (paper Table 1)."""
+
+    stroke: float = _p("m", POS, "half stroke: the rod travels +-stroke (m)")
+
+
+@dataclass(frozen=True)
+class Screw:
+    """Ballscrew (SPEC §2.4)."""
+
+    p: float = _p("m", POS, "lead, rod travel per screw revolution (m)")
+    eta: float = _p("1", FRAC, "direct efficiency, motor drives the load (-)")
+    eta_inv: float = _p("1", FRAC, "inverse efficiency, load back-drives the motor (-)")
+    J_s: float = _p("kg*m^2", NONNEG, "screw rotating inertia (kg m^2)")
+    M: float = _p("kg", POS, "rod + nut mass (kg)")
+    C: float = _p("N/m", POS, "drive-train axial stiffness (N/m)")
+    c_c: float = _p("N*s/m", NONNEG, "contact damping, acts only in contact (N s/m)")
+    B: float = _p("m", NONNEG, "backlash, total gap (m)")
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction (SPEC §2.5)."""
+
+    F_seal: float = _p("N", NONNEG, "seal friction force (N)")
+    C_bear: float = _p("m", NONNEG, "thrust-bearing torque per axial load (m)")
+    c_v: float = _p("N*s/m", NONNEG, "rod viscous friction (N s/m)")
+    b_m: float = _p("N*m*s/rad", NONNEG, "motor-shaft viscous friction (N m s/rad)")
+    r_start: float = _p("1", POS, "breakaway ratio F_start/F_r (-)")
+    v_s: float = _p("m/s", POS, "smoothing velocity of the smooth variant (m/s)")
+    eps: float = _p("m/s", POS, "stick dead band of the hybrid variant (m/s)")
+    v_st: float = _p("m/s", POS, "Stribeck velocity of the optional hump (m/s)")
+
+
+@dataclass(frozen=True)
+class Motor:
+    """PMSM, rotor dq frame, amplitude-invariant (SPEC §2.3)."""
+
+    pp: float = _p("1", INT, "pole pairs (-)")
+    psi: float = _p("Wb", POS, "permanent-magnet flux linkage (Wb)")
+    R: float = _p("Ohm", POS, "phase resistance at T_ref (Ohm)")
+    alpha_Cu: float = _p("1/K", NONNEG, "copper temperature coefficient (1/K)")
+    L_d: float = _p("H", POS, "d-axis inductance (H)")
+    L_q: float = _p("H", POS, "q-axis inductance (H)")
+    J_m: float = _p("kg*m^2", POS, "rotor inertia (kg m^2)")
+    I_max: float = _p("A", POS, "current limit, peak (A)")
+
+
+@dataclass(frozen=True)
+class Power:
+    """Inverter and supply (SPEC §2.2)."""
+
+    V_dc: float = _p("V", POS, "DC-link voltage (V)")
+    k_v: float = _p("1", FRAC, "voltage-limit factor on V_dc/sqrt(3) (-)")
+    f_sw: float = _p("Hz", POS, "switching frequency (Hz)")
+    V_CE0: float = _p("V", NONNEG, "IGBT threshold voltage (V)")
+    r_CE: float = _p("Ohm", NONNEG, "IGBT slope resistance (Ohm)")
+    V_F0: float = _p("V", NONNEG, "diode threshold voltage (V)")
+    r_F: float = _p("Ohm", NONNEG, "diode slope resistance (Ohm)")
+    E_sw: float = _p("J", NONNEG, "E_on + E_off at the reference point (J)")
+    V_sw_ref: float = _p("V", POS, "reference voltage of E_sw (V)")
+    I_sw_ref: float = _p("A", POS, "reference current of E_sw (A)")
+    t_dead: float = _p("s", NONNEG, "dead time (s)")
+
+
+@dataclass(frozen=True)
+class Control:
+    """Cascade controller (SPEC §2.1)."""
+
+    K_p_i: float = _p("V/A", POS, "current-loop proportional gain (V/A)")
+    K_i_i: float = _p("V/(A*s)", POS, "current-loop integral gain (V/(A s))")
+    K_p_w: float = _p("A*s/rad", POS, "speed-loop proportional gain (A/(rad/s))")
+    T_i_w: float = _p("s", POS, "speed-loop integral time (s)")
+    K_x: float = _p("1/s", POS, "position-loop gain: rod-speed command per error (1/s)")
+    K_i_x: float = _p("1/s^2", NONNEG, "position-loop integral gain, PI variant (1/s^2)")
+    v_max: float = _p("m/s", POS, "rod rate limit (m/s)")
+    f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
+    f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
+    f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
+
+
+@dataclass(frozen=True)
+class Thermal:
+    """Lumped thermal network (SPEC §2.6, §3)."""
+
+    C_th_w: float = _p("J/K", POS, "winding heat capacity (J/K)")
+    R_th_ws: float = _p("K/W", POS, "winding-to-stator thermal resistance (K/W)")
+    C_th_h: float = _p("J/K", POS, "housing heat capacity (J/K)")
+    R_th_ha: float = _p("K/W", POS, "housing-to-ambient thermal resistance (K/W)")
+    C_th_s: float = _p("J/K", POS, "screw heat capacity (J/K)")
+    R_th_sh: float = _p("K/W", POS, "screw-to-housing thermal resistance (K/W)")
+
+
+GROUPS: dict[str, type] = {
+    "actuator": Actuator,
+    "screw": Screw,
+    "friction": Friction,
+    "motor": Motor,
+    "power": Power,
+    "control": Control,
+    "thermal": Thermal,
+}
+
+#: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
+#: parameter vector: 1 closes the loop, 0 opens it at the feedback signal.
+LOOP_FLAGS = ("loop_x", "loop_w", "loop_i")
+
+#: Allowed variant values per key (SPEC §2, §6), first one the default.
+VARIANTS: dict[str, tuple[str, ...]] = {
+    "motor": ("pmsm", "dc"),
+    "screw": ("elastic", "rigid"),
+    "friction": ("smooth", "hybrid"),
+    "friction_shape": ("tanh", "fermi"),
+    "stribeck": ("off", "on"),
+    "inverter": ("ideal",),
+    "controller": ("P", "PI"),
+}
+DEFAULT_VARIANTS = {k: v[0] for k, v in VARIANTS.items()}
+
+
+def _nearest(name: str, options) -> str:
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def validate_variants(variants: dict[str, str] | None, where: str = "variant") -> dict[str, str]:
+    """Complete a variant dict with defaults and check every key and value.
+
+    Raises :class:`ParameterError` naming the key and listing the allowed values.
+    """
+    out = dict(DEFAULT_VARIANTS)
+    for key, value in (variants or {}).items():
+        if key not in VARIANTS:
+            raise ParameterError(
+                f"{where}: unknown variant key '{key}'{_nearest(key, VARIANTS)}; "
+                f"allowed keys: {', '.join(VARIANTS)}"
+            )
+        if value not in VARIANTS[key]:
+            raise ParameterError(
+                f"{where}: unknown {key} variant '{value}'; allowed: {', '.join(VARIANTS[key])}"
+            )
+        out[key] = value
+    return out
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """A complete, validated parameter set in SI units.
+
+    Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
+    :meth:`names` order for the CasADi model's parameter input.
+    """
+
+    actuator: Actuator
+    screw: Screw
+    friction: Friction
+    motor: Motor
+    power: Power
+    control: Control
+    thermal: Thermal
+    variants: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_VARIANTS))
+    source: str = "<memory>"
+
+    # -- flat view ---------------------------------------------------------------
+    @staticmethod
+    def names() -> list[str]:
+        """Flat parameter names (SPEC symbols), then the loop-closure flags."""
+        out = [f.name for cls in GROUPS.values() for f in fields(cls)]
+        return out + list(LOOP_FLAGS)
+
+    @staticmethod
+    def units() -> dict[str, str]:
+        """SI unit of every flat parameter."""
+        out = {f.name: f.metadata["unit"] for cls in GROUPS.values() for f in fields(cls)}
+        out.update({k: "1" for k in LOOP_FLAGS})
+        return out
+
+    def as_dict(self) -> dict[str, float]:
+        """Flat name -> value (SI), loop flags closed (1.0)."""
+        out = {}
+        for g in GROUPS:
+            grp = getattr(self, g)
+            out.update({f.name: float(getattr(grp, f.name)) for f in fields(grp)})
+        out.update({k: 1.0 for k in LOOP_FLAGS})
+        return out
+
+    def vector(self, **overrides: float) -> np.ndarray:
+        """Flat numeric vector for the model's ``p`` input; ``overrides`` by flat name."""
+        d = self.as_dict()
+        for k, v in overrides.items():
+            if k not in d:
+                raise ParameterError(f"unknown parameter '{k}'{_nearest(k, d)}")
+            d[k] = float(v)
+        return np.array([d[n] for n in self.names()], dtype=float)
+
+    def replace(self, **values: float) -> "Parameters":
+        """A copy with some flat parameters changed (validated like a file)."""
+        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
+        flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
+        for k, v in values.items():
+            if k not in flat_group:
+                raise ParameterError(f"unknown parameter '{k}'{_nearest(k, flat_group)}")
+            raw[flat_group[k]][k] = v
+        return _build(raw, self.variants, self.source, plain=True)
+
+    def to_toml(self, path: str | Path, header: str = "") -> Path:
+        """Write the set as a parameter file (atomically: no half-written file)."""
+        lines = [f"# {line}" for line in header.splitlines()] if header else []
+        lines += ["[model]"] + [f'{k} = "{v}"' for k, v in self.variants.items()]
+        for g, cls in GROUPS.items():
+            lines += ["", f"[{g}]"]
+            for f in fields(cls):
+                val = getattr(getattr(self, g), f.name)
+                lines.append(
+                    f'{f.name} = {{ value = {val!r}, unit = "{f.metadata["unit"]}" }}'
+                    f'  # {f.metadata["doc"]}'
+                )
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text("\n".join(lines) + "\n")
+        tmp.replace(path)
+        return path
+
+    # -- derived quantities used across the toolkit --------------------------------
+    @property
+    def K_t(self) -> float:
+        """Torque constant 1.5*pp*psi (N m/A)."""
+        return 1.5 * self.motor.pp * self.motor.psi
+
+    @property
+    def omega_max(self) -> float:
+        """Motor speed at the rod rate limit, 2*pi*v_max/p (rad/s)."""
+        return 2 * math.pi * self.control.v_max / self.screw.p
+
+
+def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool) -> float:
+    where = f"{src}: [{group}] {name}"
+    unit = meta["unit"]
+    if plain:
+        value = raw
+    else:
+        if not isinstance(raw, dict) or "value" not in raw or "unit" not in raw:
+            raise ParameterError(
+                f'{where}: expected a table {{ value = <number>, unit = "{unit}" }}, got {raw!r}'
+            )
+        extra = set(raw) - {"value", "unit"}
+        if extra:
+            raise ParameterError(f"{where}: unexpected field(s) {sorted(extra)}; expected value and unit")
+        if raw["unit"] != unit:
+            raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
+        value = raw["value"]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ParameterError(f"{where}: expected a finite number, got {value}")
+    check = meta["check"]
+    if check == POS and not value > 0:
+        raise ParameterError(f"{where}: must be positive, got {value}")
+    if check == NONNEG and value < 0:
+        raise ParameterError(f"{where}: must be non-negative, got {value}")
+    if check == FRAC and not 0 < value <= 1:
+        raise ParameterError(f"{where}: must be in (0, 1], got {value}")
+    if check == INT and not (value >= 1 and value == int(value)):
+        raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    return value
+
+
+def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> Parameters:
+    unknown = set(data) - set(GROUPS) - {"model"}
+    for g in sorted(unknown):
+        raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
+    groups = {}
+    for g, cls in GROUPS.items():
+        table = data.get(g)
+        if table is None:
+            raise ParameterError(f"{src}: missing table [{g}]")
+        if not isinstance(table, dict):
+            raise ParameterError(f"{src}: [{g}] must be a table")
+        names = [f.name for f in fields(cls)]
+        for key in table:
+            if key not in names:
+                raise ParameterError(f"{src}: [{g}] unknown key '{key}'{_nearest(key, names)}")
+        values = {}
+        for f in fields(cls):
+            if f.name not in table:
+                raise ParameterError(
+                    f"{src}: [{g}] missing key '{f.name}' ({f.metadata['doc']}, unit {f.metadata['unit']})"
+                )
+            values[f.name] = _check_value(src, g, f.name, dict(f.metadata), table[f.name], plain)
+        groups[g] = cls(**values)
+    model = data.get("model", {}) if variants is None else variants
+    if not isinstance(model, dict):
+        raise ParameterError(f"{src}: [model] must be a table of variant names")
+    merged = validate_variants(model, where=f"{src}: [model]")
+    s, c = groups["screw"], groups["control"]
+    if s.eta * s.eta_inv > 1:
+        raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
+    if c.K_x <= 0 or c.v_max <= 0:  # pragma: no cover - covered by POS checks
+        raise ParameterError(f"{src}: [control] K_x and v_max must be positive")
+    return Parameters(**groups, variants=merged, source=src)
+
+
+def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:
+    """Load and validate a parameter file.
+
+    Parameters
+    ----------
+    path : str or Path
+        TOML parameter file (SPEC §3 layout).
+    variants : dict, optional
+        Variant overrides on top of the file's ``[model]`` table.
+
+    Raises
+    ------
+    ParameterError
+        One-line message naming the file and key: missing or unknown key (with the
+        nearest valid name), wrong type or unit, non-finite or out-of-range value,
+        unknown variant.
+    """
+    path = Path(path)
+    src = str(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ParameterError(f"{src}: no such parameter file") from None
+    except OSError as exc:
+        raise ParameterError(f"{src}: cannot read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{src}: not valid TOML ({exc})") from None
+    file_variants = data.get("model", {})
+    if not isinstance(file_variants, dict):
+        raise ParameterError(f"{src}: [model] must be a table of variant names")
+    merged = dict(file_variants)
+    merged.update(variants or {})
+    return _build(data, merged, src)
+
+
+def replace_variants(params: Parameters, **variants: str) -> Parameters:
+    """A copy of ``params`` with some variants changed (validated)."""
+    merged = dict(params.variants)
+    merged.update(variants)
+    return dataclasses.replace(params, variants=validate_variants(merged))

@@ -1,0 +1,286 @@
+"""Input signals (SPEC §6 syntax): step, ramp, sine, chirp, constant, CSV table.
+
+A :class:`Signal` is a sum of terms. Each term evaluates on a NumPy time grid (for the
+fixed-step rollout, which feeds precomputed input samples to the compiled step) and
+as a CasADi expression of t (for variable-step integration), and reports its
+breakpoints (instants where the signal or its slope jumps) so that a variable-step
+integrator can restart there instead of stumbling over them.
+
+Text syntax, terms joined with ``+``::
+
+    step:AMP[@T0]       AMP from T0 on (default T0 = 0)
+    ramp:RATE[@T0]      RATE*(t - T0) from T0 on
+    sine:AMP@FREQ[@T0]  AMP*sin(2 pi FREQ (t - T0)) from T0 on
+    chirp:AMP@F0-F1     linear sweep F0 -> F1 over the simulated time
+    <number>            a constant
+    FILE.csv            a table t,value (linear interpolation, held at the ends)
+
+Amplitudes take unit suffixes: ``1mm``, ``250um``, ``0.01m``, ``0.5%`` (of the stroke),
+``10kN``, ``500N``; rates ``80mm/s``; frequencies ``2`` or ``2Hz``; times ``0.5`` or
+``0.5s``. A bare number is read in the quantity's default unit, which the CLI states
+(mm for positions, N for forces).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "constant"]
+
+
+class SignalError(ValueError):
+    """A signal description cannot be read; the message says what was expected."""
+
+
+_LENGTH = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
+_FORCE = {"N": 1.0, "kN": 1e3, "MN": 1e6}
+_RATE = {"m/s": 1.0, "mm/s": 1e-3}
+_UNITS = {"length": _LENGTH, "force": _FORCE, "rate": _RATE, "frequency": {"Hz": 1.0}, "time": {"s": 1.0, "ms": 1e-3}}
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None) -> float:
+    """Read ``text`` as a quantity of ``kind`` and return it in SI.
+
+    ``bare`` is the unit of a number without suffix; ``%`` is a percentage of
+    ``stroke`` (lengths only).
+    """
+    text = text.strip()
+    m = re.fullmatch(rf"({_NUM})\s*([^\d\s]*)", text)
+    if not m:
+        raise SignalError(f"'{text}' is not a number with an optional unit")
+    value, unit = float(m.group(1)), m.group(2)
+    units = _UNITS[kind]
+    if unit == "":
+        unit = bare
+    if unit == "%" and kind == "length":
+        if stroke is None:
+            raise SignalError(f"'{text}': a percentage needs the stroke")
+        return value / 100 * stroke
+    if unit not in units:
+        raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{', %' if kind == 'length' else ''})")
+    return value * units[unit]
+
+
+@dataclass(frozen=True)
+class _Term:
+    kind: str
+    a: float = 0.0  # amplitude / rate / constant
+    f0: float = 0.0
+    f1: float = 0.0
+    t0: float = 0.0
+    T: float = 1.0  # chirp duration
+    table: tuple = ()
+
+    def np(self, t):
+        t = np.asarray(t, dtype=float)
+        on = (t >= self.t0).astype(float)
+        tau = t - self.t0
+        if self.kind == "const":
+            return np.full_like(t, self.a)
+        if self.kind == "step":
+            return self.a * on
+        if self.kind == "ramp":
+            return self.a * tau * on
+        if self.kind == "sine":
+            return self.a * np.sin(2 * np.pi * self.f0 * tau) * on
+        if self.kind == "chirp":
+            k = (self.f1 - self.f0) / self.T
+            return self.a * np.sin(2 * np.pi * (self.f0 * tau + 0.5 * k * tau**2)) * on
+        if self.kind == "table":
+            tt, vv = self.table
+            return np.interp(t, tt, vv)
+        raise AssertionError(self.kind)
+
+    def sym(self, t):
+        on = ca.if_else(t >= self.t0, 1, 0)
+        tau = t - self.t0
+        if self.kind == "const":
+            return self.a + 0 * t
+        if self.kind == "step":
+            return self.a * on
+        if self.kind == "ramp":
+            return self.a * tau * on
+        if self.kind == "sine":
+            return self.a * ca.sin(2 * ca.pi * self.f0 * tau) * on
+        if self.kind == "chirp":
+            k = (self.f1 - self.f0) / self.T
+            return self.a * ca.sin(2 * ca.pi * (self.f0 * tau + 0.5 * k * tau**2)) * on
+        if self.kind == "table":
+            tt, vv = self.table
+            interp = ca.interpolant("table", "linear", [list(tt)], list(vv))
+            return interp(ca.fmin(ca.fmax(t, tt[0]), tt[-1]))
+        raise AssertionError(self.kind)
+
+    def breakpoints(self):
+        if self.kind == "table":
+            return list(self.table[0])
+        return [] if self.kind == "const" else [self.t0]
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A scalar input signal u(t) in SI units: a sum of terms."""
+
+    terms: tuple = field(default_factory=tuple)
+    text: str = ""
+
+    def __call__(self, t):
+        """Values on a NumPy time grid."""
+        t = np.asarray(t, dtype=float)
+        out = np.zeros_like(t)
+        for term in self.terms:
+            out = out + term.np(t)
+        return out
+
+    def sym(self, t):
+        """CasADi expression of the symbol t."""
+        out = 0 * t
+        for term in self.terms:
+            out = out + term.sym(t)
+        return out
+
+    def breakpoints(self) -> list[float]:
+        return sorted({b for term in self.terms for b in term.breakpoints()})
+
+    def __add__(self, other: "Signal") -> "Signal":
+        return Signal(self.terms + other.terms, f"{self.text}+{other.text}".strip("+"))
+
+    def __repr__(self):
+        return f"Signal({self.text!r})"
+
+    @staticmethod
+    def step(amp: float, t0: float = 0.0) -> "Signal":
+        """Step of ``amp`` (SI) at ``t0`` (s)."""
+        return Signal((_Term("step", a=amp, t0=t0),), f"step:{amp}@{t0}")
+
+    @staticmethod
+    def ramp(rate: float, t0: float = 0.0) -> "Signal":
+        """Ramp of ``rate`` (SI per second) from ``t0`` (s)."""
+        return Signal((_Term("ramp", a=rate, t0=t0),), f"ramp:{rate}@{t0}")
+
+    @staticmethod
+    def sine(amp: float, freq: float, t0: float = 0.0) -> "Signal":
+        """``amp`` sin(2 pi freq (t - t0)) from ``t0`` on (freq in Hz)."""
+        return Signal((_Term("sine", a=amp, f0=freq, t0=t0),), f"sine:{amp}@{freq}@{t0}")
+
+    @staticmethod
+    def chirp(amp: float, f0: float, f1: float, duration: float, t0: float = 0.0) -> "Signal":
+        """Linear sweep f0 -> f1 (Hz) over ``duration`` (s)."""
+        return Signal((_Term("chirp", a=amp, f0=f0, f1=f1, t0=t0, T=duration),), f"chirp:{amp}@{f0}-{f1}")
+
+    @staticmethod
+    def table(t, values) -> "Signal":
+        """Linear interpolation of (t, values), held constant outside."""
+        t = np.asarray(t, float)
+        v = np.asarray(values, float)
+        if t.ndim != 1 or t.shape != v.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
+            raise SignalError("a table needs at least two rows with strictly increasing t")
+        return Signal((_Term("table", table=(tuple(t), tuple(v))),), "table")
+
+
+def constant(value: float) -> Signal:
+    """A constant signal."""
+    return Signal((_Term("const", a=float(value)),), f"{value}")
+
+
+def _read_table(path: Path, scale: float) -> Signal:
+    try:
+        with path.open(newline="") as fh:
+            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    except OSError as exc:
+        raise SignalError(f"{path}: cannot read ({exc.strerror})") from None
+    if rows and not re.fullmatch(_NUM, rows[0][0].strip()):
+        rows = rows[1:]  # header
+    try:
+        data = np.array([[float(r[0]), float(r[1])] for r in rows])
+    except (ValueError, IndexError):
+        raise SignalError(f"{path}: expected two numeric columns t,value") from None
+    if len(data) < 2:
+        raise SignalError(f"{path}: expected at least two rows t,value")
+    if np.any(np.diff(data[:, 0]) <= 0):
+        raise SignalError(f"{path}: column t must increase strictly")
+    if not np.all(np.isfinite(data)):
+        raise SignalError(f"{path}: non-finite value in the table")
+    return Signal.table(data[:, 0], data[:, 1] * scale)
+
+
+def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | None = None,
+                 stroke: float | None = None, duration: float | None = None) -> Signal:
+    """Parse the SPEC §6 signal syntax into a :class:`Signal` in SI units.
+
+    Parameters
+    ----------
+    text : str, float or Signal
+        The description; a number or Signal is passed through (number in SI).
+    kind : {"length", "force"}
+        Quantity of the signal; sets the allowed unit suffixes.
+    bare : str, optional
+        Unit of numbers without suffix (default: the SI unit, ``m`` or ``N``).
+    stroke : float, optional
+        Stroke (m) for ``%`` amplitudes.
+    duration : float, optional
+        Simulated time (s), the sweep time of a chirp.
+    """
+    if isinstance(text, Signal):
+        return text
+    if isinstance(text, (int, float)):
+        return constant(float(text))
+    bare = bare or {"length": "m", "force": "N"}[kind]
+    rate_bare = bare + "/s"
+    out = Signal()
+    for part in str(text).split("+"):
+        part = part.strip()
+        if not part:
+            raise SignalError(f"'{text}': empty term")
+        name, _, rest = part.partition(":")
+        args = rest.split("@") if rest else []
+        try:
+            if not rest and (part.lower().endswith(".csv") or Path(part).is_file()):
+                scale = _UNITS[kind][bare]
+                out = out + _read_table(Path(part), scale)
+            elif not rest:
+                out = out + constant(parse_quantity(part, kind, bare, stroke))
+            elif name == "step" and 1 <= len(args) <= 2:
+                t0 = parse_quantity(args[1], "time", "s") if len(args) == 2 else 0.0
+                out = out + Signal.step(parse_quantity(args[0], kind, bare, stroke), t0)
+            elif name == "ramp" and 1 <= len(args) <= 2:
+                t0 = parse_quantity(args[1], "time", "s") if len(args) == 2 else 0.0
+                rate_kind = "rate" if kind == "length" else None
+                if rate_kind is None:
+                    raise SignalError(f"'{part}': a ramp of force is not supported; use a table")
+                out = out + Signal.ramp(parse_quantity(args[0], "rate", rate_bare), t0)
+            elif name == "sine" and 2 <= len(args) <= 3:
+                t0 = parse_quantity(args[2], "time", "s") if len(args) == 3 else 0.0
+                freq = parse_quantity(args[1], "frequency", "Hz")
+                if freq <= 0:
+                    raise SignalError(f"'{part}': frequency must be positive")
+                out = out + Signal.sine(parse_quantity(args[0], kind, bare, stroke), freq, t0)
+            elif name == "chirp" and len(args) == 2:
+                f0s, _, f1s = args[1].partition("-")
+                if not f1s:
+                    raise SignalError(f"'{part}': expected chirp:AMP@F0-F1")
+                if duration is None:
+                    raise SignalError(f"'{part}': a chirp needs the simulated duration")
+                f0 = parse_quantity(f0s, "frequency", "Hz")
+                f1 = parse_quantity(f1s, "frequency", "Hz")
+                out = out + Signal.chirp(parse_quantity(args[0], kind, bare, stroke), f0, f1, duration)
+            else:
+                raise SignalError(
+                    f"'{part}': expected step:AMP[@T0], ramp:RATE[@T0], sine:AMP@FREQ[@T0], "
+                    "chirp:AMP@F0-F1, a number or a CSV file"
+                )
+        except SignalError as exc:
+            msg = str(exc)
+            raise SignalError(msg if msg.startswith("'") or "csv" in msg.lower() else f"'{part}': {msg}") from None
+    for term in out.terms:
+        if not all(math.isfinite(v) for v in (term.a, term.f0, term.f1, term.t0)):
+            raise SignalError(f"'{text}': non-finite value")
+    return Signal(out.terms, str(text))

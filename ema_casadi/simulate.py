@@ -1,0 +1,391 @@
+"""Time simulation of an assembled model (SPEC §4.1).
+
+Two solvers share the model's one CasADi Function:
+
+``rk4``
+    Fixed-step classical Runge-Kutta, rolled out inside one compiled call per chunk
+    (``fold`` of the step for output decimation, ``mapaccum`` over the outputs of a
+    chunk): no Python per step. Input signals are sampled in NumPy at each step's
+    t, t + h/2 and t + h and passed in, so one compiled rollout serves every signal,
+    parameter value and step size. Optional zero-order-hold (ZOH) execution of the
+    ECU at its sample rates (each loop updates in the step that contains its
+    sampling instant, so instants are exact when dt divides the sample periods).
+``cvodes``
+    Variable-step BDF (SUNDIALS CVODES through ``casadi.integrator``) on the
+    continuous model with the signals as CasADi expressions of t; the run is split
+    at the signals' breakpoints (steps, starts) and the integrator restarted there.
+
+Memory stays bounded by output decimation: only every ``decimate``-th step (or
+every ``dt_out``) is kept, and the inputs are generated chunk by chunk.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from .assembly import HOLD, OUTPUT_UNITS, Model
+from .compiled import BufferCall, compile_function
+from .params import Parameters
+from .signals import Signal, constant, parse_signal
+
+__all__ = ["simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function"]
+
+SOLVERS = ("rk4", "cvodes")
+_STEPS_PER_CALL = 20000
+
+
+class SimulationError(ValueError):
+    """Bad simulation request (one line, names the argument)."""
+
+
+@dataclass
+class SimResult:
+    """Named time series of a simulation (SI units).
+
+    ``res["x_rod"]`` looks a name up among outputs, then inputs, then states.
+    """
+
+    t: np.ndarray
+    inputs: dict
+    outputs: dict
+    states: dict
+    info: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        for d in (self.outputs, self.inputs, self.states):
+            if name in d:
+                return d[name]
+        raise KeyError(f"no signal '{name}'; have {', '.join(self.columns()[1:])}")
+
+    def columns(self) -> list[str]:
+        """Column names of :meth:`to_csv`: t, inputs, outputs, states not already outputs."""
+        extra = [n for n in self.states if n not in self.outputs]
+        return ["t", *self.inputs, *self.outputs, *extra]
+
+    def final(self) -> dict:
+        """Last value of every output."""
+        return {k: float(v[-1]) for k, v in self.outputs.items()}
+
+    def table(self) -> np.ndarray:
+        cols = self.columns()[1:]
+        return np.column_stack([self.t] + [self[c] for c in cols])
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write column ``t`` then one column per signal (SI); atomic."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        try:
+            np.savetxt(tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g")
+            tmp.replace(path)
+        finally:
+            tmp.unlink(missing_ok=True)
+        return path
+
+    def to_npz(self, path: str | Path) -> Path:
+        """Write all signals as named arrays (plus ``t``); atomic."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        try:
+            np.savez(tmp, t=self.t, **{c: self[c] for c in self.columns()[1:]})
+            tmp.replace(path)
+        finally:
+            tmp.unlink(missing_ok=True)
+        return path
+
+    def units(self) -> dict:
+        u = {"t": "s", "x_cmd": "m", "f_ext": "N", "eta": "1"}
+        u.update(OUTPUT_UNITS)
+        return u
+
+
+# ---------------------------------------------------------------------------------
+def _rk4(fx, x, h):
+    k1 = fx(x, 0)
+    k2 = fx(x + h / 2 * k1, 1)
+    k3 = fx(x + h / 2 * k2, 1)
+    k4 = fx(x + h * k3, 2)
+    return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def rk4_step_function(model: Model, zoh: bool = False) -> ca.Function:
+    """One RK4 step ``(x, U3, flags, p, h) -> x_next``.
+
+    ``U3`` holds the inputs at t, t+h/2 and t+h in its three columns. With ``zoh`` the
+    state is augmented with the held controller outputs (``HOLD``) and ``flags`` (3)
+    say which loops (position, speed, current) sample at the start of this step.
+    """
+    nx, nu = model.nx, model.nu
+    nh = len(HOLD) if zoh else 0
+    xa = ca.SX.sym("x", nx + nh)
+    U3 = ca.SX.sym("U3", nu, 3)
+    flags = ca.SX.sym("flags", 3)
+    p = ca.SX.sym("p", len(model.param_names))
+    h = ca.SX.sym("h")
+    if zoh:
+        x, hold = model.sample(xa[:nx], U3[:, 0], p, xa[nx:], flags)
+        x_next = _rk4(lambda z, j: model.f_held(z, U3[:, j], p, hold)[0], x, h)
+        out = ca.vertcat(x_next, hold)
+    else:
+        out = _rk4(lambda z, j: model.f(z, U3[:, j], p)[0], xa, h)
+    return ca.Function("rk4_step", [xa, U3, flags, p, h], [out], ["x", "U3", "flags", "p", "h"], ["x_next"])
+
+
+_ROLLOUTS: dict = {}
+
+
+def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
+    """Compiled chunk: M outputs, each after k RK4 steps. Cached per model/options."""
+    key = (id(model.f), zoh, k, M, jit)
+    if key not in _ROLLOUTS:
+        step = rk4_step_function(model, zoh)
+        blk = step.fold(k) if k > 1 else step
+        roll = blk.mapaccum("rollout", M)
+        # outputs at the kept samples, in the same compiled call
+        nxa = step.size1_in(0)
+        x0 = ca.MX.sym("x0", nxa)
+        U = ca.MX.sym("U", model.nu, 3 * k * M)
+        Fl = ca.MX.sym("F", 3, k * M)
+        p = ca.MX.sym("p", len(model.param_names))
+        h = ca.MX.sym("h")
+        X = roll(x0, U, Fl, p, h)
+        u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
+        if zoh:
+            Y = model.f_held.map(M)(X[: model.nx, :], u_at, p, X[model.nx :, :])[1]
+        else:
+            Y = model.f.map(M)(X, u_at, p)[1]
+        F = ca.Function(f"rollout_{'zoh_' if zoh else ''}{k}x{M}", [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
+        Fc, info = compile_function(F, jit)
+        _ROLLOUTS[key] = (BufferCall(Fc), info)
+    return _ROLLOUTS[key]
+
+
+_OUTPUT_MAPS: dict = {}
+_MAP_CHUNK = 4096
+
+
+def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
+    """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n)."""
+    key = (id(model.f), jit)
+    if key not in _OUTPUT_MAPS:
+        x = ca.MX.sym("x", model.nx, _MAP_CHUNK)
+        u = ca.MX.sym("u", model.nu, _MAP_CHUNK)
+        pp = ca.MX.sym("p", len(model.param_names))
+        F = ca.Function("outputs_map", [x, u, pp], [model.f.map(_MAP_CHUNK)(x, u, pp)[1]])
+        _OUTPUT_MAPS[key] = BufferCall(compile_function(F, jit)[0])
+    call = _OUTPUT_MAPS[key]
+    n = X.shape[1]
+    Y = np.empty((model.ny, n))
+    for c in range(0, n, _MAP_CHUNK):
+        m = min(_MAP_CHUNK, n - c)
+        Xc = np.zeros((model.nx, _MAP_CHUNK))
+        Uc = np.zeros((model.nu, _MAP_CHUNK))
+        Xc[:, :m], Uc[:, :m] = X[:, c : c + m], U[:, c : c + m]
+        Y[:, c : c + m] = call(Xc, Uc, p)[0][:, :m]
+    return Y
+
+
+def _flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
+    """1 where a loop's sampling instant n/f_s falls in [t, t + dt)."""
+    out = np.empty((3, len(t)))
+    for j, fs in enumerate(rates):
+        n_end = np.ceil((t + dt) * fs - 1e-9)
+        n_start = np.ceil(t * fs - 1e-9)
+        out[j] = (n_end > n_start).astype(float)
+    return out
+
+
+def _progress(frac: float, enabled: bool, label: str = "simulate"):
+    if not enabled:
+        return
+    n = int(30 * frac)
+    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%")
+    if frac >= 1:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def _as_signal(value, kind) -> Signal:
+    if value is None:
+        return constant(0.0)
+    if isinstance(value, Signal):
+        return value
+    if isinstance(value, (int, float, np.floating)):
+        return constant(float(value))
+    if isinstance(value, str):
+        return parse_signal(value, kind)
+    raise SimulationError(f"{kind} signal: expected a number, a Signal or a signal string, got {type(value).__name__}")
+
+
+def simulate(
+    model: Model,
+    t_end: float,
+    x_cmd=0.0,
+    f_ext=0.0,
+    eta=None,
+    *,
+    dt: float = 1e-5,
+    solver: str = "rk4",
+    params: Parameters | None = None,
+    p: np.ndarray | None = None,
+    x0: np.ndarray | None = None,
+    zoh: bool = False,
+    decimate: int | None = None,
+    dt_out: float | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-11,
+    jit: bool = True,
+    progress: bool = False,
+) -> SimResult:
+    """Simulate ``model`` from 0 to ``t_end`` (s).
+
+    Parameters
+    ----------
+    model : Model
+        From :func:`~ema_casadi.assembly.build_model`.
+    t_end : float
+        End time (s).
+    x_cmd, f_ext, eta : Signal, float or str
+        Commanded rod position (m), external force (N, positive pushes the rod in),
+        screw efficiency (-, default the parameter set's eta).
+    dt : float
+        RK4 step (s); for ``cvodes`` the default output spacing when ``dt_out`` is not
+        given.
+    solver : {"rk4", "cvodes"}
+    params, p : Parameters or array, optional
+        Parameter values (default: the model's set); ``p`` is the raw vector.
+    x0 : array, optional
+        Initial state (default: at rest, all zero).
+    zoh : bool
+        Sampled ECU at its rates (rk4 only).
+    decimate, dt_out : int or float, optional
+        Keep every ``decimate``-th step, or one sample per ``dt_out`` seconds
+        (default: every step for rk4, every ``dt`` for cvodes).
+    rtol, atol : float
+        CVODES tolerances.
+    jit : bool
+        Compile the rollout to native code (cached on disk).
+    progress : bool
+        Progress bar on stderr.
+    """
+    if solver not in SOLVERS:
+        raise SimulationError(f"solver '{solver}' unknown; choose one of {', '.join(SOLVERS)}")
+    for name, val in (("t_end", t_end), ("dt", dt)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            raise SimulationError(f"{name} must be a positive finite number of seconds, got {val!r}")
+    if dt > t_end:
+        raise SimulationError(f"dt ({dt} s) is longer than t_end ({t_end} s)")
+    if zoh and solver != "rk4":
+        raise SimulationError("zoh (sampled ECU) needs solver rk4")
+    pv = np.asarray(p, float) if p is not None else model.p(params)
+    if pv.shape != (len(model.param_names),):
+        raise SimulationError(f"p must have {len(model.param_names)} entries, got shape {pv.shape}")
+    sig = {
+        "x_cmd": _as_signal(x_cmd, "length"),
+        "f_ext": _as_signal(f_ext, "force"),
+        "eta": _as_signal(pv[model.param_names.index("eta")] if eta is None else eta, "length"),
+    }
+    x0 = model.x0() if x0 is None else np.asarray(x0, float)
+    if decimate is None:
+        decimate = max(1, int(round(dt_out / dt))) if dt_out else 1
+    t_wall = time.perf_counter()
+    if solver == "rk4":
+        res = _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, decimate, jit, progress)
+    else:
+        res = _simulate_cvodes(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, progress)
+    res.info["wall_time"] = time.perf_counter() - t_wall
+    res.info.update(solver=solver, variants=dict(model.variants), t_end=t_end)
+    return res
+
+
+def _input_matrix(model, sig, t):
+    """Inputs (nu x len(t)) from the signals; injections zero."""
+    U = np.zeros((model.nu, len(t)))
+    for name, s in sig.items():
+        U[model.inputs.index(name)] = s(t)
+    return U
+
+
+def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
+    n_steps = int(math.ceil(t_end / dt - 1e-9))
+    n_out = int(math.ceil(n_steps / k))
+    M = max(1, min(n_out, _STEPS_PER_CALL // k))
+    F, cinfo = _rollout(model, zoh, k, M, jit)
+    nh = len(HOLD) if zoh else 0
+    xa = np.concatenate([x0, np.zeros(nh)])
+    rates = [pv[model.param_names.index(n)] for n in ("f_s_x", "f_s_w", "f_s_i")]
+    X_out = np.empty((len(xa), n_out))
+    Y_out = np.empty((model.ny, n_out))
+    t_compute = time.perf_counter()
+    for c0 in range(0, n_out, M):
+        steps = np.arange(c0 * k, (c0 + M) * k)
+        t = steps * dt
+        t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
+        U = _input_matrix(model, sig, t3)
+        Fl = _flags(t, dt, rates) if zoh else np.zeros((3, len(t)))
+        Xc, Yc = F(xa, U, Fl, pv, dt)
+        m = min(M, n_out - c0)
+        X_out[:, c0 : c0 + m] = Xc[:, :m]
+        Y_out[:, c0 : c0 + m] = Yc[:, :m]
+        xa = Xc[:, -1]
+        _progress(min(1.0, (c0 + m) / n_out), progress)
+    if not np.all(np.isfinite(X_out)):
+        raise SimulationError(f"the simulation diverged (non-finite state); try a smaller dt than {dt} s")
+    t_out = np.concatenate([[0.0], np.arange(1, n_out + 1) * k * dt])
+    X_all = np.column_stack([x0, X_out[: model.nx]])
+    # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
+    y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
+    Y_all = np.column_stack([y0, Y_out])
+    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+    return _result(model, sig, t_out, X_all, Y_all, info)
+
+
+def _result(model, sig, t, X, Y, info):
+    inputs = {n: s(t) for n, s in sig.items()}
+    outputs = {n: Y[i] for i, n in enumerate(model.outputs)}
+    states = {n: X[i] for i, n in enumerate(model.states)}
+    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info)
+
+
+def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
+    n_out = int(math.ceil(t_end / dt_out - 1e-9))
+    grid = np.arange(n_out + 1) * dt_out
+    grid[-1] = min(grid[-1], max(t_end, grid[-1]))
+    x = ca.SX.sym("x", model.nx)
+    p = ca.SX.sym("p", len(model.param_names))
+    t = ca.SX.sym("t")
+    u = ca.SX.zeros(model.nu)
+    for name, s in sig.items():
+        u[model.inputs.index(name)] = s.sym(t)
+    dae = {"x": x, "p": p, "t": t, "ode": model.f(x, u, p)[0]}
+    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7}
+    cuts = [b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]]
+    edges = sorted({0.0, float(grid[-1]), *cuts})
+    X = np.empty((model.nx, len(grid)))
+    X[:, 0] = x0
+    xc = np.asarray(x0, float)
+    steps = 0
+    t_compute = time.perf_counter()
+    for a, b in zip(edges[:-1], edges[1:]):
+        inside = np.nonzero((grid > a + 1e-12) & (grid <= b + 1e-12))[0]
+        tout = [float(grid[i]) for i in inside]
+        if not tout or abs(tout[-1] - b) > 1e-12:
+            tout.append(b)
+        F = ca.integrator("F", "cvodes", dae, a, tout, opts)
+        xf = BufferCall(F)(xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3)[0]
+        steps += int(F.stats(1).get("nsteps", 0))  # memory 1: the buffer's
+        X[:, inside] = xf[:, : len(inside)]
+        xc = xf[:, -1]
+        _progress(b / edges[-1], progress)
+    if not np.all(np.isfinite(X)):
+        raise SimulationError("the simulation diverged (non-finite state)")
+    Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
+    info = {"dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
+            "compiled": False, "compile_time": 0.0, "rtol": rtol, "atol": atol}
+    return _result(model, sig, grid, X, Y, info)
