@@ -388,6 +388,8 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     file_variants = data.get("model", {})
     if not isinstance(file_variants, dict):
         raise ParameterError(f"{src}: [model] must be a table of variant names")
+    validate_variants(file_variants, where=f"{src}: [model]")
+    validate_variants(variants, where="variant")
     merged = dict(file_variants)
     merged.update(variants or {})
     return _build(data, merged, src)
