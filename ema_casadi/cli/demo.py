@@ -1,0 +1,34 @@
+"""The main job on the reference model: step and sine responses, Bode, margins and the
+nonlinear frequency-response map; PNGs plus summary.md and summary.json in --out."""
+
+from __future__ import annotations
+
+from ..demo import run_demo
+from . import UserError, load
+
+COMMAND = "demo"
+ORDER = 1
+HELP = "main job: responses, Bode, margins, frequency-response map -> out/"
+
+
+def add_arguments(p):
+    p.add_argument("--out", default="out", metavar="DIR", help="output folder (created); default out/")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def run(args) -> dict:
+    from pathlib import Path
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder")
+    params, _ = load(args)
+    return run_demo(params, out, progress=not (args.quiet or args.json))
+
+
+def report(r: dict) -> None:
+    print(f"demo finished in {r['wall_time_s']:.1f} s")
+    for k, m in r.get("margins", {}).items():
+        print(f"  {k:9s} GM {m['gm_db']:.1f} dB at {m['f_pc_hz']:.1f} Hz, PM {m['pm_deg']:.1f} deg at {m['f_gc_hz']:.1f} Hz")
+    for w in r["written"]:
+        print(f"wrote {w}")
