@@ -8,6 +8,13 @@ sweeps, tuning and export.
 For sampled (zero-order-hold) control the same wiring is also exposed split in two:
 ``f_held(x, u, p, h)`` (plant with the controller outputs ``h`` held) and
 ``sample(x, u, p, h, flags)`` (one ECU update of the loops whose flag is 1).
+
+With ``hybrid`` friction the model is a hybrid system: besides the continuous ``f``
+it carries the discrete map ``project(x_prev, x, u, p) -> (x_next, stick)`` that an
+integrator applies after each step (or at each located switching instant): it sets the
+velocity of the friction contact (elastic screw: ``v_rod``; rigid screw: ``omega``) to
+zero when the rod enters the dead band with the stick condition holding, so a held rod
+cannot creep. For ``smooth`` friction ``project`` is the identity.
 """
 
 from __future__ import annotations
@@ -79,6 +86,10 @@ class Model:
         ``f(x, u, p) -> (xdot, y)``, continuous controller.
     f_held, sample : casadi.Function
         The ZOH split (see module docstring).
+    project : casadi.Function
+        ``project(x_prev, x, u, p) -> (x_next, stick)``: the discrete stick-entry map of
+        hybrid friction (identity and stick = 0 for smooth friction); ``x_prev`` is the
+        state at the start of the step that ended in ``x``.
     """
 
     variants: dict
@@ -91,6 +102,12 @@ class Model:
     f_held: ca.Function
     sample: ca.Function
     state_units: dict = field(default_factory=dict)
+    project: ca.Function | None = None
+
+    @property
+    def hybrid(self) -> bool:
+        """True for hybrid (stick-slip) friction: integrate with :attr:`project`."""
+        return self.variants.get("friction") == "hybrid"
 
     @property
     def nx(self) -> int:
@@ -196,6 +213,8 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         S.add("x_play", "m")
     X = S.sym
     x = S.vector()
+    hybrid = v["friction"] == "hybrid"
+    contact_state = {}  # friction-contact quantities of the continuous plant (for project)
 
     # ---- plant quantities that do not depend on the voltage ----------------------
     r = ballscrew.lead_ratio(P)
@@ -254,34 +273,55 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         shape, strib = v["friction_shape"], v["stribeck"] == "on"
         J_rot = P.J_m + P.J_s
         dots["phi"] = omega
+        stick = 0
         if v["screw"] == "elastic":
             F_in, delta, E_spring, P_contact, _ = ballscrew.elastic(X["phi"], omega, x_rod, v_rod, P)
             g = ballscrew.efficiency_factor(F_in, omega, U.eta, P)
             T_load = r * F_in * g
             dots["omega"] = motor.shaft(omega, T, T_load, J_rot, P)
-            F_fr, F_c = friction.smooth(v_rod, F_r, P, shape, strib)
             dots["x_rod"] = v_rod
-            dots["v_rod"] = (F_in - U.f_ext - F_fr) / P.M
+            if hybrid:
+                F_app = F_in - U.f_ext - P.c_v * v_rod
+                F_hold = ca.substitute(F_app, X["v_rod"], 0)
+                F_fr, F_c, stick = friction.hybrid(v_rod, F_app, F_r, P, F_hold)
+                dots["v_rod"] = ca.if_else(stick, 0, (F_app - F_c) / P.M)
+            else:
+                F_fr, F_c = friction.smooth(v_rod, F_r, P, shape, strib)
+                dots["v_rod"] = (F_in - U.f_ext - F_fr) / P.M
             P_screw_nut = T_load * omega - F_in * v_in
             E_kin = 0.5 * J_rot * omega**2 + 0.5 * P.M * v_rod**2
         else:
             J_eq = J_rot + P.M * r**2
-            F_fr, F_c = friction.smooth(v_in, F_r, P, shape, strib)
+            if hybrid:
+                # the friction that holds the shaft (omega-dot = 0): the net motor torque
+                # referred to the rod through the screw, minus the load and viscous force
+                T_net = T - P.b_m * omega
+                g_hold = ballscrew.efficiency_factor(T_net / r, omega, U.eta, P)
+                F_app = T_net / (r * g_hold) - U.f_ext - P.c_v * v_in
+                F_hold = ca.substitute(F_app, omega, 0)
+                F_fr, F_c, stick = friction.hybrid(v_in, F_app, F_r, P, F_hold)
+            else:
+                F_fr, F_c = friction.smooth(v_in, F_r, P, shape, strib)
             F_load = U.f_ext + F_fr
             g = ballscrew.efficiency_factor(F_load, omega, U.eta, P)
             T_load = r * F_load * g
             dots["omega"] = motor.shaft(omega, T, T_load, J_eq, P)
+            if hybrid:
+                dots["omega"] = ca.if_else(stick, 0, dots["omega"])
             dots["x_play"] = ballscrew.play_rate(x_in, v_in, X["x_play"], P.B)
             F_in = F_load + P.M * r * dots["omega"]
             P_screw_nut = T_load * omega - F_load * v_in
             E_spring, P_contact = 0, 0
             E_kin = 0.5 * J_eq * omega**2
+        contact_state["v"] = v_rod
+        contact_state["F_hold"] = F_hold if hybrid else 0
+        contact_state["F_r"] = F_r
         I_hat = ca.sqrt(i_d**2 + i_q**2)
         P_cond, P_sw = inverter.averaged_losses(I_hat, P)
         y.update(
             x_rod=x_rod, v_rod=v_rod, x_in=x_in, omega=omega, i_d=i_d, i_q=i_q,
             v_d=vd_w, v_q=vq_w, T_m=T, F_in=F_in, F_friction=F_fr,
-            omega_cmd=w_cmd, i_cmd=i_cmd, stick=0,
+            omega_cmd=w_cmd, i_cmd=i_cmd, stick=stick,
             P_elec=P_elec, P_inv_cond=P_cond, P_inv_sw=P_sw, P_cu=P_cu,
             P_screw_nut=P_screw_nut, P_friction=F_c * v_rod,
             P_viscous=P.c_v * v_rod**2 + P.b_m * omega**2, P_contact=P_contact,
@@ -291,6 +331,7 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
 
     # continuous controller
     dots, y = plant(w_cmd, i_cmd, vd_c, vq_c)
+    contact = dict(contact_state)
     S.dot = dict(dots, **ctrl_dots)
     yv = ca.vertcat(*[y[n] for n in OUTPUTS])
     f = ca.Function("f", [x, u, p], [S.dot_vector(), yv], ["x", "u", "p"], ["xdot", "y"])
@@ -327,7 +368,29 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         [ca.vertcat(*[x_new[n] for n in S.names]), ca.vertcat(w_h, i_h, vd_h, vq_h)],
         ["x", "u", "p", "h", "flags"], ["x_next", "h_next"],
     )
+    project = _projection(x, u, p, P, S, contact, v, hybrid)
     return Model(
         variants=v, params=params, states=tuple(S.names), inputs=INPUTS, outputs=OUTPUTS,
         param_names=tuple(names), f=f, f_held=f_held, sample=sample, state_units=S.units,
+        project=project,
     )
+
+
+def _projection(x, u, p, P, S, contact, v, hybrid):
+    """``project(x_prev, x, u, p) -> (x_next, stick)``, see the module docstring.
+
+    The stick test uses the applied force with the contact at rest, as ``f`` does.
+    """
+    x_prev = ca.SX.sym("x_prev", x.numel())
+    if not hybrid:
+        return ca.Function("project", [x_prev, x, u, p], [x, ca.SX(0)],
+                           ["x_prev", "x", "u", "p"], ["x_next", "stick"])
+    k = S.names.index("v_rod" if v["screw"] == "elastic" else "omega")
+    contact_fn = ca.Function("contact", [x, u, p], [contact["v"], contact["F_hold"], contact["F_r"]])
+    x_rest = ca.vertcat(x[:k], 0, x[k + 1 :])
+    v_prev = contact_fn(x_prev, u, p)[0]
+    v_now, F_hold, F_r = contact_fn(x, u, p)
+    stick = friction.stick_entry(v_prev, v_now, F_hold, F_r, P)
+    x_new = ca.if_else(stick, x_rest, x)
+    return ca.Function("project", [x_prev, x, u, p], [x_new, stick],
+                       ["x_prev", "x", "u", "p"], ["x_next", "stick"])

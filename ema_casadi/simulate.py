@@ -114,37 +114,55 @@ def _rk4(fx, x, h):
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def rk4_step_function(model: Model, zoh: bool = False) -> ca.Function:
+def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False) -> ca.Function:
     """One RK4 step ``(x, U3, flags, p, h) -> x_next``.
 
     ``U3`` holds the inputs at t, t+h/2 and t+h in its three columns. With ``zoh`` the
     state is augmented with the held controller outputs (``HOLD``) and ``flags`` (3)
     say which loops (position, speed, current) sample at the start of this step.
+
+    With hybrid friction the step ends with the model's discrete stick-entry map
+    ``model.project`` (the mode is evaluated once per step, inside the compiled step).
+    With ``count_modes`` the (augmented) state carries two more entries at its end:
+    the stick flag after the step and the running number of stick/slip switches.
     """
     nx, nu = model.nx, model.nu
     nh = len(HOLD) if zoh else 0
-    xa = ca.SX.sym("x", nx + nh)
+    nc = 2 if count_modes else 0
+    xa = ca.SX.sym("x", nx + nh + nc)
     U3 = ca.SX.sym("U3", nu, 3)
     flags = ca.SX.sym("flags", 3)
     p = ca.SX.sym("p", len(model.param_names))
     h = ca.SX.sym("h")
     if zoh:
-        x, hold = model.sample(xa[:nx], U3[:, 0], p, xa[nx:], flags)
+        x, hold = model.sample(xa[:nx], U3[:, 0], p, xa[nx : nx + nh], flags)
         x_next = _rk4(lambda z, j: model.f_held(z, U3[:, j], p, hold)[0], x, h)
-        out = ca.vertcat(x_next, hold)
     else:
-        out = _rk4(lambda z, j: model.f(z, U3[:, j], p)[0], xa, h)
-    return ca.Function("rk4_step", [xa, U3, flags, p, h], [out], ["x", "U3", "flags", "p", "h"], ["x_next"])
+        x = xa[: nx + nh]
+        x_next = _rk4(lambda z, j: model.f(z, U3[:, j], p)[0], x, h)
+    stick = ca.SX(0)
+    if model.hybrid:
+        x_next, stick = model.project(x, x_next, U3[:, 2], p)
+    out = [x_next]
+    if zoh:
+        out.append(hold)
+    if count_modes:
+        stick_prev, n_switch = xa[nx + nh], xa[nx + nh + 1]
+        out += [stick, n_switch + ca.fabs(stick - stick_prev)]
+    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"])
 
 
 _ROLLOUTS: dict = {}
 
 
 def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
-    """Compiled chunk: M outputs, each after k RK4 steps. Cached per model/options."""
+    """Compiled chunk: M outputs, each after k RK4 steps. Cached per model/options.
+
+    Hybrid models count their mode switches inside the rollout (``count_modes``)."""
+    count = model.hybrid
     key = (id(model.f), zoh, k, M, jit)
     if key not in _ROLLOUTS:
-        step = rk4_step_function(model, zoh)
+        step = rk4_step_function(model, zoh, count)
         blk = step.fold(k) if k > 1 else step
         roll = blk.mapaccum("rollout", M)
         # outputs at the kept samples, in the same compiled call
@@ -156,11 +174,13 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
         h = ca.MX.sym("h")
         X = roll(x0, U, Fl, p, h)
         u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
+        nh = len(HOLD) if zoh else 0
         if zoh:
-            Y = model.f_held.map(M)(X[: model.nx, :], u_at, p, X[model.nx :, :])[1]
+            Y = model.f_held.map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])[1]
         else:
-            Y = model.f.map(M)(X, u_at, p)[1]
-        F = ca.Function(f"rollout_{'zoh_' if zoh else ''}{k}x{M}", [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
+            Y = model.f.map(M)(X[: model.nx, :] if count else X, u_at, p)[1]
+        name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
+        F = ca.Function(name, [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
         Fc, info = compile_function(F, jit)
         _ROLLOUTS[key] = (BufferCall(Fc), info)
     return _ROLLOUTS[key]
@@ -240,6 +260,7 @@ def simulate(
     dt_out: float | None = None,
     rtol: float = 1e-8,
     atol: float = 1e-11,
+    event_tol: float = 1e-7,
     jit: bool = True,
     progress: bool = False,
 ) -> SimResult:
@@ -269,6 +290,9 @@ def simulate(
         (default: every step for rk4, every ``dt`` for cvodes).
     rtol, atol : float
         CVODES tolerances.
+    event_tol : float
+        cvodes with hybrid friction: the stick/slip switching instants are located to
+        within this time (s) before the integrator is restarted.
     jit : bool
         Compile the rollout to native code (cached on disk).
     progress : bool
@@ -283,6 +307,8 @@ def simulate(
         raise SimulationError(f"dt ({dt} s) is longer than t_end ({t_end} s)")
     if zoh and solver != "rk4":
         raise SimulationError("zoh (sampled ECU) needs solver rk4")
+    if not (math.isfinite(event_tol) and event_tol > 0):
+        raise SimulationError(f"event_tol must be a positive number of seconds, got {event_tol!r}")
     pv = np.asarray(p, float) if p is not None else model.p(params)
     if pv.shape != (len(model.param_names),):
         raise SimulationError(f"p must have {len(model.param_names)} entries, got shape {pv.shape}")
@@ -297,6 +323,8 @@ def simulate(
     t_wall = time.perf_counter()
     if solver == "rk4":
         res = _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, decimate, jit, progress)
+    elif model.hybrid:
+        res = _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, event_tol, progress)
     else:
         res = _simulate_cvodes(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, progress)
     res.info["wall_time"] = time.perf_counter() - t_wall
@@ -312,13 +340,24 @@ def _input_matrix(model, sig, t):
     return U
 
 
+def _initial_projection(model, sig, pv, x0):
+    """Hybrid models start in a consistent mode: (x0 projected, stick flag)."""
+    if not model.hybrid:
+        return x0, 0.0
+    u0 = _input_matrix(model, sig, [0.0])[:, 0]
+    xp, stick = model.project(x0, x0, u0, pv)
+    return np.asarray(xp, float).ravel(), float(stick)
+
+
 def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
     M = max(1, min(n_out, _STEPS_PER_CALL // k))
     F, cinfo = _rollout(model, zoh, k, M, jit)
     nh = len(HOLD) if zoh else 0
-    xa = np.concatenate([x0, np.zeros(nh)])
+    x0, stick0 = _initial_projection(model, sig, pv, x0)
+    counter = [stick0, 0.0] if model.hybrid else []
+    xa = np.concatenate([x0, np.zeros(nh), counter])
     rates = [pv[model.param_names.index(n)] for n in ("f_s_x", "f_s_w", "f_s_i")]
     X_out = np.empty((len(xa), n_out))
     Y_out = np.empty((model.ny, n_out))
@@ -343,6 +382,11 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
     Y_all = np.column_stack([y0, Y_out])
     info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+    if model.hybrid:
+        # the mode decided inside each step (identical to the rule in f except at the
+        # instant of a band crossing) and the switches counted at every step
+        Y_all[model.yindex("stick")] = np.concatenate([[stick0], X_out[model.nx + nh]])
+        info["mode_switches"] = int(round(X_out[model.nx + nh + 1, -1])) if n_out else 0
     return _result(model, sig, t_out, X_all, Y_all, info)
 
 
@@ -388,4 +432,151 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
     Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
     info = {"dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
             "compiled": False, "compile_time": 0.0, "rtol": rtol, "atol": atol}
+    return _result(model, sig, grid, X, Y, info)
+
+
+# ---------------------------------------------------------------------------------
+# Variable step with hybrid friction: own event location around CVODES.
+#
+# CasADi's integrator events are experimental and failed on this model in trials
+# (CV_ILL_INPUT), so the switching is handled here. CVODES integrates the continuous
+# f over chunks of output intervals, with two quadratures: the time spent with the
+# stick condition of f holding and the time spent without it. Once stuck, f keeps the
+# contact velocity constant, so "the stick condition has held since t" is monotone in
+# t, and a chunk whose quadrature of the *other* mode is positive contains a switch.
+# The switch is bracketed between output times and bisected on time (re-integrating
+# from the last accepted state) to ``event_tol``; at the right end of the bracket the
+# model's ``project`` map is applied (sets the velocity to 0 on entering stick) and the
+# integrator restarts. Switches shorter than no quadrature sample can see are not
+# resolved; everything else is, whatever the output spacing.
+_CHUNK_SECONDS = 2e-2  # integrated per CVODES call between checks (s)
+_MAX_CHUNK = 2048
+
+
+def _hybrid_integrators(model, sig, rtol, atol):
+    """``get(n)``: a time-scaled CVODES integrator ``(x0, [p; t0; H]) -> (X, Q)`` with
+    outputs at t0 + H k/n, k = 1..n, and the quadratures [time stuck, time not stuck]
+    from t0 (built on first use, cached); and ``mode(x, u, p)``, the stick flag of f."""
+    x = ca.SX.sym("x", model.nx)
+    p = ca.SX.sym("p", len(model.param_names))
+    t0, H, tau = ca.SX.sym("t0"), ca.SX.sym("H"), ca.SX.sym("tau")
+    u = ca.SX.zeros(model.nu)
+    for name, s in sig.items():
+        u[model.inputs.index(name)] = s.sym(t0 + H * tau)
+    xdot, y = model.f(x, u, p)
+    stick = y[model.yindex("stick")]
+    dae = {"x": x, "p": ca.vertcat(p, t0, H), "t": tau, "ode": H * xdot, "quad": H * ca.vertcat(stick, 1 - stick)}
+    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7}
+    cache = {}
+
+    def get(n):
+        if n not in cache:
+            cache[n] = BufferCall(ca.integrator(f"F{n}", "cvodes", dae, 0.0, [(k + 1) / n for k in range(n)], opts))
+        return cache[n]
+
+    uu = ca.SX.sym("u", model.nu)
+    mode = ca.Function("mode", [x, uu, p], [model.f(x, uu, p)[1][model.yindex("stick")]])
+    return get, mode
+
+
+def _locate_switch(integrate, F1, stuck, t_l, x_l, t_r, x_r, q_r, tol):
+    """Shrink the bracket (t_l: no switch yet, t_r: switched) to width <= tol (s).
+
+    ``q_r`` is the time spent in the other mode over [t_l, t_r]; since the new mode
+    persists under the continuous f, t_r - q_r estimates the switching instant. Each
+    trial integrates from the left end to just past the estimate; a trial that fails
+    to halve the bracket is followed by a bisection step (safeguard).
+    Returns (t_l, x_l, t_r, x_r)."""
+    halved = True
+    while t_r - t_l > tol:
+        w = t_r - t_l
+        t_est = t_r - q_r
+        if halved:
+            t_m = min(max(t_est + 0.25 * tol, t_l + 0.25 * tol), t_r - 0.25 * tol)
+        else:
+            t_m = 0.5 * (t_l + t_r)
+        x_m, q = integrate(F1, x_l, t_l, t_m - t_l, 1)
+        q_m = (q[1] if stuck else q[0])[0]
+        if q_m > 0:
+            t_r, x_r, q_r = t_m, x_m, q_m
+        else:
+            t_l, x_l = t_m, x_m[:, 0]  # q_r is unchanged: nothing of it lay in [t_l, t_m]
+        halved = (t_r - t_l) <= 0.5 * w
+    return t_l, x_l, t_r, x_r
+
+
+def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event_tol, progress):
+    n_out = int(math.ceil(t_end / dt_out - 1e-9))
+    grid = np.arange(n_out + 1) * dt_out
+    # outputs per call: a power of two, so that partial chunks (before a breakpoint or
+    # the end) are covered by few distinct integrators
+    K = 2 ** int(math.log2(min(_MAX_CHUNK, max(1.0, _CHUNK_SECONDS / dt_out))))
+    get_integrator, mode_fn = _hybrid_integrators(model, sig, rtol, atol)
+    F1 = get_integrator(1)
+    cuts = sorted({b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]})
+    nz = np.zeros((0, 1))
+    stats = {"steps": 0, "calls": 0}
+
+    def integrate(F, x, t0, H, n):
+        out = F(x, nz, np.concatenate([pv, [t0, H]]), np.zeros((0, n)), nz, nz, nz)
+        stats["steps"] += int(F.f.stats(1).get("nsteps", 0))
+        stats["calls"] += 1
+        return out[0], out[2]  # xf (nx x n), qf (2 x n)
+
+    def stuck_at(x, t):
+        return bool(float(mode_fn(x, _input_matrix(model, sig, [t])[:, 0], pv)) > 0.5)
+
+    x0, _ = _initial_projection(model, sig, pv, x0)
+    X = np.empty((model.nx, len(grid)))
+    X[:, 0] = x0
+    x, t, gi = x0, 0.0, 1  # state, time, index of the next output sample
+    stuck = stuck_at(x, t)
+    switch_times = []
+    t_compute = time.perf_counter()
+    while gi <= n_out:
+        b_next = next((c for c in cuts if c > t + 1e-12), math.inf)
+        on_grid = abs(t - grid[gi - 1]) <= 1e-12 * max(1.0, t)
+        if on_grid:
+            n_fit = int(np.searchsorted(grid[gi : gi + K], b_next + 1e-12))  # samples before b_next
+            n = 2 ** int(math.log2(n_fit)) if n_fit else 0
+        if on_grid and n:
+            ends = grid[gi : gi + n]
+            Xs, Q = integrate(get_integrator(n), x, t, ends[-1] - t, n)
+        else:
+            ends = np.array([min(grid[gi], b_next)])
+            Xs, Q = integrate(F1, x, t, ends[0] - t, 1)
+        other = Q[1] if stuck else Q[0]
+        hits = np.nonzero(other > 0)[0]
+        j = hits[0] if len(hits) else len(ends)
+        # accept the samples before the first switch
+        for k in range(j):
+            if abs(ends[k] - grid[gi]) <= 1e-12 * max(1.0, ends[k]):
+                X[:, gi] = Xs[:, k]
+                gi += 1
+        if j == len(ends):
+            x, t = Xs[:, -1], float(ends[-1])
+        else:
+            t_l, x_l = (float(ends[j - 1]), Xs[:, j - 1]) if j > 0 else (t, x)
+            t_r = float(ends[j])
+            x_r, q = integrate(F1, x_l, t_l, t_r - t_l, 1)
+            q_r = (q[1] if stuck else q[0])[0]
+            if q_r > 0:  # confirmed from the bracket's left end
+                t_l, x_l, t_r, x_r = _locate_switch(integrate, F1, stuck, t_l, x_l, t_r, x_r, q_r, event_tol)
+                x_r = np.asarray(model.project(x_l, x_r[:, 0], _input_matrix(model, sig, [t_r])[:, 0], pv)[0], float)
+                new = stuck_at(x_r, t_r)
+                if new != stuck:
+                    switch_times.append(t_r)
+                stuck = new
+            x, t = np.asarray(x_r, float).ravel(), t_r
+            if abs(t - grid[gi]) <= 1e-12 * max(1.0, t):
+                X[:, gi] = x
+                gi += 1
+        _progress(min(1.0, t / grid[-1]), progress)
+    if not np.all(np.isfinite(X)):
+        raise SimulationError("the simulation diverged (non-finite state)")
+    Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
+    info = {"dt_out": dt_out, "steps": stats["steps"], "integrator_calls": stats["calls"],
+            "compute_time": time.perf_counter() - t_compute, "compiled": False, "compile_time": 0.0,
+            "rtol": rtol, "atol": atol, "event_tol": event_tol,
+            "mode_switches": len(switch_times), "switch_times": np.array(switch_times)}
     return _result(model, sig, grid, X, Y, info)

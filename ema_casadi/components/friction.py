@@ -1,12 +1,25 @@
 """Friction on the rod (SPEC §2.5). Forces in N, velocities in m/s; positive friction
 opposes positive velocity. With the rigid screw the same laws act on the shaft, with
-the rod velocity v = omega p/(2 pi) and the force referred back through p/(2 pi)."""
+the rod velocity v = omega p/(2 pi) and the force referred back through p/(2 pi).
+
+Two variants:
+
+``smooth`` (eq. 3)
+    A continuous law, usable by any ODE solver and linearisable.
+``hybrid`` (eqs. 4-8, Karnopp stick-slip)
+    A discontinuous law with a dead band |v| < eps in which the rod is either held
+    (the friction cancels the applied force) or breaks away against F_start. It is a
+    hybrid system: the right-hand side alone lets a rod that enters the band with a
+    small velocity keep it (creep); :func:`stick_entry` is the discrete part, applied
+    by the integrator wrapper (:mod:`ema_casadi.simulate`), that zeroes the velocity
+    when the rod enters the band and the stick condition holds.
+"""
 
 from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["sliding_level", "smooth", "SHAPES"]
+__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "SHAPES"]
 
 SHAPES = ("tanh", "fermi")
 
@@ -33,3 +46,58 @@ def smooth(v, F_r, P, shape="tanh", stribeck=False):
     if stribeck:
         F_c = F_c + (P.r_start - 1) * F_r * ca.exp(-((v / P.v_st) ** 2)) * s
     return F_c + P.c_v * v, F_c
+
+
+def hybrid(v, F_app, F_r, P, F_hold=None):
+    """Enhanced friction (eqs. 4-8, Karnopp): Coulomb part F_c plus viscous c_v v.
+
+    Parameters
+    ----------
+    v : SX
+        Rod velocity (m/s).
+    F_app : SX
+        Net force on the rod from everything but friction (N): F_in - F_ext - c_v v
+        for the elastic screw; the net motor torque referred to the rod minus F_ext
+        and c_v v for the rigid screw.
+    F_r : SX
+        Sliding level (eq. 7) (N); F_start = r_start F_r (eq. 8).
+    P : namespace of parameter symbols (``eps``, ``r_start``, ``c_v``).
+    F_hold : SX, optional
+        ``F_app`` with the contact at rest (v = 0) (N), used for the stick test so that
+        it agrees with :func:`stick_entry` (velocity-dependent terms such as contact
+        damping would otherwise let the test change when the velocity is reset).
+        Default ``F_app``.
+
+    Returns
+    -------
+    F_friction : SX
+        F_c + c_v v (N).
+    F_c : SX
+        Sliding, |v| >= eps: F_r sign(v). In the dead band |v| < eps: F_app if
+        |F_hold| <= F_start (held: the net force F_app - F_c is zero), else
+        F_start sign(F_app) (breakaway).
+    stick : SX
+        1 while held (|v| < eps and |F_hold| <= F_start), else 0.
+    """
+    F_hold = F_app if F_hold is None else F_hold
+    F_start = P.r_start * F_r
+    band = ca.fabs(v) < P.eps
+    stick = ca.logic_and(band, ca.fabs(F_hold) <= F_start)
+    F_c = ca.if_else(band, ca.if_else(stick, F_app, F_start * ca.sign(F_app)), F_r * ca.sign(v))
+    return F_c + P.c_v * v, F_c, stick
+
+
+def stick_entry(v_prev, v, F_hold, F_r, P):
+    """Discrete stick condition after a step from velocity ``v_prev`` to ``v`` (m/s).
+
+    The rod is held (its velocity must be reset to 0) when it is in the dead band at
+    the end of the step, or crossed it during the step (v changed sign), and the
+    applied force with the rod at rest, ``F_hold`` (N), is within F_start (the same
+    test as in :func:`hybrid`). Testing the
+    crossing as well as the end point matters for the light rod of the elastic screw:
+    sliding friction changes its velocity by F_r h / M ~ 5e-3 m/s per 1e-4 s step,
+    fifty times the band width, so a step would rarely end inside the band.
+    Returns 1 (stick) or 0.
+    """
+    entered = ca.logic_or(ca.fabs(v) < P.eps, v_prev * v < 0)
+    return ca.logic_and(entered, ca.fabs(F_hold) <= P.r_start * F_r)
