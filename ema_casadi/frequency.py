@@ -1,0 +1,400 @@
+"""Frequency response and stability margins of the linearised model (SPEC §4.3-4.4).
+
+Everything here works on NumPy ``A, B, C, D`` (a :class:`~ema_casadi.linearize.LinearModel`
+or a ``control.StateSpace`` - both carry those attributes), so margins come without
+importing python-control.
+
+Margins of a loop transfer L(s) (negative feedback, closed loop L/(1+L)) are taken
+from its response on a dense log grid (default 0.01 Hz - 100 kHz, 200 points per
+decade), every crossover bracketed on the grid and refined by regula falsi:
+
+``pm_deg``
+    The smallest phase rotation (lead or lag) that puts L on -1 at a gain crossover
+    |L| = 1: min over crossovers of |wrap(angle L + 180 deg)|, >= 0. With several
+    crossovers (the velocity and current loops with the outer loops closed have two)
+    the smallest counts; every crossover is listed in ``gain_crossovers``.
+``gm_db``
+    At each phase crossover (angle L = -180 deg mod 360) the gain change that puts L on
+    -1, -20 log10|L| dB: positive means the gain may rise by that much, negative that it
+    may fall by that much (a lower gain margin, MATLAB's convention). The one of
+    smallest magnitude is reported, all in ``phase_crossovers``; +inf when there is none.
+``disk_margin``
+    Balanced (skew sigma = 0) disk margin alpha = 1/max_w |S - 1/2| = min_w 2|1+L|/|1-L|
+    (Seiler, Packard & Gahinet, "An introduction to disk margins", IEEE Control
+    Systems Magazine 40(5), 2020; python-control's ``disk_margins`` with skew 0): the
+    loop tolerates any simultaneous gain and phase change f in the disk
+    {(2 + alpha d)/(2 - alpha d) : |d| <= 1}, i.e. gains within +-``disk_gm_db`` or
+    phases within +-``disk_pm_deg`` = 2 atan(alpha/2).
+All margins assume the nominal closed loop is stable; ``stable`` says whether it is
+(closed-loop eigenvalues; modes on the imaginary axis within round-off, like the rigid
+screw's redundant shaft angle, count as neutral).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .assembly import Model
+from .linearize import LOOPS, LinearModel, OperatingPoint, linear_model, loop_model
+
+__all__ = [
+    "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
+    "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes",
+]
+
+REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
+
+
+def frequency_grid(f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200) -> np.ndarray:
+    """Log-spaced frequencies (Hz)."""
+    if not (0 < f_min < f_max):
+        raise ValueError(f"frequency range must satisfy 0 < f_min < f_max, got {f_min}, {f_max}")
+    n = max(2, int(math.ceil(per_decade * math.log10(f_max / f_min))) + 1)
+    return np.logspace(math.log10(f_min), math.log10(f_max), n)
+
+
+def _abcd(sys):
+    if isinstance(sys, tuple):
+        sys = LinearModel(*sys, (), (), ())
+    return (np.atleast_2d(np.asarray(sys.A, float)), np.atleast_2d(np.asarray(sys.B, float)),
+            np.atleast_2d(np.asarray(sys.C, float)), np.atleast_2d(np.asarray(sys.D, float)))
+
+
+def freqresp(sys, f_hz) -> np.ndarray:
+    """Complex response C (jwI - A)^-1 B + D, shape (n_outputs, n_inputs, n_freqs).
+
+    Parameters
+    ----------
+    sys : LinearModel or control.StateSpace
+    f_hz : array_like
+        Frequencies (Hz).
+    """
+    A, B, C, D = _abcd(sys)
+    f = np.atleast_1d(np.asarray(f_hz, float))
+    n = A.shape[0]
+    if n == 0:
+        return np.repeat(D[:, :, None].astype(complex), len(f), axis=2)
+    M = (2j * np.pi * f)[:, None, None] * np.eye(n) - A
+    X = np.linalg.solve(M, np.broadcast_to(B, (len(f),) + B.shape))
+    H = C @ X + D
+    return np.moveaxis(H, 0, 2)
+
+
+def _siso(sys, what="the system"):
+    A, B, C, D = _abcd(sys)
+    if B.shape[1] != 1 or C.shape[0] != 1:
+        raise ValueError(f"{what} must be SISO (1 input, 1 output), has {B.shape[1]} inputs and {C.shape[0]} outputs")
+    return A, B, C, D
+
+
+def _unwrap_deg(H: np.ndarray) -> np.ndarray:
+    return np.degrees(np.unwrap(np.angle(H)))
+
+
+def bode(sys, f_hz=None, *, input: str | None = None, output: str | None = None) -> dict:
+    """Bode data of a SISO system or of one input/output pair (by name).
+
+    Returns a dict with ``freq_hz``, ``mag_db`` (20 log10 |H|, in dB re the system's
+    SI unit ratio), ``phase_deg`` (unwrapped, starting in (-180, 180] at the lowest
+    frequency) and ``response`` (complex).
+    """
+    if input is not None or output is not None:
+        sys = _select(sys, input, output)
+    _siso(sys)
+    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else np.asarray(f_hz, float)
+    H = freqresp(sys, f)[0, 0]
+    return {"freq_hz": f, "mag_db": 20 * np.log10(np.abs(H)), "phase_deg": _unwrap_deg(H), "response": H}
+
+
+def _select(sys, input, output):
+    if isinstance(sys, LinearModel):
+        return sys.select([input] if input else None, [output] if output else None)
+    ii = list(sys.input_labels).index(input) if input else 0
+    oo = list(sys.output_labels).index(output) if output else 0
+    A, B, C, D = _abcd(sys)
+    return LinearModel(A, B[:, [ii]], C[[oo], :], D[[oo]][:, [ii]], (), (input,), (output,))
+
+
+# ---------------------------------------------------------------------------------
+def _regula_falsi(g, a, b, ga, gb, xtol=1e-13, maxiter=100):
+    """Root of g in [a, b] with g(a) g(b) <= 0 (Illinois variant of regula falsi)."""
+    if ga == 0:
+        return a
+    if gb == 0:
+        return b
+    side = 0
+    c = a
+    for _ in range(maxiter):
+        c = (a * gb - b * ga) / (gb - ga)
+        gc = g(c)
+        if gc == 0 or abs(b - a) < xtol * (1 + abs(c)):
+            return c
+        if gc * gb > 0:
+            b, gb = c, gc
+            if side == -1:
+                ga /= 2
+            side = -1
+        else:
+            a, ga = c, gc
+            if side == 1:
+                gb /= 2
+            side = 1
+    return c
+
+
+def _wrap180(deg):
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+@dataclass
+class LoopMargins:
+    """Stability margins of one loop (see the module docstring for definitions).
+
+    Frequencies in Hz, gains in dB, phases in degrees, delays in s.
+    """
+
+    loop: str
+    gm_db: float
+    f_pc_hz: float | None
+    pm_deg: float
+    f_gc_hz: float | None
+    disk_margin: float
+    disk_gm_db: float
+    disk_pm_deg: float
+    f_disk_hz: float
+    delay_margin_s: float
+    stable: bool
+    gain_crossovers: list = field(default_factory=list)   # [{"f_hz", "pm_deg"}], pm signed
+    phase_crossovers: list = field(default_factory=list)  # [{"f_hz", "gm_db"}]
+    outer: str = "closed"
+
+    def meets(self, gm_db: float = REQUIREMENT["gm_db"], pm_deg: float = REQUIREMENT["pm_deg"]) -> bool:
+        """Stable with |GM| >= gm_db (either direction) and PM >= pm_deg."""
+        return bool(self.stable and abs(self.gm_db) >= gm_db and self.pm_deg >= pm_deg)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["meets_requirement"] = self.meets()
+        return d
+
+
+def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200, loop: str = "") -> LoopMargins:
+    """Gain, phase, delay and disk margins of a SISO loop transfer L (negative feedback).
+
+    Parameters
+    ----------
+    L : LinearModel or control.StateSpace
+        Loop transfer at the break (e.g. :func:`~ema_casadi.linearize.loop_model`).
+    f_min, f_max : float
+        Frequency window searched for crossovers (Hz); crossovers outside it (the
+        spurious ones python-control finds near 0 Hz and ~1e9 Hz) are not considered.
+    per_decade : int
+        Grid density for bracketing.
+    loop : str
+        Label stored in the result.
+    """
+    A, B, C, D = _siso(L, "the loop transfer")
+    d = float(D[0, 0])
+    n = A.shape[0]
+    eye = np.eye(n)
+
+    def H(f):
+        return complex((C @ np.linalg.solve(2j * np.pi * f * eye - A, B))[0, 0] + d)
+
+    f = frequency_grid(f_min, f_max, per_decade)
+    Hg = freqresp((A, B, C, D), f)[0, 0]
+    lf = np.log10(f)
+
+    # gain crossovers: log|L| changes sign between grid points
+    lm = np.log10(np.abs(Hg))
+    gcs = []
+    for i in np.nonzero(lm[:-1] * lm[1:] <= 0)[0]:
+        if lm[i] == 0 and i > 0 and lm[i - 1] * lm[i + 1] > 0:
+            continue  # touches 1 without crossing
+        x = _regula_falsi(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
+        fc = 10**x
+        pm = _wrap180(math.degrees(np.angle(H(fc))) + 180.0)
+        gcs.append({"f_hz": fc, "pm_deg": pm})
+    gcs = _dedupe(gcs)
+
+    # phase crossovers: the unwrapped phase passes -180 + 360 k
+    ph = _unwrap_deg(Hg)
+    k = np.floor((ph + 180.0) / 360.0)
+    pcs = []
+    for i in np.nonzero(np.diff(k))[0]:
+        level = -180.0 + 360.0 * max(k[i], k[i + 1])
+        H0, p0 = Hg[i], ph[i]
+
+        def g(t, H0=H0, p0=p0, level=level):
+            return p0 + math.degrees(np.angle(H(10**t) / H0)) - level
+
+        x = _regula_falsi(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
+        fc = 10**x
+        pcs.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
+    pcs = _dedupe(pcs)
+
+    # closed-loop stability of L/(1+L): x' = (A - B C/(1+D)) x
+    if abs(1 + d) < 1e-12:
+        stable = False
+    else:
+        lam = np.linalg.eigvals(A - B @ C / (1 + d)) if n else np.zeros(0)
+        tol = 1e-9 * max(1.0, float(np.max(np.abs(lam)))) if n else 0.0
+        stable = bool(np.all(lam.real < tol))
+
+    if gcs:
+        best = min(gcs, key=lambda c: abs(c["pm_deg"]))
+        pm, f_gc = abs(best["pm_deg"]), best["f_hz"]
+        # a phase lag of (angle L + 180) mod 360 at w_c puts L on -1
+        delay = min(math.radians((c["pm_deg"]) % 360.0) / (2 * math.pi * c["f_hz"]) for c in gcs)
+    else:
+        pm, f_gc, delay = math.inf, None, math.inf
+    if pcs:
+        best = min(pcs, key=lambda c: abs(c["gm_db"]))
+        gm, f_pc = best["gm_db"], best["f_hz"]
+    else:
+        gm, f_pc = math.inf, None
+
+    # balanced disk margin: alpha(w) = 2 |1 + L| / |1 - L|
+    alpha_g = 2 * np.abs(1 + Hg) / np.abs(1 - Hg)
+    j = int(np.argmin(alpha_g))
+    lo, hi = lf[max(j - 1, 0)], lf[min(j + 1, len(lf) - 1)]
+    t_dm = _golden_min(lambda t: _alpha(H(10**t)), lo, hi)
+    alpha = min(_alpha(H(10**t_dm)), float(alpha_g[j]))
+    f_dm = 10**t_dm if alpha < alpha_g[j] else f[j]
+    if not stable:
+        alpha = 0.0
+    dgm = 20 * math.log10((2 + alpha) / (2 - alpha)) if alpha < 2 else math.inf
+    dpm = math.degrees(2 * math.atan(alpha / 2))
+    return LoopMargins(
+        loop=loop, gm_db=gm, f_pc_hz=f_pc, pm_deg=pm, f_gc_hz=f_gc, disk_margin=alpha,
+        disk_gm_db=dgm, disk_pm_deg=dpm, f_disk_hz=f_dm, delay_margin_s=delay, stable=stable,
+        gain_crossovers=gcs, phase_crossovers=pcs,
+    )
+
+
+def _alpha(h: complex) -> float:
+    return 2 * abs(1 + h) / abs(1 - h) if h != 1 else math.inf
+
+
+def _golden_min(g, a, b, tol=1e-10):
+    """Minimiser of a unimodal g on [a, b] (golden section)."""
+    r = (math.sqrt(5) - 1) / 2
+    c, d = b - r * (b - a), a + r * (b - a)
+    gc, gd = g(c), g(d)
+    while abs(b - a) > tol:
+        if gc < gd:
+            b, d, gd = d, c, gc
+            c = b - r * (b - a)
+            gc = g(c)
+        else:
+            a, c, gc = c, d, gd
+            d = a + r * (b - a)
+            gd = g(d)
+    return (a + b) / 2
+
+
+def _dedupe(items):
+    out = []
+    for it in sorted(items, key=lambda c: c["f_hz"]):
+        if not out or abs(it["f_hz"] - out[-1]["f_hz"]) > 1e-9 * it["f_hz"]:
+            out.append(it)
+    return out
+
+
+def loop_margins(
+    model: Model,
+    op: OperatingPoint | None = None,
+    loops="all",
+    *,
+    outer: str = "closed",
+    f_min: float = 1e-2,
+    f_max: float = 1e5,
+    per_decade: int = 200,
+    **op_kwargs,
+) -> dict[str, LoopMargins]:
+    """Margins at the position, velocity and current loop breaks.
+
+    Parameters
+    ----------
+    model : Model
+    op : OperatingPoint, optional
+        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+    loops : "all", a loop name or a sequence of them
+    outer : {"closed", "open"}
+        Other loops closed (loop-at-a-time, default) or the outer ones opened.
+    f_min, f_max, per_decade
+        Crossover search window and grid (see :func:`margins`).
+    """
+    from .linearize import operating_point
+
+    if op is None:
+        op = operating_point(model, **op_kwargs)
+    names = list(LOOPS) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
+    out = {}
+    for name in names:
+        L = loop_model(model, name, op, outer=outer)
+        m = margins(L, f_min=f_min, f_max=f_max, per_decade=per_decade, loop=name)
+        m.outer = outer
+        out[name] = m
+    return out
+
+
+# ---------------------------------------------------------------------------------
+def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> LinearModel:
+    """Closed-loop x_rod/x_cmd (m/m) as a SISO :class:`LinearModel`."""
+    lin = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"], **op_kwargs)
+    lin.name = "T_x"
+    return lin
+
+
+def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> LinearModel:
+    """Closed-loop x_rod/f_ext (m/N) as a SISO :class:`LinearModel` (negative at low
+    frequency: a positive force pushes the rod in)."""
+    lin = linear_model(model, op, inputs=["f_ext"], outputs=["x_rod"], **op_kwargs)
+    lin.name = "compliance"
+    return lin
+
+
+def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None, **op_kwargs) -> dict:
+    """Dynamic stiffness K = -f_ext/x_rod (N/m) of the closed loop.
+
+    Returns a dict with ``freq_hz``, ``stiffness`` (complex, N/m), ``magnitude`` (N/m),
+    ``mag_db`` (dB re 1 N/m) and ``phase_deg``.
+    """
+    G = compliance(model, op, **op_kwargs)
+    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else np.asarray(f_hz, float)
+    K = -1.0 / freqresp(G, f)[0, 0]
+    return {"freq_hz": f, "stiffness": K, "magnitude": np.abs(K), "mag_db": 20 * np.log10(np.abs(K)),
+            "phase_deg": _unwrap_deg(K)}
+
+
+def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1e5) -> float:
+    """Lowest frequency (Hz) at which |H| falls to ``level_db`` below its value at f_min
+    (refined between grid points); inf if it never does."""
+    A, B, C, D = _siso(sys)
+    f = frequency_grid(f_min, f_max, 200)
+    m = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
+    m = m - m[0] - level_db
+    idx = np.nonzero(m[:-1] * m[1:] <= 0)[0]
+    if not len(idx):
+        return math.inf
+    i = idx[0]
+    lf = np.log10(f)
+    ref = 20 * np.log10(abs(freqresp(sys, [f_min])[0, 0, 0]))
+    x = _regula_falsi(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - ref - level_db,
+                      lf[i], lf[i + 1], m[i], m[i + 1])
+    return 10**x
+
+
+def modes(sys) -> list[dict]:
+    """Oscillatory modes of A: natural frequency (Hz) and damping ratio, one per pair,
+    sorted by frequency."""
+    lam = np.linalg.eigvals(_abcd(sys)[0])
+    out = []
+    for z in lam[lam.imag > 0]:
+        wn = abs(z)
+        out.append({"f_n_hz": wn / (2 * np.pi), "zeta": -z.real / wn, "f_d_hz": z.imag / (2 * np.pi)})
+    return sorted(out, key=lambda m: m["f_n_hz"])
