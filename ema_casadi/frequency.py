@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .assembly import Model
-from .linearize import LOOPS, LinearModel, OperatingPoint, linear_model, loop_model
+from .linearize import LOOPS, LinearModel, OperatingPoint, linear_model, loop_model, operating_point
 
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
@@ -328,8 +328,6 @@ def loop_margins(
     f_min, f_max, per_decade
         Crossover search window and grid (see :func:`margins`).
     """
-    from .linearize import operating_point
-
     if op is None:
         op = operating_point(model, **op_kwargs)
     names = list(LOOPS) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
@@ -374,17 +372,16 @@ def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None,
 def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1e5) -> float:
     """Lowest frequency (Hz) at which |H| falls to ``level_db`` below its value at f_min
     (refined between grid points); inf if it never does."""
-    A, B, C, D = _siso(sys)
+    _siso(sys)
     f = frequency_grid(f_min, f_max, 200)
-    m = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
-    m = m - m[0] - level_db
+    db = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
+    m = db - db[0] - level_db
     idx = np.nonzero(m[:-1] * m[1:] <= 0)[0]
     if not len(idx):
         return math.inf
     i = idx[0]
     lf = np.log10(f)
-    ref = 20 * np.log10(abs(freqresp(sys, [f_min])[0, 0, 0]))
-    x = _regula_falsi(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - ref - level_db,
+    x = _regula_falsi(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - db[0] - level_db,
                       lf[i], lf[i + 1], m[i], m[i + 1])
     return 10**x
 

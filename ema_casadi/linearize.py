@@ -30,8 +30,8 @@ Each is handled through the parameter vector (the model is never rebuilt):
     Coulomb friction - is frozen at its operating-point value ``g`` (the model is
     evaluated with ``eta = 1/g`` and ``eta_inv = g``, which makes the blend constant;
     the ``eta`` input's column is taken from the unfrozen model). Without this, the
-    efficiency blend linearised at standstill under 30 kN adds ~500 N m s/rad of
-    fictitious shaft damping. At a moving operating point the Coulomb force is then
+    efficiency blend linearised at standstill under 30 kN adds ~660 N m s/rad of
+    fictitious shaft damping (the motor's own b_m is 2e-4). At a moving operating point the Coulomb force is then
     absent from the trim too (use ``"smooth"`` to keep it).
 ``friction="smooth"``
     Linearise the smooth friction law and the efficiency blend as they are. At rest
@@ -233,7 +233,7 @@ def _full_scale(model: Model, p: np.ndarray) -> np.ndarray:
     """Full-scale magnitude of every state, by its unit (SI)."""
     pv = dict(zip(model.param_names, p))
     r = pv["p"] / (2 * math.pi)
-    stroke = model.params.actuator.stroke
+    stroke = pv["stroke"]
     fs = {"m": stroke, "m/s": pv["v_max"], "rad": stroke / r, "rad/s": pv["v_max"] / r,
           "A": pv["I_max"], "V": pv["V_dc"]}
     return np.array([fs.get(model.state_units.get(n, ""), 1.0) for n in model.states])
@@ -391,7 +391,7 @@ def operating_point(
     names = list(model.param_names)
     for flag, _, _ in LOOPS.values():
         pv[names.index(flag)] = 1.0
-    stroke = params.actuator.stroke if params is not None else model.params.actuator.stroke
+    stroke = pv[names.index("stroke")]
     for label, val in (("x_cmd", x_cmd), ("f_ext", f_ext), ("v_rod", v_rod)):
         if not math.isfinite(val):
             raise OperatingPointError(f"{label} must be a finite number, got {val}")
@@ -405,7 +405,7 @@ def operating_point(
             "and the blend width, not only on the physics",
             stacklevel=2,
         )
-    eta_v = float(model.params.screw.eta if eta is None else eta)
+    eta_v = float(pv[names.index("eta")] if eta is None else eta)
     u = model.u(x_cmd=x_cmd, f_ext=f_ext, eta=eta_v)
     target = _position_rates(model, p_pol, v_rod)
     # solve with the saturations lifted, then check the point against them
@@ -414,8 +414,8 @@ def operating_point(
         p_trim[names.index(k)] *= _LIFT
     size = _full_scale(model, p_pol)
     x = _initial_guess(model, p_pol, x_cmd)
-    B = p_pol[names.index("B")]
-    if B > 0:
+    B_gap = p_pol[names.index("B")]
+    if B_gap > 0:
         # inside the gap the spring has no slope and Newton cannot find the contact: start
         # from the backlash-free trim with the nut moved half the gap towards the flank
         # that carries the screw force
@@ -425,7 +425,7 @@ def operating_point(
         if x0 is not None:
             F_in = y0[model.yindex("F_in")]
             x = x0
-            x[model.index("phi")] += np.sign(F_in) * (B / 2) * 2 * math.pi / p_pol[names.index("p")]
+            x[model.index("phi")] += np.sign(F_in) * (B_gap / 2) * 2 * math.pi / p_pol[names.index("p")]
     x, y_lifted, rel = _trim(model, x, u, p_trim, target, size, tol, max_iter)
     if x is None:
         raise OperatingPointError(
@@ -433,7 +433,7 @@ def operating_point(
             f"v_rod = {v_rod * 1e3:.4g} mm/s (relative residual {rel:.2g})"
         )
     _check_limits(model, y_lifted, p_pol, f_ext, v_rod)
-    if "x_play" in model.states and p_pol[names.index("B")] == 0:
+    if "x_play" in model.states and B_gap == 0:
         # Rigid screw without backlash: the shaft angle is not fixed by the trim (only the
         # play output is fed back). Put the nut exactly at the rod - the model's own x_in,
         # so the gap is exactly 0 - where both edges of the play act and the AD slope is
@@ -441,7 +441,8 @@ def operating_point(
         i_phi, i_play = model.index("phi"), model.index("x_play")
         x[i_phi] = x[i_play] * 2 * math.pi / p_pol[names.index("p")]
         x[i_play] = _eval(model, x, u, p_trim)[1].ravel()[model.yindex("x_in")]
-    xdot, y, A, B = (v.squeeze() if i < 2 else v for i, v in enumerate(_eval(model, x, u, p_pol)[:4]))
+    xdot, y, A, B = _eval(model, x, u, p_pol)[:4]
+    xdot, y = xdot.ravel(), y.ravel()
     scale = _row_scale(A, B, x, u, target, size)
     if np.max(np.abs(xdot - target) / np.where(scale > 0, scale, 1.0)) > 1e-12:  # pragma: no cover
         raise OperatingPointError("a saturation is active at the trim (not caught by the limit check)")
@@ -550,6 +551,8 @@ def linear_model(
         op = operating_point(model, **op_kwargs)
     elif op_kwargs:
         raise LinearizationError(f"give either op or operating-point arguments, not both ({', '.join(op_kwargs)})")
+    if op.states != model.states or op.variants != model.variants:
+        raise LinearizationError("the operating point belongs to another model (variants differ)")
     open_loops = _loops(open_loops)
     outputs = tuple(outputs) if outputs is not None else signal_outputs(model)
     inputs = tuple(inputs) if inputs is not None else model.inputs
