@@ -15,6 +15,9 @@ from .assembly import INPUTS, OUTPUTS, Model, build_model
 from .params import DEFAULT_VARIANTS, VARIANTS, ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
 from .simulate import SimResult, SimulationError, simulate
+from .linearize import LinearizationError, OperatingPointError, linear_model, linearize, loop_transfer, operating_point
+from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
+from .export import ExportError, export_function, load_linear, save_linear
 
 __version__ = "0.1.0"
 
@@ -23,4 +26,7 @@ __all__ = [
     "DEFAULT_VARIANTS", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "Signal", "SignalError", "parse_signal",
     "SimResult", "SimulationError", "simulate",
+    "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
+    "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
+    "ExportError", "export_function", "load_linear", "save_linear",
 ]

@@ -54,6 +54,41 @@ def _simulations(model, out: Path, written: list) -> dict:
     return res
 
 
+def _frequency(model, out: Path, written: list) -> dict:
+    """Small-signal Bode (no load and 30 kN), dynamic stiffness, margins of all loops."""
+    from .frequency import bandwidth, bode, closed_loop, dynamic_stiffness, frequency_grid, loop_margins, modes
+    from .linearize import loop_model, operating_point
+    from .plot_frequency import plot_bode, plot_loop_margins
+
+    f = frequency_grid(0.1, 3e3, 100)
+    curves, res = [], {"closed_loop": {}}
+    for load in (0.0, 30e3):
+        op = operating_point(model, f_ext=load)
+        T = closed_loop(model, op)
+        b = bode(T, f)
+        b["label"] = f"x_rod/x_cmd, f_ext = {load / 1e3:g} kN"
+        curves.append(b)
+        at = {fx: (float(np.interp(fx, f, b["mag_db"])), float(np.interp(fx, f, b["phase_deg"]))) for fx in (1, 2, 5, 10)}
+        res["closed_loop"][f"{load / 1e3:g}kN"] = {
+            "bandwidth_3db_hz": float(bandwidth(T)),
+            "at_hz": {str(k): {"mag_db": v[0], "phase_deg": v[1]} for k, v in at.items()},
+        }
+    written.append(plot_bode(curves, out / "bode_closed_loop.png", title="closed loop x_rod/x_cmd (small signal)"))
+    op0 = operating_point(model)
+    K = dynamic_stiffness(model, op0, f)
+    written.append(plot_bode([{"freq_hz": f, "mag_db": K["mag_db"] - 120, "phase_deg": K["phase_deg"], "label": "-f_ext/x_rod"}],
+                             out / "dynamic_stiffness.png", title="dynamic stiffness (0 dB = 1 N/um)",
+                             mag_label="stiffness (dB re 1 N/um)"))
+    res["static_stiffness_N_per_m"] = float(K["magnitude"][0])
+    m = loop_margins(model, op0)
+    f_l = frequency_grid(1e-2, 1e5, 100)
+    written.append(plot_loop_margins({k: (bode(loop_model(model, k, op0), f_l), v) for k, v in m.items()},
+                                     out / "margins.png", title="open loop at each break (others closed)"))
+    res["margins"] = {k: v.as_dict() for k, v in m.items()}
+    res["drive_train_mode"] = modes(closed_loop(model, op0))[-1]
+    return res
+
+
 def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True) -> dict:
     """Run the demo and write its files into ``out``. Returns the summary dict."""
     out = Path(out)
@@ -69,6 +104,10 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
 
     stage("time responses")
     summary["time_responses"] = _simulations(model, out, written)
+    stage("linearisation, Bode, margins")
+    fr = _frequency(model, out, written)
+    summary["margins"] = fr.pop("margins")
+    summary["small_signal"] = fr
     summary["wall_time_s"] = time.perf_counter() - t0
     summary["written"] = [str(p) for p in written]
     _write_summary(summary, out)
@@ -99,6 +138,17 @@ def _write_summary(summary: dict, out: Path) -> None:
     lines += ["Against 30 kN (1 mm step + 0.375 mm, 1 Hz sine, 1.5 s): electrical input "
               f"{s['energy_in_J']:.1f} J, peak current {s['peak_current_A']:.1f} A; losses (J): "
               + ", ".join(f"{k[2:]} {v:.2f}" for k, v in s["losses_J"].items()), ""]
+    lines += ["## Small signal (Coulomb friction and backlash off, SPEC §4.2 policy)", "",
+              "| f_ext | -3 dB bandwidth (Hz) | 1 Hz | 2 Hz | 5 Hz | 10 Hz |", "|---|---|---|---|---|---|"]
+    for load, c in summary["small_signal"]["closed_loop"].items():
+        cells = [f"{v['mag_db']:.2f} dB / {v['phase_deg']:.1f}°" for v in c["at_hz"].values()]
+        lines.append(f"| {load} | {c['bandwidth_3db_hz']:.1f} | " + " | ".join(cells) + " |")
+    lines += ["", "| loop | GM (dB) | at (Hz) | PM (deg) | at (Hz) | disk margin α | meets GM ≥ 6 dB, PM ≥ 45° |",
+              "|---|---|---|---|---|---|---|"]
+    for k, m in summary["margins"].items():
+        lines.append(f"| {k} | {m['gm_db']:.1f} | {m['f_pc_hz'] or float('nan'):.3g} | {m['pm_deg']:.1f} | "
+                     f"{m['f_gc_hz'] or float('nan'):.3g} | {m['disk_margin']:.2f} | {'yes' if m['meets_requirement'] else 'NO'} |")
+    lines.append("")
     for section in summary.get("sections_md", []):
         lines += [section, ""]
     lines += ["## Files", ""] + [f"- `{Path(p).name}`" for p in summary["written"]]

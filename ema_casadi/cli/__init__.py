@@ -24,6 +24,8 @@ import numpy as np
 
 from ..params import ParameterError
 from ..signals import SignalError
+from ..export import ExportError
+from ..linearize import LinearizationError
 from ..simulate import SimulationError
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL"]
@@ -35,7 +37,7 @@ class UserError(ValueError):
     """A mistake in the command line; reported as one line, exit status 2."""
 
 
-USER_ERRORS = (UserError, ParameterError, SignalError, SimulationError)
+USER_ERRORS = (UserError, ParameterError, SignalError, SimulationError, LinearizationError, ExportError)
 
 
 class _Parser(argparse.ArgumentParser):
