@@ -24,7 +24,8 @@ A settling transient shrinks geometrically, so what is still to come is about
 the limit the sequence is heading for. q is capped at 0.9 and taken as 0.9 while only
 one change is known, so a point settles after two periods only if they agree to a
 tenth of the tolerances. Points that have not settled after ``max_periods`` are reported
-(``converged`` = False) with their last period's values.
+(``converged`` = False) with their last period's values. The criterion watches x_rod;
+the i_q harmonic and the distortions are taken from the same last period.
 
 *Harmonics.* On the uniform grid of one whole period the rectangle rule is the
 discrete Fourier transform: ``c_n = (2/K) sum_k y_k exp(-2 pi j n k/K)``. The command's
@@ -252,9 +253,12 @@ class _PeriodMap:
         return x1.ravel(), y
 
 
+_SIMULATE_LOCK = threading.Lock()
+
+
 class _HybridPeriods:
     """Period-by-period stepping of a hybrid-friction model through :func:`simulate`
-    (compiled RK4 with the stick projection). Not thread-safe: run serially.
+    (compiled RK4 with the stick projection), one call at a time.
 
     Every frequency uses the same output decimation and at least one full rollout
     chunk of samples per period, so one compiled rollout serves the whole grid; the
@@ -272,8 +276,9 @@ class _HybridPeriods:
         A, freq, f_ext = pa[self.npar :]
         n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
         n += n % 2
-        res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
-                       dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
+        with _SIMULATE_LOCK:  # simulate's compiled rollouts share call buffers
+            res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
+                           dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
         y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
         return x1, y
