@@ -387,10 +387,9 @@ def _projection(x, u, p, P, S, contact, v, hybrid):
                            ["x_prev", "x", "u", "p"], ["x_next", "stick"])
     k = S.names.index("v_rod" if v["screw"] == "elastic" else "omega")
     contact_fn = ca.Function("contact", [x, u, p], [contact["v"], contact["F_hold"], contact["F_r"]])
-    x_rest = ca.vertcat(x[:k], 0, x[k + 1 :])
     v_prev = contact_fn(x_prev, u, p)[0]
     v_now, F_hold, F_r = contact_fn(x, u, p)
     stick = friction.stick_entry(v_prev, v_now, F_hold, F_r, P)
-    x_new = ca.if_else(stick, x_rest, x)
+    x_new = ca.vertcat(x[:k], ca.if_else(stick, 0, x[k]), x[k + 1 :])
     return ca.Function("project", [x_prev, x, u, p], [x_new, stick],
                        ["x_prev", "x", "u", "p"], ["x_next", "stick"])

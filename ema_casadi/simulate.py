@@ -155,18 +155,19 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
         x_next = _rk4(lambda z, j: model.f(z, U3[:, j], p)[0], x, h, stages)
     stick = ca.SX(0)
     if model.hybrid:
-        x_end = x_next
+        # chained: once a test zeroes the velocity the next ones see it in the band and
+        # keep it zeroed (the force test does not depend on the velocity)
         for z in [x, *stages]:
-            x_z, stick_z = model.project(z, x_end, U3[:, 2], p)
-            x_next = ca.if_else(stick_z, x_z, x_next)
-            stick = ca.fmax(stick, stick_z)
+            x_next, stick = model.project(z, x_next, U3[:, 2], p)
     out = [x_next]
     if zoh:
         out.append(hold)
     if count_modes:
         stick_prev, n_switch = xa[nx + nh], xa[nx + nh + 1]
         out += [stick, n_switch + ca.fabs(stick - stick_prev)]
-    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"])
+    # the stick tests repeat the contact-force expression: merge common subexpressions
+    opts = {"cse": True} if model.hybrid else {}
+    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"], opts)
 
 
 _ROLLOUTS: dict = {}
