@@ -17,6 +17,24 @@ Two solvers share the model's one CasADi Function:
 
 Memory stays bounded by output decimation: only every ``decimate``-th step (or
 every ``dt_out``) is kept, and the inputs are generated chunk by chunk.
+
+Hybrid (stick-slip) friction is a hybrid system, and both solvers wrap it:
+
+- ``rk4``: the mode logic lives inside the compiled step. The continuous ``f`` holds
+  a stuck rod (zero acceleration); after each step ``model.project`` resets the
+  contact velocity to 0 when the rod entered the dead band, or its velocity changed
+  sign between the step's start or stage states and its end, with the stick condition
+  holding. Switching instants are thus resolved to one step. The stick flag and the
+  number of stick/slip switches ride along as two extra rollout states, so
+  ``info["mode_switches"]`` counts every switch, whatever the output decimation.
+- ``cvodes``: CasADi's integrator events are experimental and failed on this model
+  (CV_ILL_INPUT), so the wrapper owns the switching logic: CVODES integrates the
+  continuous ``f`` with quadratures of the time spent stuck / not stuck; a chunk
+  whose quadrature of the other mode is positive holds a switch, which is bracketed
+  and shrunk (quadrature estimate, bisection safeguard) to ``event_tol`` (default
+  1e-7 s) by re-integrating from the last accepted state; ``model.project`` is applied
+  at the located instant and the integrator restarted. ``info`` holds
+  ``mode_switches`` and ``switch_times``.
 """
 
 from __future__ import annotations
@@ -461,12 +479,13 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
 # f over chunks of output intervals, with two quadratures: the time spent with the
 # stick condition of f holding and the time spent without it. Once stuck, f keeps the
 # contact velocity constant, so "the stick condition has held since t" is monotone in
-# t, and a chunk whose quadrature of the *other* mode is positive contains a switch.
-# The switch is bracketed between output times and bisected on time (re-integrating
-# from the last accepted state) to ``event_tol``; at the right end of the bracket the
-# model's ``project`` map is applied (sets the velocity to 0 on entering stick) and the
-# integrator restarts. Switches shorter than no quadrature sample can see are not
-# resolved; everything else is, whatever the output spacing.
+# t until breakaway, and a chunk whose quadrature of the *other* mode is positive
+# contains a switch. The switch is bracketed between output times and the bracket is
+# shrunk to ``event_tol`` by re-integrating from its left end (``_locate_switch``); at
+# the bracket's right end the model's ``project`` map is applied (velocity 0 on
+# entering stick) and the integrator restarts. Because the quadratures see the whole
+# interval, switches are found whatever the output spacing; only a visit to the other
+# mode that begins and ends between two of CVODES's internal steps can go unseen.
 _CHUNK_SECONDS = 2e-2  # integrated per CVODES call between checks (s)
 _MAX_CHUNK = 2048
 
@@ -502,15 +521,17 @@ def _locate_switch(integrate, F1, stuck, t_l, x_l, t_r, x_r, q_r, tol):
 
     ``q_r`` is the time spent in the other mode over [t_l, t_r]; since the new mode
     persists under the continuous f, t_r - q_r estimates the switching instant. Each
-    trial integrates from the left end to just past the estimate; a trial that fails
-    to halve the bracket is followed by a bisection step (safeguard).
+    trial integrates from the left end to just past the estimate (or just before it,
+    once the right end sits within tol/2 of it); a trial that fails to halve the
+    bracket is followed by a bisection step (safeguard). Typically 2-4 integrations.
     Returns (t_l, x_l, t_r, x_r)."""
     halved = True
     while t_r - t_l > tol:
         w = t_r - t_l
         t_est = t_r - q_r
         if halved:
-            t_m = min(max(t_est + 0.25 * tol, t_l + 0.25 * tol), t_r - 0.25 * tol)
+            t_m = t_est + 0.25 * tol if q_r > 0.5 * tol else t_est - 0.25 * tol
+            t_m = min(max(t_m, t_l + 0.25 * tol), t_r - 0.25 * tol)
         else:
             t_m = 0.5 * (t_l + t_r)
         x_m, q = integrate(F1, x_l, t_l, t_m - t_l, 1)
