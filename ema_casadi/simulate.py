@@ -191,6 +191,13 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
 _ROLLOUTS: dict = {}
 
 
+def _outputs_only(f: ca.Function) -> ca.Function:
+    """``f`` without its state derivative: the outputs y alone (a kept sample costs
+    about one step less)."""
+    args = f.sx_in()
+    return ca.Function(f"{f.name()}_y", args, [f(*args)[1]], f.name_in(), ["y"])
+
+
 def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
     """Compiled chunk: M outputs, each after k RK4 steps. Cached per model/options.
 
@@ -212,9 +219,9 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
         u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
         nh = len(HOLD) if zoh else 0
         if zoh:
-            Y = model.f_held.map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])[1]
+            Y = _outputs_only(model.f_held).map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])
         else:
-            Y = model.f.map(M)(X[: model.nx, :] if count else X, u_at, p)[1]
+            Y = _outputs_only(model.f).map(M)(X[: model.nx, :], u_at, p)
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
         F = ca.Function(name, [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
         Fc, info = compile_function(F, jit)
@@ -224,6 +231,7 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
 
 _OUTPUT_MAPS: dict = {}
 _MAP_CHUNK = 4096
+_FEW = 8
 
 
 def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
@@ -237,6 +245,8 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
         _OUTPUT_MAPS[key] = BufferCall(compile_function(F, jit)[0])
     call = _OUTPUT_MAPS[key]
     n = X.shape[1]
+    if n <= _FEW:  # a few samples: the plain call beats a compiled 4096-column map
+        return np.column_stack([np.asarray(model.f(X[:, i], U[:, i], p)[1]).ravel() for i in range(n)])
     Y = np.empty((model.ny, n))
     for c in range(0, n, _MAP_CHUNK):
         m = min(_MAP_CHUNK, n - c)

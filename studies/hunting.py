@@ -4,7 +4,9 @@ The paper (Bilyaletdinova & Steblinkin 2017, "Enhanced friction model") claims t
 hybrid (Karnopp stick-slip) friction model run at a 1e-4 s step shows no more
 "hunting" than the smooth (tanh) model at 1e-5 s. This study measures it on the
 reference actuator (pmsm + elastic screw + ideal inverter) with the PI position loop
-(controller = "PI"): a 1 mm step at 0.01 s, then the command is held.
+(controller = "PI"): a 1 mm step at 0.01 s, then the command is held. "smooth" is the
+reference set's smooth variant (tanh, v_s = 1e-4 m/s, no Stribeck hump); "hybrid" has
+F_start = 1.3 F_r and the dead band eps = 1e-4 m/s.
 
 K_i_x: without friction the PI loop is well damped for every K_i_x tried here (the
 slowest poles of the linearised loop are -41 +- 31j 1/s at K_i_x = 3000 1/s^2), so any
@@ -19,7 +21,10 @@ Measured over the second half of the run (the cycle is established by then):
 - frequency: cycles of the error about its mean, counted with a hysteresis of half the
   amplitude (Hz);
 - wall time: median of --repeats runs after a warm-up run (compilation excluded), the
-  time simulate() reports. Run the study alone on the machine for meaningful times.
+  time simulate() reports, with samples kept every --dt-out (default 1 ms, 200 per
+  hunting cycle; a kept sample costs about half an RK4 step, so keeping every 1e-4 s
+  step of the hybrid run nearly doubles its time). Run the study alone on the machine
+  for meaningful times.
 
 Cases: smooth at 1e-5 and 1e-6 s, hybrid at 1e-4 and 1e-5 s (compiled RK4); hybrid with
 CVODES and located switching instants (variable-step check); with --reference also
@@ -27,7 +32,7 @@ smooth at 2e-7 s (converged; ~1 min).
 
 Usage::
 
-    python studies/hunting.py [--out out] [--k-i-x 3000] [--t-end 4] [--repeats 3] [--reference]
+    python studies/hunting.py [--out out] [--k-i-x 3000] [--t-end 4] [--repeats 3] [--dt-out 1e-3] [--reference]
 
 Writes ``<out>/hunting.png`` and ``<out>/hunting.json``; prints a Markdown table.
 """
@@ -69,8 +74,8 @@ def hunting(res, t_from: float) -> dict:
     return {"amplitude": amp, "frequency": freq, "mean_error": float(e.mean())}
 
 
-def run_case(model, p, t_end, dt, solver, repeats):
-    kw = dict(dt=dt, dt_out=1e-4, p=p) if solver == "rk4" else dict(dt=1e-4, p=p, solver="cvodes", rtol=1e-8, atol=1e-11)
+def run_case(model, p, t_end, dt, solver, repeats, dt_out):
+    kw = dict(dt=dt, dt_out=dt_out, p=p) if solver == "rk4" else dict(dt=dt_out, p=p, solver="cvodes", rtol=1e-8, atol=1e-11)
     res = ema.simulate(model, t_end, STEP, **kw)  # warm-up: compiles (or loads) the rollout
     walls = []
     for _ in range(repeats):
@@ -86,6 +91,8 @@ def main(argv=None) -> int:
     ap.add_argument("--k-i-x", type=float, default=3000.0, help="position-loop integral gain K_i_x (1/s^2); default 3000")
     ap.add_argument("--t-end", type=float, default=4.0, help="simulated time (s); hunting is measured over its second half")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per case (median); default 3")
+    ap.add_argument("--dt-out", type=float, default=1e-3,
+                    help="spacing of the kept samples (s), the same for every case; default 1e-3 (200 per cycle)")
     ap.add_argument("--reference", action="store_true", help="also smooth at 2e-7 s (converged reference, ~1 min)")
     args = ap.parse_args(argv)
     if not (args.t_end > 0.5 and math.isfinite(args.t_end)):
@@ -94,6 +101,8 @@ def main(argv=None) -> int:
         ap.error(f"--k-i-x must be a non-negative number, got {args.k_i_x}")
     if args.repeats < 1:
         ap.error(f"--repeats must be at least 1, got {args.repeats}")
+    if not (1e-4 <= args.dt_out <= 1e-2):
+        ap.error(f"--dt-out must be between 1e-4 and 1e-2 s (a multiple of every step), got {args.dt_out}")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -112,7 +121,7 @@ def main(argv=None) -> int:
     for fr, dt, solver in cases:
         model = models[fr]
         repeats = 1 if (dt is not None and dt < 1e-6) else args.repeats
-        res, wall = run_case(model, model.p(K_i_x=args.k_i_x), args.t_end, dt, solver, repeats)
+        res, wall = run_case(model, model.p(K_i_x=args.k_i_x), args.t_end, dt, solver, repeats, args.dt_out)
         h = hunting(res, t_from)
         label = f"{fr}, {'RK4 dt=%g s' % dt if solver == 'rk4' else 'CVODES, located switches'}"
         row = {"friction": fr, "solver": solver, "dt": dt, "amplitude_um": h["amplitude"] * 1e6,
@@ -134,7 +143,8 @@ def main(argv=None) -> int:
     }
     claim["holds"] = bool(claim["amplitude_not_larger"] and claim["wall_time_ratio_smooth_1e-5_over_hybrid_1e-4"] >= 5)
 
-    print(f"\nK_i_x = {args.k_i_x:g} 1/s^2, {args.t_end:g} s, hunting measured over t >= {t_from:g} s\n")
+    print(f"\nK_i_x = {args.k_i_x:g} 1/s^2, {args.t_end:g} s, hunting measured over t >= {t_from:g} s, "
+          f"samples every {args.dt_out:g} s\n")
     print("| friction | integrator | amplitude (um) | frequency (Hz) | wall time (ms) | mode switches |")
     print("|---|---|---|---|---|---|")
     for r in rows:
@@ -164,7 +174,8 @@ def main(argv=None) -> int:
     fig.tight_layout()
     png = save(fig, out / "hunting.png")
 
-    result = {"k_i_x": args.k_i_x, "t_end": args.t_end, "measured_from": t_from, "cases": rows, "claim": claim,
+    result = {"k_i_x": args.k_i_x, "t_end": args.t_end, "dt_out": args.dt_out, "measured_from": t_from,
+              "cases": rows, "claim": claim,
               "model": str(args.model), "variants": {"motor": "pmsm", "screw": "elastic", "inverter": "ideal",
                                                       "controller": "PI"}}
     js = out / "hunting.json"
