@@ -93,11 +93,10 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
     The rod is held (its velocity must be reset to 0) when it is in the dead band at
     the end of the step, or crossed it during the step (v changed sign), and the
     applied force with the rod at rest, ``F_hold`` (N), is within F_start (the same
-    test as in :func:`hybrid`). Testing the
-    crossing as well as the end point matters for the light rod of the elastic screw:
-    sliding friction changes its velocity by F_r h / M ~ 5e-3 m/s per 1e-4 s step,
-    fifty times the band width, so a step would rarely end inside the band.
-    Returns 1 (stick) or 0.
+    test as in :func:`hybrid`). Testing the crossing as well as the end point matters
+    for the light rod of the elastic screw: sliding friction changes its velocity by
+    F_r h / M ~ 5e-3 m/s per 1e-4 s step, fifty times the band width, so a step would
+    rarely end inside the band. Returns 1 (stick) or 0.
     """
     entered = ca.logic_or(ca.fabs(v) < P.eps, v_prev * v < 0)
     return ca.logic_and(entered, ca.fabs(F_hold) <= P.r_start * F_r)
