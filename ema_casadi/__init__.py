@@ -9,13 +9,18 @@ Quick start::
     model = ema.build_model(params, {"motor": "pmsm", "screw": "elastic"})
     res = ema.simulate(model, 0.2, x_cmd=ema.Signal.step(1e-3, 0.01))
     res["x_rod"]          # rod position (m)
+    lin = ema.linearize.linearize(model)       # control.StateSpace, named signals
+    ema.loop_margins(model)                     # GM/PM/disk margins per loop
+
+``ema.linearize`` is the module (its function of the same name is not re-exported,
+so that ``from ema_casadi import linearize`` keeps giving the module).
 """
 
 from .assembly import INPUTS, OUTPUTS, Model, build_model
 from .params import DEFAULT_VARIANTS, VARIANTS, ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
 from .simulate import SimResult, SimulationError, simulate
-from .linearize import LinearizationError, OperatingPointError, linear_model, linearize, loop_transfer, operating_point
+from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
 
@@ -26,7 +31,7 @@ __all__ = [
     "DEFAULT_VARIANTS", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "Signal", "SignalError", "parse_signal",
     "SimResult", "SimulationError", "simulate",
-    "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
+    "LinearizationError", "OperatingPointError", "linear_model", "loop_transfer", "operating_point",
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
 ]
