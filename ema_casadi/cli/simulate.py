@@ -32,13 +32,15 @@ def add_arguments(p):
     p.add_argument("--zoh", action="store_true", help="sampled ECU at its rates (rk4 only)")
     p.add_argument("--out", default=None, metavar="FILE", help="write the time series: .csv (column t, then one per signal, SI) or .npz")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="plot command, position, velocity, current, voltage")
+    p.add_argument("--event-tol", type=float, default=1e-7,
+                   help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); default 1e-7")
     p.add_argument("--progress", action="store_true", help="progress bar on stderr")
 
 
 def run(args) -> dict:
     out = check_output_path(args.out, (".csv", ".npz"), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")
-    for flag, val in (("--t-end", args.t_end), ("--dt", args.dt)):
+    for flag, val in (("--t-end", args.t_end), ("--dt", args.dt), ("--event-tol", args.event_tol)):
         if not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     params, model = load(args)
@@ -54,7 +56,7 @@ def run(args) -> dict:
     dt_out = args.dt_out if args.dt_out is not None else max(args.dt, 1e-4)
     t0 = time.perf_counter()
     res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, progress=args.progress)
+                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress)
     written = []
     if out is not None:
         written.append(str(res.to_csv(out) if out.suffix.lower() == ".csv" else res.to_npz(out)))
@@ -75,6 +77,7 @@ def run(args) -> dict:
         "compile_time": info.get("compile_time", 0.0),
         "steps": info.get("steps"),
         "samples": len(res.t),
+        "mode_switches": info.get("mode_switches"),
         "written": written,
     }
 
@@ -83,6 +86,8 @@ def report(r: dict) -> None:
     f = r["final"]
     print(f"simulated {r['t_end']} s with {r['solver']} ({r['steps']} steps) in {r['wall_time']:.3f} s "
           f"(compile {r['compile_time']:.3f} s)")
+    if r["mode_switches"] is not None:
+        print(f"stick/slip mode switches: {r['mode_switches']}")
     print(f"final: x_rod = {f['x_rod'] * 1e3:.4f} mm, v_rod = {f['v_rod'] * 1e3:.3f} mm/s, "
           f"i_q = {f['i_q']:.3f} A, F_in = {f['F_in']:.1f} N")
     for w in r["written"]:
