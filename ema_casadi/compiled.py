@@ -23,7 +23,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-__all__ = ["compile_function", "cache_dir", "compiler", "BufferCall"]
+__all__ = ["compile_function", "compile_keyed", "cache_dir", "compiler", "BufferCall"]
 
 _lock = threading.Lock()
 _loaded: dict[str, ca.Function] = {}
@@ -94,6 +94,48 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
     info["compiled"] = True
     info["compile_time"] = time.perf_counter() - t0
     return g, info
+
+
+def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Function, dict]:
+    """Like :func:`compile_function`, but looked up by a key the caller computes
+    cheaply (e.g. the serialised model plus the rollout options), so that a cached
+    library is loaded without building the Function at all. Building a long
+    ``mapaccum`` rollout takes ~1 s, longer than loading it.
+
+    ``key_parts``: strings or bytes that determine the generated code; ``build()``
+    returns the Function (only called on a cache miss or without ``jit``).
+    """
+    if not jit or compiler() is None:
+        return compile_function(build(), jit)
+    h = hashlib.sha256()
+    for part in (*key_parts, ca.__version__, sys.platform):
+        h.update(part if isinstance(part, bytes) else str(part).encode())
+    so = cache_dir() / f"{name}_k{h.hexdigest()[:20]}.so"
+    with _lock:
+        if str(so) in _loaded:
+            return _loaded[str(so)], {"compiled": True, "cached": True, "compile_time": 0.0}
+        if so.exists():
+            g = ca.external(name, str(so))
+            _loaded[str(so)] = g
+            return g, {"compiled": True, "cached": True, "compile_time": 0.0}
+    import time
+
+    t0 = time.perf_counter()
+    g, info = compile_function(build(), jit)
+    if info["compiled"]:
+        src = Path(_loaded_path(g))
+        tmp = so.with_suffix(".so.tmp")
+        shutil.copyfile(src, tmp)
+        os.replace(tmp, so)
+    info["compile_time"] = time.perf_counter() - t0
+    return g, info
+
+
+def _loaded_path(g: ca.Function) -> str:
+    for path, fn in _loaded.items():
+        if fn is g:
+            return path
+    raise KeyError(g.name())
 
 
 class BufferCall:

@@ -49,7 +49,7 @@ import casadi as ca
 import numpy as np
 
 from .assembly import HOLD, OUTPUT_UNITS, Model
-from .compiled import BufferCall, compile_function
+from .compiled import BufferCall, compile_function, compile_keyed
 from .params import Parameters
 from .signals import Signal, constant, parse_signal
 
@@ -205,28 +205,39 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
     count = model.hybrid
     key = (id(model.f), zoh, k, M, jit)
     if key not in _ROLLOUTS:
-        step = rk4_step_function(model, zoh, count)
-        blk = step.fold(k) if k > 1 else step
-        roll = blk.mapaccum("rollout", M)
-        # outputs at the kept samples, in the same compiled call
-        nxa = step.size1_in(0)
-        x0 = ca.MX.sym("x0", nxa)
-        U = ca.MX.sym("U", model.nu, 3 * k * M)
-        Fl = ca.MX.sym("F", 3, k * M)
-        p = ca.MX.sym("p", len(model.param_names))
-        h = ca.MX.sym("h")
-        X = roll(x0, U, Fl, p, h)
-        u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
-        nh = len(HOLD) if zoh else 0
-        if zoh:
-            Y = _outputs_only(model.f_held).map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])
-        else:
-            Y = _outputs_only(model.f).map(M)(X[: model.nx, :], u_at, p)
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
-        F = ca.Function(name, [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
-        Fc, info = compile_function(F, jit)
+        parts = [_SOURCE, name, *(g.serialize() for g in (model.f, model.f_held, model.sample, model.project) if g is not None)]
+        Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
         _ROLLOUTS[key] = (BufferCall(Fc), info)
     return _ROLLOUTS[key]
+
+
+#: This module's code determines the generated rollouts: part of their cache key.
+_SOURCE = Path(__file__).read_bytes()
+
+
+def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: str) -> ca.Function:
+    """The compiled chunk: M outputs, each after k RK4 steps (``fold`` of the step),
+    stacked by ``mapaccum``; the outputs at the kept samples in the same call."""
+    step = rk4_step_function(model, zoh, count)
+    blk = step.fold(k) if k > 1 else step
+    roll = blk.mapaccum("rollout", M)
+    nxa = step.size1_in(0)
+    x0 = ca.MX.sym("x0", nxa)
+    U = ca.MX.sym("U", model.nu, 3 * k * M)
+    Fl = ca.MX.sym("F", 3, k * M)
+    p = ca.MX.sym("p", len(model.param_names))
+    h = ca.MX.sym("h")
+    X = roll(x0, U, Fl, p, h)
+    u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
+    nh = len(HOLD) if zoh else 0
+    if zoh:
+        Y = _outputs_only(model.f_held).map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])
+    else:
+        Y = _outputs_only(model.f).map(M)(X[: model.nx, :], u_at, p)
+    return ca.Function(name, [x0, U, Fl, p, h], [X, Y], ["x0", "U", "flags", "p", "h"], ["X", "Y"])
+
+
 
 
 _OUTPUT_MAPS: dict = {}
