@@ -454,18 +454,33 @@ def _result(model, sig, t, X, Y, info):
     return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info)
 
 
+_INTEGRATORS: dict = {}
+_INTEGRATORS_MAX = 64
+
+
+def _segment_integrator(model, sig, a: float, tout: list, rtol: float, atol: float) -> BufferCall:
+    """CVODES over [a, tout[-1]] with the signals as expressions of t, cached: the
+    parameters are an input, so a sweep or an optimiser re-running one scenario with
+    other values reuses the integrator (creating one costs ~2 ms)."""
+    key = (id(model.f), tuple(sig.items()), a, tuple(tout), rtol, atol)
+    if key not in _INTEGRATORS:
+        x = ca.SX.sym("x", model.nx)
+        p = ca.SX.sym("p", len(model.param_names))
+        t = ca.SX.sym("t")
+        u = ca.SX.zeros(model.nu)
+        for name, s in sig.items():
+            u[model.inputs.index(name)] = s.sym(t)
+        dae = {"x": x, "p": p, "t": t, "ode": model.f(x, u, p)[0]}
+        opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7}
+        if len(_INTEGRATORS) >= _INTEGRATORS_MAX:
+            _INTEGRATORS.pop(next(iter(_INTEGRATORS)))
+        _INTEGRATORS[key] = BufferCall(ca.integrator("F", "cvodes", dae, a, tout, opts))
+    return _INTEGRATORS[key]
+
+
 def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
     n_out = int(math.ceil(t_end / dt_out - 1e-9))
     grid = np.arange(n_out + 1) * dt_out
-    grid[-1] = min(grid[-1], max(t_end, grid[-1]))
-    x = ca.SX.sym("x", model.nx)
-    p = ca.SX.sym("p", len(model.param_names))
-    t = ca.SX.sym("t")
-    u = ca.SX.zeros(model.nu)
-    for name, s in sig.items():
-        u[model.inputs.index(name)] = s.sym(t)
-    dae = {"x": x, "p": p, "t": t, "ode": model.f(x, u, p)[0]}
-    opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7}
     cuts = [b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]]
     edges = sorted({0.0, float(grid[-1]), *cuts})
     X = np.empty((model.nx, len(grid)))
@@ -478,9 +493,9 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
         tout = [float(grid[i]) for i in inside]
         if not tout or abs(tout[-1] - b) > 1e-12:
             tout.append(b)
-        F = ca.integrator("F", "cvodes", dae, a, tout, opts)
-        xf = BufferCall(F)(xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3)[0]
-        steps += int(F.stats(1).get("nsteps", 0))  # memory 1: the buffer's
+        F = _segment_integrator(model, sig, a, tout, rtol, atol)
+        xf = F(xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3)[0]
+        steps += int(F.f.stats(1).get("nsteps", 0))  # memory 1: the buffer's
         X[:, inside] = xf[:, : len(inside)]
         xc = xf[:, -1]
         _progress(b / edges[-1], progress)
