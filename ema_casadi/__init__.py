@@ -23,6 +23,7 @@ from .simulate import SimResult, SimulationError, simulate
 from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
+from .freqresp import FreqResponse, FreqRespError, sine_stream
 
 __version__ = "0.1.0"
 
@@ -34,4 +35,5 @@ __all__ = [
     "LinearizationError", "OperatingPointError", "linear_model", "loop_transfer", "operating_point",
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
+    "FreqResponse", "FreqRespError", "sine_stream",
 ]
