@@ -1,0 +1,180 @@
+"""Tune the cascade's gains by nonlinear optimisation (CasADi Opti + IPOPT).
+
+The free gains (--free) are chosen to maximise the closed-loop bandwidth or minimise
+the step tracking error (--objective), subject in every load case (--loads) to: gain
+and phase margins on the position, velocity and current loops (--gm/--pm, or a
+sensitivity peak --ms), overshoot (--overshoot), current and voltage within their
+limits on a step of --step, optional minimum bandwidth and eigenvalue bound. The
+result is verified independently (fresh linearisation, python-control margins, a
+nonlinear step simulation) and written as a parameter file (--out).
+Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir out
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ..signals import SignalError, parse_quantity
+from . import UserError, check_output_path, load
+
+COMMAND = "tune"
+ORDER = 7
+HELP = "tune the loop gains by IPOPT (margins, overshoot, limits; several load cases)"
+
+
+def add_arguments(p):
+    from ..tune import GAINS, OBJECTIVES
+
+    p.add_argument("--free", default=None, metavar="G1,G2,...",
+                   help=f"gains to tune, comma-separated from {', '.join(GAINS)}; default all that act "
+                        "(K_i_x only with controller=PI)")
+    p.add_argument("--loads", default="0", metavar="F1,F2,...",
+                   help="load cases f_ext, comma-separated: 15kN, 500N (a bare number is N); default 0")
+    p.add_argument("--objective", choices=OBJECTIVES, default="bandwidth",
+                   help="bandwidth (maximise the worst-case -3 dB frequency, default) or tracking "
+                        "(minimise the step's integrated squared error)")
+    p.add_argument("--gm", type=float, default=6.0, metavar="DB", help="gain margin of every loop (dB); default 6")
+    p.add_argument("--pm", type=float, default=45.0, metavar="DEG", help="phase margin of every loop (deg); default 45")
+    p.add_argument("--ms", type=float, default=None, metavar="MS",
+                   help="instead of --gm/--pm: sensitivity peak |1/(1+L)| <= MS on every loop")
+    p.add_argument("--overshoot", type=float, default=5.0, metavar="PCT", help="step overshoot limit (%%); default 5")
+    p.add_argument("--bandwidth-min", type=float, default=None, metavar="HZ",
+                   help="closed-loop x_rod/x_cmd at least -3 dB up to HZ")
+    p.add_argument("--sigma", type=float, default=0.0, metavar="PER_S",
+                   help="closed-loop eigenvalues left of -SIGMA (1/s); default 0")
+    p.add_argument("--step", default="0.1mm", metavar="LENGTH",
+                   help="step the loops must follow inside the current and voltage limits: 0.1mm, "
+                        "0.5%% (of the stroke), a bare number is mm; default 0.1mm")
+    p.add_argument("--start-scale", type=float, default=1.0, metavar="FACTOR",
+                   help="start from FACTOR times the file's gains (T_i_w kept); default 1")
+    p.add_argument("--hessian", choices=("exact", "limited-memory"), default="exact",
+                   help="IPOPT Hessian: exact (AD, default) or limited-memory (L-BFGS)")
+    p.add_argument("--max-iter", type=int, default=200, help="IPOPT iteration limit; default 200")
+    p.add_argument("--sim-step", default="1mm", metavar="LENGTH",
+                   help="nonlinear step simulated before and after (0 skips it); default 1mm")
+    p.add_argument("--out", default=None, metavar="FILE.toml", help="parameter file with the tuned gains")
+    p.add_argument("--plot-dir", default=None, metavar="DIR",
+                   help="write tune_bode.png and tune_step.png (before/after) into DIR")
+
+
+def _length(text, flag, stroke):
+    try:
+        return parse_quantity(str(text), "length", "mm", stroke=stroke)
+    except SignalError as exc:
+        raise UserError(f"{flag} {exc}") from None
+
+
+def _loads(text) -> list[float]:
+    out = []
+    for part in str(text).split(","):
+        if not part.strip():
+            raise UserError(f"--loads '{text}': empty entry; expected forces like 0,15kN,30kN")
+        try:
+            out.append(parse_quantity(part, "force", "N"))
+        except SignalError as exc:
+            raise UserError(f"--loads {exc}") from None
+    return out
+
+
+def run(args) -> dict:
+    from ..tune import Requirements, TuneError, default_free, plot_tuning, scaled_gains, tune
+
+    out = check_output_path(args.out, (".toml",), "--out")
+    plot_dir = None
+    if args.plot_dir is not None:
+        plot_dir = Path(args.plot_dir)
+        if not plot_dir.parent.exists():
+            raise UserError(f"--plot-dir {args.plot_dir}: folder {plot_dir.parent} does not exist")
+        if plot_dir.exists() and not plot_dir.is_dir():
+            raise UserError(f"--plot-dir {args.plot_dir}: exists and is not a folder")
+    for flag, val, ok, what in (
+        ("--gm", args.gm, args.gm > 0, "a positive number of dB"),
+        ("--pm", args.pm, 0 < args.pm < 90, "between 0 and 90 deg"),
+        ("--overshoot", args.overshoot, args.overshoot >= 0, "a non-negative percentage"),
+        ("--sigma", args.sigma, args.sigma >= 0, "a non-negative rate (1/s)"),
+        ("--start-scale", args.start_scale, args.start_scale > 0, "positive"),
+    ):
+        if not (math.isfinite(val) and ok):
+            raise UserError(f"{flag} must be {what}, got {val:g}")
+    if args.ms is not None and not (math.isfinite(args.ms) and args.ms > 1):
+        raise UserError(f"--ms must be above 1, got {args.ms:g}")
+    if args.bandwidth_min is not None and not (math.isfinite(args.bandwidth_min) and args.bandwidth_min > 0):
+        raise UserError(f"--bandwidth-min must be a positive frequency (Hz), got {args.bandwidth_min:g}")
+    if args.max_iter < 1:
+        raise UserError(f"--max-iter must be at least 1, got {args.max_iter}")
+    loads = _loads(args.loads)
+    params, model = load(args)
+    stroke = params.actuator.stroke
+    step = _length(args.step, "--step", stroke)
+    if not step > 0:
+        raise UserError(f"--step must be a positive length, got {args.step}")
+    sim_step = _length(args.sim_step, "--sim-step", stroke)
+    if args.free is None:
+        free = default_free(model)
+    else:
+        free = tuple(g.strip() for g in args.free.split(",") if g.strip())
+    req = Requirements(gm_db=args.gm, pm_deg=args.pm, ms=args.ms, overshoot=args.overshoot / 100,
+                       bandwidth_min_hz=args.bandwidth_min, sigma=args.sigma, step=step)
+    try:
+        start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
+        res = tune(params, model=model, free=free, loads=loads, objective=args.objective, requirements=req,
+                   start=start, max_iter=args.max_iter, hessian=args.hessian, verify_step=sim_step)
+    except TuneError as exc:
+        raise UserError(str(exc)) from None
+    if not res.success:
+        raise UserError(res.message)
+    written = []
+    if out is not None:
+        written.append(str(res.write(out)))
+    if plot_dir is not None:
+        plot_dir.mkdir(exist_ok=True)
+        before = params.replace(**res.gains_before)
+        written.extend(str(w) for w in plot_tuning(res, model, before, plot_dir))
+    r = res.to_dict()
+    for key in ("before", "after"):
+        nl = r[key].get("nonlinear_step")
+        if nl:
+            r[key]["nonlinear_step"] = {k: v for k, v in nl.items() if k not in ("t", "x_rod", "i_q")}
+    r.update(model=args.model, written=written)
+    return r
+
+
+def _fmt(v, spec):
+    return "-" if v is None else ("inf" if isinstance(v, float) and math.isinf(v) else format(v, spec))
+
+
+def report(r: dict) -> None:
+    req = r["requirements"]
+    bound = f"Ms <= {req['ms']:g}" if req["ms"] is not None else f"GM >= {req['gm_db']:g} dB, PM >= {req['pm_deg']:g} deg"
+    print(f"{r['message']}")
+    print(f"objective {r['objective']}: {r['objective_value']:.4g}{' Hz' if r['objective'] == 'bandwidth' else ''}; "
+          f"IPOPT {r['status']}, {r['iterations']} iterations in {r['rounds']} solve(s), "
+          f"{r['solve_time_s']:.2f} s (build {r['build_time_s']:.2f} s)")
+    print(f"requirements: {bound}, overshoot <= {100 * req['overshoot']:g} %, limits on a "
+          f"{req['step'] * 1e3:g} mm step; loads {', '.join(f'{f / 1e3:g} kN' for f in r['loads_N'])}")
+    if r["active"]:
+        from ..tune import Requirements, describe_constraint
+
+        rq = Requirements(**req)
+        print("limited by: " + "; ".join(describe_constraint(a, rq) for a in r["active"]))
+    print(f"  {'gain':6s} {'before':>12s} {'after':>12s}")
+    for g, v in r["gains_after"].items():
+        print(f"  {g:6s} {r['gains_before'][g]:12.5g} {v:12.5g}")
+    for key in ("before", "after"):
+        v = r[key]
+        print(f"{key}: worst |GM| {v['worst']['gm_db']:.2f} dB, PM {v['worst']['pm_deg']:.2f} deg, "
+              f"bandwidth {v['worst']['bandwidth_hz']:.3g} Hz")
+        for label, d in v["loads"].items():
+            loops = ", ".join(f"{n} {_fmt(m['gm_db'], '+.1f')} dB/{_fmt(m['pm_deg'], '.1f')} deg"
+                              for n, m in d["loops"].items())
+            st = d["step"]
+            print(f"  {label:>7s}: {loops}; step overshoot {100 * st['overshoot']:.2f} %, "
+                  f"settles {_fmt(1e3 * st['settling_time_s'], '.1f')} ms, peaks {st['i_q_peak_A']:.3g} A, "
+                  f"{st['v_dq_peak_V']:.4g} V")
+        nl = v.get("nonlinear_step")
+        if nl:
+            print(f"  nonlinear {nl['amp_m'] * 1e3:g} mm step: overshoot {100 * nl['overshoot']:.2f} %, "
+                  f"settles (2 %) in {_fmt(1e3 * nl['settling_time_s'], '.1f')} ms")
+    for w in r["written"]:
+        print(f"wrote {w}")
