@@ -4,86 +4,117 @@ The free gains (any of ``K_x``, ``K_i_x``, ``K_p_w``, ``T_i_w``, ``K_p_i``, ``K_
 are decision variables of one CasADi ``Opti`` problem solved by IPOPT. Every quantity
 in it is a symbolic function of the gains through the model itself: the parameter
 vector ``p`` of the assembled ``model.f`` carries the gains, and the exact AD Jacobian
-``A(p), B(p), C, D`` of ``model.f`` at each load case's operating point
-(:func:`ema_casadi.linearize.jacobian_function`) feeds the frequency responses and the
-step responses below, so IPOPT gets exact first and second derivatives.
+``A(p), B(p), C(p), D(p)`` of ``model.f`` at each load case's operating point
+(:func:`ema_casadi.linearize.jacobian_function`) feeds the frequency and step
+responses below, so IPOPT gets exact first and second derivatives (except the second
+derivative of the eigenvalue bound, taken as zero).
 
 Load cases and the linearisation
 --------------------------------
 Each load case is an operating point at rest, ``x_cmd = 0``, ``f_ext = F``, under the
 toolkit's small-signal policy (:mod:`ema_casadi.linearize`): backlash off, Coulomb-type
-friction off and the screw-nut efficiency switch frozen at its operating-point value.
-The trim does not depend on the gains (every integrator holds its loop's output at
-rest: ``z_w = i_q``, ``z_q = v_q``, and the position error is zero), so it is solved
-once per load case and the Jacobian is taken there as a function of the gains; after
-the solve the trim is recomputed with the tuned gains for the verification. Under this
-policy the load changes the linear dynamics very little (at rest the frozen
-efficiency is the midpoint of the switch, the same for every load); what it changes is
-the operating current and voltage, i.e. the headroom to the current and voltage
-limits during a step - that is where the worst case bites.
+friction off, the screw-nut efficiency switch frozen at its operating-point value. The
+trim does not depend on the gains (each integrator holds its loop's output at rest:
+``z_w = i_q``, ``z_q = v_q``; the position error is zero), so it is solved once per load
+case and the Jacobian taken there as a function of the gains; the verification
+re-trims with the tuned gains. Under this policy the load leaves the linear dynamics
+unchanged (at rest the frozen efficiency is the switch's midpoint for every load, and
+the FOC decoupling cancels the i_q-dependent terms); what it changes is the operating
+current and voltage, the headroom to the limits during a step: that is where the
+worst case bites (at 30 kN the holding current is 13.2 A of 24 A). Load cases with
+numerically equal linearisations share their frequency-domain constraints and the
+step's state trajectory.
 
-Constraints (all must hold in every load case)
-----------------------------------------------
-*Robustness, per loop* (position, velocity, current; each broken with the other loops
-closed, ``L = -G_{d -> measurement}``). On a log frequency grid the loop transfer
-``L(jw) = C (jwI - A)^-1 B + D`` is computed in real arithmetic
-(``(jwI - A)^-1 = (A^2 + w^2 I)^-1 (-A - jw I)``) and kept outside an exclusion disk:
+Loop transfers from the closed loop
+-----------------------------------
+Each loop is broken with the other loops closed (``L = -G_{d -> measurement}`` with the
+loop's flag at 0, as :func:`ema_casadi.linearize.loop_model`). With every loop closed
+the controller sees measurement + injection, so the closed-loop response of a loop's
+measurement to its own injection is ``S - 1`` with ``S = 1/(1 + L)``: one closed-loop
+Jacobian and one factorisation per frequency give all three loops' sensitivities, and
+``T = 1 - S_x`` is x_rod/x_cmd. The response ``C (jwI - A)^-1 B`` is computed in real
+arithmetic, ``(jwI - A)^-1 = (A^2 + w^2 I)^-1 (-A - jw I)``, on the states the
+injections reach (the decoupled d-axis current loop drops out) after a diagonal
+balancing of A (its SI entries span 1e-3 ... 1e8, which A^2 would square past double
+precision).
 
-- ``gm_db`` and ``pm_deg`` (default): the disk through ``-10^(-GM/20)`` and the two
-  points ``-e^(+-j PM)`` of the unit circle, centre ``-c``, radius ``R``. Outside it,
-  every phase crossover has |L| <= 10^(-GM/20) (gain may rise by GM) or lies left of
-  the disk (a lower gain margin at least as large as the disk's left end), and every
-  gain crossover is at least PM away from -1. For GM = 6 dB, PM = 45 deg:
-  c = 1.82, R = 1.32, i.e. the region [-3.13, -0.5] on the negative axis. When
-  cos(PM) <= 10^(-GM/20) no disk passes through both, and the disk centred at
-  ``-1/cos(PM)`` of radius ``tan(PM)`` (through the PM points, orthogonal to the unit
-  circle) is used; it contains the GM point.
-- ``ms`` instead: the sensitivity peak |1 + L| >= 1/Ms (disk at -1, radius 1/Ms),
-  which implies GM >= 20 log10(Ms/(Ms-1)) and PM >= 2 asin(1/(2 Ms)).
+Constraints (every load case)
+-----------------------------
+*Margins, per loop*, on a log frequency grid (0.5 Hz - 10 kHz, 14 per decade): L stays
+outside an exclusion disk (centre ``-c``, radius ``R``, :func:`exclusion_disk`):
 
-Either way the requested GM and PM are checked afterwards on the true margins.
+- ``gm_db`` and ``pm_deg`` (default): the disk through ``-10^(-GM/20)`` and the points
+  ``-e^(+-j PM)`` of the unit circle. Outside it, every phase crossover has
+  |L| <= 10^(-GM/20) (the gain may rise by GM) or lies left of the disk (it may fall
+  by at least 20 log10(c + R)), and every gain crossover is at least PM away from -1.
+  GM = 6 dB, PM = 45 deg: c = 1.82, R = 1.32, i.e. [-3.13, -0.5] on the negative axis
+  (lower GM 9.9 dB). When cos(PM) <= 10^(-GM/20) no disk passes through both; then the
+  disk through the PM points centred at ``-1/cos(PM)``, radius ``tan(PM)``, which
+  contains the GM point.
+- ``ms``: the sensitivity peak, |1 + L| >= 1/Ms (c = 1, R = 1/Ms), which implies an
+  upward GM of 20 log10(Ms/(Ms-1)), a downward one of 20 log10(1 + 1/Ms) and
+  PM >= 2 asin(1/(2 Ms)).
 
-*ECU rate*: the linearisation is continuous, without the sample-and-hold delay of the
-ECU, so each loop's gain is kept below 1 above its sample rate / ``rate_ratio``
-(default 10: 200 Hz position, 800 Hz velocity, 1.6 kHz current loop).
+The grid is refined where needed (exchange method): after a solve the constraints
+are checked at 100 frequencies per decade and the frequencies of violations between
+grid points added; the problem is re-solved, warm started (at most 3 solves).
 
-*Step response* of the closed loop (linear model, step of ``step`` metres,
-exact discretisation by matrix exponential on a time grid that doubles its spacing
-every 40 samples): overshoot of x_rod <= ``overshoot``; the q-current
-(operating value + response) within +-I_max; the voltage |v_dq| within the SVPWM
-circle k_v V_dc/sqrt(3). The step amplitude is the size of command the loop must
-handle without touching a limit (default 0.1 mm; the reference gains saturate the
-voltage briefly on a 0.2 mm step).
+*ECU rate*: the linearisation is continuous, without the ECU's sample-and-hold delay,
+so each loop's gain is kept below 1 above its sample rate / ``rate_ratio`` (default
+10: 200 Hz position, 800 Hz velocity, 1.6 kHz current loop).
 
-*Eigenvalues*: the spectral abscissa (largest real part of the closed-loop
-eigenvalues) <= -sigma. It enters through a callback with its analytic first
-derivative (eigenvector sensitivity); its second derivative is taken as zero.
+*Step response* of the closed loop to a step of ``step`` metres (exact discretisation
+by matrix exponential, Pade with scaling and squaring, on a time grid of 8 segments of
+40 samples whose spacing doubles per segment, 20 us first): overshoot of x_rod <=
+``overshoot``; the q-current (operating value + response) within +-I_max; the
+voltage |v_dq| inside the SVPWM circle k_v V_dc/sqrt(3). The step is the size of
+command the loops must follow without touching a limit (default 0.1 mm: the
+proportional path K_p_i K_p_w K_x (2 pi/p) puts a voltage step on the winding at once;
+the reference gains reach the voltage limit at about 0.2 mm).
 
-*Bandwidth*: optionally |T(jw)| >= 1/sqrt(2) up to ``bandwidth_min_hz``
-(T = L_x/(1 + L_x), the closed loop x_rod/x_cmd).
+*Eigenvalues*: the spectral abscissa of the closed loop <= -sigma, through a callback
+with its analytic gradient (eigenvector sensitivity).
+
+*Bandwidth*: optionally |T| >= 1/sqrt(2) up to ``bandwidth_min_hz``.
+
+Each group of grid or sample constraints enters as one constraint on its
+Kreisselmeier-Steinhauser soft minimum (conservative by at most 0.002 in the
+normalised units), and every such constraint is elastic: a slack at an exact-penalty
+cost may relax it. A feasible request ends with all slacks zero; an infeasible one
+still converges, to the least-violating gains, and the groups left with slack are
+named (:attr:`TuneResult.violations`).
 
 Objectives
 ----------
-``bandwidth``: maximise f_b, a variable with |T(j 2 pi f_b)| >= 1/sqrt(2) in every load
-case (the -3 dB frequency of the worst case, as long as |T| stays above -3 dB below it,
-which the margin and overshoot constraints keep). ``tracking``: minimise the
-integrated squared error of the linear step response (normalised by the step and
-10 ms). Both add a small effort term, 1e-3 * sum(log(gain/reference)^2): a pure
-bandwidth or squared-error objective drives gains to their bounds (STACK_NOTES).
+``bandwidth``: maximise f_b, a variable with |T(j 2 pi f_b)| >= 1/sqrt(2) in every
+load case: the worst case's -3 dB frequency (as long as |T| stays above -3 dB below
+it, which the margin and overshoot constraints keep; the verification measures the
+true -3 dB frequency). ``tracking``: minimise the worst case's integrated squared
+error of the step (normalised by the step and 10 ms). Both add an effort term,
+1e-3 sum(log(gain/reference)^2): a pure bandwidth or squared-error objective drives
+gains to their bounds (STACK_NOTES).
 
-Gains are scaled logarithmically (``gain = reference * exp(theta)``, bounds
-``reference * [1/100, 100]``); ``K_i_x`` may start at zero and is scaled linearly.
+Gains are scaled logarithmically, ``gain = reference * exp(theta)`` within
+``reference * [1/100, 100]``; ``K_i_x`` may start at zero and is scaled linearly
+(``K_x^2/4 * theta``, theta in [0, 100]).
 
-If IPOPT fails, every constraint group is evaluated at the returned point and the
-violated ones are named (:attr:`TuneResult.violations`); the verification
-(:func:`verify`) then states the margins actually reached.
+Verification
+------------
+:func:`verify` re-trims and re-linearises with the tuned gains
+(:mod:`ema_casadi.linearize`) and takes python-control's ``stability_margins`` of
+every loop transfer (crossovers outside 0.01 Hz - 100 kHz dropped; PM is the smallest
+angular distance of L to -1, GM counted in both directions, as
+:class:`ema_casadi.frequency.LoopMargins` does), the closed-loop eigenvalues and
+-3 dB bandwidth and a python-control step response; :func:`step_metrics` simulates a
+nonlinear step on the full model. A tune succeeds only when IPOPT converged with no
+slack left and this check passes.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -110,9 +141,9 @@ _FEAS_TOL = 1e-6         # a normalised constraint below -_FEAS_TOL is violated
 #: Sharpness of the soft minimum that aggregates each constraint group (a grid of
 #: frequencies or time samples) into one constraint. One constraint per group lets
 #: the worst point move along the grid without IPOPT's barrier stalling on many
-#: nearly active neighbours (163 -> 35 iterations on the three-load reference
-#: problem); the bound is conservative by at most log(321)/rho = 0.002 in the
-#: normalised units.
+#: nearly active neighbours (measured on the three-load reference problem, before the
+#: elastic slacks: 163 iterations with every point a constraint, 35 aggregated); the
+#: bound is conservative by at most log(321)/rho = 0.002 in the normalised units.
 _KS_RHO = 3000.0
 #: Exact-penalty weight of the constraint slacks (elastic mode). The constraints are
 #: scaled to O(1) near their boundary (log ratios, or bounded ratios that do not flatten
@@ -141,8 +172,9 @@ class Requirements:
     pm_deg : float
         Phase margin of every loop (deg).
     ms : float or None
-        If given, the sensitivity-peak bound |1 + L| >= 1/ms replaces the GM/PM disk
-        in the optimisation (GM and PM are still verified).
+        If given, the sensitivity-peak bound |1 + L| >= 1/ms replaces the GM/PM disk;
+        the verification then checks the peak and the margins it implies
+        (:meth:`margin_targets`).
     overshoot : float
         Largest overshoot of x_rod in the step response (fraction, 0.05 = 5 %).
     bandwidth_min_hz : float or None
@@ -439,7 +471,7 @@ class _Problem:
         self._reduce()
         self.S = _sensitivity_function(len(self.keep), 3)
         self.S_grid = self.S.map(len(self.freqs))
-        ise = [self._add_case(op) for op in self.cases]
+        ise = [e for e in (self._add_case(op) for op in self.cases) if e is not None]
         # elastic constraints: each group may be relaxed by a slack at an exact-penalty
         # cost, so an infeasible request still converges, to the least violation, and the
         # groups whose slack is left positive are the ones that cannot be met
@@ -573,7 +605,21 @@ class _Problem:
         if j is None:
             self._trajectories.append(self._step_states(Ak, b))
             j = len(self._trajectories) - 1
-        return self._step_groups(op, *self._trajectories[j], Cs, ds)
+        X, t = self._trajectories[j]
+        k = self._same("x_rod", [Ak, b, Cs[0, :], ds[0]])
+        if k is not None:  # same rod response as an earlier load case: its overshoot group
+            for grp in self.groups:
+                if grp.kind == "overshoot" and grp.case == k:
+                    grp.loads.append(F)
+            ise = None
+        else:
+            x_rod = (Cs[0, :] @ X) / req.step + ds[0]
+            self.groups.append(_Group("overshoot", [F], None, (1 + req.overshoot - x_rod).T, None,
+                                      len(self._signatures["x_rod"]) - 1))
+            e2 = (x_rod - 1) ** 2
+            ise = ca.sum2((e2[:, :-1] + e2[:, 1:]) * ca.DM(np.diff(t)).T) / 2 / 0.01
+        self._limit_groups(op, X, Cs[1:, :], ds[1:])
+        return ise
 
     def _frequency_groups(self, op, case, A_eig, Ak, B3, C3, D3):
         """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints."""
@@ -632,23 +678,19 @@ class _Problem:
             h *= 2
         return ca.horzcat(*X), np.array(t)
 
-    def _step_groups(self, op, X, t, Cs, ds):
-        """Overshoot, current and voltage along the step (rows of Cs/ds: x_rod, i_q, v_d,
-        v_q; operating values added); returns the normalised ISE of x_rod."""
+    def _limit_groups(self, op, X, Cs, ds):
+        """Current and voltage limits along the step (rows of Cs/ds: i_q, v_d, v_q;
+        operating values added)."""
         req, F = self.req, op.f_ext
         Y = Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])
-        x_rod = Y[0, :] / req.step
-        i_q = op.output("i_q") + Y[1, :]
-        v_d, v_q = op.output("v_d") + Y[2, :], op.output("v_q") + Y[3, :]
+        i_q = op.output("i_q") + Y[0, :]
+        v_d, v_q = op.output("v_d") + Y[1, :], op.output("v_q") + Y[2, :]
         pv = dict(zip(self.names, op.p))
         v_lim = pv["k_v"] * pv["V_dc"] / math.sqrt(3)
-        self.groups.append(_Group("overshoot", [F], None, (1 + req.overshoot - x_rod).T))
         r_i = (i_q / pv["I_max"]) ** 2
         r_v = (v_d**2 + v_q**2) / v_lim**2
         self.groups.append(_Group("current", [F], None, ca.log((1 + 1e-3) / (r_i + 1e-3)).T))
         self.groups.append(_Group("voltage", [F], None, ca.log((1 + 1e-3) / (r_v + 1e-3)).T))
-        e2 = (x_rod - 1) ** 2
-        return ca.sum2((e2[:, :-1] + e2[:, 1:]) * ca.DM(np.diff(t)).T) / 2 / 0.01
 
     def _initial_bandwidth(self) -> float:
         from .frequency import bandwidth, closed_loop

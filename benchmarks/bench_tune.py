@@ -1,0 +1,82 @@
+"""Benchmark: gain tuning over three load cases (issue 6 target: under 30 s).
+
+The acceptance problem: every gain x 0.2 of the reference, loads 0, 15 and 30 kN,
+bandwidth objective, GM >= 6 dB, PM >= 45 deg, overshoot <= 5 %, current and voltage
+limits on a 0.1 mm step. Timed per run: building the Opti problem(s), IPOPT, and the
+whole ``tune()`` call (which adds the independent verification before and after:
+fresh linearisations, python-control margins, linear and 1 mm nonlinear steps). With
+``--hessian both`` the L-BFGS variant is timed too.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_tune.py [--repeat 3] [--hessian exact|limited-memory|both] [--json]
+
+Reports medians and the iteration counts. The machine's load average is printed with
+the results: numbers taken while other jobs run are upper bounds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+LOADS = (0.0, 15e3, 30e3)
+TARGET_S = 30.0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--hessian", choices=("exact", "limited-memory", "both"), default="both")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+
+    t_import = time.perf_counter()
+    import control  # noqa: F401 - the verification's; its import is timed here, once, not per run
+
+    import ema_casadi as ema
+    from ema_casadi import tune as T
+
+    t_import = time.perf_counter() - t_import
+    params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
+    model = ema.build_model(params)
+    start = T.scaled_gains(params, 0.2, T.default_free(model))
+    hessians = ("exact", "limited-memory") if args.hessian == "both" else (args.hessian,)
+    rows = {}
+    for hess in hessians:
+        runs = []
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            res = T.tune(params, model=model, loads=LOADS, start=start, hessian=hess)
+            runs.append({"total_s": time.perf_counter() - t0, "solve_s": res.solve_time,
+                         "build_s": res.build_time, "iterations": res.iterations, "rounds": res.rounds,
+                         "status": res.status, "success": res.success, "bandwidth_hz": res.objective_value})
+        med = {k: statistics.median(r[k] for r in runs) for k in ("total_s", "solve_s", "build_s")}
+        rows[hess] = {"median": med, "runs": runs}
+    load = os.getloadavg()
+    result = {"import_s": t_import, "load_average": load, "target_s": TARGET_S, "results": rows}
+    if args.json:
+        json.dump(result, sys.stdout, indent=1)
+        print()
+        return 0
+    print(f"three-load tuning from 0.2 x reference gains, {args.repeat} runs each "
+          f"(load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores)")
+    print("\n| Hessian | IPOPT status | iterations (rounds) | build (s) | IPOPT (s) | tune() total (s) | bandwidth (Hz) | < 30 s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for hess, r in rows.items():
+        m, run = r["median"], r["runs"][-1]
+        print(f"| {hess} | {run['status']} | {run['iterations']} ({run['rounds']}) | {m['build_s']:.2f} | "
+              f"{m['solve_s']:.2f} | {m['total_s']:.2f} | {run['bandwidth_hz']:.2f} | "
+              f"{'yes' if m['total_s'] < TARGET_S else 'NO'} |")
+    print(f"\nimport of ema_casadi + python-control (once per process, not included): {t_import:.2f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
