@@ -46,6 +46,9 @@ def add_arguments(p):
     p.add_argument("--step", default="0.1mm", metavar="LENGTH",
                    help="step the loops must follow inside the current and voltage limits: 0.1mm, "
                         "0.5%% (of the stroke), a bare number is mm; default 0.1mm")
+    p.add_argument("--rate-ratio", type=float, default=10.0, metavar="R",
+                   help="keep each loop's gain below 1 above its ECU sample rate / R (the linear model "
+                        "has no sample delay); 0 switches it off; default 10")
     p.add_argument("--start-scale", type=float, default=1.0, metavar="FACTOR",
                    help="start from FACTOR times the file's gains (T_i_w kept); default 1")
     p.add_argument("--hessian", choices=("exact", "limited-memory"), default="exact",
@@ -94,6 +97,7 @@ def run(args) -> dict:
         ("--overshoot", args.overshoot, args.overshoot >= 0, "a non-negative percentage"),
         ("--sigma", args.sigma, args.sigma >= 0, "a non-negative rate (1/s)"),
         ("--start-scale", args.start_scale, args.start_scale > 0, "positive"),
+        ("--rate-ratio", args.rate_ratio, args.rate_ratio == 0 or args.rate_ratio >= 1, "0 (off) or at least 1"),
     ):
         if not (math.isfinite(val) and ok):
             raise UserError(f"{flag} must be {what}, got {val:g}")
@@ -115,7 +119,8 @@ def run(args) -> dict:
     else:
         free = tuple(g.strip() for g in args.free.split(",") if g.strip())
     req = Requirements(gm_db=args.gm, pm_deg=args.pm, ms=args.ms, overshoot=args.overshoot / 100,
-                       bandwidth_min_hz=args.bandwidth_min, sigma=args.sigma, step=step)
+                       bandwidth_min_hz=args.bandwidth_min, sigma=args.sigma, step=step,
+                       rate_ratio=args.rate_ratio)
     try:
         start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
         res = tune(params, model=model, free=free, loads=loads, objective=args.objective, requirements=req,
