@@ -9,7 +9,7 @@ fresh linearisations, python-control margins, linear and 1 mm nonlinear steps). 
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_tune.py [--repeat 3] [--hessian exact|limited-memory|both] [--json]
+    .venv/bin/python benchmarks/bench_tune.py [--repeat 3] [--hessian exact|limited-memory|both] [--json] [--quick]
 
 Reports medians and the iteration counts. The machine's load average is printed with
 the results: numbers taken while other jobs run are upper bounds.
@@ -35,7 +35,10 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--hessian", choices=("exact", "limited-memory", "both"), default="both")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="one run, exact Hessian only (run_all.py --quick)")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.repeat, args.hessian = 1, "exact"
 
     t_import = time.perf_counter()
     import control  # noqa: F401 - the verification's; its import is timed here, once, not per run
