@@ -24,6 +24,7 @@ from .linearize import LinearizationError, OperatingPointError, linear_model, lo
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
 from .freqresp import FreqResponse, FreqRespError, sine_stream
+from .tune import TuneError, TuneResult, tune
 
 __version__ = "0.1.0"
 
@@ -36,4 +37,5 @@ __all__ = [
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
     "FreqResponse", "FreqRespError", "sine_stream",
+    "TuneError", "TuneResult", "tune",
 ]
