@@ -241,7 +241,7 @@ def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: s
 
 
 _OUTPUT_MAPS: dict = {}
-_MAP_CHUNK = 4096
+_MAP_CHUNK = 1024
 _FEW = 8
 
 
