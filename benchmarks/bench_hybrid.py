@@ -19,14 +19,16 @@ Usage: python benchmarks/bench_hybrid.py [--quick]   (--quick: fewer repeats)
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+import sys
 from pathlib import Path
 
 import numpy as np
 
-import ema_casadi as ema
-from ema_casadi import Signal
+sys.path.insert(0, str(Path(__file__).parent))
+from _timing import timed  # noqa: E402
+
+import ema_casadi as ema  # noqa: E402
+from ema_casadi import Signal  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 T_END = 1.0
@@ -37,16 +39,6 @@ LADDER = {
     "hybrid": [2e-4, 1.25e-4, 1e-4, 5e-5, 2e-5, 1e-5],
     "smooth": [2e-5, 1e-5, 8e-6, 6.25e-6, 5e-6, 4e-6, 2.5e-6],
 }
-
-
-def timed(fn, repeat):
-    fn()  # warm-up: compiles or loads the rollout
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def main():
@@ -72,7 +64,7 @@ def main():
 
     def measure(fr, dt):
         if (fr, dt) not in measured:
-            wall, res = timed(lambda: run(fr, dt), repeat)
+            wall, res = timed(lambda: run(fr, dt), repeat, warmup=True)
             measured[fr, dt] = (wall, err(fr, res), res.info.get("mode_switches"))
             w, e, _ = measured[fr, dt]
             print(f"{fr:7s} RK4 dt={dt:<8g} {w * 1e3:8.1f} ms  err {e * 1e6:8.3f} um", flush=True)
@@ -88,7 +80,7 @@ def main():
         else:
             print(f"{fr}: no step of {steps} reached {TOL * 1e6} um", flush=True)
     wall_cv, res_cv = timed(lambda: ema.simulate(models["hybrid"], T_END, X_CMD, solver="cvodes", dt=DT_OUT,
-                                                 rtol=1e-6, atol=1e-9), max(1, repeat // 2))
+                                                 rtol=1e-6, atol=1e-9), max(1, repeat // 2), warmup=True)
     e_cv = err("hybrid", res_cv)
 
     print("\n| friction | integrator | wall time (ms) | rod-position error (um) | mode switches |")

@@ -13,7 +13,6 @@ Usage: python benchmarks/bench_sim.py [--quick]   (--quick skips the slow peers)
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 import numpy_model  # noqa: E402
+from _timing import timed  # noqa: E402
 
 import ema_casadi as ema  # noqa: E402
 from ema_casadi import Signal  # noqa: E402
@@ -31,15 +31,6 @@ T_END = 1.0
 TOL = 0.1e-6
 GRID = np.linspace(0, T_END, 1001)
 X_CMD = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
-
-
-def timed(fn, repeat=3):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def main():

@@ -80,27 +80,22 @@ class _Term:
     table: tuple = ()
 
     def np(self, t):
+        """Values on a NumPy time grid."""
         t = np.asarray(t, dtype=float)
-        on = (t >= self.t0).astype(float)
-        tau = t - self.t0
-        if self.kind == "const":
-            return np.full_like(t, self.a)
-        if self.kind == "step":
-            return self.a * on
-        if self.kind == "ramp":
-            return self.a * tau * on
-        if self.kind == "sine":
-            return self.a * np.sin(2 * np.pi * self.f0 * tau) * on
-        if self.kind == "chirp":
-            k = (self.f1 - self.f0) / self.T
-            return self.a * np.sin(2 * np.pi * (self.f0 * tau + 0.5 * k * tau**2)) * on
         if self.kind == "table":
-            tt, vv = self.table
-            return np.interp(t, tt, vv)
-        raise AssertionError(self.kind)
+            return np.interp(t, *self.table)
+        return self._formula(t, np.sin, lambda c: np.where(c, 1.0, 0.0))
 
     def sym(self, t):
-        on = ca.if_else(t >= self.t0, 1, 0)
+        """CasADi expression of the symbol t (the same formula)."""
+        if self.kind == "table":
+            tt, vv = self.table
+            interp = ca.interpolant("table", "linear", [list(tt)], list(vv))
+            return interp(ca.fmin(ca.fmax(t, tt[0]), tt[-1]))
+        return self._formula(t, ca.sin, lambda c: ca.if_else(c, 1, 0))
+
+    def _formula(self, t, sin, indicator):
+        on = indicator(t >= self.t0)
         tau = t - self.t0
         if self.kind == "const":
             return self.a + 0 * t
@@ -109,14 +104,10 @@ class _Term:
         if self.kind == "ramp":
             return self.a * tau * on
         if self.kind == "sine":
-            return self.a * ca.sin(2 * ca.pi * self.f0 * tau) * on
+            return self.a * sin(2 * np.pi * self.f0 * tau) * on
         if self.kind == "chirp":
             k = (self.f1 - self.f0) / self.T
-            return self.a * ca.sin(2 * ca.pi * (self.f0 * tau + 0.5 * k * tau**2)) * on
-        if self.kind == "table":
-            tt, vv = self.table
-            interp = ca.interpolant("table", "linear", [list(tt)], list(vv))
-            return interp(ca.fmin(ca.fmax(t, tt[0]), tt[-1]))
+            return self.a * sin(2 * np.pi * (self.f0 * tau + 0.5 * k * tau**2)) * on
         raise AssertionError(self.kind)
 
     def breakpoints(self):

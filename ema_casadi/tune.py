@@ -115,6 +115,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -400,7 +401,6 @@ def _soft_min(g):
 
 def _reachable(A: np.ndarray, B: np.ndarray) -> list[int]:
     """States reachable from the inputs through the non-zero pattern of A (graph search)."""
-    n = A.shape[0]
     seen = set(np.nonzero(np.any(B != 0, axis=1))[0].tolist())
     todo = list(seen)
     while todo:
@@ -846,7 +846,7 @@ class TuneResult:
             "before": self.verification_before, "after": self.verification_after,
         }
 
-    def write(self, path) -> "Path":
+    def write(self, path) -> Path:
         """Parameter file with the tuned gains (atomic)."""
         g = ", ".join(f"{k} = {v:.6g}" for k, v in self.gains_after.items())
         header = (f"Tuned by ema tune ({self.objective}; IPOPT {self.status}, {self.iterations} iterations)\n"

@@ -95,13 +95,13 @@ def run(args) -> dict:
 def report(r: dict) -> None:
     amps = r["axes"]["amplitude"]
     table = {(p["load_N"], p["amplitude_m"], p["freq_Hz"]): p for p in r["points"]}
-    for load in r["axes"]["load"]:
-        print(f"load {load / 1e3:g} kN: gain (dB) / phase (deg) of x_rod/x_cmd")
+    for f_ext in r["axes"]["load"]:
+        print(f"load {f_ext / 1e3:g} kN: gain (dB) / phase (deg) of x_rod/x_cmd")
         print(f"{'f (Hz)':>9s} " + " ".join(f"{a * 1e3:>16.4g}mm" for a in amps))
         for f in r["axes"]["frequency"]:
             cells = []
             for a in amps:
-                pt = table[load, a, f]
+                pt = table[f_ext, a, f]
                 mark = " " if pt["converged"] else "*"
                 cells.append(f"{pt['gain_db']:8.2f} /{pt['phase_deg']:7.1f}{mark}")
             print(f"{f:9.3g} " + " ".join(f"{c:>18s}" for c in cells))
