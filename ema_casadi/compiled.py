@@ -143,21 +143,34 @@ class BufferCall:
 
     CasADi's ordinary call converts every input and output element through Python
     (~100 ns each), which dominates long rollouts; ``Function.buffer`` reads and
-    writes column-major NumPy memory directly.
+    writes column-major NumPy memory directly. Each thread gets its own buffer (and
+    CasADi memory), so one BufferCall may be used from several threads at once.
     """
 
     def __init__(self, f: ca.Function):
         self.f = f
-        self.buf, self.eval = f.buffer()
-        self.out = [np.zeros(f.size_out(i), order="F") for i in range(f.n_out())]
-        for i, o in enumerate(self.out):
-            self.buf.set_res(i, memoryview(o.reshape(-1, order="F")))
+        self._local = threading.local()
+
+    def _mine(self):
+        mine = getattr(self._local, "buf", None)
+        if mine is None:
+            buf, ev = self.f.buffer()
+            out = [np.zeros(self.f.size_out(i), order="F") for i in range(self.f.n_out())]
+            for i, o in enumerate(out):
+                buf.set_res(i, memoryview(o.reshape(-1, order="F")))
+            mine = self._local.buf = (buf, ev, out)
+        return mine
 
     def __call__(self, *args) -> list[np.ndarray]:
+        buf, ev, out = self._mine()
         keep = []
         for i, a in enumerate(args):
             a = np.asfortranarray(np.asarray(a, dtype=float).reshape(self.f.size_in(i), order="F"))
             keep.append(a)
-            self.buf.set_arg(i, memoryview(a.reshape(-1, order="F")))
-        self.eval()
-        return [o.copy(order="F") for o in self.out]
+            buf.set_arg(i, memoryview(a.reshape(-1, order="F")))
+        ev()
+        return [o.copy(order="F") for o in out]
+
+    def stats(self) -> dict:
+        """Statistics of this thread's last call (e.g. CVODES ``nsteps``)."""
+        return self._mine()[0].stats()

@@ -46,7 +46,7 @@ all simulated periods).
 
 Hybrid (stick-slip) friction needs the model's own stepping with its stick projection:
 those points run :func:`ema_casadi.simulate.simulate` (compiled RK4) period by period,
-one at a time.
+on the same worker threads (the compiled rollouts keep one call buffer per thread).
 """
 
 from __future__ import annotations
@@ -242,23 +242,18 @@ class _PeriodMap:
         Y = model.f.map(samples)(Xk, U, PA[:npar])[1]
         sel = [model.outputs.index("x_rod"), model.outputs.index("i_q")]
         self.F = ca.Function("sine_period", [X0, PA], [Xk[:, -1], Y[sel, :]], ["x0", "pa"], ["x1", "y"])
-        self._local = threading.local()
+        self.call = BufferCall(self.F)  # per-thread buffers, one shared Function
 
     def __call__(self, x0, pa):
         """One period from x0; returns (x at the period's end, (2, K) samples)."""
-        call = getattr(self._local, "call", None)
-        if call is None:  # call buffers are per thread; the Function is shared
-            call = self._local.call = BufferCall(self.F)
-        x1, y = call(x0, pa)
+        x1, y = self.call(x0, pa)
         return x1.ravel(), y
 
-
-_SIMULATE_LOCK = threading.Lock()
 
 
 class _HybridPeriods:
     """Period-by-period stepping of a hybrid-friction model through :func:`simulate`
-    (compiled RK4 with the stick projection), one call at a time.
+    (compiled RK4 with the stick projection).
 
     Every frequency uses the same output decimation and at least one full rollout
     chunk of samples per period, so one compiled rollout serves the whole grid; the
@@ -276,9 +271,8 @@ class _HybridPeriods:
         A, freq, f_ext = pa[self.npar :]
         n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
         n += n % 2
-        with _SIMULATE_LOCK:  # simulate's compiled rollouts share call buffers
-            res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
-                           dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
+        res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
+                       dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
         y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
         return x1, y

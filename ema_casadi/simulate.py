@@ -495,7 +495,7 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
             tout.append(b)
         F = _segment_integrator(model, sig, a, tout, rtol, atol)
         xf = F(xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3)[0]
-        steps += int(F.f.stats(1).get("nsteps", 0))  # memory 1: the buffer's
+        steps += int(F.stats().get("nsteps", 0))
         X[:, inside] = xf[:, : len(inside)]
         xc = xf[:, -1]
         _progress(b / edges[-1], progress)
@@ -594,7 +594,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
 
     def integrate(F, x, t0, H, n):
         out = F(x, nz, np.concatenate([pv, [t0, H]]), np.zeros((0, n)), nz, nz, nz)
-        stats["steps"] += int(F.f.stats(1).get("nsteps", 0))
+        stats["steps"] += int(F.stats().get("nsteps", 0))
         stats["calls"] += 1
         return out[0], out[2]  # xf (nx x n), qf (2 x n)
 
