@@ -69,7 +69,7 @@ from .assembly import Model, build_model
 from .compiled import BufferCall
 from .params import Parameters, ParameterError, validate_variants
 from .signals import Signal, SignalError, parse_quantity
-from .simulate import _STEPS_PER_CALL, SimulationError, _progress, simulate
+from .simulate import STEPS_PER_CALL, SimulationError, progress_bar, simulate
 
 __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream", "plot_bode", "run_study",
@@ -264,7 +264,7 @@ class _HybridPeriods:
     def __init__(self, model: Model, samples: int, dt_max: float):
         self.model, self.K, self.dt_max = model, samples, dt_max
         self.npar = len(model.param_names)
-        self.k_min = max(samples, -(-_STEPS_PER_CALL // self.DECIMATE))
+        self.k_min = max(samples, -(-STEPS_PER_CALL // self.DECIMATE))
 
     def __call__(self, x0, pa):
         p = pa[: self.npar]
@@ -631,7 +631,7 @@ def _run_local(tasks, params, build, settle, keep, progress, jobs) -> dict:
     parallel = [t for t in tasks if t[1]["friction"] != "hybrid"]
     serial = [t for t in tasks if t[1]["friction"] == "hybrid"]
     done = 0
-    _progress(0.0, progress, "freqresp")
+    progress_bar(0.0, progress, "freqresp")
     if parallel:
         # highest frequencies first: they take the most periods, so the pool ends evenly
         parallel.sort(key=lambda t: -t[3][-2])
@@ -640,12 +640,12 @@ def _run_local(tasks, params, build, settle, keep, progress, jobs) -> dict:
                 idx, r = fut.result()
                 results[idx] = r
                 done += 1
-                _progress(done / n, progress, "freqresp")
+                progress_bar(done / n, progress, "freqresp")
     for t in serial:
         idx, r = work(t)
         results[idx] = r
         done += 1
-        _progress(done / n, progress, "freqresp")
+        progress_bar(done / n, progress, "freqresp")
     return results
 
 
@@ -671,12 +671,12 @@ def _run_dask(address, tasks, params, build, settle, keep, progress) -> dict:
         chunks = [order[i::math.ceil(len(tasks) / size)] for i in range(math.ceil(len(tasks) / size))]
         futures = [client.submit(_dask_chunk, params, build, settle, keep, c, pure=False) for c in chunks]
         results, done = {}, 0
-        _progress(0.0, progress, "freqresp")
+        progress_bar(0.0, progress, "freqresp")
         for fut in dask_completed(futures):
             for idx, r in fut.result():
                 results[tuple(idx)] = r
                 done += 1
-            _progress(done / len(tasks), progress, "freqresp")
+            progress_bar(done / len(tasks), progress, "freqresp")
         return results
     finally:
         client.close()

@@ -56,7 +56,7 @@ from .signals import Signal, constant, parse_signal
 __all__ = ["simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function"]
 
 SOLVERS = ("rk4", "cvodes")
-_STEPS_PER_CALL = 20000
+STEPS_PER_CALL = 20000
 
 
 class SimulationError(ValueError):
@@ -278,7 +278,8 @@ def _flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
     return out
 
 
-def _progress(frac: float, enabled: bool, label: str = "simulate"):
+def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
+    """Draw a one-line progress bar on stderr (fraction 0..1; a newline at 1)."""
     if not enabled:
         return
     n = int(30 * frac)
@@ -409,7 +410,7 @@ def _initial_projection(model, sig, pv, x0):
 def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
-    M = max(1, min(n_out, _STEPS_PER_CALL // k))
+    M = max(1, min(n_out, STEPS_PER_CALL // k))
     F, cinfo = _rollout(model, zoh, k, M, jit)
     nh = len(HOLD) if zoh else 0
     x0, stick0 = _initial_projection(model, sig, pv, x0)
@@ -430,7 +431,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         X_out[:, c0 : c0 + m] = Xc[:, :m]
         Y_out[:, c0 : c0 + m] = Yc[:, :m]
         xa = Xc[:, -1]
-        _progress(min(1.0, (c0 + m) / n_out), progress)
+        progress_bar(min(1.0, (c0 + m) / n_out), progress)
     if not np.all(np.isfinite(X_out)):
         raise SimulationError(f"the simulation diverged (non-finite state); try a smaller dt than {dt} s")
     t_out = np.concatenate([[0.0], np.arange(1, n_out + 1) * k * dt])
@@ -498,7 +499,7 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
         steps += int(F.stats().get("nsteps", 0))
         X[:, inside] = xf[:, : len(inside)]
         xc = xf[:, -1]
-        _progress(b / edges[-1], progress)
+        progress_bar(b / edges[-1], progress)
     if not np.all(np.isfinite(X)):
         raise SimulationError("the simulation diverged (non-finite state)")
     Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
@@ -646,7 +647,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
             if abs(t - grid[gi]) <= 1e-12 * max(1.0, t):
                 X[:, gi] = x
                 gi += 1
-        _progress(min(1.0, t / grid[-1]), progress)
+        progress_bar(min(1.0, t / grid[-1]), progress)
     if not np.all(np.isfinite(X)):
         raise SimulationError("the simulation diverged (non-finite state)")
     Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
