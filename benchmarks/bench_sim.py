@@ -84,7 +84,7 @@ def main():
             x0 = sol.y[:, -1] if sol.t[-1] == b else solve_ivp(f, (sol.t[-1], b), sol.y[:, -1], method=method, rtol=rtol, atol=rtol * 1e-3).y[:, -1]
         return np.concatenate(xs)
 
-    ladder("scipy solve_ivp LSODA (NumPy RHS)", lambda tol: scipy_run("LSODA", tol), [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9])
+    ladder("scipy solve_ivp LSODA (NumPy RHS)", lambda tol: scipy_run("LSODA", tol), [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=5)
     if not args.quick:
         ladder("scipy solve_ivp RK45 (NumPy RHS)", lambda tol: scipy_run("RK45", tol), [1e-4, 1e-6, 1e-8], repeat=1)
         import control as ct
