@@ -13,6 +13,7 @@ Usage: python benchmarks/bench_sim.py [--quick]   (--quick skips the slow peers)
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -46,7 +47,7 @@ def main():
     def err(x_rod):
         return float(np.abs(np.asarray(x_rod) - x_ref).max())
 
-    rows = []
+    rows, makers = [], {}
 
     def ladder(name, make, settings, repeat=3):
         for s in settings:
@@ -56,6 +57,7 @@ def main():
             if err(x) <= TOL:
                 wall, x = timed(lambda: make(s), repeat) if repeat > 1 else (cold, x)
                 rows.append((name, s, wall, cold, err(x)))
+                makers[name] = lambda s=s: make(s)
                 print(f"{name:38s} {s!s:18s} {wall * 1e3:10.1f} ms (first run {cold * 1e3:.1f} ms)  err {err(x) * 1e6:.3f} um", flush=True)
                 return
         print(f"{name}: no setting reached {TOL * 1e6} um", flush=True)
@@ -97,6 +99,22 @@ def main():
 
         ladder("python-control nlsys (default RK45)", lambda tol: ct_run(None, tol), [1e-4, 1e-6, 1e-8], repeat=1)
         ladder("python-control nlsys (LSODA)", lambda tol: ct_run("LSODA", tol), [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=1)
+
+    # headline ratio, robust to the machine's drift: the fastest ema_casadi method and
+    # the fastest SciPy method timed alternately, 15 rounds, medians
+    ours = min((r for r in rows if r[0].startswith("ema_casadi")), key=lambda r: r[2])[0]
+    peer = min((r for r in rows if r[0].startswith("scipy")), key=lambda r: r[2])[0]
+    t_ours, t_peer = [], []
+    for _ in range(15):
+        for name, acc in ((ours, t_ours), (peer, t_peer)):
+            t0 = time.perf_counter()
+            makers[name]()
+            acc.append(time.perf_counter() - t0)
+    m_ours, m_peer = statistics.median(t_ours), statistics.median(t_peer)
+    ratios = sorted(b / a for a, b in zip(t_ours, t_peer))
+    print(f"\nalternating, 15 rounds: {ours} {m_ours * 1e3:.1f} ms, {peer} {m_peer * 1e3:.1f} ms: "
+          f"ratio of medians {m_peer / m_ours:.1f}x (per-round ratios {ratios[0]:.1f}-{ratios[-1]:.1f}x, "
+          f"median {statistics.median(ratios):.1f}x)")
 
     best = min(w for n, s, w, c, e in rows if n.startswith("ema_casadi"))
     print("\n| method | setting | wall time, median (ms) | first run (ms) | error (um) | ratio to fastest ema_casadi |")

@@ -103,6 +103,7 @@ class Model:
     sample: ca.Function
     state_units: dict = field(default_factory=dict)
     project: ca.Function | None = None
+    _p0: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def hybrid(self) -> bool:
@@ -123,6 +124,10 @@ class Model:
 
     def p(self, params: Parameters | None = None, **overrides) -> np.ndarray:
         """Numeric parameter vector (defaults: the model's own set)."""
+        if params is None and not overrides:  # the common case, cached (params are frozen)
+            if self._p0 is None:
+                self._p0 = self.params.vector()
+            return self._p0.copy()
         return (params or self.params).vector(**overrides)
 
     def u(self, **values: float) -> np.ndarray:
