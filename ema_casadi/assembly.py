@@ -19,6 +19,7 @@ cannot creep. For ``smooth`` friction ``project`` is the identity.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -186,8 +187,6 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     v = dict(params.variants)
     v.update(variants or {})
     v = validate_variants(v)
-    import dataclasses
-
     params = dataclasses.replace(params, variants=v)
 
     names = Parameters.names()

@@ -15,7 +15,6 @@ them as an input: changing a value never rebuilds a model.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import math
 import tomllib
@@ -348,11 +347,9 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     if not isinstance(model, dict):
         raise ParameterError(f"{src}: [model] must be a table of variant names")
     merged = validate_variants(model, where=f"{src}: [model]")
-    s, c = groups["screw"], groups["control"]
+    s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
-    if c.K_x <= 0 or c.v_max <= 0:  # pragma: no cover - covered by POS checks
-        raise ParameterError(f"{src}: [control] K_x and v_max must be positive")
     return Parameters(**groups, variants=merged, source=src)
 
 
@@ -393,10 +390,3 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     merged = dict(file_variants)
     merged.update(variants or {})
     return _build(data, merged, src)
-
-
-def replace_variants(params: Parameters, **variants: str) -> Parameters:
-    """A copy of ``params`` with some variants changed (validated)."""
-    merged = dict(params.variants)
-    merged.update(variants)
-    return dataclasses.replace(params, variants=validate_variants(merged))
