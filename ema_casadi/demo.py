@@ -12,26 +12,18 @@ import numpy as np
 from .assembly import build_model
 from .params import Parameters
 from .signals import Signal
-from .simulate import simulate
+from .simulate import simulate, step_response_metrics
 
 __all__ = ["run_demo", "step_metrics"]
 
 
 def step_metrics(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
-    """Rise time 10-90 % (s), overshoot (%), settling time into +-band (s) of a step of y_final."""
-    tt, yy = t - t_step, y / y_final
-    on = tt >= 0
-    tt, yy = tt[on], yy[on]
-    i10 = np.argmax(yy >= 0.1)
-    i90 = np.argmax(yy >= 0.9)
-    outside = np.nonzero(np.abs(yy - 1) > band)[0]
-    settle = tt[outside[-1] + 1] if len(outside) and outside[-1] + 1 < len(tt) else (0.0 if not len(outside) else float("nan"))
-    return {
-        "rise_time_s": float(tt[i90] - tt[i10]) if yy.max() >= 0.9 else float("nan"),
-        "overshoot_pct": float(max(0.0, (yy.max() - 1) * 100)),
-        "settling_time_s": float(settle),
-        "final_error_m": float(y[-1] - y_final),
-    }
+    """Rise time 10-90 % (s), overshoot (%), settling time into +-band (s) and final
+    error (m) of a step of y_final at t_step."""
+    on = t >= t_step
+    m = step_response_metrics(t[on] - t_step, y[on] / y_final, band)
+    return {"rise_time_s": m["rise_time_s"], "overshoot_pct": 100 * m["overshoot"],
+            "settling_time_s": m["settling_time_s"], "final_error_m": float(y[-1] - y_final)}
 
 
 def _simulations(model, out: Path, written: list) -> dict:

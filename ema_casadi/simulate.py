@@ -53,7 +53,7 @@ from .compiled import BufferCall, compile_function, compile_keyed
 from .params import Parameters
 from .signals import Signal, constant, parse_signal
 
-__all__ = ["simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function"]
+__all__ = ["simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function", "step_response_metrics"]
 
 SOLVERS = ("rk4", "cvodes")
 STEPS_PER_CALL = 20000
@@ -121,6 +121,28 @@ class SimResult:
         u = {"t": "s", "x_cmd": "m", "f_ext": "N", "eta": "1"}
         u.update(OUTPUT_UNITS)
         return u
+
+
+def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> dict:
+    """Metrics of a normalised step response y(t) (final value 1, step at t = 0).
+
+    Returns ``rise_time_s`` (10-90 %, inf if 90 % is never reached), ``overshoot``
+    (fraction) and ``settling_time_s`` (last entry into 1 +- band; 0 if never outside,
+    inf if still outside at the end).
+    """
+    i10, i90 = np.argmax(y >= 0.1), np.argmax(y >= 0.9)
+    outside = np.nonzero(np.abs(y - 1) > band)[0]
+    if not len(outside):
+        settle = 0.0
+    elif outside[-1] == len(y) - 1:
+        settle = math.inf
+    else:
+        settle = float(t[outside[-1] + 1])
+    return {
+        "rise_time_s": float(t[i90] - t[i10]) if y.max() >= 0.9 else math.inf,
+        "overshoot": float(max(0.0, y.max() - 1)),
+        "settling_time_s": settle,
+    }
 
 
 # ---------------------------------------------------------------------------------

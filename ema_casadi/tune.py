@@ -123,6 +123,7 @@ import numpy as np
 from .assembly import Model, build_model
 from .linearize import LOOPS, LinearizationError, jacobian_function, operating_point
 from .params import Parameters
+from .simulate import step_response_metrics
 
 __all__ = [
     "GAINS", "OBJECTIVES", "TuneError", "Requirements", "TuneResult", "tune", "verify",
@@ -1059,17 +1060,9 @@ def _linear_step(model, op, amp, t_end):
     x = y[0] / amp
     i_q = op.output("i_q") + y[1]
     v = np.hypot(op.output("v_d") + y[2], op.output("v_q") + y[3])
-    return {"overshoot": float(max(0.0, x.max() - 1)), "settling_time_s": _settling(t, x, 0.02),
+    m = step_response_metrics(t, x)
+    return {"overshoot": m["overshoot"], "settling_time_s": m["settling_time_s"],
             "i_q_peak_A": float(np.max(np.abs(i_q))), "v_dq_peak_V": float(np.max(v))}
-
-
-def _settling(t, x, band):
-    out = np.nonzero(np.abs(x - 1) > band)[0]
-    if not len(out):
-        return 0.0
-    if out[-1] == len(x) - 1:
-        return math.inf
-    return float(t[out[-1] + 1])
 
 
 def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Requirements | None = None,
@@ -1193,14 +1186,12 @@ def step_metrics(model: Model, params: Parameters, amp: float = 1e-3, *, f_ext: 
     # relative to the rest position before the step (a load compresses the screw)
     x0 = float(np.interp(t0, t, x))
     after = t >= t0
-    ts, xs = t[after] - t0, (x[after] - x0) / amp
-    i10 = np.argmax(xs >= 0.1)
-    i90 = np.argmax(xs >= 0.9)
+    m = step_response_metrics(t[after] - t0, (x[after] - x0) / amp, band)
     return {
         "amp_m": amp, "f_ext_N": f_ext,
-        "overshoot": float(max(0.0, xs.max() - 1)),
-        "settling_time_s": _settling(ts, xs, band),
-        "rise_time_s": float(ts[i90] - ts[i10]) if xs.max() >= 0.9 else math.inf,
+        "overshoot": m["overshoot"],
+        "settling_time_s": m["settling_time_s"],
+        "rise_time_s": m["rise_time_s"],
         "i_q_peak_A": float(np.max(np.abs(res["i_q"]))),
         "v_dq_peak_V": float(np.max(np.hypot(res["v_d"], res["v_q"]))),
         "x_final_m": float(x[-1]),
