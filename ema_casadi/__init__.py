@@ -16,8 +16,9 @@ Quick start::
 not re-exported, so that ``from ema_casadi import linearize`` keeps giving the module).
 """
 
-from .assembly import INPUTS, OUTPUTS, Model, build_model
-from .params import DEFAULT_VARIANTS, VARIANTS, ParameterError, Parameters, load_parameters
+from .assembly import AssemblyError, Model, build_model
+from .components import DEFAULT_VARIANTS, REGISTRY, VARIANTS
+from .params import ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
 from .simulate import SimResult, SimulationError, simulate
 from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
@@ -29,8 +30,8 @@ from .tune import TuneError, TuneResult
 __version__ = "0.1.0"
 
 __all__ = [
-    "INPUTS", "OUTPUTS", "Model", "build_model",
-    "DEFAULT_VARIANTS", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
+    "AssemblyError", "Model", "build_model",
+    "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "Signal", "SignalError", "parse_signal",
     "SimResult", "SimulationError", "simulate",
     "LinearizationError", "OperatingPointError", "linear_model", "loop_transfer", "operating_point",

@@ -1,20 +1,26 @@
-"""Assembly: the only place that wires the components into one model (SPEC §2).
+"""Assembly: composes the chosen parts into one model (SPEC §2).
 
-:func:`build_model` takes a variant dict and returns a :class:`Model` whose CasADi
-Function ``f(x, u, p) -> (xdot, y)`` has named states, inputs and outputs and takes the
+:func:`build_model` looks every variant key up in the registry
+(:data:`~ema_casadi.components.REGISTRY`), collects what the parts declare (states,
+inputs, outputs, loops, held controller outputs, stored energy, loads on the rod) and
+wires them by signal name through a :class:`~ema_casadi.components.Bus`. There is no
+branching on variant values here. The result is a :class:`Model` whose CasADi Function
+``f(x, u, p) -> (xdot, y)`` has named states, inputs and outputs and takes the
 parameters as an input vector, so one compiled model serves simulation, linearisation,
 sweeps, tuning and export.
 
-For sampled (zero-order-hold) control the same wiring is also exposed split in two:
-``f_held(x, u, p, h)`` (plant with the controller outputs ``h`` held) and
-``sample(x, u, p, h, flags)`` (one ECU update of the loops whose flag is 1).
+Summed signals the assembly provides: ``F_load_rod`` (N), the sum of every part's
+``loads`` (the external force and, with end stops, the stop force); ``E_stored`` (J),
+the sum of every part's ``stored`` energies.
 
-With ``hybrid`` friction the model is a hybrid system: besides the continuous ``f``
-it carries the discrete map ``project(x_prev, x, u, p) -> (x_next, stick)`` that an
-integrator applies after each step (or at each located switching instant): it sets the
-velocity of the friction contact (elastic screw: ``v_rod``; rigid screw: ``omega``) to
-zero when the rod enters the dead band with the stick condition holding, so a held rod
-cannot creep. For ``smooth`` friction ``project`` is the identity.
+For sampled (zero-order-hold) control the same wiring is also exposed split in two:
+``f_held(x, u, p, h)`` (plant with the held controller outputs ``h``, see
+:attr:`Model.holds`) and ``sample(x, u, p, h, flags)`` (one ECU update of the loops
+whose flag is 1; flags in :attr:`Model.loops` order).
+
+Hybrid parts (stick-slip friction) add the discrete map
+``project(x_prev, x, u, p) -> (x_next, stick)`` that an integrator applies after each
+step (or at each located switching instant); for a continuous model it is the identity.
 """
 
 from __future__ import annotations
@@ -26,49 +32,13 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from .components import ballscrew, controller, friction, inverter, motor
-from .params import Parameters, validate_variants
+from .components import AssemblyError, Bus, Output, der, parts_for, validate_variants
+from .params import Parameters, ParameterError
 
-__all__ = ["Model", "build_model", "INPUTS", "OUTPUTS", "HOLD"]
+__all__ = ["Model", "build_model", "AssemblyError"]
 
-#: Top-level inputs (SI): command, external force (positive pushes the rod in),
-#: screw efficiency, and the loop-break injections at the position (m), speed (rad/s)
-#: and q-current (A) feedback.
-INPUTS = ("x_cmd", "f_ext", "eta", "d_x", "d_w", "d_i")
-
-#: Named outputs, the same for every variant (SI units; see OUTPUT_UNITS).
-OUTPUTS = (
-    "x_rod", "v_rod", "x_in", "omega", "i_d", "i_q", "v_d", "v_q", "T_m", "F_in",
-    "F_friction", "omega_cmd", "i_cmd", "stick",
-    "P_elec", "P_inv_cond", "P_inv_sw", "P_cu", "P_screw_nut", "P_friction",
-    "P_viscous", "P_contact", "P_load", "E_stored",
-)
-OUTPUT_UNITS = {
-    "x_rod": "m", "v_rod": "m/s", "x_in": "m", "omega": "rad/s", "i_d": "A", "i_q": "A",
-    "v_d": "V", "v_q": "V", "T_m": "N*m", "F_in": "N", "F_friction": "N",
-    "omega_cmd": "rad/s", "i_cmd": "A", "stick": "1",
-    "P_elec": "W", "P_inv_cond": "W", "P_inv_sw": "W", "P_cu": "W", "P_screw_nut": "W",
-    "P_friction": "W", "P_viscous": "W", "P_contact": "W", "P_load": "W", "E_stored": "J",
-}
-OUTPUT_DOCS = {
-    "x_rod": "rod position, the sensor signal", "v_rod": "rod velocity",
-    "x_in": "nut-side position phi*p/(2 pi)", "omega": "motor speed",
-    "i_d": "d-axis current (0 for the dc motor)",
-    "i_q": "q-axis current (the dc motor's current)",
-    "v_d": "d-axis voltage (0 for the dc motor)",
-    "v_q": "q-axis voltage (dc motor: its voltage / 1.5)",
-    "T_m": "motor torque", "F_in": "screw force on the rod", "F_friction": "rod friction force",
-    "omega_cmd": "speed command", "i_cmd": "q-current command", "stick": "1 while stuck (hybrid)",
-    "P_elec": "electrical power into the windings", "P_inv_cond": "inverter conduction loss",
-    "P_inv_sw": "inverter switching loss", "P_cu": "copper loss",
-    "P_screw_nut": "screw-nut efficiency loss", "P_friction": "seal/bearing (Coulomb) friction loss",
-    "P_viscous": "viscous loss (rod and shaft)", "P_contact": "contact-damping loss",
-    "P_load": "power delivered to the load, F_ext*v_rod",
-    "E_stored": "kinetic + spring + magnetic energy",
-}
-
-#: Controller outputs held between ECU samples in ZOH mode.
-HOLD = ("omega_cmd", "i_cmd", "v_d", "v_q")
+#: Outputs the assembly adds to those of the parts.
+_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy"),)
 
 
 @dataclass
@@ -88,9 +58,20 @@ class Model:
     f_held, sample : casadi.Function
         The ZOH split (see module docstring).
     project : casadi.Function
-        ``project(x_prev, x, u, p) -> (x_next, stick)``: the discrete stick-entry map of
-        hybrid friction (identity and stick = 0 for smooth friction); ``x_prev`` is the
-        state at the start of the step that ended in ``x``.
+        ``project(x_prev, x, u, p) -> (x_next, stick)``: the discrete map of hybrid parts
+        (identity and stick = 0 for a continuous model).
+    parts : tuple
+        The composed parts, in assembly order.
+    state_info, input_info, output_info : dict
+        Name -> the part's declaration (:class:`~ema_casadi.components.State`,
+        ``Input``, ``Output``): unit, role, kind, meaning.
+    loops : dict
+        Loop name -> :class:`~ema_casadi.components.Loop`, outer to inner.
+    holds : tuple
+        The controller outputs held between ECU samples (``h`` of ``f_held``).
+    ignored : tuple of str
+        Option keys of the variant dict that no chosen part reads (e.g.
+        ``friction_shape`` with hybrid friction): accepted and ignored.
     """
 
     variants: dict
@@ -102,14 +83,21 @@ class Model:
     f: ca.Function
     f_held: ca.Function
     sample: ca.Function
-    state_units: dict = field(default_factory=dict)
-    project: ca.Function | None = None
+    project: ca.Function
+    parts: tuple = ()
+    state_info: dict = field(default_factory=dict)
+    input_info: dict = field(default_factory=dict)
+    output_info: dict = field(default_factory=dict)
+    loops: dict = field(default_factory=dict)
+    holds: tuple = ()
+    ignored: tuple = ()
     _p0: np.ndarray | None = field(default=None, repr=False, compare=False)
 
+    # -- sizes and names -------------------------------------------------------------
     @property
     def hybrid(self) -> bool:
-        """True for hybrid (stick-slip) friction: integrate with :attr:`project`."""
-        return self.variants.get("friction") == "hybrid"
+        """True when a part has a discrete map: integrate with :attr:`project`."""
+        return any(part.hybrid for part in self.parts)
 
     @property
     def nx(self) -> int:
@@ -123,26 +111,18 @@ class Model:
     def ny(self) -> int:
         return len(self.outputs)
 
-    def p(self, params: Parameters | None = None, **overrides) -> np.ndarray:
-        """Numeric parameter vector (defaults: the model's own set)."""
-        if params is None and not overrides:  # the common case, cached (params are frozen)
-            if self._p0 is None:
-                self._p0 = self.params.vector()
-            return self._p0.copy()
-        return (params or self.params).vector(**overrides)
+    @property
+    def units(self) -> dict:
+        """The one table of SI units: time, states, inputs and outputs by name."""
+        out = {"t": "s", "time": "s"}
+        for table in (self.state_info, self.input_info, self.output_info):
+            out.update({n: d.unit for n, d in table.items()})
+        return out
 
-    def u(self, **values: float) -> np.ndarray:
-        """Numeric input vector; eta defaults to the parameter set's efficiency."""
-        d = {"eta": self.params.screw.eta}
-        d.update(values)
-        for k in d:
-            if k not in self.inputs:
-                raise KeyError(f"unknown input '{k}'; inputs are {', '.join(self.inputs)}")
-        return np.array([d.get(k, 0.0) for k in self.inputs], dtype=float)
-
-    def x0(self) -> np.ndarray:
-        """Initial state: at rest, all zero, the rod centred in the backlash gap."""
-        return np.zeros(self.nx)
+    @property
+    def state_units(self) -> dict:
+        """State name -> SI unit."""
+        return {n: s.unit for n, s in self.state_info.items()}
 
     def index(self, name: str) -> int:
         """Index of a state by name."""
@@ -152,25 +132,112 @@ class Model:
         """Index of an output by name."""
         return self.outputs.index(name)
 
+    def states_with(self, role: str) -> tuple[str, ...]:
+        """Names of the states that declare ``role`` (see :class:`~ema_casadi.components.State`)."""
+        return tuple(n for n, s in self.state_info.items() if role in s.roles)
 
-class _States:
-    """Collects named state symbols and their derivatives in order."""
+    def state_with(self, role: str) -> str:
+        """The name of the one state with ``role``; AssemblyError if there is not exactly one."""
+        names = self.states_with(role)
+        if len(names) != 1:
+            raise AssemblyError(f"the model has {len(names)} states with role '{role}', expected one")
+        return names[0]
 
-    def __init__(self):
-        self.names, self.units, self.sym, self.dot = [], {}, {}, {}
+    def outputs_of(self, kind: str) -> tuple[str, ...]:
+        """Names of the outputs of a kind (``signal``, ``loss``, ``power``, ...)."""
+        return tuple(n for n, o in self.output_info.items() if o.kind == kind)
 
-    def add(self, name, unit):
-        s = ca.SX.sym(name)
-        self.names.append(name)
-        self.units[name] = unit
-        self.sym[name] = s
-        return s
+    # -- numeric vectors -------------------------------------------------------------
+    def p(self, params: Parameters | None = None, **overrides) -> np.ndarray:
+        """Numeric parameter vector (defaults: the model's own set)."""
+        if params is None and not overrides:  # the common case, cached (params are frozen)
+            if self._p0 is None:
+                self._p0 = self.params.vector()
+            return self._p0.copy()
+        return (params or self.params).vector(**overrides)
 
-    def vector(self):
-        return ca.vertcat(*[self.sym[n] for n in self.names])
+    def pdict(self, p=None) -> SimpleNamespace:
+        """Parameter values by name (attribute access), from ``p`` or the model's set."""
+        pv = self.p() if p is None else p
+        return SimpleNamespace(**dict(zip(self.param_names, pv)))
 
-    def dot_vector(self):
-        return ca.vertcat(*[self.dot[n] for n in self.names])
+    def _check_inputs(self, values: dict):
+        for k in values:
+            if k not in self.input_info:
+                raise KeyError(f"unknown input '{k}'; inputs are {', '.join(self.inputs)}")
+
+    def u(self, p=None, **values: float) -> np.ndarray:
+        """Numeric input vector by name; missing inputs take their declared default
+        (``eta``: the parameter set's efficiency; injections 0)."""
+        self._check_inputs(values)
+        P = self.pdict(p)
+        return np.array([float(values[n]) if n in values else _default(self.input_info[n], P) for n in self.inputs])
+
+    def u_expr(self, p, **values) -> ca.SX:
+        """Symbolic or numeric input column by name, defaults as :meth:`u` (``p`` may be
+        a symbol: defaults that name a parameter are read from it)."""
+        self._check_inputs(values)
+        P = SimpleNamespace(**{n: p[i] for i, n in enumerate(self.param_names)})
+        return ca.vertcat(*[values[n] if n in values else _default(self.input_info[n], P) for n in self.inputs])
+
+    def x0(self) -> np.ndarray:
+        """Initial state as the parts declare it (at rest, the rod centred in the gap)."""
+        return np.array([s.x0 for s in self.state_info.values()], dtype=float)
+
+    def full_scale(self, p=None) -> np.ndarray:
+        """Full-scale magnitude of every state (SI), as the parts declare it."""
+        P = self.pdict(p)
+        return np.array([float(s.scale(P)) for s in self.state_info.values()])
+
+    def travel(self, p=None) -> dict[str, float]:
+        """Position-like states -> rod travel (m) per unit of the state."""
+        P = self.pdict(p)
+        return {n: float(s.travel(P)) for n, s in self.state_info.items() if s.travel is not None}
+
+
+def _default(inp, P) -> float:
+    return getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
+
+
+def _declarations(parts):
+    """Merge what the parts declare; a name declared twice must agree."""
+    states, inputs, outputs, providers = {}, {}, {}, {}
+    loops, holds, stored, loads = {}, [], [], []
+    for part in parts:
+        for s in part.states:
+            if s.name in states:
+                raise AssemblyError(f"state '{s.name}' declared by two parts")
+            states[s.name] = s
+        for i in part.inputs:
+            if inputs.setdefault(i.name, i) != i:
+                raise AssemblyError(f"input '{i.name}' declared differently by two parts")
+        for o in part.outputs:
+            if outputs.setdefault(o.name, o) != o:
+                raise AssemblyError(f"output '{o.name}' declared differently by two parts")
+        for key, fn in part.signals().items():
+            for n in key if isinstance(key, tuple) else (key,):
+                if n in providers:
+                    raise AssemblyError(f"signal '{n}' provided by two parts ({part.family}={part.value})")
+                providers[n] = (key, fn)
+        loops.update({lp.name: lp for lp in part.loops})
+        holds += part.holds
+        stored += part.stored
+        loads += part.loads
+    providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
+    providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
+    for o in _SUMS:
+        outputs[o.name] = o
+    # the model's inputs: signals first, loop-break injections last
+    ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
+    return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
+
+
+def _sum(bus, names):
+    terms = [bus[n] for n in names]
+    total = terms[0] if terms else 0
+    for t in terms[1:]:
+        total = total + t
+    return total
 
 
 def build_model(params: Parameters, variants: dict | None = None) -> Model:
@@ -184,216 +251,85 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         Overrides, e.g. ``{"motor": "dc", "screw": "rigid"}`` (SPEC §6). Unknown keys or
         values raise :class:`~ema_casadi.params.ParameterError` listing the allowed ones.
     """
-    v = dict(params.variants)
+    if not isinstance(params, Parameters):
+        raise ParameterError(f"params: expected Parameters (from load_parameters), got {type(params).__name__}")
+    v = validate_variants(params.variants, where=f"{params.source}: [model]")
+    validate_variants(variants, where="variant")
     v.update(variants or {})
-    v = validate_variants(v)
     params = dataclasses.replace(params, variants=v)
+    parts, ignored = parts_for(v)
+    states, inputs, outputs, providers, loops, holds = _declarations(parts)
 
     names = Parameters.names()
     p = ca.SX.sym("p", len(names))
     P = SimpleNamespace(**{n: p[i] for i, n in enumerate(names)})
-    u = ca.SX.sym("u", len(INPUTS))
-    U = SimpleNamespace(**{n: u[i] for i, n in enumerate(INPUTS)})
+    u = ca.SX.sym("u", len(inputs))
+    U = {n: u[i] for i, n in enumerate(inputs)}
+    X = {n: ca.SX.sym(n) for n in states}
+    x = ca.vertcat(*X.values())
+    roles: dict = {}
+    for s in states.values():
+        for r in s.roles:
+            roles.setdefault(r, []).append(s.name)
 
-    S = _States()
-    pos_integral = v["controller"] == "PI"
-    if pos_integral:
-        S.add("z_x", "rad/s")
-    S.add("z_w", "A")
-    if v["motor"] == "pmsm":
-        S.add("z_d", "V")
-        S.add("z_q", "V")
-        S.add("i_d", "A")
-        S.add("i_q", "A")
-    else:
-        S.add("z_i", "V")
-        S.add("i", "A")
-    S.add("phi", "rad")
-    S.add("omega", "rad/s")
-    if v["screw"] == "elastic":
-        S.add("x_rod", "m")
-        S.add("v_rod", "m/s")
-    else:
-        S.add("x_play", "m")
-    X = S.sym
-    x = S.vector()
-    hybrid = v["friction"] == "hybrid"
-    contact_state = {}  # friction-contact quantities of the continuous plant (for project)
+    def bus(xs=X, **kw):
+        return Bus(providers, xs, U, P, roles, **kw)
 
-    # ---- plant quantities that do not depend on the voltage ----------------------
-    r = ballscrew.lead_ratio(P)
-    omega = X["omega"]
-    x_in, v_in = X["phi"] * r, omega * r
-    if v["screw"] == "elastic":
-        x_rod, v_rod = X["x_rod"], X["v_rod"]
-    else:
-        x_rod, v_rod = X["x_play"], v_in
-    if v["motor"] == "pmsm":
-        i_d, i_q = X["i_d"], X["i_q"]
-    else:
-        i_d, i_q = 0, X["i"]
+    def evaluate(b):
+        return ca.vertcat(*[b[der(n)] for n in states]), ca.vertcat(*[b[n] for n in outputs])
 
-    # ---- controller --------------------------------------------------------------
-    x_fb = P.loop_x * x_rod + U.d_x
-    w_fb = P.loop_w * omega + U.d_w
-    iq_fb = P.loop_i * i_q + U.d_i
-
-    def position(z):
-        return controller.position_law(U.x_cmd, x_fb, z, P, pos_integral)
-
-    def velocity(w_cmd):
-        return controller.velocity_law(w_cmd, w_fb, X["z_w"], P)
-
-    def current(i_cmd):
-        """-> (v_d, v_q (q-axis equivalent), dict of integrator rates, v applied)."""
-        if v["motor"] == "pmsm":
-            vd, vq, zd, zq = controller.current_law_foc(
-                i_cmd, i_d, iq_fb, i_d, i_q, omega, X["z_d"], X["z_q"], P
-            )
-            return vd, vq, {"z_d": zd, "z_q": zq}
-        vv, zi = controller.current_law_simple(i_cmd, iq_fb, omega, X["z_i"], P)
-        return 0, vv / 1.5, {"z_i": zi}
-
-    z_x = X.get("z_x", 0)
-    w_cmd, zx_dot = position(z_x)
-    i_cmd, zw_dot = velocity(w_cmd)
-    vd_c, vq_c, zi_dots = current(i_cmd)
-    ctrl_dots = dict(zi_dots, z_w=zw_dot)
-    if pos_integral:
-        ctrl_dots["z_x"] = zx_dot
-    ctrl_names = [n for n in S.names if n in ctrl_dots]
-
-    # ---- plant, given the applied (held or continuous) controller outputs --------
-    def plant(w_cmd, i_cmd, vd, vq):
-        dots, y = {}, {}
-        vd_w, vq_w = inverter.ideal(vd), inverter.ideal(vq)
-        if v["motor"] == "pmsm":
-            did, diq, T, P_elec, P_cu, E_mag = motor.pmsm(i_d, i_q, vd_w, vq_w, omega, P)
-            dots.update(i_d=did, i_q=diq)
-        else:
-            di, T, P_elec, P_cu, E_mag = motor.dc(i_q, 1.5 * vq_w, omega, P)
-            dots["i"] = di
-        F_r = friction.sliding_level(U.f_ext, P)
-        shape, strib = v["friction_shape"], v["stribeck"] == "on"
-        J_rot = P.J_m + P.J_s
-        dots["phi"] = omega
-        stick = 0
-        if v["screw"] == "elastic":
-            F_in, delta, E_spring, P_contact, _ = ballscrew.elastic(X["phi"], omega, x_rod, v_rod, P)
-            g = ballscrew.efficiency_factor(F_in, omega, U.eta, P)
-            T_load = r * F_in * g
-            dots["omega"] = motor.shaft(omega, T, T_load, J_rot, P)
-            dots["x_rod"] = v_rod
-            if hybrid:
-                F_app = F_in - U.f_ext - P.c_v * v_rod
-                F_hold = ca.substitute(F_app, X["v_rod"], 0)
-                F_fr, F_c, stick = friction.hybrid(v_rod, F_app, F_r, P, F_hold)
-                dots["v_rod"] = ca.if_else(stick, 0, (F_app - F_c) / P.M)
-            else:
-                F_fr, F_c = friction.smooth(v_rod, F_r, P, shape, strib)
-                dots["v_rod"] = (F_in - U.f_ext - F_fr) / P.M
-            P_screw_nut = T_load * omega - F_in * v_in
-            E_kin = 0.5 * J_rot * omega**2 + 0.5 * P.M * v_rod**2
-        else:
-            J_eq = J_rot + P.M * r**2
-            if hybrid:
-                # the friction that holds the shaft (omega-dot = 0): the net motor torque
-                # referred to the rod through the screw, minus the load and viscous force
-                T_net = T - P.b_m * omega
-                g_hold = ballscrew.efficiency_factor(T_net / r, omega, U.eta, P)
-                F_app = T_net / (r * g_hold) - U.f_ext - P.c_v * v_in
-                F_hold = ca.substitute(F_app, omega, 0)
-                F_fr, F_c, stick = friction.hybrid(v_in, F_app, F_r, P, F_hold)
-            else:
-                F_fr, F_c = friction.smooth(v_in, F_r, P, shape, strib)
-            F_load = U.f_ext + F_fr
-            g = ballscrew.efficiency_factor(F_load, omega, U.eta, P)
-            T_load = r * F_load * g
-            dots["omega"] = motor.shaft(omega, T, T_load, J_eq, P)
-            if hybrid:
-                dots["omega"] = ca.if_else(stick, 0, dots["omega"])
-            dots["x_play"] = ballscrew.play_rate(x_in, v_in, X["x_play"], P.B)
-            F_in = F_load + P.M * r * dots["omega"]
-            P_screw_nut = T_load * omega - F_load * v_in
-            E_spring, P_contact = 0, 0
-            E_kin = 0.5 * J_eq * omega**2
-        contact_state["v"] = v_rod
-        contact_state["F_hold"] = F_hold if hybrid else 0
-        contact_state["F_r"] = F_r
-        I_hat = ca.sqrt(i_d**2 + i_q**2)
-        P_cond, P_sw = inverter.averaged_losses(I_hat, P)
-        y.update(
-            x_rod=x_rod, v_rod=v_rod, x_in=x_in, omega=omega, i_d=i_d, i_q=i_q,
-            v_d=vd_w, v_q=vq_w, T_m=T, F_in=F_in, F_friction=F_fr,
-            omega_cmd=w_cmd, i_cmd=i_cmd, stick=stick,
-            P_elec=P_elec, P_inv_cond=P_cond, P_inv_sw=P_sw, P_cu=P_cu,
-            P_screw_nut=P_screw_nut, P_friction=F_c * v_rod,
-            P_viscous=P.c_v * v_rod**2 + P.b_m * omega**2, P_contact=P_contact,
-            P_load=U.f_ext * v_rod, E_stored=E_kin + E_spring + E_mag,
-        )
-        return dots, y
-
-    # continuous controller
-    dots, y = plant(w_cmd, i_cmd, vd_c, vq_c)
-    contact = dict(contact_state)
-    S.dot = dict(dots, **ctrl_dots)
-    yv = ca.vertcat(*[y[n] for n in OUTPUTS])
-    f = ca.Function("f", [x, u, p], [S.dot_vector(), yv], ["x", "u", "p"], ["xdot", "y"])
-
-    # ZOH split: plant with held controller outputs; controller integrators frozen
-    h = ca.SX.sym("h", len(HOLD))
-    dots_h, y_h = plant(h[0], h[1], h[2], h[3])
-    dots_h.update({n: 0 for n in ctrl_names})
-    S.dot = dots_h
-    f_held = ca.Function(
-        "f_held", [x, u, p, h], [S.dot_vector(), ca.vertcat(*[y_h[n] for n in OUTPUTS])],
-        ["x", "u", "p", "h"], ["xdot", "y"],
+    xdot, y = evaluate(bus())
+    f = ca.Function("f", [x, u, p], [xdot, y], ["x", "u", "p"], ["xdot", "y"])
+    integrators = [n for n, s in states.items() if s.loop is not None]
+    f_held, sample = _zoh(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators)
+    project = _projection(parts, bus, x, u, p)
+    return Model(
+        variants=v, params=params, states=tuple(states), inputs=tuple(inputs), outputs=tuple(outputs),
+        param_names=tuple(names), f=f, f_held=f_held, sample=sample, project=project, parts=tuple(parts),
+        state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,
+        ignored=tuple(ignored),
     )
 
-    # one ECU update: loops run position -> velocity -> current when flagged, each
-    # integrating its state by forward Euler over its own sample period
-    flags = ca.SX.sym("flags", 3)
-    T_s = {"x": 1 / P.f_s_x, "w": 1 / P.f_s_w, "i": 1 / P.f_s_i}
-    w_new, zx_rate = position(z_x)
-    w_h = ca.if_else(flags[0], w_new, h[0])
-    i_new, zw_rate = velocity(w_h)
-    i_h = ca.if_else(flags[1], i_new, h[1])
-    vd_new, vq_new, zi_rates = current(i_h)
-    vd_h = ca.if_else(flags[2], vd_new, h[2])
-    vq_h = ca.if_else(flags[2], vq_new, h[3])
-    x_new = {n: X[n] for n in S.names}
-    if pos_integral:
-        x_new["z_x"] = X["z_x"] + flags[0] * T_s["x"] * zx_rate
-    x_new["z_w"] = X["z_w"] + flags[1] * T_s["w"] * zw_rate
-    for n, rate in zi_rates.items():
-        x_new[n] = X[n] + flags[2] * T_s["i"] * rate
+
+def _zoh(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
+    """The sampled-ECU split: ``f_held`` (plant with the controller outputs held and
+    the controller integrators frozen) and ``sample`` (one ECU update: each flagged
+    loop recomputes its held outputs and integrates its state by forward Euler over its
+    own sample period; loops run outer to inner, each seeing the outer loop's new value)."""
+    h = ca.SX.sym("h", len(holds))
+    held = {hd.name: h[i] for i, hd in enumerate(holds)}
+    frozen = {der(n): 0 for n in integrators}
+    dots_h, y_h = evaluate(bus(overrides={**held, **frozen}))
+    f_held = ca.Function("f_held", [x, u, p, h], [dots_h, y_h], ["x", "u", "p", "h"], ["xdot", "y"])
+
+    flags = ca.SX.sym("flags", len(loops))
+    flag = {name: flags[k] for k, name in enumerate(loops)}
+    wrap = {hd.name: (lambda b, val, hd=hd: ca.if_else(flag[hd.loop], val, held[hd.name])) for hd in holds}
+    bs = bus(wrap=wrap)
+    x_new = {n: X[n] for n in states}
+    for n in integrators:
+        loop = loops[states[n].loop]
+        x_new[n] = X[n] + flag[loop.name] * (1 / getattr(P, loop.rate)) * bs[der(n)]
     sample = ca.Function(
         "sample", [x, u, p, h, flags],
-        [ca.vertcat(*[x_new[n] for n in S.names]), ca.vertcat(w_h, i_h, vd_h, vq_h)],
+        [ca.vertcat(*x_new.values()), ca.vertcat(*[bs[hd.name] for hd in holds])],
         ["x", "u", "p", "h", "flags"], ["x_next", "h_next"],
     )
-    project = _projection(x, u, p, P, S, contact, v, hybrid)
-    return Model(
-        variants=v, params=params, states=tuple(S.names), inputs=INPUTS, outputs=OUTPUTS,
-        param_names=tuple(names), f=f, f_held=f_held, sample=sample, state_units=S.units,
-        project=project,
-    )
+    return f_held, sample
 
 
-def _projection(x, u, p, P, S, contact, v, hybrid):
-    """``project(x_prev, x, u, p) -> (x_next, stick)``, see the module docstring.
-
-    The stick test uses the applied force with the contact at rest, as ``f`` does.
-    """
-    x_prev = ca.SX.sym("x_prev", x.numel())
-    if not hybrid:
-        return ca.Function("project", [x_prev, x, u, p], [x, ca.SX(0)],
-                           ["x_prev", "x", "u", "p"], ["x_next", "stick"])
-    k = S.names.index("v_rod" if v["screw"] == "elastic" else "omega")
-    contact_fn = ca.Function("contact", [x, u, p], [contact["v"], contact["F_hold"], contact["F_r"]])
-    v_prev = contact_fn(x_prev, u, p)[0]
-    v_now, F_hold, F_r = contact_fn(x, u, p)
-    stick = friction.stick_entry(v_prev, v_now, F_hold, F_r, P)
-    x_new = ca.vertcat(x[:k], ca.if_else(stick, 0, x[k]), x[k + 1 :])
-    return ca.Function("project", [x_prev, x, u, p], [x_new, stick],
-                       ["x_prev", "x", "u", "p"], ["x_next", "stick"])
+def _projection(parts, bus, x, u, p):
+    """``project(x_prev, x, u, p) -> (x_next, stick)`` from the hybrid parts' maps; the
+    stick test uses the continuous model's signals at ``x_prev`` and ``x``."""
+    X_prev = {n: ca.SX.sym(n + "_prev") for n in bus().x}
+    x_prev = ca.vertcat(*X_prev.values())
+    now, prev = bus(), bus(X_prev)
+    resets, sticks = {}, []
+    for part in parts:
+        mapped = part.project(prev, now)
+        if mapped is not None:
+            resets.update(mapped[0])
+            sticks.append(mapped[1])
+    stick = sticks[0] if len(sticks) == 1 else (ca.SX(0) if not sticks else ca.logic_or(*sticks))
+    x_next = ca.vertcat(*[resets.get(n, sym) for n, sym in now.x.items()])
+    return ca.Function("project", [x_prev, x, u, p], [x_next, stick], ["x_prev", "x", "u", "p"], ["x_next", "stick"])

@@ -41,7 +41,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .assembly import OUTPUT_UNITS, Model
+from ._files import write_with
+from .assembly import Model
 from .linearize import LinearModel, OperatingPoint
 
 __all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "ExportError", "save_linear", "load_linear",
@@ -50,23 +51,10 @@ __all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "ExportError", "save_linear", "
 LINEAR_FORMATS = ("mat", "npz", "json")
 FUNCTION_FORMATS = ("casadi", "c")
 FORMAT_ID = "ema_casadi.linear/1"
-_INPUT_UNITS = {"x_cmd": "m", "f_ext": "N", "eta": "1", "d_x": "m", "d_w": "rad/s", "d_i": "A"}
 
 
 class ExportError(ValueError):
     """Bad export request or unreadable file (one line, names the file)."""
-
-
-def _atomic(path: Path, write) -> Path:
-    """Call ``write(tmp_path)`` on a temporary file next to ``path``, then rename."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
 
 
 def _format_of(path: Path, fmt: str | None, allowed) -> str:
@@ -76,11 +64,11 @@ def _format_of(path: Path, fmt: str | None, allowed) -> str:
     return fmt
 
 
-def _units(lin: LinearModel, state_units: dict) -> dict:
+def _units(lin: LinearModel, units: dict) -> dict:
     return {
-        "states": [state_units.get(n, "") for n in lin.states],
-        "inputs": [_INPUT_UNITS.get(n, "") for n in lin.inputs],
-        "outputs": [OUTPUT_UNITS.get(n.lstrip("-"), "") for n in lin.outputs],
+        "states": [units.get(n, "") for n in lin.states],
+        "inputs": [units.get(n, "") for n in lin.inputs],
+        "outputs": [units.get(n.lstrip("-"), "") for n in lin.outputs],
     }
 
 
@@ -96,7 +84,7 @@ def _op_dict(op: OperatingPoint | None) -> dict:
     }
 
 
-def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, state_units: dict | None = None) -> Path:
+def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, units: dict | None = None) -> Path:
     """Write a linear model with its names and operating point.
 
     Parameters
@@ -107,14 +95,14 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, stat
         Target file; its folder must exist.
     fmt : {"mat", "npz", "json"}, optional
         Default: from the suffix.
-    state_units : dict, optional
-        State name -> unit (``model.state_units``).
+    units : dict, optional
+        Signal name -> SI unit, the model's one unit table (``model.units``).
     """
     path = Path(path)
     fmt = _format_of(path, fmt, LINEAR_FORMATS)
     if not path.parent.exists():
         raise ExportError(f"{path}: folder {path.parent} does not exist")
-    units = _units(lin, state_units or {})
+    units = _units(lin, units or {})
     op = _op_dict(lin.op)
     doc = {
         "format": FORMAT_ID, "name": lin.name, "open_loops": list(lin.open_loops),
@@ -124,7 +112,7 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, stat
     if fmt == "json":
         doc.update(A=lin.A.tolist(), B=lin.B.tolist(), C=lin.C.tolist(), D=lin.D.tolist(), operating_point=op)
         text = json.dumps(doc, indent=1, allow_nan=False)
-        return _atomic(path, lambda t: t.write_text(text))
+        return write_with(path, lambda t: t.write_text(text))
     if fmt == "npz":
         arrays = {k: np.array(v) for k, v in doc.items() if isinstance(v, list)}
         arrays.update(A=lin.A, B=lin.B, C=lin.C, D=lin.D, format=np.array(FORMAT_ID), name=np.array(lin.name),
@@ -134,7 +122,7 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, stat
             with open(t, "wb") as fh:
                 np.savez(fh, **arrays)
 
-        return _atomic(path, write)
+        return write_with(path, write)
     import scipy.io
 
     def cell(names):
@@ -156,7 +144,7 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, stat
         with open(t, "wb") as fh:
             scipy.io.savemat(fh, mat, oned_as="column", long_field_names=True)
 
-    return _atomic(path, write)
+    return write_with(path, write)
 
 
 def load_linear(path: str | Path) -> tuple[LinearModel, dict]:
@@ -218,9 +206,9 @@ def model_signature(model: Model) -> dict:
     return {
         "function": "f(x, u, p) -> (xdot, y)",
         "variants": dict(model.variants),
-        "states": list(model.states), "state_units": [model.state_units.get(n, "") for n in model.states],
-        "inputs": list(model.inputs), "input_units": [_INPUT_UNITS.get(n, "") for n in model.inputs],
-        "outputs": list(model.outputs), "output_units": [OUTPUT_UNITS.get(n, "") for n in model.outputs],
+        "states": list(model.states), "state_units": [model.units[n] for n in model.states],
+        "inputs": list(model.inputs), "input_units": [model.units[n] for n in model.inputs],
+        "outputs": list(model.outputs), "output_units": [model.units[n] for n in model.outputs],
         "param_names": list(model.param_names), "param_values": model.p().tolist(),
     }
 
@@ -247,7 +235,7 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     sidecar = json.dumps(model_signature(model), indent=1)
     written = []
     if fmt == "casadi":
-        written.append(_atomic(path, lambda t: model.f.save(str(t))))
+        written.append(write_with(path, lambda t: model.f.save(str(t))))
     else:
         name = path.stem
         if path.suffix != ".c" or not re.fullmatch(r"[A-Za-z_]\w*", name):
@@ -260,7 +248,7 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
             gen.generate(tmp + os.sep)
             for suffix in (".c", ".h"):
                 target = path.with_suffix(suffix)
-                written.append(_atomic(target, lambda t, s=suffix: shutil.copyfile(Path(tmp) / f"{name}{s}", t)))
+                written.append(write_with(target, lambda t, s=suffix: shutil.copyfile(Path(tmp) / f"{name}{s}", t)))
     side = path.with_name(path.name + ".json")
-    written.append(_atomic(side, lambda t: t.write_text(sidecar)))
+    written.append(write_with(side, lambda t: t.write_text(sidecar)))
     return written

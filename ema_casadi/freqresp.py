@@ -67,7 +67,8 @@ import numpy as np
 
 from .assembly import Model, build_model
 from .compiled import BufferCall
-from .params import Parameters, ParameterError, validate_variants
+from .components import validate_variants
+from .params import Parameters, ParameterError
 from .signals import Signal, SignalError, parse_quantity
 from .simulate import STEPS_PER_CALL, SimulationError, progress_bar, simulate
 
@@ -414,7 +415,7 @@ def _stepper(variants: dict, params: Parameters, samples: int, rtol: float, atol
 
 
 def _is_hybrid(model: Model) -> bool:
-    return model.variants.get("friction") == "hybrid"
+    return model.hybrid
 
 
 def hybrid_available(params: Parameters) -> tuple[bool, str]:

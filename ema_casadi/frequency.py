@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .assembly import Model
-from .linearize import LOOPS, LinearModel, OperatingPoint, linear_model, loop_model, operating_point
+from .linearize import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
 
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
@@ -330,7 +330,7 @@ def loop_margins(
     """
     if op is None:
         op = operating_point(model, **op_kwargs)
-    names = list(LOOPS) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
+    names = list(model.loops) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
     out = {}
     for name in names:
         L = loop_model(model, name, op, outer=outer)

@@ -58,13 +58,12 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field, replace
-from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
-from .assembly import OUTPUT_UNITS, Model
-from .components import ballscrew
+from .assembly import Model
+from .components import REGISTRY
 from .params import Parameters
 
 __all__ = [
@@ -73,11 +72,11 @@ __all__ = [
     "signal_outputs", "jacobian_function",
 ]
 
-#: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner.
+#: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner:
+#: every loop a registered part declares (a model has its own in ``model.loops``).
 LOOPS = {
-    "position": ("loop_x", "d_x", "x_rod"),
-    "velocity": ("loop_w", "d_w", "omega"),
-    "current": ("loop_i", "d_i", "i_q"),
+    lp.name: (lp.flag, lp.injection, lp.measured)
+    for values in REGISTRY.values() for cls in values.values() for lp in cls.loops
 }
 FRICTION_POLICIES = ("off", "smooth")
 BACKLASH_POLICIES = ("off", "keep")
@@ -99,7 +98,7 @@ class OperatingPointError(LinearizationError):
 def signal_outputs(model: Model) -> tuple[str, ...]:
     """Outputs that are signals (not powers, energies or the stick flag): the default
     outputs of a linear model."""
-    return tuple(n for n in model.outputs if OUTPUT_UNITS.get(n) not in ("W", "J") and n != "stick")
+    return model.outputs_of("signal")
 
 
 # ---------------------------------------------------------------------------------
@@ -198,7 +197,7 @@ def _policy_vector(model: Model, p: np.ndarray, friction: str, backlash: str) ->
         raise LinearizationError(f"friction policy '{friction}' unknown; choose one of {', '.join(FRICTION_POLICIES)}")
     if backlash not in BACKLASH_POLICIES:
         raise LinearizationError(f"backlash policy '{backlash}' unknown; choose one of {', '.join(BACKLASH_POLICIES)}")
-    if friction == "smooth" and model.variants.get("friction") == "hybrid":
+    if friction == "smooth" and model.hybrid:
         raise LinearizationError(
             "friction policy 'smooth' linearises the smooth friction law; the hybrid (Karnopp) "
             "variant has no meaningful slope: use friction policy 'off'"
@@ -215,28 +214,12 @@ def _policy_vector(model: Model, p: np.ndarray, friction: str, backlash: str) ->
     return p, overrides
 
 
-def _position_rates(model: Model, p: np.ndarray, v_rod: float) -> np.ndarray:
-    """Target state derivative of a relative equilibrium moving at v_rod (m/s)."""
-    r = p[model.param_names.index("p")] / (2 * math.pi)
-    rate = {"m": v_rod, "rad": v_rod / r}
-    return np.array([rate.get(model.state_units.get(n, ""), 0.0) for n in model.states])
-
-
-def _initial_guess(model: Model, p: np.ndarray, x_cmd: float) -> np.ndarray:
-    """At rest with every position at the command (rod and nut aligned)."""
-    r = p[model.param_names.index("p")] / (2 * math.pi)
-    pos = {"m": x_cmd, "rad": x_cmd / r}
-    return np.array([pos.get(model.state_units.get(n, ""), 0.0) for n in model.states])
-
-
-def _full_scale(model: Model, p: np.ndarray) -> np.ndarray:
-    """Full-scale magnitude of every state, by its unit (SI)."""
-    pv = dict(zip(model.param_names, p))
-    r = pv["p"] / (2 * math.pi)
-    stroke = pv["stroke"]
-    fs = {"m": stroke, "m/s": pv["v_max"], "rad": stroke / r, "rad/s": pv["v_max"] / r,
-          "A": pv["I_max"], "V": pv["V_dc"]}
-    return np.array([fs.get(model.state_units.get(n, ""), 1.0) for n in model.states])
+def _along_travel(model: Model, p: np.ndarray, length: float) -> np.ndarray:
+    """Every position-like state at rod travel ``length`` (m), the others 0: the
+    initial guess at x_cmd (rod and nut aligned), or the state rate of a relative
+    equilibrium moving at v_rod (m/s)."""
+    travel = model.travel(p)
+    return np.array([length / travel[n] if n in travel else 0.0 for n in model.states])
 
 
 def _row_scale(A, B, x, u, target, size):
@@ -269,15 +252,10 @@ def _newton(model, x, u, p, target, size, tol, max_iter):
     return x, rel, False
 
 
-def _efficiency_factor(model: Model, x, u, p, y) -> float:
-    """The screw-nut factor g (T_load = g F p/2pi) at the point, from the component law
-    and the force it acts on (elastic screw: F_in; rigid screw: F_ext + friction)."""
-    names = model.param_names
-    P = SimpleNamespace(p=p[names.index("p")], eta_inv=p[names.index("eta_inv")])
-    out = dict(zip(model.outputs, y))
-    f_ext = u[model.inputs.index("f_ext")]
-    F = out["F_in"] if model.variants.get("screw") == "elastic" else f_ext + out["F_friction"]
-    return float(ballscrew.efficiency_factor(F, out["omega"], u[model.inputs.index("eta")], P))
+def _efficiency_factor(model: Model, y) -> float:
+    """The screw-nut factor g (T_load = g F p/2pi) at the point: the screw part's
+    output ``g_screw``."""
+    return float(y[model.yindex("g_screw")])
 
 
 def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v_rod: float):
@@ -326,14 +304,14 @@ def _trim(model, x, u, p, target, size, tol, max_iter):
     Returns (x, y, residual), x None when not converged.
     """
     y = _eval(model, x, u, p)[1].ravel()
-    g = _efficiency_factor(model, x, u, p, y)
+    g = _efficiency_factor(model, y)
     rel = np.inf
     for _ in range(10):
         x, rel, ok = _newton(model, x, *_freeze_efficiency(model, u, p, g), target, size, tol, max_iter)
         if not ok:
             return None, None, rel
         y = _eval(model, x, u, p)[1].ravel()
-        g_new = _efficiency_factor(model, x, u, p, y)
+        g_new = _efficiency_factor(model, y)
         if abs(g_new - g) <= 1e-13 * abs(g):
             return x, y, rel
         g = g_new
@@ -389,8 +367,8 @@ def operating_point(
     """
     pv = np.asarray(p, float).copy() if p is not None else model.p(params)
     names = list(model.param_names)
-    for flag, _, _ in LOOPS.values():
-        pv[names.index(flag)] = 1.0
+    for loop in model.loops.values():
+        pv[names.index(loop.flag)] = 1.0
     stroke = pv[names.index("stroke")]
     for label, val in (("x_cmd", x_cmd), ("f_ext", f_ext), ("v_rod", v_rod)):
         if not math.isfinite(val):
@@ -407,13 +385,15 @@ def operating_point(
         )
     eta_v = float(pv[names.index("eta")] if eta is None else eta)
     u = model.u(x_cmd=x_cmd, f_ext=f_ext, eta=eta_v)
-    target = _position_rates(model, p_pol, v_rod)
+    target = _along_travel(model, p_pol, v_rod)
     # solve with the saturations lifted, then check the point against them
     p_trim = p_pol.copy()
     for k in ("I_max", "v_max", "V_dc"):
         p_trim[names.index(k)] *= _LIFT
-    size = _full_scale(model, p_pol)
-    x = _initial_guess(model, p_pol, x_cmd)
+    size = model.full_scale(p_pol)
+    x = _along_travel(model, p_pol, x_cmd)
+    shaft = model.state_with("shaft_angle")
+    per_rad = model.travel(p_pol)[shaft]
     B_gap = p_pol[names.index("B")]
     if B_gap > 0:
         # inside the gap the spring has no slope and Newton cannot find the contact: start
@@ -425,7 +405,7 @@ def operating_point(
         if x0 is not None:
             F_in = y0[model.yindex("F_in")]
             x = x0
-            x[model.index("phi")] += np.sign(F_in) * (B_gap / 2) * 2 * math.pi / p_pol[names.index("p")]
+            x[model.index(shaft)] += np.sign(F_in) * (B_gap / 2) / per_rad
     x, y_lifted, rel = _trim(model, x, u, p_trim, target, size, tol, max_iter)
     if x is None:
         raise OperatingPointError(
@@ -433,13 +413,13 @@ def operating_point(
             f"v_rod = {v_rod * 1e3:.4g} mm/s (relative residual {rel:.2g})"
         )
     _check_limits(model, y_lifted, p_pol, f_ext, v_rod)
-    if "x_play" in model.states and B_gap == 0:
-        # Rigid screw without backlash: the shaft angle is not fixed by the trim (only the
-        # play output is fed back). Put the nut exactly at the rod - the model's own x_in,
-        # so the gap is exactly 0 - where both edges of the play act and the AD slope is
-        # 1; a gap of -1e-17 with a shaft speed of +1e-16 would select a slope of 0.
-        i_phi, i_play = model.index("phi"), model.index("x_play")
-        x[i_phi] = x[i_play] * 2 * math.pi / p_pol[names.index("p")]
+    for play in model.states_with("play") if B_gap == 0 else ():
+        # A play without backlash (rigid screw): the shaft angle is not fixed by the trim
+        # (only the play output is fed back). Put the nut exactly at the rod - the model's
+        # own x_in, so the gap is exactly 0 - where both edges of the play act and the AD
+        # slope is 1; a gap of -1e-17 with a shaft speed of +1e-16 would select a slope of 0.
+        i_phi, i_play = model.index(shaft), model.index(play)
+        x[i_phi] = x[i_play] / per_rad
         x[i_play] = _eval(model, x, u, p_trim)[1].ravel()[model.yindex("x_in")]
     xdot, y, A, B = _eval(model, x, u, p_pol)[:4]
     xdot, y = xdot.ravel(), y.ravel()
@@ -449,11 +429,11 @@ def operating_point(
     policy = {"friction": friction, "backlash": backlash, "overrides": overrides, "g_eff": None}
     u_lin, p_lin = u, p_pol
     if friction == "off":
-        g = _efficiency_factor(model, x, u, p_pol, y)
+        g = _efficiency_factor(model, y)
         u_lin, p_lin = _freeze_efficiency(model, u, p_pol, g)
         policy["g_eff"] = g
     if backlash == "keep":
-        _warn_backlash_gap(model, x, p_pol)
+        _warn_backlash_gap(model, y, p_pol)
     return OperatingPoint(
         x=x, u=u, y=y, p=p_pol, x_cmd=float(x_cmd), f_ext=float(f_ext), v_rod=float(v_rod),
         xdot=target, policy=policy, states=model.states, inputs=model.inputs,
@@ -462,13 +442,11 @@ def operating_point(
     )
 
 
-def _warn_backlash_gap(model: Model, x, p):
+def _warn_backlash_gap(model: Model, y, p):
     B = p[model.param_names.index("B")]
     if B <= 0:
         return
-    r = p[model.param_names.index("p")] / (2 * math.pi)
-    rod = "x_rod" if "x_rod" in model.states else "x_play"
-    gap = x[model.index("phi")] * r - x[model.index(rod)]
+    gap = y[model.yindex("x_in")] - y[model.yindex("x_rod")]
     if abs(gap) < B / 2:
         warnings.warn(
             f"backlash kept: the operating point sits inside the {B * 1e6:.3g} um gap, so the linear "
@@ -516,13 +494,13 @@ class LinearModel:
                           inputs=list(self.inputs), outputs=list(self.outputs), name=self.name)
 
 
-def _loops(names) -> tuple[str, ...]:
+def _loops(model: Model, names) -> tuple[str, ...]:
     if isinstance(names, str):
         names = (names,)
     out = tuple(names or ())
     for n in out:
-        if n not in LOOPS:
-            raise LinearizationError(f"loop '{n}' unknown; choose one of {', '.join(LOOPS)}")
+        if n not in model.loops:
+            raise LinearizationError(f"loop '{n}' unknown; choose one of {', '.join(model.loops)}")
     return out
 
 
@@ -553,7 +531,7 @@ def linear_model(
         raise LinearizationError(f"give either op or operating-point arguments, not both ({', '.join(op_kwargs)})")
     if op.states != model.states or op.variants != model.variants:
         raise LinearizationError("the operating point belongs to another model (variants differ)")
-    open_loops = _loops(open_loops)
+    open_loops = _loops(model, open_loops)
     outputs = tuple(outputs) if outputs is not None else signal_outputs(model)
     inputs = tuple(inputs) if inputs is not None else model.inputs
     for n in outputs:
@@ -565,11 +543,11 @@ def linear_model(
     names = list(model.param_names)
     u_lin, p_lin = op.u_lin.copy(), op.p_lin.copy()
     u_true, p_true = op.u.copy(), op.p.copy()
-    for loop in open_loops:
-        flag, inj, meas = LOOPS[loop]
+    for name in open_loops:
+        loop = model.loops[name]
         for uu, pp in ((u_lin, p_lin), (u_true, p_true)):
-            pp[names.index(flag)] = 0.0
-            uu[model.inputs.index(inj)] = op.output(meas)
+            pp[names.index(loop.flag)] = 0.0
+            uu[model.inputs.index(loop.injection)] = op.output(loop.measured)
     _, _, A, B, C, D = _eval(model, op.x, u_lin, p_lin)
     if op.policy.get("g_eff") is not None:
         # the eta column of the frozen model is that of the fake efficiency: take the real one
@@ -613,12 +591,12 @@ def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, out
     ``L = -G_{d -> measurement}`` with this loop open; input is the injection name,
     output ``-<measurement>``.
     """
-    (loop,) = _loops(loop)
+    (loop,) = _loops(model, loop)
     if outer not in OUTER:
         raise LinearizationError(f"outer '{outer}' unknown; choose one of {', '.join(OUTER)}")
-    order = list(LOOPS)
+    order = list(model.loops)
     opened = [loop] + (order[: order.index(loop)] if outer == "open" else [])
-    _, inj, meas = LOOPS[loop]
+    inj, meas = model.loops[loop].injection, model.loops[loop].measured
     lin = linear_model(model, op, open_loops=opened, inputs=[inj], outputs=[meas], **op_kwargs)
     return replace(lin, C=-lin.C, D=-lin.D, outputs=(f"-{meas}",), name=f"L_{loop}")
 

@@ -24,14 +24,13 @@ from typing import Any
 
 import numpy as np
 
+from ._files import write_text
+
 __all__ = [
     "ParameterError",
     "Parameters",
     "load_parameters",
     "GROUPS",
-    "VARIANTS",
-    "DEFAULT_VARIANTS",
-    "validate_variants",
 ]
 
 
@@ -145,6 +144,14 @@ class Thermal:
     R_th_sh: float = _p("K/W", POS, "screw-to-housing thermal resistance (K/W)")
 
 
+@dataclass(frozen=True)
+class EndStop:
+    """Stroke end stops (SPEC §2.7), used by ``endstop = "elastic"``."""
+
+    k_stop: float = _p("N/m", POS, "end-stop stiffness (N/m)")
+    d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
+
+
 GROUPS: dict[str, type] = {
     "actuator": Actuator,
     "screw": Screw,
@@ -153,48 +160,27 @@ GROUPS: dict[str, type] = {
     "power": Power,
     "control": Control,
     "thermal": Thermal,
+    "endstop": EndStop,
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
 #: parameter vector: 1 closes the loop, 0 opens it at the feedback signal.
 LOOP_FLAGS = ("loop_x", "loop_w", "loop_i")
 
-#: Allowed variant values per key (SPEC §2, §6), first one the default.
-VARIANTS: dict[str, tuple[str, ...]] = {
-    "motor": ("pmsm", "dc"),
-    "screw": ("elastic", "rigid"),
-    "friction": ("smooth", "hybrid"),
-    "friction_shape": ("tanh", "fermi"),
-    "stribeck": ("off", "on"),
-    "inverter": ("ideal",),
-    "controller": ("P", "PI"),
-}
-DEFAULT_VARIANTS = {k: v[0] for k, v in VARIANTS.items()}
-
-
 def _nearest(name: str, options) -> str:
     match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
     return f" (did you mean '{match[0]}'?)" if match else ""
 
 
-def validate_variants(variants: dict[str, str] | None, where: str = "variant") -> dict[str, str]:
-    """Complete a variant dict with defaults and check every key and value.
-
-    Raises :class:`ParameterError` naming the key and listing the allowed values.
-    """
-    out = dict(DEFAULT_VARIANTS)
-    for key, value in (variants or {}).items():
-        if key not in VARIANTS:
-            raise ParameterError(
-                f"{where}: unknown variant key '{key}'{_nearest(key, VARIANTS)}; "
-                f"allowed keys: {', '.join(VARIANTS)}"
-            )
-        if value not in VARIANTS[key]:
-            raise ParameterError(
-                f"{where}: unknown {key} variant '{value}'; allowed: {', '.join(VARIANTS[key])}"
-            )
-        out[key] = value
-    return out
+def _variant_table(model, src: str) -> dict[str, str]:
+    """The [model] table: variant key -> value names (checked against the registry of
+    parts when a model is built)."""
+    if not isinstance(model, dict):
+        raise ParameterError(f"{src}: [model] must be a table of variant names")
+    for k, v in model.items():
+        if not isinstance(v, str):
+            raise ParameterError(f"{src}: [model] {k} must be a variant name (a string), got {v!r}")
+    return dict(model)
 
 
 @dataclass(frozen=True)
@@ -212,7 +198,8 @@ class Parameters:
     power: Power
     control: Control
     thermal: Thermal
-    variants: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_VARIANTS))
+    endstop: EndStop
+    variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
 
     # -- flat view ---------------------------------------------------------------
@@ -269,22 +256,13 @@ class Parameters:
                     f'{f.name} = {{ value = {val!r}, unit = "{f.metadata["unit"]}" }}'
                     f'  # {f.metadata["doc"]}'
                 )
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text("\n".join(lines) + "\n")
-        tmp.replace(path)
-        return path
+        return write_text(path, "\n".join(lines) + "\n")
 
     # -- derived quantities used across the toolkit --------------------------------
     @property
     def K_t(self) -> float:
         """Torque constant 1.5*pp*psi (N m/A)."""
         return 1.5 * self.motor.pp * self.motor.psi
-
-    @property
-    def omega_max(self) -> float:
-        """Motor speed at the rod rate limit, 2*pi*v_max/p (rad/s)."""
-        return 2 * math.pi * self.control.v_max / self.screw.p
 
 
 def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool) -> float:
@@ -344,9 +322,7 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
             values[f.name] = _check_value(src, g, f.name, dict(f.metadata), table[f.name], plain)
         groups[g] = cls(**values)
     model = data.get("model", {}) if variants is None else variants
-    if not isinstance(model, dict):
-        raise ParameterError(f"{src}: [model] must be a table of variant names")
-    merged = validate_variants(model, where=f"{src}: [model]")
+    merged = _variant_table(model, src)
     s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
@@ -382,11 +358,6 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{src}: not valid TOML ({exc})") from None
-    file_variants = data.get("model", {})
-    if not isinstance(file_variants, dict):
-        raise ParameterError(f"{src}: [model] must be a table of variant names")
-    validate_variants(file_variants, where=f"{src}: [model]")
-    validate_variants(variants, where="variant")
-    merged = dict(file_variants)
-    merged.update(variants or {})
+    merged = _variant_table(data.get("model", {}), src)
+    merged.update(_variant_table(variants or {}, "variant"))
     return _build(data, merged, src)

@@ -42,7 +42,13 @@ class SignalError(ValueError):
 _LENGTH = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 _FORCE = {"N": 1.0, "kN": 1e3, "MN": 1e6}
 _RATE = {"m/s": 1.0, "mm/s": 1e-3}
-_UNITS = {"length": _LENGTH, "force": _FORCE, "rate": _RATE, "frequency": {"Hz": 1.0}, "time": {"s": 1.0, "ms": 1e-3}}
+_UNITS = {
+    "length": _LENGTH, "force": _FORCE, "rate": _RATE, "frequency": {"Hz": 1.0}, "time": {"s": 1.0, "ms": 1e-3},
+    "dimensionless": {"1": 1.0}, "angular_velocity": {"rad/s": 1.0, "rpm": 2 * math.pi / 60}, "current": {"A": 1.0},
+}
+#: SI unit of each quantity kind: the unit of a bare number unless the caller says otherwise.
+SI_UNIT = {"length": "m", "force": "N", "rate": "m/s", "frequency": "Hz", "time": "s",
+           "dimensionless": "1", "angular_velocity": "rad/s", "current": "A"}
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -211,8 +217,9 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
     ----------
     text : str, float or Signal
         The description; a number or Signal is passed through (number in SI).
-    kind : {"length", "force"}
-        Quantity of the signal; sets the allowed unit suffixes.
+    kind : str
+        Quantity of the signal (``length``, ``force``, ``dimensionless``,
+        ``angular_velocity``, ``current``); sets the allowed unit suffixes.
     bare : str, optional
         Unit of numbers without suffix (default: the SI unit, ``m`` or ``N``).
     stroke : float, optional
@@ -224,7 +231,9 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
         return text
     if isinstance(text, (int, float)):
         return constant(float(text))
-    bare = bare or {"length": "m", "force": "N"}[kind]
+    if kind not in SI_UNIT:
+        raise SignalError(f"unknown quantity kind '{kind}'; known: {', '.join(SI_UNIT)}")
+    bare = bare or SI_UNIT[kind]
     rate_bare = bare + "/s"
     out = Signal()
     for part in str(text).split("+"):

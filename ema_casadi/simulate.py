@@ -48,7 +48,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .assembly import HOLD, OUTPUT_UNITS, Model
+from .assembly import Model
+from ._files import write_with
 from .compiled import BufferCall, compile_function, compile_keyed
 from .params import Parameters
 from .signals import Signal, constant, parse_signal
@@ -75,8 +76,11 @@ class SimResult:
     outputs: dict
     states: dict
     info: dict = field(default_factory=dict)
+    unit_table: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
+        if name in ("t", "time"):
+            return self.t
         for d in (self.outputs, self.inputs, self.states):
             if name in d:
                 return d[name]
@@ -97,30 +101,17 @@ class SimResult:
 
     def to_csv(self, path: str | Path) -> Path:
         """Write column ``t`` then one column per signal (SI); atomic."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
-        try:
-            np.savetxt(tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g")
-            tmp.replace(path)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return path
+        return write_with(path, lambda tmp: np.savetxt(
+            tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g"))
 
     def to_npz(self, path: str | Path) -> Path:
         """Write all signals as named arrays (plus ``t``); atomic."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        try:
-            np.savez(tmp, t=self.t, **{c: self[c] for c in self.columns()[1:]})
-            tmp.replace(path)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return path
+        return write_with(path, lambda tmp: np.savez(tmp, t=self.t, **{c: self[c] for c in self.columns()[1:]}),
+                          suffix=".npz")
 
     def units(self) -> dict:
-        u = {"t": "s", "x_cmd": "m", "f_ext": "N", "eta": "1"}
-        u.update(OUTPUT_UNITS)
-        return u
+        """SI unit of every column, from the model's one unit table."""
+        return {c: self.unit_table.get(c, "") for c in self.columns()}
 
 
 def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> dict:
@@ -164,8 +155,9 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
     """One RK4 step ``(x, U3, flags, p, h) -> x_next``.
 
     ``U3`` holds the inputs at t, t+h/2 and t+h in its three columns. With ``zoh`` the
-    state is augmented with the held controller outputs (``HOLD``) and ``flags`` (3)
-    say which loops (position, speed, current) sample at the start of this step.
+    state is augmented with the held controller outputs (``model.holds``) and
+    ``flags`` (one per loop of ``model.loops``) say which loops sample at the start of
+    this step.
 
     With hybrid friction the step ends with the model's discrete stick-entry map
     ``model.project`` (the mode is evaluated once per step, inside the compiled step).
@@ -179,11 +171,11 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
     the stick flag after the step and the running number of stick/slip switches.
     """
     nx, nu = model.nx, model.nu
-    nh = len(HOLD) if zoh else 0
+    nh = len(model.holds) if zoh else 0
     nc = 2 if count_modes else 0
     xa = ca.SX.sym("x", nx + nh + nc)
     U3 = ca.SX.sym("U3", nu, 3)
-    flags = ca.SX.sym("flags", 3)
+    flags = ca.SX.sym("flags", len(model.loops))
     p = ca.SX.sym("p", len(model.param_names))
     h = ca.SX.sym("h")
     stages = [] if model.hybrid else None
@@ -247,12 +239,12 @@ def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: s
     nxa = step.size1_in(0)
     x0 = ca.MX.sym("x0", nxa)
     U = ca.MX.sym("U", model.nu, 3 * k * M)
-    Fl = ca.MX.sym("F", 3, k * M)
+    Fl = ca.MX.sym("F", len(model.loops), k * M)
     p = ca.MX.sym("p", len(model.param_names))
     h = ca.MX.sym("h")
     X = roll(x0, U, Fl, p, h)
     u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
-    nh = len(HOLD) if zoh else 0
+    nh = len(model.holds) if zoh else 0
     if zoh:
         Y = _outputs_only(model.f_held).map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])
     else:
@@ -292,7 +284,7 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
 
 def _flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
     """1 where a loop's sampling instant n/f_s falls in [t, t + dt)."""
-    out = np.empty((3, len(t)))
+    out = np.empty((len(rates), len(t)))
     for j, fs in enumerate(rates):
         n_end = np.ceil((t + dt) * fs - 1e-9)
         n_start = np.ceil(t * fs - 1e-9)
@@ -311,16 +303,32 @@ def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
     sys.stderr.flush()
 
 
-def _as_signal(value, kind) -> Signal:
-    if value is None:
-        return constant(0.0)
+def _as_signal(value, name: str, kind: str) -> Signal:
     if isinstance(value, Signal):
         return value
-    if isinstance(value, (int, float, np.floating)):
+    if isinstance(value, (int, float, np.floating)) and not isinstance(value, bool):
         return constant(float(value))
     if isinstance(value, str):
         return parse_signal(value, kind)
-    raise SimulationError(f"{kind} signal: expected a number, a Signal or a signal string, got {type(value).__name__}")
+    raise SimulationError(f"input {name}: expected a number, a Signal or a signal string, got {type(value).__name__}")
+
+
+def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
+    """Every model input that is driven (given, or not an injection) as a Signal, by
+    name; the quantity kind of each input selects its units."""
+    for name in given:
+        if name not in model.input_info:
+            raise SimulationError(f"unknown input '{name}'; the model's inputs are {', '.join(model.inputs)}")
+    P = model.pdict(pv)
+    sig = {}
+    for name, inp in model.input_info.items():
+        value = given.get(name)
+        if value is None and inp.injection:
+            continue
+        if value is None:
+            value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
+        sig[name] = _as_signal(value, name, inp.kind)
+    return sig
 
 
 def simulate(
@@ -343,6 +351,7 @@ def simulate(
     event_tol: float = 1e-7,
     jit: bool = True,
     progress: bool = False,
+    **signals,
 ) -> SimResult:
     """Simulate ``model`` from 0 to ``t_end`` (s).
 
@@ -355,6 +364,10 @@ def simulate(
     x_cmd, f_ext, eta : Signal, float or str
         Commanded rod position (m), external force (N, positive pushes the rod in),
         screw efficiency (-, default the parameter set's eta).
+    **signals : Signal, float or str
+        Any other model input by name (``model.inputs``, e.g. the loop-break
+        injections ``d_x``); strings in the unit of the input's quantity kind.
+        Undriven inputs take their declared default.
     dt : float
         RK4 step (s); for ``cvodes`` the default output spacing when ``dt_out`` is not
         given.
@@ -392,11 +405,7 @@ def simulate(
     pv = np.asarray(p, float) if p is not None else model.p(params)
     if pv.shape != (len(model.param_names),):
         raise SimulationError(f"p must have {len(model.param_names)} entries, got shape {pv.shape}")
-    sig = {
-        "x_cmd": _as_signal(x_cmd, "length"),
-        "f_ext": _as_signal(f_ext, "force"),
-        "eta": _as_signal(pv[model.param_names.index("eta")] if eta is None else eta, "length"),
-    }
+    sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
     x0 = model.x0() if x0 is None else np.asarray(x0, float)
     if decimate is None:
         decimate = max(1, int(round(dt_out / dt))) if dt_out else 1
@@ -434,11 +443,11 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_out = int(math.ceil(n_steps / k))
     M = max(1, min(n_out, STEPS_PER_CALL // k))
     F, cinfo = _rollout(model, zoh, k, M, jit)
-    nh = len(HOLD) if zoh else 0
+    nh = len(model.holds) if zoh else 0
     x0, stick0 = _initial_projection(model, sig, pv, x0)
     counter = [stick0, 0.0] if model.hybrid else []
     xa = np.concatenate([x0, np.zeros(nh), counter])
-    rates = [pv[model.param_names.index(n)] for n in ("f_s_x", "f_s_w", "f_s_i")]
+    rates = [pv[model.param_names.index(loop.rate)] for loop in model.loops.values()]
     X_out = np.empty((len(xa), n_out))
     Y_out = np.empty((model.ny, n_out))
     t_compute = time.perf_counter()
@@ -447,7 +456,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         t = steps * dt
         t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
         U = _input_matrix(model, sig, t3)
-        Fl = _flags(t, dt, rates) if zoh else np.zeros((3, len(t)))
+        Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
         Xc, Yc = F(xa, U, Fl, pv, dt)
         m = min(M, n_out - c0)
         X_out[:, c0 : c0 + m] = Xc[:, :m]
@@ -474,7 +483,7 @@ def _result(model, sig, t, X, Y, info):
     inputs = {n: s(t) for n, s in sig.items()}
     outputs = {n: Y[i] for i, n in enumerate(model.outputs)}
     states = {n: X[i] for i, n in enumerate(model.states)}
-    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info)
+    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units)
 
 
 _INTEGRATORS: dict = {}

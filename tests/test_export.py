@@ -24,7 +24,7 @@ def lin(model_cache):
 def test_linear_round_trip(lin, model_cache, tmp_path, fmt):
     """Matrices bit-identical, names, units and the operating point preserved."""
     model = model_cache()
-    path = ex.save_linear(lin, tmp_path / f"lin.{fmt}", state_units=model.state_units)
+    path = ex.save_linear(lin, tmp_path / f"lin.{fmt}", units=model.units)
     back, op = ex.load_linear(path)
     for k in "ABCD":
         np.testing.assert_array_equal(getattr(back, k), getattr(lin, k))

@@ -40,7 +40,7 @@ def test_ad_jacobian_equals_central_difference(model_cache, variants, point):
     op = lz.operating_point(model, x_cmd, f_ext, v_rod)
     x, u, p = op.x, op.u_lin, op.p_lin
     _, _, A, B, C, D = (np.array(v) for v in lz.jacobian_function(model)(x, u, p))
-    x_fs = lz._full_scale(model, p)
+    x_fs = model.full_scale(p)
     u_fs = np.array([0.075, 5e4, 1.0, 0.075, 100.0, 24.0])  # x_cmd, f_ext, eta, d_x, d_w, d_i
     sig = [model.outputs.index(n) for n in lz.signal_outputs(model)]
 

@@ -47,7 +47,7 @@ def run(args) -> dict:
 
             op = operating_point_from_args(args, params, model)
             lin = linear_model(model, op, open_loops=args.open)
-            written = [save_linear(lin, out, args.format, state_units=model.state_units)]
+            written = [save_linear(lin, out, args.format, units=model.units)]
             result["operating_point"] = op_summary(op)
         else:
             written = export_function(model, out, args.format)

@@ -89,7 +89,7 @@ def run(args) -> dict:
     written = []
     if out is not None:
         try:
-            written.append(str(save_linear(lin, out, state_units=model.state_units)))
+            written.append(str(save_linear(lin, out, units=model.units)))
         except ExportError as exc:
             raise UserError(f"--out {exc}") from None
         except OSError as exc:
@@ -101,7 +101,7 @@ def run(args) -> dict:
         "operating_point": op.as_dict(),
         "open_loops": list(lin.open_loops),
         "states": list(lin.states), "inputs": list(lin.inputs), "outputs": list(lin.outputs),
-        "state_units": [model.state_units.get(n, "") for n in lin.states],
+        "state_units": [model.units[n] for n in lin.states],
         "A": lin.A, "B": lin.B, "C": lin.C, "D": lin.D,
         "eigenvalues": {"real": lam.real, "imag": lam.imag},
         "modes": modes(lin),

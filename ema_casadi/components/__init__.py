@@ -1,10 +1,20 @@
-"""Components: pure symbolic functions, one module per family (SPEC §2).
+"""Components: one module per family, each variant a *part* (SPEC §2).
 
-controller (ECU), inverter (power electronics), motor, ballscrew, friction.
-Each function maps CasADi symbols (states, inputs, parameters) to derivatives and
-outputs; none of them knows about the others. :mod:`ema_casadi.assembly` wires them.
+controller (ECU outer loops), motor (with its current controller), inverter (power
+electronics), ballscrew (drive-train mechanics), friction, endstop. A part declares its
+states, inputs, outputs, parameters and loops next to its equations
+(:mod:`~ema_casadi.components._part`); :data:`REGISTRY` maps every variant key and value
+to its part; :mod:`ema_casadi.assembly` composes the chosen parts by signal name.
 """
 
-from . import ballscrew, controller, friction, inverter, motor
+from . import ballscrew, controller, endstop, friction, inverter, motor
+from ._part import INPUT_KINDS, OUTPUT_KINDS, AssemblyError, Bus, Hold, Input, Loop, Output, Part, State, der
+from ._registry import (
+    DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants,
+)
 
-__all__ = ["ballscrew", "controller", "friction", "inverter", "motor"]
+__all__ = [
+    "ballscrew", "controller", "endstop", "friction", "inverter", "motor",
+    "INPUT_KINDS", "OUTPUT_KINDS", "AssemblyError", "Bus", "Hold", "Input", "Loop", "Output", "Part", "State", "der",
+    "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
+]

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "P_BLEND"]
+from ._part import Input, Output, Part, State, der
+from .motor import shaft
+
+__all__ = [
+    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "P_BLEND",
+    "Elastic", "Rigid", "F_EXT", "ETA",
+]
 
 #: Width (W) over which the screw-nut efficiency switches between the direct and the
 #: inverse value as the transmitted power changes sign. An exact switch makes a
@@ -57,3 +63,131 @@ def play_rate(x_in, v_in, x_play, B):
     input only while the input pushes on an edge of the gap (m/s)."""
     gap = x_in - x_play
     return ca.if_else(gap >= B / 2, ca.fmax(v_in, 0), 0) + ca.if_else(gap <= -B / 2, ca.fmin(v_in, 0), 0)
+
+
+# ---- parts: the screw owns the drive-train mechanics (shaft and rod) ------------------
+F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
+ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
+
+
+def _r(P):
+    return P.p / (2 * ca.pi)
+
+
+def _shaft_states(contact: bool):
+    return (
+        State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / _r(P), travel=_r),
+        State("omega", "rad/s", "motor speed", roles=("shaft_speed",) + (("contact_velocity",) if contact else ()),
+              scale=lambda P: P.v_max / _r(P)),
+    )
+
+
+_OUT = (
+    Output("x_rod", "m", "rod position, the sensor signal"),
+    Output("v_rod", "m/s", "rod velocity"),
+    Output("x_in", "m", "nut-side position phi*p/(2 pi)"),
+    Output("omega", "rad/s", "motor speed"),
+    Output("F_in", "N", "screw force on the rod"),
+    Output("g_screw", "1", "screw-nut torque factor T_load/(F p/2pi): 1/eta driving, eta_inv back-driven", kind="aux"),
+    Output("P_screw_nut", "W", "screw-nut efficiency loss", kind="loss"),
+    Output("P_load", "W", "power delivered to the load, f_ext*v_rod", kind="power"),
+)
+_PARAMS = ("p", "eta_inv", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
+
+
+class Elastic(Part):
+    """Two-mass screw (SPEC §2.4): nut and rod coupled by the dead-zone spring (eq. 2)
+    with contact damping; the rod carries the friction contact."""
+
+    family, value = "screw", "elastic"
+    doc = "two-mass: dead-zone spring with contact damping between nut and rod"
+    states = _shaft_states(contact=False) + (
+        State("x_rod", "m", "rod position", roles=("rod_position",), scale=lambda P: P.stroke, travel=lambda P: 1.0),
+        State("v_rod", "m/s", "rod velocity", roles=("rod_velocity", "contact_velocity"), scale=lambda P: P.v_max),
+    )
+    inputs = (F_EXT, ETA)
+    outputs = _OUT + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
+    params = _PARAMS + ("C", "c_c", "B")
+    stored = ("E_kin", "E_spring")
+    loads = ("f_ext",)
+
+    def signals(self):
+        def screw(b):
+            F_in, delta, E_spring, P_contact, _ = elastic(b["phi"], b["omega"], b["x_rod"], b["v_rod"], b.P)
+            return F_in, E_spring, P_contact
+
+        def rod(b):
+            return ca.if_else(b["stick"], 0, (b["F_app"] - b["F_c"]) / b.P.M)
+
+        return {
+            "x_in": lambda b: b["phi"] * _r(b.P),
+            "v_in": lambda b: b["omega"] * _r(b.P),
+            ("F_in", "E_spring", "P_contact"): screw,
+            "v_contact": lambda b: b["v_rod"],
+            "F_app": lambda b: b["F_in"] - b["F_load_rod"] - b.P.c_v * b["v_rod"],
+            "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta"], b.P),
+            "T_load": lambda b: _r(b.P) * b["F_in"] * b["g_screw"],
+            der("phi"): lambda b: b["omega"],
+            der("omega"): lambda b: _shaft(b, b.P.J_m + b.P.J_s),
+            der("x_rod"): lambda b: b["v_rod"],
+            der("v_rod"): rod,
+            "P_screw_nut": lambda b: b["T_load"] * b["omega"] - b["F_in"] * b["v_in"],
+            "E_kin": lambda b: 0.5 * (b.P.J_m + b.P.J_s) * b["omega"] ** 2 + 0.5 * b.P.M * b["v_rod"] ** 2,
+            "P_load": lambda b: b["f_ext"] * b["v_rod"],
+        }
+
+
+def _shaft(b, J):
+    return shaft(b["omega"], b["T_m"], b["T_load"], J, b.P)
+
+
+class Rigid(Part):
+    """One-mass screw (SPEC §2.4, eq. 1): the rod follows the shaft; backlash acts on
+    the position signal only, as a play operator; friction acts on the shaft."""
+
+    family, value = "screw", "rigid"
+    doc = "one-mass: rod rigid on the shaft, backlash as a play on the position signal"
+    states = _shaft_states(contact=True) + (
+        State("x_play", "m", "rod position after the backlash play", roles=("rod_position", "play"),
+              scale=lambda P: P.stroke, travel=lambda P: 1.0),
+    )
+    inputs = (F_EXT, ETA)
+    outputs = _OUT
+    params = _PARAMS + ("B",)
+    stored = ("E_kin",)
+    loads = ("f_ext",)
+
+    def signals(self):
+        def applied(b):
+            # the force that holds the shaft (omega-dot = 0): the net motor torque
+            # referred to the rod through the screw, minus the load and viscous force
+            T_net = b["T_m"] - b.P.b_m * b["omega"]
+            g_hold = efficiency_factor(T_net / _r(b.P), b["omega"], b["eta"], b.P)
+            return T_net / (_r(b.P) * g_hold) - b["F_load_rod"] - b.P.c_v * b["v_in"]
+
+        def shaft_rate(b):
+            return ca.if_else(b["stick"], 0, _shaft(b, _J_eq(b.P)))
+
+        return {
+            "x_in": lambda b: b["phi"] * _r(b.P),
+            "v_in": lambda b: b["omega"] * _r(b.P),
+            "x_rod": lambda b: b["x_play"],
+            "v_rod": lambda b: b["v_in"],
+            "v_contact": lambda b: b["v_in"],
+            "F_app": applied,
+            "F_load": lambda b: b["F_load_rod"] + b["F_friction"],
+            "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta"], b.P),
+            "T_load": lambda b: _r(b.P) * b["F_load"] * b["g_screw"],
+            der("phi"): lambda b: b["omega"],
+            der("omega"): shaft_rate,
+            der("x_play"): lambda b: play_rate(b["x_in"], b["v_in"], b["x_play"], b.P.B),
+            "F_in": lambda b: b["F_load"] + b.P.M * _r(b.P) * b[der("omega")],
+            "P_screw_nut": lambda b: b["T_load"] * b["omega"] - b["F_load"] * b["v_in"],
+            "E_kin": lambda b: 0.5 * _J_eq(b.P) * b["omega"] ** 2,
+            "P_load": lambda b: b["f_ext"] * b["v_rod"],
+        }
+
+
+def _J_eq(P):
+    """Inertia referred to the shaft, J_rot + M (p/2pi)^2 (kg m^2)."""
+    return P.J_m + P.J_s + P.M * _r(P) ** 2

@@ -14,9 +14,16 @@ the response to ``d`` is minus the open-loop transfer L.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
-__all__ = ["clamp", "pi_law", "position_law", "velocity_law", "current_law_simple", "current_law_foc"]
+from ._part import Hold, Input, Loop, Output, Part, State, der
+
+__all__ = [
+    "clamp", "pi_law", "position_law", "velocity_law", "current_law_simple", "current_law_foc",
+    "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP",
+]
 
 SQRT3 = 3**0.5
 
@@ -94,3 +101,63 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P):
     z_d_dot = P.K_i_i * e_d + w_aw * (v_d - v_d_u)
     z_q_dot = P.K_i_i * e_q + w_aw * (v_q - v_q_u)
     return v_d, v_q, z_d_dot, z_q_dot
+
+
+# ---- parts --------------------------------------------------------------------------
+POSITION_LOOP = Loop("position", flag="loop_x", injection="d_x", measured="x_rod", rate="f_s_x")
+VELOCITY_LOOP = Loop("velocity", flag="loop_w", injection="d_w", measured="omega", rate="f_s_w")
+
+
+def _omega_max(P):
+    return 2 * math.pi * P.v_max / P.p
+
+
+class PositionP(Part):
+    """ECU outer loops: P position loop (rate-limited) and PI speed loop (SPEC §2.1)."""
+
+    family, value = "controller", "P"
+    doc = "position P loop -> speed PI loop -> current command"
+    inputs = (
+        Input("x_cmd", "m", "length", "commanded rod position"),
+        Input("d_x", "m", "length", "injection at the position feedback (loop break)", injection=True),
+        Input("d_w", "rad/s", "angular_velocity", "injection at the speed feedback (loop break)", injection=True),
+    )
+    outputs = (
+        Output("omega_cmd", "rad/s", "motor speed command of the position loop"),
+        Output("i_cmd", "A", "q-current command of the speed loop"),
+    )
+    params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w")
+    loops = (POSITION_LOOP, VELOCITY_LOOP)
+    holds = (Hold("omega_cmd", "rad/s", "position"), Hold("i_cmd", "A", "velocity"))
+    states = (
+        State("z_w", "A", "speed-loop integral part", roles=("controller_integral",),
+              scale=lambda P: P.I_max, loop="velocity"),
+    )
+    integral = False
+
+    def signals(self):
+        def position(b):
+            z = b["z_x"] if self.integral else 0
+            w, z_dot = position_law(b["x_cmd"], b.feedback(POSITION_LOOP), z, b.P, self.integral)
+            return (w, z_dot) if self.integral else w
+
+        def velocity(b):
+            return velocity_law(b["omega_cmd"], b.feedback(VELOCITY_LOOP), b["z_w"], b.P)
+
+        out = {("i_cmd", der("z_w")): velocity}
+        out[("omega_cmd", der("z_x")) if self.integral else "omega_cmd"] = position
+        return out
+
+
+class PositionPI(PositionP):
+    """ECU outer loops with a PI position loop (integral action: hunting studies)."""
+
+    value = "PI"
+    doc = "position PI loop -> speed PI loop -> current command"
+    params = PositionP.params + ("K_i_x",)
+    states = (
+        State("z_x", "rad/s", "position-loop integral part", roles=("controller_integral",),
+              scale=_omega_max, loop="position"),
+        *PositionP.states,
+    )
+    integral = True

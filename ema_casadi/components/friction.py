@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "SHAPES"]
+from ._part import Input, Output, Part
+
+__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "SHAPES", "Smooth", "Hybrid"]
 
 SHAPES = ("tanh", "fermi")
 
@@ -100,3 +102,64 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
     """
     entered = ca.logic_or(ca.fabs(v) < P.eps, v_prev * v < 0)
     return ca.logic_and(entered, ca.fabs(F_hold) <= P.r_start * F_r)
+
+
+# ---- parts: friction at the contact the screw part names (v_contact, F_app) -----------
+_F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
+_OUT = (
+    Output("F_friction", "N", "friction force at the contact, referred to the rod"),
+    Output("stick", "1", "1 while stuck (hybrid friction)", kind="flag"),
+    Output("P_friction", "W", "seal/bearing (Coulomb) friction loss", kind="loss"),
+    Output("P_viscous", "W", "viscous loss (rod and shaft)", kind="loss"),
+)
+_PARAMS = ("F_seal", "C_bear", "p", "c_v", "b_m")
+
+
+def _common(_):
+    return {
+        "F_r": lambda b: sliding_level(b["f_ext"], b.P),
+        "P_friction": lambda b: b["F_c"] * b["v_rod"],
+        "P_viscous": lambda b: b.P.c_v * b["v_rod"] ** 2 + b.P.b_m * b["omega"] ** 2,
+    }
+
+
+class Smooth(Part):
+    """Simplified friction (eq. 3), continuous: any ODE solver, linearisable."""
+
+    family, value = "friction", "smooth"
+    doc = "smooth Coulomb law F_r s(v) (+ Stribeck hump) + viscous"
+    inputs = (_F_EXT,)
+    outputs = _OUT
+    params = _PARAMS + ("v_s", "r_start", "v_st")
+    options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
+
+    def signals(self):
+        shape = self.opt.get("friction_shape", SHAPES[0])
+        strib = self.opt.get("stribeck", "off") == "on"
+        out = _common(None)
+        out[("F_friction", "F_c")] = lambda b: smooth(b["v_contact"], b["F_r"], b.P, shape, strib)
+        out["stick"] = lambda b: 0
+        return out
+
+
+class Hybrid(Part):
+    """Enhanced (Karnopp stick-slip) friction (eqs. 4-8): a hybrid part, with the
+    stick-entry map :meth:`project` applied by the integrators after each step."""
+
+    family, value = "friction", "hybrid"
+    doc = "Karnopp stick-slip: dead band eps, breakaway F_start = r_start F_r"
+    inputs = (_F_EXT,)
+    outputs = _OUT
+    params = _PARAMS + ("eps", "r_start")
+
+    def signals(self):
+        out = _common(None)
+        # the stick test uses the applied force with the contact at rest
+        out["F_hold"] = lambda b: ca.substitute(b["F_app"], b.state("contact_velocity"), 0)
+        out[("F_friction", "F_c", "stick")] = lambda b: hybrid(b["v_contact"], b["F_app"], b["F_r"], b.P, b["F_hold"])
+        return out
+
+    def project(self, prev, now):
+        stick = stick_entry(prev["v_contact"], now["v_contact"], now["F_hold"], now["F_r"], now.P)
+        name = now.state_name("contact_velocity")
+        return {name: ca.if_else(stick, 0, now.x[name])}, stick

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["ideal", "averaged_losses"]
+from ._part import Output, Part
+
+__all__ = ["ideal", "averaged_losses", "Ideal"]
 
 
 def ideal(v):
@@ -34,3 +36,28 @@ def averaged_losses(I_hat, P):
     P_cond = 3 * (V0 * i_abs + r * i_sq)
     P_sw = 3 * P.f_sw * P.E_sw * (P.V_dc / P.V_sw_ref) * (i_abs / P.I_sw_ref)
     return P_cond, P_sw
+
+
+class Ideal(Part):
+    """Averaged inverter: the controller's voltage reaches the windings; averaged
+    conduction and switching losses of the bridge carrying the motor currents."""
+
+    family, value = "inverter", "ideal"
+    doc = "averaged bridge: winding voltage = controller voltage, averaged losses"
+    outputs = (
+        Output("v_d", "V", "d-axis winding voltage (0 for the dc motor)"),
+        Output("v_q", "V", "q-axis winding voltage (dc motor: its voltage / 1.5)"),
+        Output("P_inv_cond", "W", "inverter conduction loss", kind="loss"),
+        Output("P_inv_sw", "W", "inverter switching loss", kind="loss"),
+    )
+    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref")
+
+    def signals(self):
+        def losses(b):
+            return averaged_losses(ca.sqrt(b["i_d"] ** 2 + b["i_q"] ** 2), b.P)
+
+        return {
+            "v_d": lambda b: ideal(b["v_d_ref"]),
+            "v_q": lambda b: ideal(b["v_q_ref"]),
+            ("P_inv_cond", "P_inv_sw"): losses,
+        }

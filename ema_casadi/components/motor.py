@@ -3,7 +3,10 @@ dq frame (amplitude-invariant), and the shaft."""
 
 from __future__ import annotations
 
-__all__ = ["dc", "pmsm", "shaft"]
+from . import controller
+from ._part import Hold, Input, Loop, Output, Part, State, der
+
+__all__ = ["dc", "pmsm", "shaft", "Pmsm", "Dc", "CURRENT_LOOP"]
 
 
 def dc(i, v, omega, P):
@@ -40,3 +43,90 @@ def pmsm(i_d, i_q, v_d, v_q, omega, P):
 def shaft(omega, T, T_load, J, P):
     """J d omega/dt = T - b_m omega - T_load. Returns d omega/dt (rad/s^2)."""
     return (T - P.b_m * omega - T_load) / J
+
+
+# ---- parts: each motor brings its own current controller (FOC or simple PI) ----------
+CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q", rate="f_s_i")
+
+_COMMON_OUT = (
+    Output("i_d", "A", "d-axis current (0 for the dc motor)"),
+    Output("i_q", "A", "q-axis current (the dc motor's current)"),
+    Output("T_m", "N*m", "motor torque"),
+    Output("P_elec", "W", "electrical power into the windings", kind="power"),
+    Output("P_cu", "W", "copper loss", kind="loss"),
+)
+_D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
+
+
+def _volts(P):
+    return P.V_dc
+
+
+def _amps(P):
+    return P.I_max
+
+
+class Pmsm(Part):
+    """3-phase PMSM in the rotor dq frame with FOC current control (SPEC §2.1, §2.3)."""
+
+    family, value = "motor", "pmsm"
+    doc = "3-phase PMSM, rotor dq frame, FOC current loop"
+    inputs = (_D_I,)
+    outputs = _COMMON_OUT
+    params = ("pp", "psi", "R", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i")
+    loops = (CURRENT_LOOP,)
+    holds = (Hold("v_d_ref", "V", "current"), Hold("v_q_ref", "V", "current"))
+    states = (
+        State("z_d", "V", "d-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+        State("z_q", "V", "q-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+        State("i_d", "A", "d-axis current", roles=("current",), scale=_amps),
+        State("i_q", "A", "q-axis current", roles=("current",), scale=_amps),
+    )
+    stored = ("E_mag",)
+
+    def signals(self):
+        def current_law(b):
+            i_d, i_q = b["i_d"], b["i_q"]
+            return controller.current_law_foc(
+                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P
+            )
+
+        def plant(b):
+            return pmsm(b["i_d"], b["i_q"], b["v_d"], b["v_q"], b["omega"], b.P)
+
+        return {
+            ("v_d_ref", "v_q_ref", der("z_d"), der("z_q")): current_law,
+            (der("i_d"), der("i_q"), "T_m", "P_elec", "P_cu", "E_mag"): plant,
+        }
+
+
+class Dc(Part):
+    """1-phase dc-equivalent motor with a simple current PI (SPEC §2.3)."""
+
+    family, value = "motor", "dc"
+    doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
+    inputs = (_D_I,)
+    outputs = _COMMON_OUT
+    params = ("pp", "psi", "R", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i")
+    loops = (CURRENT_LOOP,)
+    holds = Pmsm.holds
+    states = (
+        State("z_i", "V", "current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+        State("i", "A", "winding current", roles=("current",), scale=_amps),
+    )
+    stored = ("E_mag",)
+
+    def signals(self):
+        def current_law(b):
+            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P)
+            return 0, v / 1.5, z_dot
+
+        def plant(b):
+            return dc(b["i"], 1.5 * b["v_q"], b["omega"], b.P)
+
+        return {
+            ("v_d_ref", "v_q_ref", der("z_i")): current_law,
+            (der("i"), "T_m", "P_elec", "P_cu", "E_mag"): plant,
+            "i_d": lambda b: 0,
+            "i_q": lambda b: b["i"],
+        }

@@ -1,0 +1,234 @@
+"""What a component variant declares, and the signal bus the assembly wires parts with.
+
+A *part* is one variant of one component family (``screw = "elastic"``). It declares
+what it brings, next to its equations (motulator's ``States/Inputs/Outputs``, PyBaMM's
+submodels):
+
+- :class:`State` entries (name, unit, roles, initial value, full scale),
+- the model :class:`Input` entries it reads,
+- its :class:`Output` entries (name, unit, kind, one-line meaning),
+- the parameters it uses (flat names of :class:`~ema_casadi.params.Parameters`),
+- control :class:`Loop` entries it closes and the controller outputs it :class:`Hold`\\ s
+  between ECU samples,
+- contributions to summed signals (stored energy, the load on the rod),
+
+and a :meth:`Part.signals` table of *providers*: functions of the :class:`Bus` that
+return one signal (or several at once). The bus resolves a signal on demand, by name,
+so parts never call each other and the assembly never needs to know in which order to
+evaluate them; a circular dependency is reported as an algebraic loop.
+
+A state's derivative is the signal ``der(NAME)`` (see :func:`der`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Callable, ClassVar
+
+import casadi as ca
+
+__all__ = [
+    "State", "Input", "Output", "Loop", "Hold", "Part", "Bus", "AssemblyError", "der",
+    "OUTPUT_KINDS", "INPUT_KINDS",
+]
+
+#: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
+#: (power dissipated, W), ``power`` (power through a port, W), ``energy`` (J), ``flag``
+#: (a mode indicator) and ``aux`` (an internal quantity exposed for analyses).
+OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
+
+#: Quantity kinds of model inputs, as understood by the signal parser.
+INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature")
+
+
+class AssemblyError(ValueError):
+    """Parts that do not fit together (a signal nobody provides, an algebraic loop,
+    two parts declaring one name differently)."""
+
+
+def der(name: str) -> str:
+    """Bus name of the time derivative of state ``name``."""
+    return f"der({name})"
+
+
+@dataclass(frozen=True)
+class State:
+    """A state a part brings.
+
+    Attributes
+    ----------
+    name, unit, doc : str
+        Name (SPEC symbol), SI unit, one-line meaning.
+    roles : tuple of str
+        What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
+        ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
+        friction contact), ``current``, ``controller_integral``, ``play`` (a memory
+        element without dynamics of its own).
+    x0 : float
+        Initial value (SI).
+    scale : callable
+        ``scale(P) -> float``: full-scale magnitude (SI) from the numeric parameters,
+        used to judge residuals and steps.
+    travel : callable, optional
+        ``travel(P) -> float``: rod travel (m) per unit of this state, for position-like
+        states (rod position 1, shaft angle p/2pi); trims start from the command and
+        move at the commanded rod speed through it.
+    loop : str, optional
+        For controller integrators: the loop whose ECU sample period integrates it.
+    """
+
+    name: str
+    unit: str
+    doc: str
+    roles: tuple = ()
+    x0: float = 0.0
+    scale: Callable = lambda P: 1.0
+    travel: Callable | None = None
+    loop: str | None = None
+
+
+@dataclass(frozen=True)
+class Input:
+    """A model input a part reads (SI unit; ``kind`` is its quantity for the signal
+    parser; ``default`` a number or the name of a parameter giving it)."""
+
+    name: str
+    unit: str
+    kind: str
+    doc: str
+    default: float | str = 0.0
+    injection: bool = False
+
+
+@dataclass(frozen=True)
+class Output:
+    """An output a part provides: name, SI unit, kind (:data:`OUTPUT_KINDS`), meaning."""
+
+    name: str
+    unit: str
+    doc: str
+    kind: str = "signal"
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A feedback loop a part closes, with its break (the paper's "Gain = 1" block):
+    the feedback is ``flag * measured + injection``; ``rate`` names the ECU sample-rate
+    parameter of the loop."""
+
+    name: str
+    flag: str
+    injection: str
+    measured: str
+    rate: str
+
+
+@dataclass(frozen=True)
+class Hold:
+    """A controller output held between the samples of ``loop`` (zero-order hold)."""
+
+    name: str
+    unit: str
+    loop: str
+
+
+class Part:
+    """Base class of a component variant; subclasses fill in the declarations.
+
+    ``family`` and ``value`` are the variant key and value it serves (``screw``,
+    ``elastic``). ``options`` lists the sub-choices it reads, with their allowed values
+    (first the default), e.g. the smooth friction's ``friction_shape``.
+    """
+
+    family: ClassVar[str] = ""
+    value: ClassVar[str] = ""
+    doc: ClassVar[str] = ""
+    states: ClassVar[tuple] = ()
+    inputs: ClassVar[tuple] = ()
+    outputs: ClassVar[tuple] = ()
+    params: ClassVar[tuple] = ()
+    loops: ClassVar[tuple] = ()
+    holds: ClassVar[tuple] = ()
+    options: ClassVar[dict] = {}
+    #: internal signals that are stored energy (J); summed into the output E_stored
+    stored: ClassVar[tuple] = ()
+    #: signals that load the rod (N, positive pushes the rod in); summed into F_load_rod
+    loads: ClassVar[tuple] = ()
+
+    def __init__(self, options: dict | None = None):
+        self.opt = dict(options or {})
+
+    def signals(self) -> dict:
+        """Providers: ``{name or tuple of names: fn(bus) -> expr or tuple}``."""
+        return {}
+
+    def project(self, prev: "Bus", now: "Bus"):
+        """Discrete map applied after each step (hybrid parts): returns
+        ``({state name: new value}, stick flag)`` or None for a continuous part."""
+        return None
+
+    @property
+    def hybrid(self) -> bool:
+        """True when the part has a discrete map (:meth:`project` is overridden)."""
+        return type(self).project is not Part.project
+
+
+class Bus:
+    """Signals by name over one set of state, input and parameter symbols.
+
+    ``bus["x_rod"]`` returns a state, an input or the value of the provider of that
+    name (evaluated once and cached). ``bus.P.K_x`` is a parameter symbol. Overrides
+    replace a signal (the held controller outputs of the sampled ECU).
+    """
+
+    def __init__(self, providers: dict, x: dict, u: dict, P: SimpleNamespace,
+                 roles: dict, overrides: dict | None = None, wrap: dict | None = None):
+        self._providers = providers
+        self.x, self.u, self.P = x, u, P
+        self._roles = roles
+        self._cache = dict(overrides or {})
+        self._wrap = wrap or {}
+        self._busy: list = []
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._cache or name in self.x or name in self.u or name in self._providers
+
+    def __getitem__(self, name: str):
+        if name in self._cache:
+            return self._cache[name]
+        if name in self.x:
+            return self.x[name]
+        if name in self.u:
+            return self.u[name]
+        key = self._providers.get(name)
+        if key is None:
+            raise AssemblyError(f"no part provides the signal '{name}'")
+        if name in self._busy:
+            raise AssemblyError("algebraic loop: " + " -> ".join([*self._busy, name]))
+        self._busy.append(name)
+        try:
+            key, fn = key
+            val = fn(self)
+        finally:
+            self._busy.pop()
+        names = key if isinstance(key, tuple) else (key,)
+        vals = val if isinstance(key, tuple) else (val,)
+        for n, v in zip(names, vals):
+            self._cache[n] = self._wrap[n](self, v) if n in self._wrap else v
+        return self._cache[name]
+
+    def state_name(self, role: str) -> str:
+        """The name of the one state with ``role``."""
+        names = self._roles.get(role, ())
+        if len(names) != 1:
+            raise AssemblyError(f"expected one state with role '{role}', the parts declare {len(names)}")
+        return names[0]
+
+    def state(self, role: str):
+        """The symbol of the one state with ``role``."""
+        return self.x[self.state_name(role)]
+
+    def feedback(self, loop: Loop):
+        """``flag * measured + injection`` of a loop."""
+        return getattr(self.P, loop.flag) * self[loop.measured] + self[loop.injection]

@@ -1,0 +1,81 @@
+"""The registry: every variant key and value mapped to the part that serves it.
+
+Adding a variant is one part class (in its family's module) plus one entry here. The
+first value of each key is its default. Options (sub-choices a part reads, such as the
+smooth friction's ``friction_shape``) are declared by the parts themselves.
+"""
+
+from __future__ import annotations
+
+import difflib
+
+from ..params import ParameterError
+from . import ballscrew, controller, endstop, friction, inverter, motor
+from ._part import Part
+
+__all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
+
+
+class VariantError(ParameterError):
+    """An unknown variant key or value; the one-line message lists the allowed ones."""
+
+
+def _off(key: str) -> type:
+    """The part of a family that is switched off: it brings nothing."""
+    return type(f"{key.title()}Off", (Part,), {"family": key, "value": "off", "doc": f"no {key}"})
+
+
+#: Variant key -> value -> part class, in assembly order (outer controller to rod).
+REGISTRY: dict[str, dict[str, type]] = {
+    "controller": {"P": controller.PositionP, "PI": controller.PositionPI},
+    "motor": {"pmsm": motor.Pmsm, "dc": motor.Dc},
+    "inverter": {"ideal": inverter.Ideal},
+    "screw": {"elastic": ballscrew.Elastic, "rigid": ballscrew.Rigid},
+    "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid},
+    "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},
+}
+
+#: Option key -> allowed values (first the default), from the parts that read them.
+OPTIONS: dict[str, tuple] = {}
+for _values in REGISTRY.values():
+    for _cls in _values.values():
+        OPTIONS.update(_cls.options)
+
+#: Allowed values per key (variant keys, then options), first the default.
+VARIANTS: dict[str, tuple[str, ...]] = {k: tuple(v) for k, v in REGISTRY.items()} | OPTIONS
+DEFAULT_VARIANTS = {k: v[0] for k, v in VARIANTS.items()}
+
+
+def _nearest(name: str, options) -> str:
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def validate_variants(variants: dict | None, where: str = "variant") -> dict[str, str]:
+    """Complete a variant dict with defaults and check every key and value.
+
+    Raises :class:`VariantError` naming ``where`` and the key, listing the allowed values.
+    """
+    if variants is not None and not isinstance(variants, dict):
+        raise VariantError(f"{where}: expected a dict of variant names, got {type(variants).__name__}")
+    out = dict(DEFAULT_VARIANTS)
+    for key, value in (variants or {}).items():
+        if key not in VARIANTS:
+            raise VariantError(
+                f"{where}: unknown variant key '{key}'{_nearest(key, VARIANTS)}; allowed keys: {', '.join(VARIANTS)}"
+            )
+        if value not in VARIANTS[key]:
+            raise VariantError(f"{where}: unknown {key} variant '{value}'; allowed: {', '.join(VARIANTS[key])}")
+        out[key] = value
+    return out
+
+
+def parts_for(variants: dict) -> tuple[list[Part], list[str]]:
+    """The parts of a complete variant dict, in assembly order, and the option keys
+    that none of them reads (ignored: e.g. ``friction_shape`` with hybrid friction)."""
+    parts, read = [], set()
+    for key, values in REGISTRY.items():
+        cls = values[variants[key]]
+        parts.append(cls({k: variants[k] for k in cls.options}))
+        read.update(cls.options)
+    return parts, sorted(k for k in OPTIONS if k not in read)
