@@ -66,6 +66,10 @@ def play_rate(x_in, v_in, x_play, B):
 
 
 # ---- parts: the screw owns the drive-train mechanics (shaft and rod) ------------------
+# Signals every screw provides besides its outputs: x_in, v_in (nut side), v_contact
+# (velocity at the friction contact), F_app (force on the contact from everything but
+# friction), x_rod_mech, v_rod_mech (the rod's mechanical motion: what an end stop
+# touches; the rigid screw's x_rod is the position signal after the play), T_load.
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
 
@@ -124,6 +128,8 @@ class Elastic(Part):
             "v_in": lambda b: b["omega"] * _r(b.P),
             ("F_in", "E_spring", "P_contact"): screw,
             "v_contact": lambda b: b["v_rod"],
+            "x_rod_mech": lambda b: b["x_rod"],
+            "v_rod_mech": lambda b: b["v_rod"],
             "F_app": lambda b: b["F_in"] - b["F_load_rod"] - b.P.c_v * b["v_rod"],
             "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta"], b.P),
             "T_load": lambda b: _r(b.P) * b["F_in"] * b["g_screw"],
@@ -174,6 +180,9 @@ class Rigid(Part):
             "x_rod": lambda b: b["x_play"],
             "v_rod": lambda b: b["v_in"],
             "v_contact": lambda b: b["v_in"],
+            # the rod itself moves with the nut; the play acts on the sensor signal only
+            "x_rod_mech": lambda b: b["x_in"],
+            "v_rod_mech": lambda b: b["v_in"],
             "F_app": applied,
             "F_load": lambda b: b["F_load_rod"] + b["F_friction"],
             "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta"], b.P),

@@ -1,5 +1,9 @@
 """Stroke end stops (SPEC §2.7): the rod is limited to |x_rod| <= stroke.
 
+The stop touches the rod's mechanical motion (``x_rod_mech``, ``v_rod_mech`` of the
+screw part: the rod itself for the elastic screw, the nut for the rigid one, whose
+``x_rod`` is the position signal after the backlash play).
+
 ``elastic``: beyond the stroke an elastic stop with damping in contact only and no
 pulling force (the Modelica ElastoGap law). With the penetration
 d = max(|x_rod| - stroke, 0) and the outward rod velocity v_out = sign(x_rod) v_rod::
@@ -49,7 +53,7 @@ class Elastic(Part):
 
     def signals(self):
         def stop(b):
-            F, F_rod, _pen, E, P_loss = stop_force(b["x_rod"], b["v_rod"], b.P.stroke, b.P.k_stop, b.P.d_stop)
+            F, F_rod, _pen, E, P_loss = stop_force(b["x_rod_mech"], b["v_rod_mech"], b.P.stroke, b.P.k_stop, b.P.d_stop)
             return F, F_rod, E, P_loss
 
         return {("F_stop", "F_stop_rod", "E_stop", "P_stop"): stop}

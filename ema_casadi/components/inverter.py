@@ -49,6 +49,7 @@ class Ideal(Part):
         Output("v_q", "V", "q-axis winding voltage (dc motor: its voltage / 1.5)"),
         Output("P_inv_cond", "W", "inverter conduction loss", kind="loss"),
         Output("P_inv_sw", "W", "inverter switching loss", kind="loss"),
+        Output("P_dc", "W", "power drawn at the DC-link input: winding power + inverter losses", kind="power"),
     )
     params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref")
 
@@ -60,4 +61,5 @@ class Ideal(Part):
             "v_d": lambda b: ideal(b["v_d_ref"]),
             "v_q": lambda b: ideal(b["v_q_ref"]),
             ("P_inv_cond", "P_inv_sw"): losses,
+            "P_dc": lambda b: b["P_elec"] + b["P_inv_cond"] + b["P_inv_sw"],
         }
