@@ -36,6 +36,7 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from scipy.optimize import brentq, minimize_scalar
 
 from .assembly import Model
 from .linearize import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
@@ -119,32 +120,6 @@ def _select(sys, input, output):
 
 
 # ---------------------------------------------------------------------------------
-def _regula_falsi(g, a, b, ga, gb, xtol=1e-13, maxiter=100):
-    """Root of g in [a, b] with g(a) g(b) <= 0 (Illinois variant of regula falsi)."""
-    if ga == 0:
-        return a
-    if gb == 0:
-        return b
-    side = 0
-    c = a
-    for _ in range(maxiter):
-        c = (a * gb - b * ga) / (gb - ga)
-        gc = g(c)
-        if gc == 0 or abs(b - a) < xtol * (1 + abs(c)):
-            return c
-        if gc * gb > 0:
-            b, gb = c, gc
-            if side == -1:
-                ga /= 2
-            side = -1
-        else:
-            a, ga = c, gc
-            if side == 1:
-                gb /= 2
-            side = 1
-    return c
-
-
 def _wrap180(deg):
     return (deg + 180.0) % 360.0 - 180.0
 
@@ -198,52 +173,15 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
     """
     A, B, C, D = _siso(L, "the loop transfer")
     d = float(D[0, 0])
-    n = A.shape[0]
-    eye = np.eye(n)
+    eye = np.eye(A.shape[0])
 
     def H(f):
         return complex((C @ np.linalg.solve(2j * np.pi * f * eye - A, B))[0, 0] + d)
 
     f = frequency_grid(f_min, f_max, per_decade)
     Hg = freqresp((A, B, C, D), f)[0, 0]
-    lf = np.log10(f)
-
-    # gain crossovers: log|L| changes sign between grid points
-    lm = np.log10(np.abs(Hg))
-    gcs = []
-    for i in np.nonzero(lm[:-1] * lm[1:] <= 0)[0]:
-        if lm[i] == 0 and i > 0 and lm[i - 1] * lm[i + 1] > 0:
-            continue  # touches 1 without crossing
-        x = _regula_falsi(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
-        fc = 10**x
-        pm = _wrap180(math.degrees(np.angle(H(fc))) + 180.0)
-        gcs.append({"f_hz": fc, "pm_deg": pm})
-    gcs = _dedupe(gcs)
-
-    # phase crossovers: the unwrapped phase passes -180 + 360 k
-    ph = _unwrap_deg(Hg)
-    k = np.floor((ph + 180.0) / 360.0)
-    pcs = []
-    for i in np.nonzero(np.diff(k))[0]:
-        level = -180.0 + 360.0 * max(k[i], k[i + 1])
-        H0, p0 = Hg[i], ph[i]
-
-        def g(t, H0=H0, p0=p0, level=level):
-            return p0 + math.degrees(np.angle(H(10**t) / H0)) - level
-
-        x = _regula_falsi(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
-        fc = 10**x
-        pcs.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
-    pcs = _dedupe(pcs)
-
-    # closed-loop stability of L/(1+L): x' = (A - B C/(1+D)) x
-    if abs(1 + d) < 1e-12:
-        stable = False
-    else:
-        lam = np.linalg.eigvals(A - B @ C / (1 + d)) if n else np.zeros(0)
-        tol = 1e-9 * max(1.0, float(np.max(np.abs(lam)))) if n else 0.0
-        stable = bool(np.all(lam.real < tol))
-
+    gcs, pcs = _gain_crossovers(H, f, Hg), _phase_crossovers(H, f, Hg)
+    stable = _closed_loop_stable(A, B, C, d)
     if gcs:
         best = min(gcs, key=lambda c: abs(c["pm_deg"]))
         pm, f_gc = abs(best["pm_deg"]), best["f_hz"]
@@ -256,16 +194,7 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
         gm, f_pc = best["gm_db"], best["f_hz"]
     else:
         gm, f_pc = math.inf, None
-
-    # balanced disk margin: alpha(w) = 2 |1 + L| / |1 - L|
-    alpha_g = 2 * np.abs(1 + Hg) / np.abs(1 - Hg)
-    j = int(np.argmin(alpha_g))
-    lo, hi = lf[max(j - 1, 0)], lf[min(j + 1, len(lf) - 1)]
-    t_dm = _golden_min(lambda t: _alpha(H(10**t)), lo, hi)
-    alpha = min(_alpha(H(10**t_dm)), float(alpha_g[j]))
-    f_dm = 10**t_dm if alpha < alpha_g[j] else f[j]
-    if not stable:
-        alpha = 0.0
+    alpha, f_dm = _disk_margin(H, f, Hg) if stable else (0.0, _disk_margin(H, f, Hg)[1])
     dgm = 20 * math.log10((2 + alpha) / (2 - alpha)) if alpha < 2 else math.inf
     dpm = math.degrees(2 * math.atan(alpha / 2))
     return LoopMargins(
@@ -275,25 +204,71 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
     )
 
 
+def _gain_crossovers(H, f, Hg) -> list[dict]:
+    """|L| = 1: log|L| changes sign between grid points; each root refined by Brent."""
+    lf, lm = np.log10(f), np.log10(np.abs(Hg))
+    out = []
+    for i in np.nonzero(lm[:-1] * lm[1:] <= 0)[0]:
+        if lm[i] == 0 and i > 0 and lm[i - 1] * lm[i + 1] > 0:
+            continue  # touches 1 without crossing
+        x = _root(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
+        fc = 10**x
+        out.append({"f_hz": fc, "pm_deg": _wrap180(math.degrees(np.angle(H(fc))) + 180.0)})
+    return _dedupe(out)
+
+
+def _phase_crossovers(H, f, Hg) -> list[dict]:
+    """The unwrapped phase passes -180 + 360 k; each root refined by Brent."""
+    lf, ph = np.log10(f), _unwrap_deg(Hg)
+    k = np.floor((ph + 180.0) / 360.0)
+    out = []
+    for i in np.nonzero(np.diff(k))[0]:
+        level = -180.0 + 360.0 * max(k[i], k[i + 1])
+        H0, p0 = Hg[i], ph[i]
+
+        def g(t, H0=H0, p0=p0, level=level):
+            return p0 + math.degrees(np.angle(H(10**t) / H0)) - level
+
+        x = _root(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
+        fc = 10**x
+        out.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
+    return _dedupe(out)
+
+
+def _root(g, a, b, ga, gb):
+    """Root of g in the bracket [a, b] (g(a) g(b) <= 0), SciPy's Brent method."""
+    if ga == 0:
+        return a
+    if gb == 0:
+        return b
+    return brentq(g, a, b, xtol=1e-13, rtol=4 * np.finfo(float).eps)
+
+
+def _closed_loop_stable(A, B, C, d) -> bool:
+    """Stability of L/(1+L): x' = (A - B C/(1+D)) x."""
+    if abs(1 + d) < 1e-12:
+        return False
+    n = A.shape[0]
+    lam = np.linalg.eigvals(A - B @ C / (1 + d)) if n else np.zeros(0)
+    tol = 1e-9 * max(1.0, float(np.max(np.abs(lam)))) if n else 0.0
+    return bool(np.all(lam.real < tol))
+
+
+def _disk_margin(H, f, Hg) -> tuple[float, float]:
+    """Balanced disk margin alpha = min 2|1 + L|/|1 - L| and its frequency (Hz): the
+    grid minimum refined by a bounded scalar minimisation between its neighbours."""
+    lf = np.log10(f)
+    alpha_g = 2 * np.abs(1 + Hg) / np.abs(1 - Hg)
+    j = int(np.argmin(alpha_g))
+    lo, hi = lf[max(j - 1, 0)], lf[min(j + 1, len(lf) - 1)]
+    res = minimize_scalar(lambda t: _alpha(H(10**t)), bounds=(lo, hi), method="bounded",
+                          options={"xatol": 1e-10})
+    alpha = min(_alpha(H(10**res.x)), float(alpha_g[j]))
+    return alpha, (10**res.x if alpha < alpha_g[j] else f[j])
+
+
 def _alpha(h: complex) -> float:
     return 2 * abs(1 + h) / abs(1 - h) if h != 1 else math.inf
-
-
-def _golden_min(g, a, b, tol=1e-10):
-    """Minimiser of a unimodal g on [a, b] (golden section)."""
-    r = (math.sqrt(5) - 1) / 2
-    c, d = b - r * (b - a), a + r * (b - a)
-    gc, gd = g(c), g(d)
-    while abs(b - a) > tol:
-        if gc < gd:
-            b, d, gd = d, c, gc
-            c = b - r * (b - a)
-            gc = g(c)
-        else:
-            a, c, gc = c, d, gd
-            d = a + r * (b - a)
-            gd = g(d)
-    return (a + b) / 2
 
 
 def _dedupe(items):
@@ -381,7 +356,7 @@ def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1
         return math.inf
     i = idx[0]
     lf = np.log10(f)
-    x = _regula_falsi(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - db[0] - level_db,
+    x = _root(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - db[0] - level_db,
                       lf[i], lf[i + 1], m[i], m[i + 1])
     return 10**x
 
