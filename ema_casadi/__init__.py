@@ -20,7 +20,7 @@ from .assembly import AssemblyError, Model, build_model
 from .components import DEFAULT_VARIANTS, REGISTRY, VARIANTS
 from .params import ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
-from .simulate import SimResult, SimulationError, simulate
+from .simulation import SimResult, SimulationError, simulate
 from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear

@@ -12,7 +12,7 @@ import numpy as np
 from .assembly import build_model
 from .params import Parameters
 from .signals import Signal
-from .simulate import simulate, step_response_metrics
+from .simulation import simulate, step_response_metrics
 
 __all__ = ["run_demo", "step_metrics"]
 

@@ -70,7 +70,7 @@ from .compiled import BufferCall
 from .components import validate_variants
 from .params import Parameters, ParameterError
 from .signals import Signal, SignalError, parse_quantity
-from .simulate import STEPS_PER_CALL, SimulationError, progress_bar, simulate
+from .simulation import STEPS_PER_CALL, SimulationError, progress_bar, simulate
 
 __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream", "plot_bode", "run_study",

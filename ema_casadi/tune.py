@@ -123,7 +123,7 @@ import numpy as np
 from .assembly import Model, build_model
 from .linearize import LOOPS, LinearizationError, jacobian_function, operating_point
 from .params import Parameters
-from .simulate import step_response_metrics
+from .simulation import step_response_metrics
 
 __all__ = [
     "GAINS", "OBJECTIVES", "TuneError", "Requirements", "TuneResult", "tune", "verify",
@@ -1173,7 +1173,7 @@ def step_metrics(model: Model, params: Parameters, amp: float = 1e-3, *, f_ext: 
     import warnings
 
     from .signals import Signal
-    from .simulate import simulate
+    from .simulation import simulate
 
     pv = params.vector()
     with warnings.catch_warnings():

@@ -26,7 +26,7 @@ from ..params import ParameterError
 from ..signals import SignalError
 from ..export import ExportError
 from ..linearize import LinearizationError
-from ..simulate import SimulationError
+from ..simulation import SimulationError
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL"]
 

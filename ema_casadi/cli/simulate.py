@@ -12,7 +12,7 @@ import math
 import time
 
 from ..signals import parse_signal
-from ..simulate import SOLVERS, simulate
+from ..simulation import SOLVERS, simulate
 from . import UserError, check_output_path, load
 
 COMMAND = "simulate"

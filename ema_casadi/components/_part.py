@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Callable, ClassVar
 
-import casadi as ca
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Part", "Bus", "AssemblyError", "der",

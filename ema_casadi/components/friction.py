@@ -11,7 +11,7 @@ Two variants:
     (the friction cancels the applied force) or breaks away against F_start. It is a
     hybrid system: the right-hand side alone lets a rod that enters the band with a
     small velocity keep it (creep); :func:`stick_entry` is the discrete part, applied
-    by the integrator wrapper (:mod:`ema_casadi.simulate`), that zeroes the velocity
+    by the integrator wrapper (:mod:`ema_casadi.simulation`), that zeroes the velocity
     when the rod enters the band and the stick condition holds.
 """
 

@@ -1,0 +1,49 @@
+"""Time simulation of an assembled model (SPEC §4.1).
+
+Two solvers share the model's one CasADi Function:
+
+``rk4``
+    Fixed-step classical Runge-Kutta, rolled out inside one compiled call per chunk
+    (``fold`` of the step for output decimation, ``mapaccum`` over the outputs of a
+    chunk): no Python per step. Input signals are sampled in NumPy at each step's
+    t, t + h/2 and t + h and passed in, so one compiled rollout serves every signal,
+    parameter value and step size. Optional zero-order-hold (ZOH) execution of the
+    ECU at its sample rates (each loop updates in the step that contains its
+    sampling instant, so instants are exact when dt divides the sample periods).
+``cvodes``
+    Variable-step BDF (SUNDIALS CVODES through ``casadi.integrator``) on the
+    continuous model with the signals as CasADi expressions of t; the run is split
+    at the signals' breakpoints (steps, starts) and the integrator restarted there.
+
+Memory stays bounded by output decimation: only every ``decimate``-th step (or
+every ``dt_out``) is kept, and the inputs are generated chunk by chunk.
+
+Hybrid (stick-slip) friction is a hybrid system, and both solvers wrap it:
+
+- ``rk4``: the mode logic lives inside the compiled step. The continuous ``f`` holds
+  a stuck rod (zero acceleration); after each step ``model.project`` resets the
+  contact velocity to 0 when the rod entered the dead band, or its velocity changed
+  sign between the step's start or stage states and its end, with the stick condition
+  holding. Switching instants are thus resolved to one step. The stick flag and the
+  number of stick/slip switches ride along as two extra rollout states, so
+  ``info["mode_switches"]`` counts every switch, whatever the output decimation.
+- ``cvodes``: CasADi's integrator events are experimental and failed on this model
+  (CV_ILL_INPUT), so the wrapper owns the switching logic: CVODES integrates the
+  continuous ``f`` with quadratures of the time spent stuck / not stuck; a chunk
+  whose quadrature of the other mode is positive holds a switch, which is bracketed
+  and shrunk (quadrature estimate, bisection safeguard) to ``event_tol`` (default
+  1e-7 s) by re-integrating from the last accepted state; ``model.project`` is applied
+  at the located instant and the integrator restarted. ``info`` holds
+  ``mode_switches`` and ``switch_times``.
+"""
+
+
+from ._api import SOLVERS, simulate
+from ._cvodes import BDF_MAX_ORDER
+from ._result import SimResult, SimulationError, progress_bar, step_response_metrics
+from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
+
+__all__ = [
+    "simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function", "step_response_metrics",
+    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER",
+]

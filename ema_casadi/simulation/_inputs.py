@@ -1,0 +1,54 @@
+"""Input signals of a run: every model input by name, with its quantity kind."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..assembly import Model
+from ..signals import Signal, constant, parse_signal
+from ._result import SimulationError
+
+
+def _as_signal(value, name: str, kind: str) -> Signal:
+    if isinstance(value, Signal):
+        return value
+    if isinstance(value, (int, float, np.floating)) and not isinstance(value, bool):
+        return constant(float(value))
+    if isinstance(value, str):
+        return parse_signal(value, kind)
+    raise SimulationError(f"input {name}: expected a number, a Signal or a signal string, got {type(value).__name__}")
+
+
+def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
+    """Every model input that is driven (given, or not an injection) as a Signal, by
+    name; the quantity kind of each input selects its units."""
+    for name in given:
+        if name not in model.input_info:
+            raise SimulationError(f"unknown input '{name}'; the model's inputs are {', '.join(model.inputs)}")
+    P = model.pdict(pv)
+    sig = {}
+    for name, inp in model.input_info.items():
+        value = given.get(name)
+        if value is None and inp.injection:
+            continue
+        if value is None:
+            value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
+        sig[name] = _as_signal(value, name, inp.kind)
+    return sig
+
+
+def _input_matrix(model, sig, t):
+    """Inputs (nu x len(t)) from the signals; injections zero."""
+    U = np.zeros((model.nu, len(t)))
+    for name, s in sig.items():
+        U[model.inputs.index(name)] = s(t)
+    return U
+
+
+def _initial_projection(model, sig, pv, x0):
+    """Hybrid models start in a consistent mode: (x0 projected, stick flag)."""
+    if not model.hybrid:
+        return x0, 0.0
+    u0 = _input_matrix(model, sig, [0.0])[:, 0]
+    xp, stick = model.project(x0, x0, u0, pv)
+    return np.asarray(xp, float).ravel(), float(stick)

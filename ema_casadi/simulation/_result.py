@@ -1,0 +1,111 @@
+"""Simulation results: named time series, step metrics, progress (SPEC §4.1)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._files import write_with
+
+__all__ = ["SimulationError", "SimResult", "step_response_metrics", "progress_bar"]
+
+
+class SimulationError(ValueError):
+    """Bad simulation request (one line, names the argument)."""
+
+
+@dataclass
+class SimResult:
+    """Named time series of a simulation (SI units).
+
+    ``res["x_rod"]`` looks a name up among outputs, then inputs, then states.
+    """
+
+    t: np.ndarray
+    inputs: dict
+    outputs: dict
+    states: dict
+    info: dict = field(default_factory=dict)
+    unit_table: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name in ("t", "time"):
+            return self.t
+        for d in (self.outputs, self.inputs, self.states):
+            if name in d:
+                return d[name]
+        raise KeyError(f"no signal '{name}'; have {', '.join(self.columns()[1:])}")
+
+    def columns(self) -> list[str]:
+        """Column names of :meth:`to_csv`: t, inputs, outputs, states not already outputs."""
+        extra = [n for n in self.states if n not in self.outputs]
+        return ["t", *self.inputs, *self.outputs, *extra]
+
+    def final(self) -> dict:
+        """Last value of every output."""
+        return {k: float(v[-1]) for k, v in self.outputs.items()}
+
+    def table(self) -> np.ndarray:
+        cols = self.columns()[1:]
+        return np.column_stack([self.t] + [self[c] for c in cols])
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write column ``t`` then one column per signal (SI); atomic."""
+        return write_with(path, lambda tmp: np.savetxt(
+            tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g"))
+
+    def to_npz(self, path: str | Path) -> Path:
+        """Write all signals as named arrays (plus ``t``); atomic."""
+        return write_with(path, lambda tmp: np.savez(tmp, t=self.t, **{c: self[c] for c in self.columns()[1:]}),
+                          suffix=".npz")
+
+    def units(self) -> dict:
+        """SI unit of every column, from the model's one unit table."""
+        return {c: self.unit_table.get(c, "") for c in self.columns()}
+
+
+def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> dict:
+    """Metrics of a normalised step response y(t) (final value 1, step at t = 0).
+
+    Returns ``rise_time_s`` (10-90 %, inf if 90 % is never reached), ``overshoot``
+    (fraction) and ``settling_time_s`` (last entry into 1 +- band; 0 if never outside,
+    inf if still outside at the end).
+    """
+    i10, i90 = np.argmax(y >= 0.1), np.argmax(y >= 0.9)
+    outside = np.nonzero(np.abs(y - 1) > band)[0]
+    if not len(outside):
+        settle = 0.0
+    elif outside[-1] == len(y) - 1:
+        settle = math.inf
+    else:
+        settle = float(t[outside[-1] + 1])
+    return {
+        "rise_time_s": float(t[i90] - t[i10]) if y.max() >= 0.9 else math.inf,
+        "overshoot": float(max(0.0, y.max() - 1)),
+        "settling_time_s": settle,
+    }
+
+
+# ---------------------------------------------------------------------------------
+
+
+def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
+    """Draw a one-line progress bar on stderr (fraction 0..1; a newline at 1)."""
+    if not enabled:
+        return
+    n = int(30 * frac)
+    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%")
+    if frac >= 1:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def _result(model, sig, t, X, Y, info):
+    inputs = {n: s(t) for n, s in sig.items()}
+    outputs = {n: Y[i] for i, n in enumerate(model.outputs)}
+    states = {n: X[i] for i, n in enumerate(model.states)}
+    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units)
