@@ -5,7 +5,7 @@ NumPy right-hand side (benchmarks/numpy_model.py) on the same 2 cores (two proce
 
 The peer runs exactly the same procedure: the same starting states (computed by
 ema_casadi, not timed for the peer), the same period-by-period settling criterion and
-harmonic extraction (``ema_casadi.freqresp._settle``), the same tolerances (rtol 1e-6,
+harmonic extraction (``ema_casadi.sinestream._kernels._settle``), the same tolerances (rtol 1e-6,
 atol 1e-9) and output grid (64 samples per period); only the integrator differs. The
 peer first runs a subset (every 8th frequency); if the full grid would take more than
 10 minutes by its measured time per period, the full-grid time is extrapolated from
@@ -34,7 +34,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import numpy_model  # noqa: E402
 
 import ema_casadi as ema  # noqa: E402
-from ema_casadi import freqresp as fr  # noqa: E402
+from ema_casadi import sinestream as fr  # noqa: E402
+# the peer reuses the package's own settling loop and starting states (private on purpose)
+from ema_casadi.sinestream import _kernels, _run  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 JOBS = 2
@@ -77,7 +79,7 @@ def _lsoda_period(x, pa):
 def _peer_point(task):
     idx, x0, pa = task
     t0 = time.perf_counter()
-    r = fr._settle(_lsoda_period, x0, pa, pa[-3], pa[-2], fr._Settle(), False)
+    r = _kernels._settle(_lsoda_period, x0, pa, pa[-3], pa[-2], _kernels._Settle(), False)
     return idx, r, time.perf_counter() - t0
 
 
@@ -115,9 +117,9 @@ def main():
           f"first run {cold:.2f} s, median of 3 {ema_wall:.2f} s  -> {'PASS' if ema_wall < 10 else 'FAIL'} (< 10 s)")
 
     # ---- peer: same starting states and criterion
-    model, step = fr._stepper(params.variants, params, K, RTOL, ATOL, 5e-5)
+    model, step = _kernels._stepper(params.variants, params, K, RTOL, ATOL, 5e-5)
     pv = params.vector()
-    x0s = fr._initial_states(model, step, pv, [0.0], amps, freqs)
+    x0s = _run._initial_states(model, step, pv, [0.0], amps, freqs)
     tasks = [((0, ia, jf), x0s[0, ia, jf], np.r_[pv, amps[ia], freqs[jf], 0.0])
              for ia in range(len(amps)) for jf in range(len(freqs))]
     P = params.as_dict()

@@ -24,7 +24,7 @@ from .simulation import SimResult, SimulationError, simulate
 from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
-from .freqresp import FreqResponse, FreqRespError, sine_stream
+from .sinestream import FreqResponse, FreqRespError, sine_stream
 from .tune import TuneError, TuneResult
 
 __version__ = "0.1.0"

@@ -84,7 +84,7 @@ def _frequency(model, out: Path, written: list) -> dict:
 def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool) -> dict:
     """The paper's Fig. 14a (amplitudes) and 14b (loads) by sine stream, with the
     SPEC §5 readings: flatness at small amplitude, rate limiting at 10 %, load phase."""
-    from .freqresp import paper_fig14a, paper_fig14b
+    from .sinestream import paper_fig14a, paper_fig14b
 
     res = {}
     a, png_a = paper_fig14a(params, out, progress=progress)

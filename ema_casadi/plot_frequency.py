@@ -49,26 +49,37 @@ def plot_bode(curves, path: str | Path, *, title: str = "", margins=None,
     Parameters
     ----------
     curves : dict or list of dict
-        Each with ``freq_hz``, ``mag_db``, ``phase_deg`` and optionally ``label``
-        (:func:`ema_casadi.frequency.bode`).
+        Each with ``freq_hz`` (Hz), ``mag_db`` (dB), ``phase_deg`` (deg) and optionally
+        ``label`` and ``marks`` (bool array along frequency: points drawn with an ``x``,
+        e.g. not settled) (:func:`ema_casadi.frequency.bode`).
     path : str or Path
         PNG file.
+    title : str
+        Figure title.
     margins : LoopMargins, optional
         Marks the crossovers, GM and PM (the first curve is the loop transfer).
     mag_label : str
         Magnitude axis label.
     linear_magnitude : bool
         Plot each curve's ``magnitude`` (linear, e.g. N/m) on a log axis instead of dB.
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     if isinstance(curves, dict):
         curves = [curves]
     fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    draw_m, key_m = (ax_m.loglog, "magnitude") if linear_magnitude else (ax_m.semilogx, "mag_db")
     for c in curves:
-        if linear_magnitude:
-            ax_m.loglog(c["freq_hz"], c["magnitude"], lw=1.3, label=c.get("label"))
-        else:
-            ax_m.semilogx(c["freq_hz"], c["mag_db"], lw=1.3, label=c.get("label"))
-        ax_p.semilogx(c["freq_hz"], c["phase_deg"], lw=1.3, label=c.get("label"))
+        f, mag, ph = np.asarray(c["freq_hz"]), np.asarray(c[key_m]), np.asarray(c["phase_deg"])
+        line, = draw_m(f, mag, lw=1.3, label=c.get("label"))
+        ax_p.semilogx(f, ph, lw=1.3, color=line.get_color(), label=c.get("label"))
+        marks = np.asarray(c.get("marks", np.zeros(f.shape, bool)), bool)
+        if marks.any():
+            draw_m(f[marks], mag[marks], "x", color=line.get_color())
+            ax_p.semilogx(f[marks], ph[marks], "x", color=line.get_color())
     if margins is not None:
         _mark_margins(ax_m, ax_p, curves[0], margins)
     ax_m.set_ylabel(mag_label)
@@ -93,6 +104,13 @@ def plot_loop_margins(loops: dict, path: str | Path, *, title: str = "") -> Path
         Loop name -> (bode dict of L, LoopMargins).
     path : str or Path
         PNG file.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     n = len(loops)
     fig, axes = plt.subplots(2, n, figsize=(5.2 * n, 7), sharex="col", squeeze=False)

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import matplotlib
 
+from ._files import write_with
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
@@ -13,16 +15,24 @@ __all__ = ["plot_simulation", "save"]
 
 
 def save(fig, path: str | Path) -> Path:
-    """Save a figure atomically (no half-written PNG) and close it."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.png")
+    """Save a figure atomically (no half-written PNG) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure (closed afterwards, also on failure).
+    path : str or Path
+        PNG file.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     try:
-        fig.savefig(tmp, dpi=110)
-        tmp.replace(path)
+        return write_with(path, lambda tmp: fig.savefig(tmp, dpi=110), suffix=".png")
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)
-    return path
 
 
 def plot_simulation(res, path: str | Path, title: str = "") -> Path:

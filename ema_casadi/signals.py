@@ -32,7 +32,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "constant"]
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "constant"]
 
 
 class SignalError(ValueError):
@@ -73,6 +73,57 @@ def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None)
     if unit not in units:
         raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{', %' if kind == 'length' else ''})")
     return value * units[unit]
+
+
+def parse_list(text: str, kind: str, bare: str, stroke: float | None = None) -> list[float]:
+    """Read a comma-separated list of quantities (``"0,10kN,500"``), each in SI.
+
+    Parameters
+    ----------
+    text : str
+        The list; every item is read by :func:`parse_quantity`.
+    kind : {"length", "force", "rate", "frequency", "time"}
+        Quantity of the items; sets the allowed unit suffixes.
+    bare : str
+        Unit of numbers without suffix (e.g. ``"mm"``, ``"N"``, ``"Hz"``).
+    stroke : float, optional
+        Stroke (m) for ``%`` lengths.
+
+    Returns
+    -------
+    list of float
+        The values in SI units (m, N, m/s, Hz or s).
+    """
+    items = [s.strip() for s in str(text).split(",")]
+    if not items or any(not s for s in items):
+        raise SignalError(f"'{text}': expected a comma-separated list")
+    return [parse_quantity(s, kind, bare, stroke) for s in items]
+
+
+def parse_range(text: str, kind: str, bare: str) -> tuple[float, float, int] | None:
+    """Read a range ``Q0-Q1:N`` (``"0.1-30:40"``, ``"0.1Hz-30Hz:40"``).
+
+    Parameters
+    ----------
+    text : str
+        The range: two quantities joined by ``-``, then ``:`` and a count.
+    kind : {"length", "force", "rate", "frequency", "time"}
+        Quantity of the ends; sets the allowed unit suffixes.
+    bare : str
+        Unit of ends without suffix (e.g. ``"Hz"``).
+
+    Returns
+    -------
+    tuple of (float, float, int) or None
+        The ends in SI units (m, N, m/s, Hz or s) and the count, unchecked; None when
+        ``text`` does not have the form of a range.
+    """
+    unit = "|".join(re.escape(u) for u in _UNITS[kind])
+    end = rf"{_NUM}\s*(?:{unit})?"
+    m = re.fullmatch(rf"\s*({end})\s*-\s*({end})\s*:\s*(\d+)\s*", text)
+    if not m:
+        return None
+    return parse_quantity(m.group(1), kind, bare), parse_quantity(m.group(2), kind, bare), int(m.group(3))
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ after ~2.5 Hz.
 
 from freqresp_common import parse, summary
 
-from ema_casadi.freqresp import paper_fig14a
+from ema_casadi.sinestream import paper_fig14a
 
 if __name__ == "__main__":
     params, args = parse(__doc__)

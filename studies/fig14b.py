@@ -7,7 +7,7 @@ Paper: the phase drop caused by the load stays below 10 deg up to 5 Hz.
 
 from freqresp_common import parse, summary
 
-from ema_casadi.freqresp import paper_fig14b
+from ema_casadi.sinestream import paper_fig14b
 
 if __name__ == "__main__":
     params, args = parse(__doc__)

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 from freqresp_common import parse, summary
 
-from ema_casadi.freqresp import PAPER_BAND, hybrid_available, run_study
+from ema_casadi.sinestream import PAPER_BAND, hybrid_available, run_study
 
 if __name__ == "__main__":
     params, args = parse(__doc__)

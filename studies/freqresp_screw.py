@@ -10,7 +10,7 @@ against a play operator on the position signal).
 import numpy as np
 from freqresp_common import parse, summary
 
-from ema_casadi.freqresp import PAPER_BAND, PAPER_NFREQ, run_study
+from ema_casadi.sinestream import PAPER_BAND, PAPER_NFREQ, run_study
 
 if __name__ == "__main__":
     params, args = parse(__doc__)

@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ema_casadi import freqresp as fr
+from ema_casadi import sinestream as fr
 from ema_casadi.frequency import closed_loop, freqresp
 
 STROKE = 0.075
@@ -114,7 +114,7 @@ def test_harmonics_of_a_known_signal():
     tau = np.arange(1, K + 1) / K
     th = 2 * np.pi * tau
     y = 0.3 + 2.0 * np.sin(th - 0.7) + 0.2 * np.sin(3 * th) + 0.1 * np.cos(5 * th)
-    c1, thd, mean = fr._harmonics(y[None, :])
+    c1, thd, mean = fr.harmonics(y[None, :])
     H = 1j * c1[0] / 1.0  # relative to a unit sine command
     assert abs(abs(H) - 2.0) < 1e-12
     assert abs(np.angle(H) + 0.7) < 1e-12

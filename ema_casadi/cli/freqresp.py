@@ -18,7 +18,7 @@ import argparse
 import math
 import sys
 
-from ..freqresp import parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
+from ..sinestream import parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
 from . import UserError, check_output_path, load
 
 COMMAND = "freqresp"

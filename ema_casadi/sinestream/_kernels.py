@@ -1,0 +1,231 @@
+"""Per-point numerics of the sine stream (method: :mod:`ema_casadi.sinestream`).
+
+The period maps (CVODES in normalised time for smooth models, the compiled RK4 of
+:func:`ema_casadi.simulate.simulate` for hybrid friction), built once per process and
+variant; the first-harmonic extraction; the period-by-period settling loop.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..assembly import Model, build_model
+from ..compiled import BufferCall
+from ..params import ParameterError, Parameters
+from ..signals import Signal
+from ..simulation import STEPS_PER_CALL, simulate
+
+#: Largest contraction ratio assumed for a settling transient (also the value taken
+#: while only one period-to-period change is known).
+Q_MAX = 0.9
+
+
+def _inputs(model: Model, pa, tau, PA, taus):
+    """The model's inputs by name: the command A sin(2 pi tau), the load F_ext, every
+    other input at its declared default (eta from p, injections 0). ``u`` at one
+    normalised time ``tau`` from the SX parameters ``pa = [p; A; f; F_ext]``; ``U`` on
+    the sample grid ``taus`` from their MX counterpart ``PA``."""
+    npar = len(model.param_names)
+    u = model.u_expr(pa[:npar], x_cmd=pa[npar] * ca.sin(2 * ca.pi * tau), f_ext=pa[npar + 2])
+    held = model.u_expr(PA[:npar], x_cmd=0, f_ext=PA[npar + 2])
+    unit_cmd = ca.DM([1.0 if n == "x_cmd" else 0.0 for n in model.inputs])
+    wave = PA[npar] * ca.DM(np.sin(2 * np.pi * np.asarray(taus))).T
+    U = ca.repmat(held, 1, len(taus)) + ca.mtimes(unit_cmd, wave)
+    return u, U
+
+
+class _PeriodMap:
+    """The one simulator of a model variant: ``(x0, [p; A; f; F_ext]) -> (x(1 period),
+    x_rod and i_q at tau = k/K, k = 1..K)`` by CVODES in normalised time."""
+
+    def __init__(self, model: Model, samples: int, rtol: float, atol: float):
+        nx, npar = model.nx, len(model.param_names)
+        self.nx, self.npar, self.K = nx, npar, samples
+        x = ca.SX.sym("x", nx)
+        pa = ca.SX.sym("pa", npar + 3)
+        tau = ca.SX.sym("tau")
+        X0 = ca.MX.sym("x0", nx)
+        PA = ca.MX.sym("pa", npar + 3)
+        grid = [k / samples for k in range(1, samples + 1)]
+        u, U = _inputs(model, pa, tau, PA, np.array(grid))
+        p, freq = pa[:npar], pa[npar + 1]
+        dae = {"x": x, "p": pa, "t": tau, "ode": model.f(x, u, p)[0] / freq}
+        opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**6}
+        integ = ca.integrator("sine_period_cvodes", "cvodes", dae, 0.0, grid, opts)
+        Xk = integ(x0=X0, p=PA)["xf"]
+        Y = model.f.map(samples)(Xk, U, PA[:npar])[1]
+        sel = [model.outputs.index("x_rod"), model.outputs.index("i_q")]
+        self.F = ca.Function("sine_period", [X0, PA], [Xk[:, -1], Y[sel, :]], ["x0", "pa"], ["x1", "y"])
+        self.call = BufferCall(self.F)  # per-thread buffers, one shared Function
+
+    def __call__(self, x0, pa):
+        """One period from x0; returns (x at the period's end, (2, K) samples)."""
+        x1, y = self.call(x0, pa)
+        return x1.ravel(), y
+
+
+class _HybridPeriods:
+    """Period-by-period stepping of a hybrid-friction model through :func:`simulate`
+    (compiled RK4 with the stick projection).
+
+    Every frequency uses the same output decimation and at least one full rollout
+    chunk of samples per period, so one compiled rollout serves the whole grid; the
+    harmonics then come from that finer (still uniform, whole-period) grid."""
+
+    DECIMATE = 16
+
+    def __init__(self, model: Model, samples: int, dt_max: float):
+        self.model, self.K, self.dt_max = model, samples, dt_max
+        self.npar = len(model.param_names)
+        self.k_min = max(samples, -(-STEPS_PER_CALL // self.DECIMATE))
+
+    def __call__(self, x0, pa):
+        p = pa[: self.npar]
+        A, freq, f_ext = pa[self.npar :]
+        n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
+        n += n % 2
+        res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
+                       dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
+        x1 = np.array([res.states[name][-1] for name in self.model.states])
+        y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
+        return x1, y
+
+
+def harmonics(y: np.ndarray):
+    """First harmonic, distortion and mean of sampled periodic signals.
+
+    On the uniform grid of one whole period the rectangle rule is the discrete Fourier
+    transform, ``c_n = (2/K) sum_k y_k exp(-2 pi j n k/K)``; the distortion is
+    ``sqrt(sum_(n=2..K/2-1) |c_n|^2) / |c_1|``.
+
+    Parameters
+    ----------
+    y : ndarray, shape (..., K)
+        Samples at tau = k/K, k = 1..K, over one whole period (each row in its own
+        unit, e.g. m or A).
+
+    Returns
+    -------
+    c1 : ndarray of complex
+        First-harmonic coefficient of each row (unit of y); a sine ``A sin(2 pi tau)``
+        gives ``-j A``.
+    thd : ndarray
+        Total harmonic distortion up to the grid's Nyquist order (-).
+    mean : ndarray
+        Mean over the period (unit of y).
+    """
+    y = np.roll(y, 1, axis=-1)  # sample K (tau = 1) is tau = 0 of a periodic signal
+    K = y.shape[-1]
+    c = np.fft.rfft(y, axis=-1) * (2.0 / K)
+    c1 = c[..., 1]
+    higher = np.sqrt(np.sum(np.abs(c[..., 2 : K // 2]) ** 2, axis=-1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        thd = higher / np.abs(c1)
+    return c1, thd, y.mean(axis=-1)
+
+
+@dataclass(frozen=True)
+class _Settle:
+    tol_db: float = 0.01
+    tol_deg: float = 0.1
+    max_periods: int = 60
+
+
+def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool) -> dict:
+    """Run periods until the x_rod harmonic settles (package docstring); return the point."""
+    x = np.asarray(x0, float)
+    H_prev, e_prev = None, None
+    kept = []
+    converged = False
+    k = 0
+    for k in range(1, s.max_periods + 1):
+        try:
+            x, y = step(x, pa)
+        except RuntimeError:  # the integrator gave up
+            return _failed(k)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+            return _failed(k)
+        if keep:
+            kept.append(y)
+        c1, thd, mean = harmonics(y)
+        H = 1j * c1[0] / A
+        if H_prev is not None and H != 0 and H_prev != 0:
+            ratio = H / H_prev
+            e = max(abs(20 * math.log10(abs(ratio))) / s.tol_db, abs(math.degrees(np.angle(ratio))) / s.tol_deg)
+            q = Q_MAX if not e_prev else min(e / e_prev, Q_MAX)
+            if e / (1 - q) <= 1.0:
+                converged = True
+                break
+            e_prev = e
+        H_prev = H
+    I = 1j * c1[1]  # i_q harmonic (A), phase relative to x_cmd (whose harmonic is -j A)
+    out = {
+        "H": H, "distortion": float(thd[0]), "I": I, "i_q_distortion": float(thd[1]),
+        "x_offset": float(mean[0]), "periods": k, "converged": converged, "failed": False,
+    }
+    if keep:
+        out["samples"] = _kept_samples(kept, A, freq)
+    return out
+
+
+def _kept_samples(kept: list, A: float, freq: float) -> dict:
+    """The x_rod and i_q samples of all simulated periods, with t (s) and x_cmd (m)."""
+    Y = np.hstack(kept)
+    t = np.arange(1, Y.shape[1] + 1) / (freq * kept[-1].shape[1])
+    return {"t": t, "x_cmd": A * np.sin(2 * np.pi * freq * t), "x_rod": Y[0], "i_q": Y[1]}
+
+
+def _failed(k):
+    return {"H": complex(np.nan, np.nan), "distortion": np.nan, "I": complex(np.nan, np.nan),
+            "i_q_distortion": np.nan, "x_offset": np.nan, "periods": k, "converged": False, "failed": True}
+
+
+_STEPPERS: dict = {}
+_STEPPERS_LOCK = threading.Lock()
+
+
+def _stepper(variants: dict, params: Parameters, samples: int, rtol: float, atol: float, hybrid_dt: float):
+    """The period map of a variant, built once per process (the model's structure
+    depends on the variants only; parameter values are inputs)."""
+    key = (tuple(sorted(variants.items())), samples, rtol, atol, hybrid_dt)
+    with _STEPPERS_LOCK:
+        if key not in _STEPPERS:
+            model = build_model(params, variants)
+            if _is_hybrid(model):
+                _STEPPERS[key] = (model, _HybridPeriods(model, samples, hybrid_dt))
+            else:
+                _STEPPERS[key] = (model, _PeriodMap(model, samples, rtol, atol))
+        return _STEPPERS[key]
+
+
+def _is_hybrid(model: Model) -> bool:
+    return model.hybrid
+
+
+def hybrid_available(params: Parameters) -> tuple[bool, str]:
+    """Whether the hybrid (stick-slip) friction variant can be simulated here, and why not.
+
+    Parameters
+    ----------
+    params : Parameters
+        Parameter set to build the hybrid-friction model from.
+
+    Returns
+    -------
+    ok : bool
+        True when the variant builds and has its stick projection.
+    why : str
+        One-line reason when ``ok`` is False, else ``""``.
+    """
+    try:
+        model = build_model(params, {"friction": "hybrid"})
+    except (ParameterError, ValueError) as exc:
+        return False, f"friction variant 'hybrid' is not available: {exc}"
+    if getattr(model, "project", None) is None:
+        return False, "friction variant 'hybrid' is accepted but has no stick projection (model.project) yet"
+    return True, ""

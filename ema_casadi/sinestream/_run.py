@@ -1,0 +1,260 @@
+"""The sine-stream driver: request checks, variant set, initial states, the task list
+and the result arrays (method: :mod:`ema_casadi.sinestream`)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from ..assembly import Model
+from ..components import validate_variants
+from ..params import Parameters
+from ._backends import _cores, _run_dask, _run_local
+from ._kernels import _Settle, _stepper, hybrid_available
+from ._parse import _as_axis
+from ._result import FreqResponse, FreqRespError
+
+
+def sine_stream(
+    params: Parameters, amplitudes, freqs, loads=(0.0,), variants=None, *,
+    p: np.ndarray | None = None, samples: int = 64, tol_db: float = 0.01, tol_deg: float = 0.1,
+    max_periods: int = 60, rtol: float = 1e-6, atol: float = 1e-9, hybrid_dt: float = 5e-5,
+    jobs: int | None = None, scheduler: str | None = None, progress: bool = False, keep: bool = False,
+) -> FreqResponse:
+    """Sine-stream frequency response of the nonlinear model x_rod / x_cmd.
+
+    Parameters
+    ----------
+    params : Parameters
+        Parameter set (its variants are the defaults).
+    amplitudes : sequence of float
+        Command amplitudes A (m).
+    freqs : sequence of float
+        Frequencies (Hz); sorted ascending in the result.
+    loads : sequence of float
+        Constant external forces F_ext (N, positive pushes the rod in).
+    variants : dict, optional
+        One variant choice (``{"screw": "rigid"}``) or several, label -> choice
+        (``{"elastic": {"screw": "elastic"}, "rigid": {"screw": "rigid"}}``).
+    p : ndarray, optional
+        Raw parameter vector (default ``params.vector()``), e.g. with overrides.
+    samples : int
+        Output samples per period K (even, >= 8).
+    tol_db, tol_deg : float
+        Settling tolerances on the first harmonic (dB, deg); see :mod:`ema_casadi.sinestream`.
+    max_periods : int
+        Periods after which an unsettled point is reported as not converged.
+    rtol, atol : float
+        CVODES tolerances (rtol -; atol in the states' SI units).
+    hybrid_dt : float
+        Largest RK4 step for hybrid-friction points (s); on the reference set 1e-4 s
+        and 2e-5 s gave gains within 1e-3 dB of each other.
+    jobs : int, optional
+        Worker threads (default: the number of cores).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://host:port``); needs the
+        optional ``dask[distributed]`` and ema_casadi on the workers.
+    progress : bool
+        Progress bar on stderr.
+    keep : bool
+        Keep the x_rod and i_q samples of every simulated period.
+
+    Returns
+    -------
+    FreqResponse
+    """
+    t_wall = time.perf_counter()
+    amplitudes = _as_axis(amplitudes, "amplitudes", "m")
+    freqs = np.unique(_as_axis(freqs, "freqs", "Hz"))
+    loads = _as_axis(loads, "loads", "N", positive=False)
+    _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs)
+    vset = _variant_set(params, variants)
+    _check_hybrid(params, vset)
+    pv = _param_vector(params, p)
+    settle = _Settle(tol_db, tol_deg, max_periods)
+    build = (samples, rtol, atol, hybrid_dt)
+    tasks = _tasks(params, vset, build, pv, loads, amplitudes, freqs)
+    n_jobs = jobs or _cores()
+    if scheduler:
+        results = _run_dask(scheduler, tasks, params, build, settle, keep, progress)
+    else:
+        results = _run_local(tasks, params, build, settle, keep, progress, n_jobs)
+    shape = (len(vset), len(loads), len(amplitudes), len(freqs))
+    data, samples_out, failed = _collect(results, shape, keep)
+    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks), data, failed, freqs)
+    info["wall_time"] = time.perf_counter() - t_wall
+    axes = {"variant": list(vset), "load": loads, "amplitude": amplitudes, "frequency": freqs}
+    return FreqResponse(axes=axes, data=data, variants=vset, info=info, samples=samples_out)
+
+
+def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs) -> None:
+    """One-line FreqRespError for the first bad numeric option."""
+    if not (isinstance(samples, int) and samples >= 8 and samples % 2 == 0):
+        raise FreqRespError(f"samples: expected an even integer >= 8, got {samples!r}")
+    if not (isinstance(max_periods, int) and max_periods >= 3):
+        raise FreqRespError(f"max_periods: expected an integer >= 3, got {max_periods!r}")
+    for name, v in (("tol_db", tol_db), ("tol_deg", tol_deg), ("rtol", rtol), ("atol", atol), ("hybrid_dt", hybrid_dt)):
+        if not (math.isfinite(v) and v > 0):
+            raise FreqRespError(f"{name}: expected a positive number, got {v!r}")
+    if jobs is not None and (not isinstance(jobs, int) or jobs < 1):
+        raise FreqRespError(f"jobs: expected a positive integer, got {jobs!r}")
+
+
+def _check_hybrid(params: Parameters, vset: dict) -> None:
+    """FreqRespError when a variant asks for hybrid friction and it is not available."""
+    for v in vset.values():
+        if v["friction"] == "hybrid":
+            ok, why = hybrid_available(params)
+            if not ok:
+                raise FreqRespError(why)
+
+
+def _param_vector(params: Parameters, p) -> np.ndarray:
+    """The raw parameter vector: ``p`` if given (checked), else the set's defaults."""
+    pv = params.vector() if p is None else np.asarray(p, float)
+    if pv.shape != (len(Parameters.names()),):
+        raise FreqRespError(f"p must have {len(Parameters.names())} entries, got shape {pv.shape}")
+    return pv
+
+
+def _variant_set(params: Parameters, variants) -> dict:
+    """Normalise ``variants`` to label -> complete variant dict."""
+    if variants is None:
+        return {"model": validate_variants(params.variants)}
+    if isinstance(variants, dict) and all(isinstance(v, str) for v in variants.values()):
+        full = dict(params.variants)
+        full.update(variants)
+        full = validate_variants(full)
+        base = validate_variants(params.variants)
+        diff = [f"{k}={v}" for k, v in full.items() if base[k] != v]
+        return {";".join(diff) or "model": full}
+    if isinstance(variants, dict):
+        out = {}
+        for label, v in variants.items():
+            full = dict(params.variants)
+            full.update(v or {})
+            out[str(label)] = validate_variants(full)
+        return out
+    raise FreqRespError("variants: expected a dict of variant choices or a dict label -> dict")
+
+
+def _tasks(params, vset, build, pv, loads, amplitudes, freqs) -> list:
+    """One task per point: ((variant, load, amplitude, frequency) indices, variant dict,
+    starting state, [p; A; f; F_ext])."""
+    tasks = []
+    for iv, v in enumerate(vset.values()):
+        model, step = _stepper(v, params, *build)
+        x0s = _initial_states(model, step, pv, loads, amplitudes, freqs)
+        for il, ia, jf in itertools.product(range(len(loads)), range(len(amplitudes)), range(len(freqs))):
+            pa = np.r_[pv, amplitudes[ia], freqs[jf], loads[il]]
+            tasks.append(((iv, il, ia, jf), v, x0s[il, ia, jf], pa))
+    return tasks
+
+
+def _lin_params(model: Model, p: np.ndarray) -> np.ndarray:
+    """p with Coulomb friction, backlash and the efficiency switch removed."""
+    q = np.array(p, float)
+    names = model.param_names
+    for n, v in (("F_seal", 0.0), ("C_bear", 0.0), ("B", 0.0)):
+        q[names.index(n)] = v
+    q[names.index("eta_inv")] = 1.0 / q[names.index("eta")]
+    return q
+
+
+def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
+    """(i_load, i_amplitude, i_frequency) -> starting state (package docstring)."""
+    nx = model.nx
+    x = ca.SX.sym("x", nx)
+    u = ca.SX.sym("u", model.nu)
+    pp = ca.SX.sym("p", len(model.param_names))
+    xdot = model.f(x, u, pp)[0]
+    ju = model.inputs.index("x_cmd")
+    jac = ca.Function("lin_jacobians", [x, u, pp], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)[:, ju]])
+    p_lin = _lin_params(model, p)
+    v_max = p[model.param_names.index("v_max")]
+    # the rod's own travel: its position state, or the shaft angle where the rod
+    # position is a play (the rigid screw)
+    travel = model.travel(p)
+    rods = [n for n in model.states_with("rod_position") if n not in model.states_with("play")]
+    rod = rods[0] if rods else model.state_with("shaft_angle")
+    j_rod, per_unit = model.index(rod), travel[rod]
+    out = {}
+    for il, load in enumerate(loads):
+        # at rest under the load: 1 s with the command held at zero
+        x_rest, _ = step(np.zeros(nx), np.r_[p, 0.0, 1.0, load])
+        if not np.all(np.isfinite(x_rest)):
+            x_rest = np.zeros(nx)
+        uu = model.u(f_ext=load, eta=p[model.param_names.index("eta")])
+        Ja, Jb = (np.asarray(m, float) for m in jac(x_rest, uu, p_lin))
+        Jb = Jb.ravel()
+        for jf, f in enumerate(freqs):
+            w = 2 * np.pi * f
+            try:
+                Xc = np.linalg.solve(1j * w * np.eye(nx) - Ja, Jb)
+            except np.linalg.LinAlgError:
+                Xc = np.zeros(nx, complex)
+            # rod speed amplitude of the linear response per unit command amplitude
+            g_rod = abs(Xc[j_rod]) * per_unit
+            for ia, A in enumerate(amplitudes):
+                scale = A * min(1.0, v_max / max(w * g_rod * A, 1e-300))
+                out[il, ia, jf] = x_rest + scale * Xc.imag
+    return out
+
+
+def _collect(results: dict, shape: tuple, keep: bool):
+    """Point dicts -> (data arrays of :data:`FIELDS`, kept samples or None, failed count)."""
+    H = np.full(shape, np.nan, complex)
+    I = np.full(shape, np.nan, complex)
+    data = {k: np.full(shape, np.nan) for k in ("distortion", "i_q_distortion", "x_offset")}
+    periods = np.zeros(shape, int)
+    conv = np.zeros(shape, bool)
+    samples_out = {} if keep else None
+    failed = 0
+    for idx, r in results.items():
+        H[idx], I[idx] = r["H"], r["I"]
+        for k in data:
+            data[k][idx] = r[k]
+        periods[idx], conv[idx] = r["periods"], r["converged"]
+        failed += bool(r["failed"])
+        if keep and "samples" in r:
+            samples_out[idx] = r["samples"]
+    data = {
+        "gain_db": 20 * np.log10(np.abs(H)),
+        "phase_deg": _unwrap_deg(np.degrees(np.angle(H))),
+        "distortion": data["distortion"],
+        "i_q_amp": np.abs(I),
+        "i_q_phase_deg": _unwrap_deg(np.degrees(np.angle(I))),
+        "i_q_distortion": data["i_q_distortion"],
+        "x_offset": data["x_offset"],
+        "periods": periods,
+        "converged": conv,
+    }
+    return data, samples_out, failed
+
+
+def _info(settle: _Settle, build: tuple, jobs, scheduler, points: int, data: dict, failed: int, freqs) -> dict:
+    """Options and counts of a run (the caller adds ``wall_time``)."""
+    samples, rtol, atol, _ = build
+    periods, conv = data["periods"], data["converged"]
+    return {
+        "samples_per_period": samples, "tol_db": settle.tol_db, "tol_deg": settle.tol_deg,
+        "max_periods": settle.max_periods, "rtol": rtol, "atol": atol, "jobs": jobs, "scheduler": scheduler,
+        "points": points, "not_converged": int((~conv).sum()), "failed": failed,
+        "periods_total": int(periods.sum()),
+        "simulated_time": float(np.sum(periods / freqs[None, None, None, :])),
+    }
+
+
+def _unwrap_deg(phase: np.ndarray) -> np.ndarray:
+    """Unwrap along the last (frequency) axis, skipping failed (NaN) points."""
+    out = np.array(phase, float)
+    flat = out.reshape(-1, out.shape[-1])
+    for row in flat:
+        ok = np.isfinite(row)
+        if ok.any():
+            row[ok] = np.degrees(np.unwrap(np.radians(row[ok])))
+    return out
