@@ -67,8 +67,8 @@ def play_rate(x_in, v_in, x_play, B):
 
 # ---- parts: the screw owns the drive-train mechanics (shaft and rod) ------------------
 # Signals every screw provides besides its outputs: x_in, v_in (nut side), v_contact
-# (velocity at the friction contact), F_app (force on the contact from everything but
-# friction), x_rod_mech, v_rod_mech (the rod's mechanical motion: what an end stop
+# (velocity at the friction contact), F_drive (force driving the contact: screw or
+# referred motor force minus the rod load, before friction and viscous), x_rod_mech, v_rod_mech (the rod's mechanical motion: what an end stop
 # touches; the rigid screw's x_rod is the position signal after the play), T_load.
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
@@ -121,7 +121,7 @@ class Elastic(Part):
             return F_in, E_spring, P_contact
 
         def rod(b):
-            return ca.if_else(b["stick"], 0, (b["F_app"] - b["F_c"]) / b.P.M)
+            return ca.if_else(b["stick"], 0, b["F_net"] / b.P.M)
 
         return {
             "x_in": lambda b: b["phi"] * _r(b.P),
@@ -130,7 +130,7 @@ class Elastic(Part):
             "v_contact": lambda b: b["v_rod"],
             "x_rod_mech": lambda b: b["x_rod"],
             "v_rod_mech": lambda b: b["v_rod"],
-            "F_app": lambda b: b["F_in"] - b["F_load_rod"] - b.P.c_v * b["v_rod"],
+            "F_drive": lambda b: b["F_in"] - b["F_load_rod"],
             "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta"], b.P),
             "T_load": lambda b: _r(b.P) * b["F_in"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
@@ -164,12 +164,12 @@ class Rigid(Part):
     loads = ("f_ext",)
 
     def signals(self):
-        def applied(b):
+        def drive(b):
             # the force that holds the shaft (omega-dot = 0): the net motor torque
-            # referred to the rod through the screw, minus the load and viscous force
+            # referred to the rod through the screw, minus the load
             T_net = b["T_m"] - b.P.b_m * b["omega"]
             g_hold = efficiency_factor(T_net / _r(b.P), b["omega"], b["eta"], b.P)
-            return T_net / (_r(b.P) * g_hold) - b["F_load_rod"] - b.P.c_v * b["v_in"]
+            return T_net / (_r(b.P) * g_hold) - b["F_load_rod"]
 
         def shaft_rate(b):
             return ca.if_else(b["stick"], 0, _shaft(b, _J_eq(b.P)))
@@ -183,7 +183,7 @@ class Rigid(Part):
             # the rod itself moves with the nut; the play acts on the sensor signal only
             "x_rod_mech": lambda b: b["x_in"],
             "v_rod_mech": lambda b: b["v_in"],
-            "F_app": applied,
+            "F_drive": drive,
             "F_load": lambda b: b["F_load_rod"] + b["F_friction"],
             "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta"], b.P),
             "T_load": lambda b: _r(b.P) * b["F_load"] * b["g_screw"],

@@ -104,7 +104,9 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
     return ca.logic_and(entered, ca.fabs(F_hold) <= P.r_start * F_r)
 
 
-# ---- parts: friction at the contact the screw part names (v_contact, F_app) -----------
+# ---- parts: friction at the contact the screw part names (v_contact, F_drive) ---------
+# Each provides F_friction, F_c (its Coulomb part), stick and F_net, the net force on the
+# contact (F_drive minus friction), besides its outputs.
 _F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 _OUT = (
     Output("F_friction", "N", "friction force at the contact, referred to the rod"),
@@ -139,6 +141,7 @@ class Smooth(Part):
         out = _common(None)
         out[("F_friction", "F_c")] = lambda b: smooth(b["v_contact"], b["F_r"], b.P, shape, strib)
         out["stick"] = lambda b: 0
+        out["F_net"] = lambda b: b["F_drive"] - b["F_friction"]
         return out
 
 
@@ -154,6 +157,8 @@ class Hybrid(Part):
 
     def signals(self):
         out = _common(None)
+        out["F_app"] = lambda b: b["F_drive"] - b.P.c_v * b["v_contact"]
+        out["F_net"] = lambda b: b["F_app"] - b["F_c"]
         # the stick test uses the applied force with the contact at rest
         out["F_hold"] = lambda b: ca.substitute(b["F_app"], b.state("contact_velocity"), 0)
         out[("F_friction", "F_c", "stick")] = lambda b: hybrid(b["v_contact"], b["F_app"], b["F_r"], b.P, b["F_hold"])
