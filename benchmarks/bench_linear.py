@@ -44,7 +44,7 @@ def main(argv=None):
 
     import ema_casadi as ema
     from ema_casadi import frequency as fr
-    from ema_casadi import linearize as lz
+    from ema_casadi import linearisation as lz
 
     load0 = os.getloadavg()[0]
     params = ema.load_parameters(MODEL)

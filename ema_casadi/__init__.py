@@ -9,11 +9,11 @@ Quick start::
     model = ema.build_model(params, {"motor": "pmsm", "screw": "elastic"})
     res = ema.simulate(model, 0.2, x_cmd=ema.Signal.step(1e-3, 0.01))
     res["x_rod"]          # rod position (m)
-    lin = ema.linearize.linearize(model)       # control.StateSpace, named signals
+    lin = ema.linearize(model)                  # control.StateSpace, named signals
     ema.loop_margins(model)                     # GM/PM/disk margins per loop
 
-``ema.linearize`` and ``ema.tune`` are modules (their functions of the same name are
-not re-exported, so that ``from ema_casadi import linearize`` keeps giving the module).
+Packages (``ema.simulation``, ``ema.linearisation``, ``ema.sinestream``, ...) are named
+apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine_stream``).
 """
 
 from .assembly import AssemblyError, Model, build_model
@@ -21,7 +21,9 @@ from .components import DEFAULT_VARIANTS, REGISTRY, VARIANTS
 from .params import ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
 from .simulation import SimResult, SimulationError, simulate
-from .linearize import LinearizationError, OperatingPointError, linear_model, loop_transfer, operating_point
+from .linearisation import (
+    LinearizationError, OperatingPointError, linear_model, linearize, loop_transfer, operating_point,
+)
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
 from .sinestream import FreqResponse, FreqRespError, sine_stream
@@ -34,7 +36,7 @@ __all__ = [
     "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "Signal", "SignalError", "parse_signal",
     "SimResult", "SimulationError", "simulate",
-    "LinearizationError", "OperatingPointError", "linear_model", "loop_transfer", "operating_point",
+    "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
     "FreqResponse", "FreqRespError", "sine_stream",

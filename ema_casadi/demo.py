@@ -49,7 +49,7 @@ def _simulations(model, out: Path, written: list) -> dict:
 def _frequency(model, out: Path, written: list) -> dict:
     """Small-signal Bode (no load and 30 kN), dynamic stiffness, margins of all loops."""
     from .frequency import bandwidth, bode, closed_loop, dynamic_stiffness, frequency_grid, loop_margins, modes
-    from .linearize import loop_model, operating_point
+    from .linearisation import loop_model, operating_point
     from .plot_frequency import plot_bode, plot_loop_margins
 
     f = frequency_grid(0.1, 3e3, 100)

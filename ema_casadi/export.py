@@ -43,7 +43,7 @@ import numpy as np
 
 from ._files import write_with
 from .assembly import Model
-from .linearize import LinearModel, OperatingPoint
+from .linearisation import LinearModel, OperatingPoint
 
 __all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "ExportError", "save_linear", "load_linear",
            "export_function", "model_signature"]
@@ -90,7 +90,7 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, unit
     Parameters
     ----------
     lin : LinearModel
-        From :func:`~ema_casadi.linearize.linear_model` (carries the operating point).
+        From :func:`~ema_casadi.linearisation.linear_model` (carries the operating point).
     path : str or Path
         Target file; its folder must exist.
     fmt : {"mat", "npz", "json"}, optional

@@ -1,6 +1,6 @@
 """Frequency response and stability margins of the linearised model (SPEC §4.3-4.4).
 
-Everything here works on NumPy ``A, B, C, D`` (a :class:`~ema_casadi.linearize.LinearModel`
+Everything here works on NumPy ``A, B, C, D`` (a :class:`~ema_casadi.linearisation.LinearModel`
 or a ``control.StateSpace`` - both carry those attributes), so margins come without
 importing python-control.
 
@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from .assembly import Model
-from .linearize import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
+from .linearisation import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
 
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
@@ -162,7 +162,7 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
     Parameters
     ----------
     L : LinearModel or control.StateSpace
-        Loop transfer at the break (e.g. :func:`~ema_casadi.linearize.loop_model`).
+        Loop transfer at the break (e.g. :func:`~ema_casadi.linearisation.loop_model`).
     f_min, f_max : float
         Frequency window searched for crossovers (Hz); crossovers outside it (the
         spurious ones python-control finds near 0 Hz and ~1e9 Hz) are not considered.
@@ -296,7 +296,7 @@ def loop_margins(
     ----------
     model : Model
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     loops : "all", a loop name or a sequence of them
     outer : {"closed", "open"}
         Other loops closed (loop-at-a-time, default) or the outer ones opened.

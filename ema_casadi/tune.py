@@ -5,14 +5,14 @@ are decision variables of one CasADi ``Opti`` problem solved by IPOPT. Every qua
 in it is a symbolic function of the gains through the model itself: the parameter
 vector ``p`` of the assembled ``model.f`` carries the gains, and the exact AD Jacobian
 ``A(p), B(p), C(p), D(p)`` of ``model.f`` at each load case's operating point
-(:func:`ema_casadi.linearize.jacobian_function`) feeds the frequency and step
+(:func:`ema_casadi.linearisation.jacobian_function`) feeds the frequency and step
 responses below, so IPOPT gets exact first and second derivatives (except the second
 derivative of the eigenvalue bound, taken as zero).
 
 Load cases and the linearisation
 --------------------------------
 Each load case is an operating point at rest, ``x_cmd = 0``, ``f_ext = F``, under the
-toolkit's small-signal policy (:mod:`ema_casadi.linearize`): backlash off, Coulomb-type
+toolkit's small-signal policy (:mod:`ema_casadi.linearisation`): backlash off, Coulomb-type
 friction off, the screw-nut efficiency switch frozen at its operating-point value. The
 trim does not depend on the gains (each integrator holds its loop's output at rest:
 ``z_w = i_q``, ``z_q = v_q``; the position error is zero), so it is solved once per load
@@ -28,7 +28,7 @@ step's state trajectory.
 Loop transfers from the closed loop
 -----------------------------------
 Each loop is broken with the other loops closed (``L = -G_{d -> measurement}`` with the
-loop's flag at 0, as :func:`ema_casadi.linearize.loop_model`). With every loop closed
+loop's flag at 0, as :func:`ema_casadi.linearisation.loop_model`). With every loop closed
 the controller sees measurement + injection, so the closed-loop response of a loop's
 measurement to its own injection is ``S - 1`` with ``S = 1/(1 + L)``: one closed-loop
 Jacobian and one factorisation per frequency give all three loops' sensitivities, and
@@ -101,7 +101,7 @@ Gains are scaled logarithmically, ``gain = reference * exp(theta)`` within
 Verification
 ------------
 :func:`verify` re-trims and re-linearises with the tuned gains
-(:mod:`ema_casadi.linearize`) and takes python-control's ``stability_margins`` of
+(:mod:`ema_casadi.linearisation`) and takes python-control's ``stability_margins`` of
 every loop transfer (crossovers outside 0.01 Hz - 100 kHz dropped; PM is the smallest
 angular distance of L to -1, GM counted in both directions, as
 :class:`ema_casadi.frequency.LoopMargins` does), the closed-loop eigenvalues and
@@ -121,7 +121,7 @@ import casadi as ca
 import numpy as np
 
 from .assembly import Model, build_model
-from .linearize import LOOPS, LinearizationError, jacobian_function, operating_point
+from .linearisation import LOOPS, LinearizationError, jacobian_function, operating_point
 from .params import Parameters
 from .simulation import step_response_metrics
 
@@ -1048,7 +1048,7 @@ def _linear_step(model, op, amp, t_end):
     time, peak |i_q| and |v_dq| including the operating values."""
     import control as ct
 
-    from .linearize import linear_model
+    from .linearisation import linear_model
 
     outs = ["x_rod", "i_q", "v_d", "v_q"]
     lin = linear_model(model, op, inputs=["x_cmd"], outputs=outs)
@@ -1070,7 +1070,7 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     """Check a gain set independently of the optimiser.
 
     For every load case a fresh trim and AD linearisation with these gains
-    (:mod:`ema_casadi.linearize`); per loop, python-control ``stability_margins`` of
+    (:mod:`ema_casadi.linearisation`); per loop, python-control ``stability_margins`` of
     the loop transfer (crossovers outside 0.01 Hz - 100 kHz dropped; GM is the signed
     one of smallest magnitude, PM the smallest angular distance to -1) and the
     closed-loop stability; the closed-loop -3 dB bandwidth and the linear step
@@ -1083,7 +1083,7 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     one-line texts) and ``nonlinear_step`` (or None).
     """
     from .frequency import bandwidth, closed_loop
-    from .linearize import linear_model, loop_transfer
+    from .linearisation import linear_model, loop_transfer
 
     import control as ct
 
@@ -1209,7 +1209,7 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
     from pathlib import Path
 
     from .frequency import bode, closed_loop, frequency_grid
-    from .linearize import loop_model
+    from .linearisation import loop_model
     from .plotting import save
 
     import matplotlib.pyplot as plt

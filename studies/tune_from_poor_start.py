@@ -33,7 +33,7 @@ import control as ct
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi import linearize as lz
+from ema_casadi import linearisation as lz
 from ema_casadi import tune as T
 
 ROOT = Path(__file__).resolve().parent.parent

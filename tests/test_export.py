@@ -11,7 +11,7 @@ import pytest
 from conftest import REFERENCE
 from ema_casadi import compiled
 from ema_casadi import export as ex
-from ema_casadi import linearize as lz
+from ema_casadi import linearisation as lz
 from ema_casadi.cli import main
 
 

@@ -11,7 +11,7 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi import frequency as fr
-from ema_casadi import linearize as lz
+from ema_casadi import linearisation as lz
 
 VARIANTS = [{}, {"screw": "rigid"}, {"motor": "dc"}, {"controller": "PI"}]
 POINTS = {"rest": (2e-3, 0.0, 0.0), "loaded": (2e-3, 20e3, 0.0), "moving": (-1e-3, 10e3, 0.03)}

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import Signal, frequency as fr, linearize as lz, simulate
+from ema_casadi import Signal, frequency as fr, linearisation as lz, simulate
 from ema_casadi import tune as T
 from ema_casadi.cli import main
 

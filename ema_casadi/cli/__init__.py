@@ -25,7 +25,7 @@ import numpy as np
 from ..params import ParameterError
 from ..signals import SignalError
 from ..export import ExportError
-from ..linearize import LinearizationError
+from ..linearisation import LinearizationError
 from ..simulation import SimulationError
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL"]

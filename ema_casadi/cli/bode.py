@@ -8,7 +8,7 @@ Example: ema bode --kind closed --plot bode.png --json
 
 from __future__ import annotations
 
-from ..linearize import LOOPS, OUTER
+from ..linearisation import LOOPS, OUTER
 from . import UserError, check_output_path, load
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 from .margins import add_frequency_window, check_window
@@ -33,7 +33,7 @@ def run(args) -> dict:
     import numpy as np
 
     from ..frequency import bandwidth, bode, closed_loop, dynamic_stiffness, margins, modes
-    from ..linearize import loop_model
+    from ..linearisation import loop_model
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     check_window(args)

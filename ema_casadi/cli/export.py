@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS
-from ..linearize import LOOPS
+from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
@@ -43,7 +43,7 @@ def run(args) -> dict:
     result = {"model": args.model, "variants": model.variants, "format": args.format}
     try:
         if linear:
-            from ..linearize import linear_model
+            from ..linearisation import linear_model
 
             op = operating_point_from_args(args, params, model)
             lin = linear_model(model, op, open_loops=args.open)

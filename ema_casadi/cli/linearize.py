@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 import warnings
 
-from ..linearize import BACKLASH_POLICIES, FRICTION_POLICIES, LOOPS, LinearizationError
+from ..linearisation import BACKLASH_POLICIES, FRICTION_POLICIES, LOOPS, LinearizationError
 from ..signals import SignalError, parse_quantity
 from . import UserError, check_output_path, load
 
@@ -40,7 +40,7 @@ def add_operating_point_arguments(p) -> None:
 def operating_point_from_args(args, params, model):
     """Parse the operating-point flags and trim; user mistakes and a missing operating
     point become one-line :class:`UserError`; warnings go to stderr as one line each."""
-    from ..linearize import operating_point
+    from ..linearisation import operating_point
 
     values = {}
     for flag, attr, kind, bare in (("--x-cmd", "x_cmd", "length", "mm"), ("--f-ext", "f_ext", "force", "N"),
@@ -80,7 +80,7 @@ def run(args) -> dict:
 
     from ..export import ExportError, save_linear
     from ..frequency import modes
-    from ..linearize import linear_model
+    from ..linearisation import linear_model
 
     out = check_output_path(args.out, (".mat", ".npz", ".json"), "--out")
     params, model = load(args)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 
-from ..linearize import LOOPS, OUTER
+from ..linearisation import LOOPS, OUTER
 from . import UserError, check_output_path, load
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
@@ -54,7 +54,7 @@ def run(args) -> dict:
     written = []
     if plot is not None:
         from ..frequency import bode, frequency_grid
-        from ..linearize import loop_model
+        from ..linearisation import loop_model
         from ..plot_frequency import plot_loop_margins
 
         f = frequency_grid(args.fmin, args.fmax, 100)

@@ -1,0 +1,63 @@
+"""Shared by trim and linearisation: errors, loop names, policies, the AD Jacobians."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..assembly import Model
+from ..components import REGISTRY
+
+#: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner:
+#: every loop a registered part declares (a model has its own in ``model.loops``).
+LOOPS = {
+    lp.name: (lp.flag, lp.injection, lp.measured)
+    for values in REGISTRY.values() for cls in values.values() for lp in cls.loops
+}
+FRICTION_POLICIES = ("off", "smooth")
+BACKLASH_POLICIES = ("off", "keep")
+OUTER = ("closed", "open")
+
+# saturation limits are lifted by this factor while solving the trim
+_LIFT = 1e6
+
+class LinearizationError(ValueError):
+    """A linearisation request cannot be served (bad option, unsupported variant)."""
+
+
+class OperatingPointError(LinearizationError):
+    """No operating point exists or none was found; the one-line message names the
+    limit that is exceeded and the numbers."""
+
+
+def signal_outputs(model: Model) -> tuple[str, ...]:
+    """Outputs that are signals (not powers, energies or the stick flag): the default
+    outputs of a linear model."""
+    return model.outputs_of("signal")
+
+_JAC: dict = {}
+
+
+def jacobian_function(model: Model) -> ca.Function:
+    """``J(x, u, p) -> (xdot, y, A, B, C, D)``: the model and its exact AD Jacobians.
+
+    Built once per model and cached (a call costs tens of microseconds).
+    """
+    entry = _JAC.get(id(model.f))
+    if entry is None or entry[0] is not model.f:
+        x = ca.SX.sym("x", model.nx)
+        u = ca.SX.sym("u", model.nu)
+        p = ca.SX.sym("p", len(model.param_names))
+        xdot, y = model.f(x, u, p)
+        J = ca.Function(
+            "ema_jacobians", [x, u, p],
+            [xdot, y, ca.jacobian(xdot, x), ca.jacobian(xdot, u), ca.jacobian(y, x), ca.jacobian(y, u)],
+            ["x", "u", "p"], ["xdot", "y", "A", "B", "C", "D"],
+        )
+        entry = (model.f, J)
+        _JAC[id(model.f)] = entry
+    return entry[1]
+
+
+def _eval(model, x, u, p):
+    return [np.array(v) for v in jacobian_function(model)(x, u, p)]

@@ -1,0 +1,162 @@
+"""Linear models at an operating point, loop transfers at the breaks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..assembly import Model
+from ._common import OUTER, LinearizationError, _eval, signal_outputs
+from ._trim import OperatingPoint, operating_point
+
+
+@dataclass
+class LinearModel:
+    """A linear model ``dx = A x + B u, y = C x + D u`` in deviations from ``op``.
+
+    Duck-compatible with ``control.StateSpace`` for the ``A, B, C, D`` attributes, so
+    :mod:`ema_casadi.frequency` takes either; :meth:`to_statespace` makes the named
+    python-control object.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    states: tuple
+    inputs: tuple
+    outputs: tuple
+    op: OperatingPoint | None = None
+    name: str = "ema"
+    open_loops: tuple = ()
+
+    def select(self, inputs=None, outputs=None, name: str | None = None) -> "LinearModel":
+        """The sub-model from some inputs to some outputs (by name)."""
+        ii = [self.inputs.index(n) for n in (inputs or self.inputs)]
+        oo = [self.outputs.index(n) for n in (outputs or self.outputs)]
+        return replace(
+            self, B=self.B[:, ii], C=self.C[oo, :], D=self.D[np.ix_(oo, ii)],
+            inputs=tuple(self.inputs[i] for i in ii), outputs=tuple(self.outputs[o] for o in oo),
+            name=name or self.name,
+        )
+
+    def to_statespace(self):
+        """The named ``control.StateSpace``."""
+        import control
+
+        return control.ss(self.A, self.B, self.C, self.D, states=list(self.states),
+                          inputs=list(self.inputs), outputs=list(self.outputs), name=self.name)
+
+
+def _loops(model: Model, names) -> tuple[str, ...]:
+    if isinstance(names, str):
+        names = (names,)
+    out = tuple(names or ())
+    for n in out:
+        if n not in model.loops:
+            raise LinearizationError(f"loop '{n}' unknown; choose one of {', '.join(model.loops)}")
+    return out
+
+
+def linear_model(
+    model: Model,
+    op: OperatingPoint | None = None,
+    *,
+    open_loops=(),
+    inputs=None,
+    outputs=None,
+    **op_kwargs,
+) -> LinearModel:
+    """Exact AD linearisation at ``op`` as a :class:`LinearModel` (NumPy only).
+
+    Parameters
+    ----------
+    model : Model
+    op : OperatingPoint, optional
+        Default: :func:`operating_point` ``(model, **op_kwargs)``.
+    open_loops : sequence of {"position", "velocity", "current"}
+        Loops opened at their break (flag 0, injection at the measured value).
+    inputs, outputs : sequence of str, optional
+        Default: all inputs; the signal outputs (:func:`signal_outputs`).
+    """
+    if op is None:
+        op = operating_point(model, **op_kwargs)
+    elif op_kwargs:
+        raise LinearizationError(f"give either op or operating-point arguments, not both ({', '.join(op_kwargs)})")
+    if op.states != model.states or op.variants != model.variants:
+        raise LinearizationError("the operating point belongs to another model (variants differ)")
+    open_loops = _loops(model, open_loops)
+    outputs = tuple(outputs) if outputs is not None else signal_outputs(model)
+    inputs = tuple(inputs) if inputs is not None else model.inputs
+    for n in outputs:
+        if n not in model.outputs:
+            raise LinearizationError(f"output '{n}' unknown; outputs are {', '.join(model.outputs)}")
+    for n in inputs:
+        if n not in model.inputs:
+            raise LinearizationError(f"input '{n}' unknown; inputs are {', '.join(model.inputs)}")
+    names = list(model.param_names)
+    u_lin, p_lin = op.u_lin.copy(), op.p_lin.copy()
+    u_true, p_true = op.u.copy(), op.p.copy()
+    for name in open_loops:
+        loop = model.loops[name]
+        for uu, pp in ((u_lin, p_lin), (u_true, p_true)):
+            pp[names.index(loop.flag)] = 0.0
+            uu[model.inputs.index(loop.injection)] = op.output(loop.measured)
+    _, _, A, B, C, D = _eval(model, op.x, u_lin, p_lin)
+    if op.policy.get("g_eff") is not None:
+        # the eta column of the frozen model is that of the fake efficiency: take the real one
+        k = model.inputs.index("eta")
+        _, _, _, B_t, _, D_t = _eval(model, op.x, u_true, p_true)
+        B[:, k], D[:, k] = B_t[:, k], D_t[:, k]
+    ii = [model.inputs.index(n) for n in inputs]
+    oo = [model.outputs.index(n) for n in outputs]
+    lin = LinearModel(
+        A=A, B=B[:, ii], C=C[oo, :], D=D[np.ix_(oo, ii)], states=model.states,
+        inputs=inputs, outputs=outputs, op=op, open_loops=open_loops,
+        name="ema" + "".join(f"_open_{n}" for n in open_loops),
+    )
+    bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(lin.C[i])) or not np.all(np.isfinite(lin.D[i]))]
+    if bad or not (np.all(np.isfinite(lin.A)) and np.all(np.isfinite(lin.B))):
+        raise LinearizationError(f"the Jacobian is not finite at this point (outputs: {', '.join(bad) or '-'})")
+    return lin
+
+
+def linearize(model: Model, op: OperatingPoint | None = None, **kwargs):
+    """Exact AD linearisation as a named ``control.StateSpace``.
+
+    Same arguments as :func:`linear_model`; the operating point travels with the
+    :class:`LinearModel` (``linear_model(...).op``) - use that when you need both.
+    """
+    return linear_model(model, op, **kwargs).to_statespace()
+
+
+def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, outer: str = "closed",
+               **op_kwargs) -> LinearModel:
+    """The loop transfer L(s) at a break as a SISO :class:`LinearModel`.
+
+    Parameters
+    ----------
+    loop : {"position", "velocity", "current"}
+    outer : {"closed", "open"}
+        ``"closed"`` (default): loop-at-a-time, every other loop closed (the margin the
+        whole system has at that point). ``"open"``: the loops outside this one are
+        opened too (the cascade-design view: inner loops closed, outer open).
+
+    ``L = -G_{d -> measurement}`` with this loop open; input is the injection name,
+    output ``-<measurement>``.
+    """
+    (loop,) = _loops(model, loop)
+    if outer not in OUTER:
+        raise LinearizationError(f"outer '{outer}' unknown; choose one of {', '.join(OUTER)}")
+    order = list(model.loops)
+    opened = [loop] + (order[: order.index(loop)] if outer == "open" else [])
+    inj, meas = model.loops[loop].injection, model.loops[loop].measured
+    lin = linear_model(model, op, open_loops=opened, inputs=[inj], outputs=[meas], **op_kwargs)
+    return replace(lin, C=-lin.C, D=-lin.D, outputs=(f"-{meas}",), name=f"L_{loop}")
+
+
+def loop_transfer(model: Model, loop: str, op: OperatingPoint | None = None, *, outer: str = "closed",
+                  **op_kwargs):
+    """:func:`loop_model` as a named ``control.StateSpace``."""
+    return loop_model(model, loop, op, outer=outer, **op_kwargs).to_statespace()
