@@ -54,6 +54,10 @@ def test_bad_parameter_file(tmp_path, capsys, case):
         (["--f-ext", "10kg"], r"--f-ext '10kg': unknown force unit 'kg'"),
         (["--t-end", "-1"], r"--t-end must be a positive number of seconds"),
         (["--out", "x.txt"], r"--out x.txt: expected a file ending in .csv or .npz"),
+        (["--input", "eta=900mm"], r"--input eta: '900mm': unknown dimensionless unit 'mm'"),
+        (["--input", "T_cab=20"], r"--input 'T_cab': unknown input; the model's inputs are x_cmd, f_ext, eta"),
+        (["--input", "eta"], r"--input 'eta': expected NAME=SIGNAL"),
+        (["--variant", "endstop=hard"], r"unknown endstop variant 'hard'; allowed: off, elastic"),
     ],
 )
 def test_bad_flags(tmp_path, capsys, argv, pattern):
@@ -81,3 +85,11 @@ def test_simulate_writes_csv_with_named_columns(tmp_path, capsys):
     assert header[:4] == ["t", "x_cmd", "f_ext", "eta"]
     assert "x_rod" in header and "i_q" in header and "P_cu" in header
     assert len(header) == len(set(header))
+
+
+def test_simulate_drives_named_inputs(tmp_path):
+    out = tmp_path / "run.csv"
+    assert main(["simulate", str(REFERENCE), "--t-end", "0.01", "--input", "eta=0.8", "--out", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    eta = lines[0].split(",").index("eta")
+    assert float(lines[-1].split(",")[eta]) == 0.8

@@ -25,6 +25,9 @@ def add_arguments(p):
                    help="commanded rod position (bare numbers in mm); default step:1mm@0.01")
     p.add_argument("--f-ext", default="0", metavar="SIGNAL",
                    help="external rod force, positive pushes the rod in (bare numbers in N); default 0")
+    p.add_argument("--input", action="append", default=[], metavar="NAME=SIGNAL",
+                   help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
+                        "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
     p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
     p.add_argument("--dt", type=float, default=5e-6, help="RK4 step, or CVODES output spacing (s); default 5e-6")
     p.add_argument("--dt-out", type=float, default=None, help="spacing of the saved samples (s); default 1e-4")
@@ -53,10 +56,11 @@ def run(args) -> dict:
         f_ext = parse_signal(args.f_ext, "force", bare="N", duration=args.t_end)
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
+    others = _named_inputs(args.input, model, stroke, args.t_end)
     dt_out = args.dt_out if args.dt_out is not None else max(args.dt, 1e-4)
     t0 = time.perf_counter()
     res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress)
+                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress, **others)
     written = []
     if out is not None:
         written.append(str(res.to_csv(out) if out.suffix.lower() == ".csv" else res.to_npz(out)))
@@ -80,6 +84,27 @@ def run(args) -> dict:
         "mode_switches": info.get("mode_switches"),
         "written": written,
     }
+
+
+def _named_inputs(items, model, stroke, t_end) -> dict:
+    """``--input NAME=SIGNAL`` flags -> {name: Signal}, each parsed with its input's kind."""
+    out = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not text.strip():
+            raise UserError(f"--input '{item}': expected NAME=SIGNAL")
+        if name in ("x_cmd", "f_ext"):
+            raise UserError(f"--input {name}: use --{name.replace('_', '-')}")
+        if name not in model.input_info:
+            raise UserError(f"--input '{name}': unknown input; the model's inputs are {', '.join(model.inputs)}")
+        kind = model.input_info[name].kind
+        try:
+            out[name] = parse_signal(text.strip(), kind, bare="mm" if kind == "length" else None,
+                                     stroke=stroke, duration=t_end)
+        except ValueError as exc:
+            raise UserError(f"--input {name}: {exc}") from None
+    return out
 
 
 def report(r: dict) -> None:
