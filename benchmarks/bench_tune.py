@@ -44,7 +44,7 @@ def main(argv=None):
     import control  # noqa: F401 - the verification's; its import is timed here, once, not per run
 
     import ema_casadi as ema
-    from ema_casadi import tune as T
+    from ema_casadi import tuning as T
 
     t_import = time.perf_counter() - t_import
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")

@@ -12,8 +12,9 @@ Quick start::
     lin = ema.linearize.linearize(model)       # control.StateSpace, named signals
     ema.loop_margins(model)                     # GM/PM/disk margins per loop
 
-``ema.linearize`` and ``ema.tune`` are modules (their functions of the same name are
-not re-exported, so that ``from ema_casadi import linearize`` keeps giving the module).
+``ema.linearize`` is a module (its function of the same name is not re-exported, so
+that ``from ema_casadi import linearize`` keeps giving the module); ``ema.tune`` is the
+tuning function (its package is :mod:`ema_casadi.tuning`).
 """
 
 from .assembly import INPUTS, OUTPUTS, Model, build_model
@@ -24,7 +25,7 @@ from .linearize import LinearizationError, OperatingPointError, linear_model, lo
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
 from .freqresp import FreqResponse, FreqRespError, sine_stream
-from .tune import TuneError, TuneResult
+from .tuning import Requirements, TuneError, TuneResult, tune
 
 __version__ = "0.1.0"
 
@@ -37,5 +38,5 @@ __all__ = [
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
     "FreqResponse", "FreqRespError", "sine_stream",
-    "TuneError", "TuneResult",
+    "Requirements", "TuneError", "TuneResult", "tune",
 ]
