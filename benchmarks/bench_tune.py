@@ -4,7 +4,7 @@ The acceptance problem: every gain x 0.2 of the reference, loads 0, 15 and 30 kN
 bandwidth objective, GM >= 6 dB, PM >= 45 deg, overshoot <= 5 %, current and voltage
 limits on a 0.1 mm step. Timed per run: building the Opti problem(s), IPOPT, and the
 whole ``tune()`` call (which adds the independent verification before and after:
-fresh linearisations, python-control margins, linear and 1 mm nonlinear steps). With
+fresh linearisations, margins, python-control linear and 1 mm nonlinear steps). With
 ``--hessian both`` the L-BFGS variant is timed too.
 
 Usage::

@@ -5,7 +5,7 @@ the step tracking error (--objective), subject in every load case (--loads) to: 
 and phase margins on the position, velocity and current loops (--gm/--pm, or a
 sensitivity peak --ms), overshoot (--overshoot), current and voltage within their
 limits on a step of --step, optional minimum bandwidth and eigenvalue bound. The
-result is verified independently (fresh linearisation, python-control margins, a
+result is verified independently (fresh linearisation, the toolkit's margins, a
 nonlinear step simulation) and written as a parameter file (--out).
 Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir out
 """

@@ -101,13 +101,13 @@ Gains are scaled logarithmically, ``gain = reference * exp(theta)`` within
 Verification
 ------------
 :func:`verify` re-trims and re-linearises with the tuned gains
-(:mod:`ema_casadi.linearize`) and takes python-control's ``stability_margins`` of
-every loop transfer (crossovers outside 0.01 Hz - 100 kHz dropped; PM is the smallest
-angular distance of L to -1, GM counted in both directions, as
-:class:`ema_casadi.frequency.LoopMargins` does), the closed-loop eigenvalues and
--3 dB bandwidth and a python-control step response; :func:`step_metrics` simulates a
-nonlinear step on the full model. A tune succeeds only when IPOPT converged with no
-slack left and this check passes.
+(:mod:`ema_casadi.linearize`) and takes the toolkit's margins
+(:func:`ema_casadi.frequency.margins`) of every loop transfer (crossovers searched in
+0.01 Hz - 100 kHz; PM is the smallest angular distance of L to -1, GM counted in both
+directions), the sensitivity peak, the closed-loop eigenvalues and -3 dB bandwidth and
+a python-control step response; :func:`step_metrics` simulates a nonlinear step on the
+full model. A tune succeeds only when IPOPT converged with no slack left and this check
+passes.
 
 Modules
 -------

@@ -59,7 +59,8 @@ class TuneResult:
     active : list of dict
         Constraint groups met with almost no slack (what limits the design), same keys.
     verification_before, verification_after : dict
-        :func:`verify` at the start and at the result (fresh linearisation, python-control).
+        :func:`verify` at the start and at the result (fresh linearisation, independent of
+        the optimiser).
     params : Parameters
         The parameter set with the tuned gains.
     message : str

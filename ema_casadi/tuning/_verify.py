@@ -1,6 +1,6 @@
 """Verification of a gain set independently of the optimiser: a fresh trim and AD
-linearisation per load case, python-control loop margins, eigenvalues, bandwidth and
-linear step; a nonlinear step simulation on the full model."""
+linearisation per load case, the toolkit's loop margins, eigenvalues, bandwidth and a
+python-control linear step; a nonlinear step simulation on the full model."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 
 from ..assembly import Model
-from ..frequency import bandwidth, closed_loop
+from ..frequency import bandwidth, closed_loop, margins
 from ..linearize import LOOPS, LinearizationError, linear_model, loop_transfer, operating_point
 from ..params import Parameters
 from ..signals import Signal
@@ -20,37 +20,18 @@ from ._requirements import Requirements, _load_label
 _F_MS = np.logspace(-2, 5, 701)  # Hz, 100 per decade for the sensitivity peak
 
 
-def _ct_margins(L, f_lo=1e-2, f_hi=1e5) -> dict:
-    """python-control margins of a SISO loop transfer, crossovers outside [f_lo, f_hi] Hz
-    (the spurious ones near 0 Hz and ~1e9 Hz) dropped.
-
-    Returns ``gm_db`` (signed, the smallest in magnitude: positive = the gain may rise
-    by that much, negative = fall), ``f_pc_hz``, ``gm_up_db`` / ``gm_down_db`` (the
-    smallest rise / fall, inf if none), ``pm_deg`` (smallest angular distance of L to
-    -1 at a gain crossover) and ``f_gc_hz``."""
-    import control as ct
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # NaNs from its root polishing
-        gm, pm, _sm, wpc, wgc, _wms = ct.stability_margins(L, returnall=True)
-    gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(v, float)) for v in (gm, pm, wpc, wgc))
-    fpc, fgc = wpc / (2 * np.pi), wgc / (2 * np.pi)
-    sel = (fpc >= f_lo) & (fpc <= f_hi) & np.isfinite(gm) & (gm > 0)
-    gm_db, fpc = 20 * np.log10(gm[sel]), fpc[sel]
-    out = {"gm_db": math.inf, "f_pc_hz": None, "gm_up_db": math.inf, "gm_down_db": math.inf,
-           "pm_deg": math.inf, "f_gc_hz": None}
-    if gm_db.size:
-        j = int(np.argmin(np.abs(gm_db)))
-        out.update(gm_db=float(gm_db[j]), f_pc_hz=float(fpc[j]))
-        up, down = gm_db[gm_db > 0], -gm_db[gm_db <= 0]
-        out.update(gm_up_db=float(up.min()) if up.size else math.inf,
-                   gm_down_db=float(down.min()) if down.size else math.inf)
-    sel = (fgc >= f_lo) & (fgc <= f_hi) & np.isfinite(pm)
-    pms = np.abs((pm[sel] + 180) % 360 - 180)
-    if pms.size:
-        j = int(np.argmin(pms))
-        out.update(pm_deg=float(pms[j]), f_gc_hz=float(fgc[sel][j]))
-    return out
+def _loop_margins(L) -> dict:
+    """Margins of a SISO loop transfer (:func:`ema_casadi.frequency.margins`, crossovers
+    in 0.01 Hz - 100 kHz): ``gm_db`` (signed, the smallest in magnitude: positive = the
+    gain may rise by that much, negative = fall), ``f_pc_hz``, ``gm_up_db`` /
+    ``gm_down_db`` (the smallest rise / fall, inf if none), ``pm_deg`` (smallest angular
+    distance of L to -1 at a gain crossover) and ``f_gc_hz``."""
+    m = margins(L)
+    gms = [c["gm_db"] for c in m.phase_crossovers]
+    up, down = [g for g in gms if g > 0], [-g for g in gms if g <= 0]
+    return {"gm_db": float(m.gm_db), "f_pc_hz": None if m.f_pc_hz is None else float(m.f_pc_hz),
+            "gm_up_db": float(min(up, default=math.inf)), "gm_down_db": float(min(down, default=math.inf)),
+            "pm_deg": float(m.pm_deg), "f_gc_hz": None if m.f_gc_hz is None else float(m.f_gc_hz)}
 
 
 def _check_loops(model, op, label, req, worst, failures) -> dict:
@@ -64,7 +45,7 @@ def _check_loops(model, op, label, req, worst, failures) -> dict:
     loops = {}
     for name in LOOPS:
         L = loop_transfer(model, name, op)
-        m = _ct_margins(L)
+        m = _loop_margins(L)
         m["ms"] = float(np.max(np.abs(1 / (1 + ct.frequency_response(L, 2 * np.pi * _F_MS).complex.ravel()))))
         loops[name] = m
         worst["gm_db"] = min(worst["gm_db"], abs(m["gm_db"]))
@@ -139,9 +120,9 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     """Check a gain set independently of the optimiser.
 
     For every load case a fresh trim and AD linearisation with these gains
-    (:mod:`ema_casadi.linearize`); per loop, python-control ``stability_margins`` of
-    the loop transfer (crossovers outside 0.01 Hz - 100 kHz dropped; GM is the signed
-    one of smallest magnitude, PM the smallest angular distance to -1), the
+    (:mod:`ema_casadi.linearize`); per loop, the margins of the loop transfer
+    (:func:`ema_casadi.frequency.margins`, crossovers in 0.01 Hz - 100 kHz; GM is the
+    signed one of smallest magnitude, PM the smallest angular distance to -1), the
     sensitivity peak and the closed-loop stability; the closed-loop -3 dB bandwidth and
     the linear step (python-control) with its peaks of current and voltage. Optionally
     a nonlinear step simulation (:func:`step_metrics`) at no load.
