@@ -9,20 +9,17 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from ._files import write_with  # noqa: E402
+
 __all__ = ["plot_simulation", "save"]
 
 
 def save(fig, path: str | Path) -> Path:
     """Save a figure atomically (no half-written PNG) and close it."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp.png")
     try:
-        fig.savefig(tmp, dpi=110)
-        tmp.replace(path)
+        return write_with(path, lambda tmp: fig.savefig(tmp, dpi=110), suffix=".png")
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)
-    return path
 
 
 def plot_simulation(res, path: str | Path, title: str = "") -> Path:
