@@ -4,7 +4,7 @@ The acceptance problem: every gain x 0.2 of the reference, loads 0, 15 and 30 kN
 bandwidth objective, GM >= 6 dB, PM >= 45 deg, overshoot <= 5 %, current and voltage
 limits on a 0.1 mm step. Timed per run: building the Opti problem(s), IPOPT, and the
 whole ``tune()`` call (which adds the independent verification before and after:
-fresh linearisations, python-control margins, linear and 1 mm nonlinear steps). With
+fresh linearisations, margins, python-control linear and 1 mm nonlinear steps). With
 ``--hessian both`` the L-BFGS variant is timed too.
 
 Usage::
@@ -44,7 +44,7 @@ def main(argv=None):
     import control  # noqa: F401 - the verification's; its import is timed here, once, not per run
 
     import ema_casadi as ema
-    from ema_casadi import tune as T
+    from ema_casadi import tuning as T
 
     t_import = time.perf_counter() - t_import
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")

@@ -27,7 +27,7 @@ from .linearisation import (
 from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
 from .export import ExportError, export_function, load_linear, save_linear
 from .sinestream import FreqResponse, FreqRespError, sine_stream
-from .tune import TuneError, TuneResult
+from .tuning import Requirements, TuneError, TuneResult, tune
 
 __version__ = "0.1.0"
 
@@ -40,5 +40,5 @@ __all__ = [
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
     "FreqResponse", "FreqRespError", "sine_stream",
-    "TuneError", "TuneResult",
+    "Requirements", "TuneError", "TuneResult", "tune",
 ]

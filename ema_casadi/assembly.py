@@ -143,6 +143,11 @@ class Model:
             raise AssemblyError(f"the model has {len(names)} states with role '{role}', expected one")
         return names[0]
 
+    @property
+    def used_params(self) -> frozenset:
+        """Names of the parameters the model's parts declare they use."""
+        return frozenset(n for part in self.parts for n in part.params)
+
     def outputs_of(self, kind: str) -> tuple[str, ...]:
         """Names of the outputs of a kind (``signal``, ``loss``, ``power``, ...)."""
         return tuple(n for n, o in self.output_info.items() if o.kind == kind)

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import matplotlib
 
-from ._files import write_with
-
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+from ._files import write_with  # noqa: E402
 
 __all__ = ["plot_simulation", "save"]
 

@@ -2,7 +2,7 @@
 
 Every gain of the reference set (models/cesa_ema.toml) is multiplied by 0.2 (K_x,
 K_p_w, K_p_i, K_i_i; the speed loop's integral time T_i_w is kept, so its integral
-gain K_p_w/T_i_w scales by 0.2 too). From there ``ema_casadi.tune.tune`` maximises the
+gain K_p_w/T_i_w scales by 0.2 too). From there ``ema_casadi.tuning.tune`` maximises the
 worst-case closed-loop bandwidth over the load cases 0, 15 and 30 kN subject to
 GM >= 6 dB and PM >= 45 deg on the position, velocity and current loops (each broken
 with the others closed), overshoot <= 5 %, and current and voltage within their
@@ -34,7 +34,8 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import linearisation as lz
-from ema_casadi import tune as T
+from ema_casadi import tuning as T
+from ema_casadi._files import write_text
 
 ROOT = Path(__file__).resolve().parent.parent
 LOADS = (0.0, 15e3, 30e3)
@@ -114,11 +115,7 @@ def main(argv=None):
 
     written = [res.write(out / "tuned.toml")]
     written += T.plot_tuning(res, model, sets["start"], out, reference=params)
-    path = out / "summary.json"
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(summary, indent=1, default=float))
-    tmp.replace(path)
-    written.append(path)
+    written.append(write_text(out / "summary.json", json.dumps(summary, indent=1, default=float)))
     for w in written:
         print(f"wrote {w}")
 

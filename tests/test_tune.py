@@ -16,7 +16,7 @@ import pytest
 
 from conftest import REFERENCE
 from ema_casadi import Signal, frequency as fr, linearisation as lz, simulate
-from ema_casadi import tune as T
+from ema_casadi import tuning as T
 from ema_casadi.cli import main
 
 LOADS = (0.0, 15e3, 30e3)
@@ -71,7 +71,7 @@ def test_spectral_abscissa_gradient_matches_finite_differences():
     differences on a random matrix with a complex rightmost pair (rel. 1e-6)."""
     rng = np.random.default_rng(3)
     A = rng.normal(size=(6, 6))
-    cb = T._SpectralAbscissa(6, "sa_test")
+    cb = T.spectral_abscissa(6, "sa_test")
     X = ca.MX.sym("A", 6, 6)
     g = ca.Function("g", [X], [ca.gradient(cb(X), X)])
     G = np.array(g(A))
@@ -96,13 +96,12 @@ def test_optimiser_loop_transfers_equal_fresh_linearisation(params, model_cache,
     if "K_i_x" in start:
         start["K_i_x"] = 400.0
     f = np.logspace(-0.3, 4, 15)
-    prob = T._Problem(model, params, free, [0.0, 30e3], T.Requirements(), "tracking", start, f)
-    for op in prob.cases:
-        _, (Ak, B3, C3, D3), _ = prob._closed_loop(op)
-        G = np.array(ca.Function("G", [prob.theta], [prob.S_grid(Ak, B3, C3, D3, (2 * np.pi * f).reshape(1, -1))])(prob.theta0))
+    prob = T.TuningProblem(model, params, free, [0.0, 30e3], T.Requirements(), "tracking", start, f)
+    for case, op in enumerate(prob.cases):
+        sensitivities = prob.loop_sensitivities(case)  # at the start gains, on the grid f
         fresh = lz.operating_point(model, f_ext=op.f_ext, p=params.vector(**start))
-        for j, loop in enumerate(T._LOOP_ORDER):
-            S = 1 + G[0, j::3] + 1j * G[1, j::3]
+        for loop in lz.LOOPS:
+            S = sensitivities[loop]
             L = fr.freqresp(lz.loop_model(model, loop, fresh), f)[0, 0]
             assert np.max(np.abs(S - 1 / (1 + L))) < 1e-7, (loop, op.f_ext)
 
@@ -113,11 +112,9 @@ def test_step_constraint_samples_equal_python_control(params, model_cache):
     model = model_cache()
     free = T.default_free(model)
     req = T.Requirements(step=1e-4, t_step=0.05)
-    prob = T._Problem(model, params, free, [30e3], req, "tracking", T.scaled_gains(params, 1.0, free), np.logspace(0, 3, 4))
-    X, t = prob._trajectories[0]
+    prob = T.TuningProblem(model, params, free, [30e3], req, "tracking", T.scaled_gains(params, 1.0, free), np.logspace(0, 3, 4))
+    t, Y = prob.step_response(0)  # rows x_rod, i_q, v_d, v_q at the start gains
     op = prob.cases[0]
-    _, _, (b, Cs, ds) = prob._closed_loop(op)
-    Y = np.array(ca.Function("Y", [prob.theta], [Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])])(prob.theta0))
     lin = lz.linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod", "i_q", "v_d", "v_q"])
     sys_ = ct.ss(lin.A, lin.B, lin.C, lin.D)
     t_fine = np.linspace(0, req.t_step, 50001)
@@ -142,8 +139,8 @@ def test_trim_is_gain_independent_and_loads_share_dynamics(params, model_cache, 
     x_ref = lz.operating_point(model, f_ext=30e3, p=params.vector(K_i_x=2500.0)).x
     x_poor = lz.operating_point(model, f_ext=30e3, p=params.vector(**gains)).x
     assert np.allclose(x_poor, x_ref, rtol=1e-9, atol=1e-12)
-    prob = T._Problem(model, params, free, LOADS, T.Requirements(), "bandwidth", gains, np.logspace(0, 3, 4))
-    assert len(prob._signatures["frequency"]) == 1 and len(prob._trajectories) == 1
+    prob = T.TuningProblem(model, params, free, LOADS, T.Requirements(), "bandwidth", gains, np.logspace(0, 3, 4))
+    assert prob.n_linearisations == 1 and prob.n_step_responses == 1
     kinds = [(g.kind, tuple(g.loads)) for g in prob.groups]
     assert ("margin", LOADS) in kinds and ("current", (30e3,)) in kinds  # limits stay per load
 

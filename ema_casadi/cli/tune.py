@@ -5,7 +5,7 @@ the step tracking error (--objective), subject in every load case (--loads) to: 
 and phase margins on the position, velocity and current loops (--gm/--pm, or a
 sensitivity peak --ms), overshoot (--overshoot), current and voltage within their
 limits on a step of --step, optional minimum bandwidth and eigenvalue bound. The
-result is verified independently (fresh linearisation, python-control margins, a
+result is verified independently (fresh linearisation, the toolkit's margins, a
 nonlinear step simulation) and written as a parameter file (--out).
 Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir out
 """
@@ -24,7 +24,7 @@ HELP = "tune the loop gains by IPOPT (margins, overshoot, limits; several load c
 
 
 def add_arguments(p):
-    from ..tune import GAINS, OBJECTIVES
+    from ..tuning import GAINS, OBJECTIVES
 
     p.add_argument("--free", default=None, metavar="G1,G2,...",
                    help=f"gains to tune, comma-separated from {', '.join(GAINS)}; default all that act "
@@ -81,7 +81,7 @@ def _loads(text) -> list[float]:
 
 
 def run(args) -> dict:
-    from ..tune import Requirements, TuneError, default_free, plot_tuning, scaled_gains, tune
+    from ..tuning import Requirements, TuneError, default_free, plot_tuning, scaled_gains, tune
 
     out = check_output_path(args.out, (".toml",), "--out")
     plot_dir = None
@@ -159,7 +159,7 @@ def report(r: dict) -> None:
     print(f"requirements: {bound}, overshoot <= {100 * req['overshoot']:g} %, limits on a "
           f"{req['step'] * 1e3:g} mm step; loads {', '.join(f'{f / 1e3:g} kN' for f in r['loads_N'])}")
     if r["active"]:
-        from ..tune import Requirements, describe_constraint
+        from ..tuning import Requirements, describe_constraint
 
         rq = Requirements(**req)
         print("limited by: " + "; ".join(describe_constraint(a, rq) for a in r["active"]))

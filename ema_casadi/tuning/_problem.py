@@ -1,0 +1,356 @@
+"""The Opti problem of one tuning request (:class:`TuningProblem`), solved by IPOPT."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from ..assembly import Model
+from ..frequency import bandwidth, closed_loop
+from ..linearisation import LinearizationError, jacobian_function, operating_point
+from ..params import Parameters
+from ._callbacks import spectral_abscissa
+from ._closed_loop import _LOOP_ORDER, _ClosedLoop
+from ._constraints import (
+    _SHARED, _Group, _bandwidth_groups, _dense_minima, _eigenvalue_group, _limit_groups, _loop_groups,
+    _overshoot_group,
+)
+from ._kernels import _sensitivity_function, _soft_min, _step_states
+from ._requirements import Requirements, TuneError, _goal, _load_label, _request
+from ._scaling import _GainScaling
+
+_EFFORT = 1e-3           # weight of the effort term sum(theta^2)
+#: Exact-penalty weight of the constraint slacks (elastic mode). The constraints are
+#: scaled to O(1) near their boundary (log ratios, or bounded ratios that do not flatten
+#: where the objective pushes: a flat penalty would let the objective win); their
+#: multipliers at a solution are far below this.
+_PENALTY = 1e3
+
+
+class TuningProblem:
+    """The Opti problem for one model, set of free gains, load cases and requirements
+    (the formulation: :mod:`ema_casadi.tuning`).
+
+    Only the closed loop is linearised: with every loop closed, the response of a
+    loop's measurement to its own injection is S - 1, S = 1/(1 + L) the loop's
+    sensitivity (the controller sees measurement + injection), so one factorisation
+    per frequency gives all three loop transfers, and T = 1 - S_x is x_rod/x_cmd.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    params : Parameters
+        Parameter set; its gains are the reference that scales the variables.
+    free : sequence of str, optional
+        Gains to tune (default :func:`~ema_casadi.tuning.default_free`).
+    loads : sequence of float
+        Load cases f_ext (N).
+    requirements : Requirements, optional
+        What every load case must meet (default :class:`Requirements`).
+    objective : {"bandwidth", "tracking"}
+        Maximise the worst-case -3 dB frequency, or minimise the worst-case integrated
+        squared error of the step.
+    start : dict, optional
+        Start values of free gains (SI; default the set's).
+    freqs : array_like, optional
+        Frequency grid (Hz) of the robustness constraints (default 0.5 Hz - 10 kHz,
+        14 per decade).
+
+    Attributes
+    ----------
+    cases : list of OperatingPoint
+        The trimmed operating point of each load case (at the start gains).
+    groups : list
+        The constraint groups (``kind``, ``loads`` in N, ``loop``, ``freqs`` in Hz),
+        load cases with equal linear dynamics sharing one.
+    freqs : ndarray
+        The frequency grid (Hz).
+    model, params, free, requirements
+        As given (``free`` and ``requirements`` completed with their defaults).
+    """
+
+    def __init__(self, model: Model, params: Parameters, free=None, loads=(0.0,),
+                 requirements: Requirements | None = None, objective: str = "bandwidth",
+                 start: dict | None = None, freqs=None):
+        req = _goal(requirements, objective)
+        free, loads, start, freqs = _request(model, params, free, loads, start, freqs)
+        self.model, self.params, self.free, self.requirements = model, params, free, req
+        self._names = list(model.param_names)
+        self._ref = params.as_dict()
+        self.freqs = freqs
+        self._callbacks = []
+        self.cases = self._trim(loads, params.vector(**start))
+        self._opti = ca.Opti()
+        self._scaling = _GainScaling(self._opti, free, self._ref, start)
+        self.groups: list[_Group] = []
+        self._signatures: dict = {}
+        self._trajectories: list = []
+        self._case_step: list[int] = []
+        self._bandwidth_variable(objective)
+        self._loop = _ClosedLoop(model, jacobian_function(model), self._scaling, self.cases)
+        self._S = _sensitivity_function(len(self._loop.keep), 3)
+        self._S_grid = self._S.map(len(self.freqs))
+        ise = [e for e in (self._add_case(op) for op in self.cases) if e is not None]
+        self._objective(objective, ise)
+
+    def _trim(self, loads, p_start) -> list:
+        cases = []
+        for F in loads:
+            try:
+                cases.append(operating_point(self.model, f_ext=F, p=p_start))
+            except LinearizationError as exc:
+                raise TuneError(f"load case {_load_label(F)}: {exc}") from None
+        return cases
+
+    def _bandwidth_variable(self, objective: str) -> None:
+        """f_b (Hz) = 10 exp(fb_log), the worst case's -3 dB frequency, for ``bandwidth``."""
+        self._fb = None
+        if objective == "bandwidth":
+            opti = self._opti
+            self._fb_log = opti.variable()
+            self._fb = 10.0 * ca.exp(self._fb_log)  # Hz
+            opti.subject_to(opti.bounded(math.log(1e-4), self._fb_log, math.log(1e3)))
+            opti.set_initial(self._fb_log, math.log(self._initial_bandwidth() / 10.0))
+
+    def _initial_bandwidth(self) -> float:
+        fb = min(bandwidth(closed_loop(self.model, op), f_min=0.01, f_max=1e4) for op in self.cases)
+        return fb if math.isfinite(fb) else 10.0
+
+    def _objective(self, objective: str, ise: list) -> None:
+        """Elastic constraints and the cost: each group may be relaxed by a slack at an
+        exact-penalty cost, so an infeasible request still converges, to the least
+        violation, and the groups whose slack is left positive are the ones that cannot
+        be met."""
+        opti, theta = self._opti, self._scaling.theta
+        self._slack = opti.variable(len(self.groups))
+        opti.subject_to(self._slack >= 0)
+        opti.set_initial(self._slack, 0)
+        for i, grp in enumerate(self.groups):
+            opti.subject_to(_soft_min(grp.expr) + self._slack[i] >= 0)
+        logs = [theta[i] for i, ls in enumerate(self._scaling.log_scaled) if ls]
+        effort = _EFFORT * ca.sumsqr(ca.vertcat(*logs)) if logs else 0
+        self._J_main = -self._fb_log if objective == "bandwidth" else (ca.mmax(ca.vertcat(*ise)) if len(ise) > 1 else ise[0])
+        opti.minimize(self._J_main + effort + _PENALTY * ca.sum1(self._slack))
+
+    # -- load cases ---------------------------------------------------------------
+    def _same(self, key: str, exprs) -> int | None:
+        """Index of an earlier load case whose ``exprs`` (MX of the gains) are numerically
+        equal at the start gains and at random gains, else None (and remember these).
+
+        Under the small-signal policy the linear dynamics at rest do not depend on the
+        load (only the operating current and voltage do), so the frequency-domain
+        constraints and the step's state trajectory are built once for all loads."""
+        theta0 = self._scaling.theta0
+        f = ca.Function("signature", [self._scaling.theta], [ca.veccat(*exprs)])
+        rng = np.random.default_rng(1)
+        sig = np.concatenate([np.array(f(t)).ravel() for t in (theta0, theta0 + rng.uniform(-1, 1, len(theta0)))])
+        seen = self._signatures.setdefault(key, [])
+        for j, other in seen:
+            if np.allclose(sig, other, rtol=1e-12, atol=0):
+                return j
+        seen.append((len(seen), sig))
+        return None
+
+    def _share(self, kinds, case: int, F: float) -> None:
+        """Let the groups of these kinds built for ``case`` stand for load F too."""
+        for grp in self.groups:
+            if grp.kind in kinds and grp.case == case:
+                grp.loads.append(F)
+
+    def _add_case(self, op):
+        """The constraint groups of one load case; returns its step's ISE (None when an
+        earlier case has the same rod response)."""
+        req, F = self.requirements, op.f_ext
+        A, loop_matrices, (b, Cs, ds) = self._loop.matrices(op)
+        Ak = loop_matrices[0]
+        A_eig = A[self._loop.keep_eig, self._loop.keep_eig]
+        j = self._same("frequency", [A_eig, *loop_matrices])
+        if j is not None:
+            self._share(_SHARED, j, F)
+        else:
+            self._frequency_groups(op, len(self._signatures["frequency"]) - 1, A_eig, loop_matrices)
+        j = self._same("step", [Ak, b])
+        if j is None:
+            self._trajectories.append(_step_states(Ak, b, req.step, req.t_step, self._loop.A_norm))
+            j = len(self._trajectories) - 1
+        self._case_step.append(j)
+        X, t = self._trajectories[j]
+        k = self._same("x_rod", [Ak, b, Cs[0, :], ds[0]])
+        if k is not None:  # same rod response as an earlier load case: its overshoot group
+            self._share(("overshoot",), k, F)
+            ise = None
+        else:
+            grp, ise = _overshoot_group(X, t, Cs[0, :], ds[0], req, F, len(self._signatures["x_rod"]) - 1)
+            self.groups.append(grp)
+        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, self._names))
+        return ise
+
+    def _frequency_groups(self, op, case, A_eig, loop_matrices):
+        """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints."""
+        req, F = self.requirements, op.f_ext
+        G = self._S_grid(*loop_matrices, (2 * np.pi * self.freqs).reshape(1, -1))  # 2 x 3N
+        self.groups.extend(_loop_groups(G, self.freqs, req, self._ref, F, case))
+        self.groups.extend(_bandwidth_groups(self._S, loop_matrices, self._fb, self.freqs, req, F, case))
+        cb = spectral_abscissa(A_eig.shape[0], f"spectral_abscissa_{len(self._callbacks)}")
+        self._callbacks.append(cb)  # keep the callback alive as long as the problem
+        self.groups.append(_eigenvalue_group(cb(A_eig), req, F, case))
+
+    # -- solve --------------------------------------------------------------------
+    def solve(self, max_iter: int = 200, hessian: str = "exact", warm: tuple | None = None) -> dict:
+        """Solve by IPOPT.
+
+        Parameters
+        ----------
+        max_iter : int
+            IPOPT iteration limit.
+        hessian : {"exact", "limited-memory"}
+            Exact (AD) Hessian or L-BFGS.
+        warm : tuple, optional
+            (x, lam_g) of a previous solve of a problem of the same structure (the
+            constraints are aggregated per group, so a refined grid keeps it).
+
+        Returns
+        -------
+        dict
+            ``gains`` (SI, by name), ``stats`` (IPOPT's), ``wall`` (s), ``warm`` (for a
+            next solve), ``groups`` (per group: ``kind``, ``loads``, ``loop``, ``min``,
+            ``slack``, ``at_hz``), ``objective`` (the main cost: -log(f_b / 10 Hz) or the
+            worst-case normalised ISE) and ``f_b`` (Hz, or None).
+        """
+        if hessian not in ("exact", "limited-memory"):
+            raise TuneError(f"hessian '{hessian}' unknown; choose exact or limited-memory")
+        self._opti.solver("ipopt", self._ipopt_options(max_iter, hessian, warm))
+        t0 = time.perf_counter()
+        try:
+            val = self._opti.solve().value
+        except RuntimeError:
+            try:
+                self._opti.stats()
+            except RuntimeError:
+                raise  # not a solver failure: an error building or evaluating the problem
+            val = self._opti.debug.value
+        wall = time.perf_counter() - t0
+        out = self._read_solution(val)
+        out.update(stats=self._opti.stats(), wall=wall)
+        return out
+
+    def _ipopt_options(self, max_iter, hessian, warm) -> dict:
+        # mu_init 1e-2 instead of 0.1: the start is usually feasible or nearly so, and a
+        # smaller initial barrier halves the iterations on the reference problem
+        opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                "ipopt.max_iter": int(max_iter), "ipopt.hessian_approximation": hessian,
+                "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_init": 1e-2}
+        if warm is not None:
+            self._opti.set_initial(self._opti.x, warm[0])
+            self._opti.set_initial(self._opti.lam_g, warm[1])
+            opts.update({"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6,
+                         "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9})
+        return opts
+
+    def _read_solution(self, val) -> dict:
+        theta = np.atleast_1d(np.array(val(self._scaling.theta), float).ravel())
+        # an interior point stops ~1e-8 inside a bound: a linear gain (K_i_x) there is 0
+        theta = np.where(~np.array(self._scaling.log_scaled) & (theta < 1e-6), 0.0, theta)
+        gains = self._scaling.values(theta)
+        groups = []
+        slack = np.atleast_1d(np.array(val(self._slack), float).ravel())
+        for grp, sl in zip(self.groups, slack):
+            v = np.atleast_1d(np.array(val(grp.expr), float).ravel())
+            j = int(np.argmin(v))
+            groups.append({"kind": grp.kind, "loads": list(grp.loads), "loop": grp.loop, "min": float(v[j]),
+                           "slack": float(sl),
+                           "at_hz": float(grp.freqs[j]) if grp.freqs is not None else None})
+        x_lam = (np.array(val(self._opti.x), float).ravel(), np.array(val(self._opti.lam_g), float).ravel())
+        return {"gains": dict(zip(self.free, map(float, gains))), "warm": x_lam,
+                "groups": groups, "objective": float(val(self._J_main)),
+                "f_b": float(val(self._fb)) if self._fb is not None else None}
+
+    def grid_gaps(self, gains: dict, per_decade: int = 100) -> np.ndarray:
+        """Frequencies (Hz) where a margin disk or ECU-rate constraint, checked on a grid
+        ``per_decade`` times denser than the decade, is violated between the points of
+        the optimisation grid (one per local minimum below zero).
+
+        Parameters
+        ----------
+        gains : dict
+            Values of the free gains (SI, by name).
+        per_decade : int
+            Points per decade of the dense check.
+        """
+        theta = self._scaling.theta_of(gains)
+        f = np.logspace(math.log10(self.freqs[0]), math.log10(self.freqs[-1]),
+                        int(per_decade * math.log10(self.freqs[-1] / self.freqs[0])) + 1)
+        out = []
+        for case in range(len(self.cases)):
+            for loop, S in self._sensitivities(case, f, theta).items():
+                out.extend(_dense_minima(f, 1 / S - 1, self.requirements, self._ref, loop))
+        new = [x for x in out if np.min(np.abs(np.log(self.freqs / x))) > 1e-6]
+        return np.unique(np.array(new))
+
+    # -- inspection ---------------------------------------------------------------
+    def _sensitivities(self, case: int, f: np.ndarray, theta: np.ndarray) -> dict:
+        _, loop_matrices, _ = self._loop.matrices(self.cases[case])
+        G = self._S.map(len(f))(*loop_matrices, (2 * np.pi * f).reshape(1, -1))
+        G = np.array(ca.Function("dense", [self._scaling.theta], [G])(theta))
+        return {loop: 1 + G[0, j::3] + 1j * G[1, j::3] for j, loop in enumerate(_LOOP_ORDER)}
+
+    def loop_sensitivities(self, case: int = 0, gains: dict | None = None, freqs=None) -> dict:
+        """The optimiser's loop sensitivities S = 1/(1 + L), each loop broken with the
+        others closed, from its reduced, balanced closed loop.
+
+        Parameters
+        ----------
+        case : int
+            Index of the load case (into :attr:`cases`).
+        gains : dict, optional
+            Values of the free gains (SI, by name; default the start).
+        freqs : array_like, optional
+            Frequencies (Hz; default the problem's grid).
+
+        Returns
+        -------
+        dict
+            Per loop (position, velocity, current): S at ``freqs`` (complex, dimensionless).
+        """
+        theta = self._scaling.theta0 if gains is None else self._scaling.theta_of(gains)
+        f = self.freqs if freqs is None else np.asarray(freqs, float)
+        return self._sensitivities(case, f, theta)
+
+    def step_response(self, case: int = 0, gains: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The optimiser's closed-loop response to the step of ``requirements.step``
+        (exact at the samples: matrix exponential on the doubling time grid).
+
+        Parameters
+        ----------
+        case : int
+            Index of the load case (into :attr:`cases`).
+        gains : dict, optional
+            Values of the free gains (SI, by name; default the start).
+
+        Returns
+        -------
+        t : ndarray
+            Sample times (s) from the step.
+        Y : ndarray
+            Rows x_rod (m), i_q (A), v_d (V), v_q (V): deviations from the operating point.
+        """
+        theta = self._scaling.theta0 if gains is None else self._scaling.theta_of(gains)
+        X, t = self._trajectories[self._case_step[case]]
+        _, _, (_, Cs, ds) = self._loop.matrices(self.cases[case])
+        Y = Cs @ X + ca.repmat(ds * self.requirements.step, 1, X.shape[1])
+        return t, np.array(ca.Function("Y", [self._scaling.theta], [Y])(theta))
+
+    @property
+    def n_linearisations(self) -> int:
+        """Distinct linear dynamics among the load cases (each with its own frequency,
+        bandwidth and eigenvalue constraints)."""
+        return len(self._signatures["frequency"])
+
+    @property
+    def n_step_responses(self) -> int:
+        """Distinct closed-loop state responses to the step among the load cases."""
+        return len(self._trajectories)

@@ -1,0 +1,69 @@
+"""The free gains as decision variables: gain = reference * exp(theta) within
+reference * [1/100, 100]; K_i_x from a zero reference linearly, (K_x^2/4) * theta."""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from ._requirements import TuneError
+
+_BOUND = 100.0  # gains within reference * [1/_BOUND, _BOUND]
+
+
+class _GainScaling:
+    """Variables ``theta`` of one Opti problem and the gains as expressions of them.
+
+    Attributes: ``theta`` (the variables), ``gains`` (MX, SI, in the order of ``free``),
+    ``log_scaled`` (per gain: exp scaling, else linear), ``theta0`` (the start).
+    """
+
+    def __init__(self, opti: ca.Opti, free: tuple, ref: dict, start: dict):
+        self.free, self.ref = free, ref
+        self.theta = opti.variable(len(free))
+        self.log_scaled, exprs, theta0 = [], [], []
+        for i, g in enumerate(free):
+            if g == "K_i_x" and ref[g] == 0.0:
+                s = self._linear_scale()
+                self.log_scaled.append(False)
+                exprs.append(s * self.theta[i])
+                theta0.append(start[g] / s)
+                opti.subject_to(opti.bounded(0, self.theta[i], _BOUND))
+                continue
+            for what, v in (("reference", ref[g]), ("start", start[g])):
+                if v <= 0:
+                    raise TuneError(f"{what} value of {g} must be positive, got {v}")
+            self.log_scaled.append(True)
+            exprs.append(ref[g] * ca.exp(self.theta[i]))
+            theta0.append(math.log(start[g] / ref[g]))
+            opti.subject_to(opti.bounded(-math.log(_BOUND), self.theta[i], math.log(_BOUND)))
+        self.gains = ca.vertcat(*exprs)
+        self.theta0 = np.array(theta0)
+        opti.set_initial(self.theta, self.theta0)
+
+    def _linear_scale(self) -> float:
+        return self.ref["K_x"] ** 2 / 4  # PI zero at K_x/4: the natural size of K_i_x
+
+    def p(self, names: list, base: np.ndarray) -> ca.MX:
+        """The parameter vector ``base`` with the free gains replaced by their expressions."""
+        entries = [ca.MX(float(v)) for v in base]
+        for i, g in enumerate(self.free):
+            entries[names.index(g)] = self.gains[i]
+        return ca.vertcat(*entries)
+
+    def values(self, theta) -> np.ndarray:
+        """Numeric gains (SI, in the order of ``free``) at ``theta``."""
+        return np.array(ca.Function("gains", [self.theta], [self.gains])(theta), float).ravel()
+
+    def theta_of(self, gains: dict) -> np.ndarray:
+        """The variables that give these gains (SI, by name)."""
+        return np.array([math.log(gains[g] / self.ref[g]) if ls else gains[g] / self._linear_scale()
+                         for g, ls in zip(self.free, self.log_scaled)])
+
+    def random_theta(self, rng: np.random.Generator) -> np.ndarray:
+        """Random variables near the start, no gain zero (a zero gain hides the states
+        it drives)."""
+        th = self.theta0 + rng.uniform(-1, 1, len(self.theta0))
+        return np.where(self.log_scaled, th, np.abs(th) + 0.5)

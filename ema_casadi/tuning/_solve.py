@@ -1,0 +1,222 @@
+"""The tuning driver: :func:`tune` solves the problem (refining its frequency grid),
+verifies the result independently and returns a :class:`TuneResult`."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..assembly import Model, build_model
+from ..params import Parameters
+from ._problem import TuningProblem
+from ._report import _message
+from ._requirements import Requirements, TuneError, _goal, _load_label, _request
+from ._verify import verify
+
+_FEAS_TOL = 1e-6         # a normalised constraint below -_FEAS_TOL is violated
+#: At most this many solves: after each, frequencies where a dense (100 per decade)
+#: check of the margin constraints fails are added to the grid (exchange method).
+_ROUNDS = 3
+_ACTIVE = 1e-2           # a group with its smallest normalised value below this is active
+
+
+@dataclass
+class TuneResult:
+    """Outcome of :func:`tune`.
+
+    Attributes
+    ----------
+    success : bool
+        IPOPT converged and the independent verification meets every requirement.
+    status : str
+        IPOPT's return status (e.g. ``Solve_Succeeded``).
+    iterations : int
+        IPOPT iterations, summed over the rounds.
+    rounds : int
+        Solves: after each, frequencies where a dense check finds a margin constraint
+        violated between grid points are added to the grid (at most 3).
+    solve_time, build_time : float
+        Wall times (s) of IPOPT and of building the problems.
+    n_freqs : int
+        Frequencies in the final grid.
+    objective : str
+        ``bandwidth`` or ``tracking``.
+    objective_value : float
+        Worst-case -3 dB frequency f_b (Hz) for ``bandwidth``; the normalised ISE for
+        ``tracking``.
+    gains_before, gains_after : dict
+        Free gains at the start and at the solution (SI).
+    loads : list of float
+        Load cases (N).
+    requirements : Requirements
+    violations : list of dict
+        Constraint groups violated at the returned point (optimiser's model): ``kind``,
+        ``loads``, ``loop``, ``min`` (smallest normalised value, >= 0 is met), ``slack``
+        (elastic relaxation left), ``at_hz``.
+    active : list of dict
+        Constraint groups met with almost no slack (what limits the design), same keys.
+    verification_before, verification_after : dict
+        :func:`verify` at the start and at the result (fresh linearisation, independent of
+        the optimiser).
+    params : Parameters
+        The parameter set with the tuned gains.
+    message : str
+        One line: what happened, naming a violated constraint if any.
+    variants : dict
+        The model's variants.
+    """
+
+    success: bool
+    status: str
+    iterations: int
+    rounds: int
+    solve_time: float
+    build_time: float
+    n_freqs: int
+    objective: str
+    objective_value: float
+    gains_before: dict
+    gains_after: dict
+    loads: list
+    requirements: Requirements
+    violations: list
+    active: list
+    verification_before: dict
+    verification_after: dict
+    params: Parameters
+    message: str
+    variants: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (SI units; frequencies in Hz)."""
+        return {
+            "success": self.success, "status": self.status, "iterations": self.iterations,
+            "rounds": self.rounds, "solve_time_s": self.solve_time, "build_time_s": self.build_time,
+            "n_freqs": self.n_freqs,
+            "objective": self.objective, "objective_value": self.objective_value,
+            "gains_before": self.gains_before, "gains_after": self.gains_after,
+            "loads_N": self.loads, "requirements": self.requirements.as_dict(),
+            "violations": self.violations, "active": self.active, "message": self.message, "variants": self.variants,
+            "before": self.verification_before, "after": self.verification_after,
+        }
+
+    def write(self, path) -> Path:
+        """Write the parameter file with the tuned gains (atomically); returns its path.
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.toml`` file; its header records the objective, IPOPT's status, the
+            loads and the gains.
+        """
+        g = ", ".join(f"{k} = {v:.6g}" for k, v in self.gains_after.items())
+        header = (f"Tuned by ema tune ({self.objective}; IPOPT {self.status}, {self.iterations} iterations)\n"
+                  f"loads {', '.join(_load_label(f) for f in self.loads)}; {g}")
+        return self.params.to_toml(path, header=header)
+
+
+def tune(
+    params: Parameters,
+    variants: dict | None = None,
+    *,
+    free=None,
+    loads=(0.0,),
+    objective: str = "bandwidth",
+    requirements: Requirements | None = None,
+    start: dict | None = None,
+    freqs=None,
+    max_iter: int = 200,
+    hessian: str = "exact",
+    verify_step: float = 1e-3,
+    model: Model | None = None,
+) -> TuneResult:
+    """Tune the cascade's gains by IPOPT (the formulation: :mod:`ema_casadi.tuning`).
+
+    Parameters
+    ----------
+    params : Parameters
+        Parameter set; its gains are the reference that scales the variables.
+    variants : dict, optional
+        Model variants (default the set's own).
+    free : sequence of str, optional
+        Gains to tune (default :func:`default_free`); the others keep their values.
+    loads : sequence of float
+        Load cases f_ext (N); the worst case must meet every requirement.
+    objective : {"bandwidth", "tracking"}
+        Maximise the worst-case -3 dB frequency (Hz), or minimise the worst-case
+        integrated squared error of the step (normalised by the step and 10 ms).
+    requirements : Requirements, optional
+        What every load case must meet (default :class:`Requirements`).
+    start : dict, optional
+        Start values of free gains (SI; default the set's).
+    freqs : array_like, optional
+        Frequency grid (Hz) of the robustness constraints (default 0.5 Hz - 10 kHz,
+        14 per decade), refined where a dense check finds a gap.
+    max_iter : int
+        IPOPT iteration limit (per solve).
+    hessian : {"exact", "limited-memory"}
+        Exact (AD) Hessian or IPOPT's L-BFGS approximation.
+    verify_step : float
+        Amplitude (m) of the nonlinear step simulated before and after (0 skips it).
+    model : Model, optional
+        An already built model for ``params``/``variants``.
+    """
+    req = _goal(requirements, objective)
+    if hessian not in ("exact", "limited-memory"):
+        raise TuneError(f"hessian '{hessian}' unknown; choose exact or limited-memory")
+    if model is None:
+        model = build_model(params, variants)
+    free, loads, start, freqs = _request(model, params, free, loads, start, freqs)
+    t0 = time.perf_counter()
+    out, freqs, rounds, iterations, solve_time = _solve_rounds(
+        model, params, free, loads, req, objective, start, freqs, max_iter, hessian)
+    build_time = time.perf_counter() - t0 - solve_time
+    return _result(model, params, loads, req, objective, start, out, verify_step,
+                   rounds=rounds, iterations=iterations, solve_time=solve_time, build_time=build_time,
+                   n_freqs=len(freqs))
+
+
+def _solve_rounds(model, params, free, loads, req, objective, start, freqs, max_iter, hessian):
+    """Solve, add the frequencies where the dense check fails, re-solve warm started (at
+    most _ROUNDS solves). Returns the last solve's output, the final grid (Hz), the
+    rounds, the summed iterations and the summed IPOPT time (s)."""
+    iterations, solve_time, rounds, warm = 0, 0.0, 0, None
+    for rounds in range(1, _ROUNDS + 1):
+        prob = TuningProblem(model, params, free, loads, req, objective, start, freqs)
+        out = prob.solve(max_iter, hessian, warm)
+        iterations += int(out["stats"].get("iter_count", 0))
+        solve_time += out["wall"]
+        relaxed = any(g["slack"] > _FEAS_TOL for g in out["groups"])
+        gaps = prob.grid_gaps(out["gains"]) if out["stats"].get("success") and not relaxed else []
+        if not len(gaps):
+            break
+        # semi-infinite constraints: add the frequencies where the dense check fails, re-solve
+        freqs = np.sort(np.r_[freqs, gaps])
+        warm = out["warm"]
+    return out, freqs, rounds, iterations, solve_time
+
+
+def _result(model, params, loads, req, objective, start, out, verify_step, **timing) -> TuneResult:
+    """The :class:`TuneResult` of the last solve, verified before and after."""
+    stats = out["stats"]
+    status = str(stats.get("return_status", "unknown"))
+    converged = bool(stats.get("success", False)) and status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    tuned = params.replace(**out["gains"])
+    violations = [g for g in out["groups"] if g["slack"] > _FEAS_TOL or g["min"] < -_FEAS_TOL]
+    active = [g for g in out["groups"] if g not in violations and g["min"] < _ACTIVE]
+
+    before_gains = dict(start)
+    ver_before = verify(model, params.replace(**before_gains), loads, req, nonlinear_step=verify_step)
+    ver_after = verify(model, tuned, loads, req, nonlinear_step=verify_step)
+    success = converged and not violations and ver_after["meets"]
+    message = _message(converged, status, violations, ver_after, req)
+    value = out["f_b"] if objective == "bandwidth" else out["objective"]
+    return TuneResult(
+        success=success, status=status, objective=objective, objective_value=value,
+        gains_before=before_gains, gains_after=out["gains"], loads=loads, requirements=req,
+        violations=violations, active=active, verification_before=ver_before, verification_after=ver_after,
+        params=tuned, message=message, variants=dict(model.variants), **timing,
+    )

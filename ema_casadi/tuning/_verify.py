@@ -1,0 +1,220 @@
+"""Verification of a gain set independently of the optimiser: a fresh trim and AD
+linearisation per load case, the toolkit's loop margins, eigenvalues, bandwidth and a
+python-control linear step; a nonlinear step simulation on the full model."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from ..assembly import Model
+from ..frequency import bandwidth, closed_loop, margins
+from ..linearisation import LinearizationError, linear_model, loop_transfer, operating_point
+from ..params import Parameters
+from ..signals import Signal
+from ..simulation import simulate, step_response_metrics
+from ._requirements import Requirements, _load_label
+
+_F_MS = np.logspace(-2, 5, 701)  # Hz, 100 per decade for the sensitivity peak
+
+
+def _loop_margins(L) -> dict:
+    """Margins of a SISO loop transfer (:func:`ema_casadi.frequency.margins`, crossovers
+    in 0.01 Hz - 100 kHz): ``gm_db`` (signed, the smallest in magnitude: positive = the
+    gain may rise by that much, negative = fall), ``f_pc_hz``, ``gm_up_db`` /
+    ``gm_down_db`` (the smallest rise / fall, inf if none), ``pm_deg`` (smallest angular
+    distance of L to -1 at a gain crossover) and ``f_gc_hz``."""
+    m = margins(L)
+    gms = [c["gm_db"] for c in m.phase_crossovers]
+    up, down = [g for g in gms if g > 0], [-g for g in gms if g <= 0]
+    return {"gm_db": float(m.gm_db), "f_pc_hz": None if m.f_pc_hz is None else float(m.f_pc_hz),
+            "gm_up_db": float(min(up, default=math.inf)), "gm_down_db": float(min(down, default=math.inf)),
+            "pm_deg": float(m.pm_deg), "f_gc_hz": None if m.f_gc_hz is None else float(m.f_gc_hz)}
+
+
+def _check_loops(model, op, label, req, worst, failures) -> dict:
+    """Margins and sensitivity peak of every loop at ``op``; ``worst`` updated and the
+    requirement's failures appended."""
+    import control as ct
+
+    gm_up, pm_req = req.margin_targets()
+    # a lower gain margin (crossing left of -1): GM itself, or 1 + 1/Ms under |1 + L| >= 1/Ms
+    gm_down = gm_up if req.ms is None else 20 * math.log10(1 + 1 / req.ms)
+    loops = {}
+    for name in model.loops:
+        L = loop_transfer(model, name, op)
+        m = _loop_margins(L)
+        m["ms"] = float(np.max(np.abs(1 / (1 + ct.frequency_response(L, 2 * np.pi * _F_MS).complex.ravel()))))
+        loops[name] = m
+        worst["gm_db"] = min(worst["gm_db"], abs(m["gm_db"]))
+        worst["pm_deg"] = min(worst["pm_deg"], m["pm_deg"])
+        worst["ms"] = max(worst["ms"], m["ms"])
+        where = f"{name} loop at {label}"
+        if m["gm_up_db"] < gm_up - 1e-6:
+            failures.append(f"{where}: GM +{m['gm_up_db']:.2f} dB < {gm_up:.3g} dB required")
+        if m["gm_down_db"] < gm_down - 1e-6:
+            failures.append(f"{where}: GM -{m['gm_down_db']:.2f} dB (gain may fall only that much) "
+                            f"< {gm_down:.3g} dB required")
+        if m["pm_deg"] < pm_req - 1e-6:
+            failures.append(f"{where}: PM {m['pm_deg']:.2f} deg < {pm_req:.3g} deg required")
+        if req.ms is not None and m["ms"] > req.ms * (1 + 1e-3):
+            failures.append(f"{where}: sensitivity peak {m['ms']:.4g} > Ms = {req.ms:g}")
+    return loops
+
+
+def _linear_step(model, op, amp, t_end):
+    """Closed-loop linear step (python-control) of amp metres: overshoot, 2 % settling
+    time, peak |i_q| and |v_dq| including the operating values."""
+    import control as ct
+
+    outs = ["x_rod", "i_q", "v_d", "v_q"]
+    lin = linear_model(model, op, inputs=["x_cmd"], outputs=outs)
+    keep = [i for i in range(lin.A.shape[0]) if np.any(lin.A[:, i] != 0) or np.any(lin.C[:, i] != 0)]
+    sys = ct.ss(lin.A[np.ix_(keep, keep)], lin.B[keep], lin.C[:, keep], lin.D)
+    t = np.linspace(0.0, t_end, int(round(t_end / 2e-5)) + 1)  # 20 us: resolves the current peak
+    r = ct.forced_response(sys, t, np.full_like(t, amp))
+    y = np.atleast_2d(r.outputs)
+    x = y[0] / amp
+    i_q = op.output("i_q") + y[1]
+    v = np.hypot(op.output("v_d") + y[2], op.output("v_q") + y[3])
+    m = step_response_metrics(t, x)
+    return {"overshoot": m["overshoot"], "settling_time_s": m["settling_time_s"],
+            "i_q_peak_A": float(np.max(np.abs(i_q))), "v_dq_peak_V": float(np.max(v))}
+
+
+def _check_load(model, op, F, req, limits, worst, failures) -> dict:
+    """Every check at the operating point of load case F (N); ``limits`` = (I_max A,
+    v_lim V)."""
+    label = _load_label(F)
+    loops = _check_loops(model, op, label, req, worst, failures)
+    A = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"]).A
+    keep = [i for i in range(A.shape[0]) if np.any(A[:, i] != 0)]
+    alpha = float(np.max(np.linalg.eigvals(A[np.ix_(keep, keep)]).real))
+    stable = alpha < 0
+    for v in loops.values():
+        v["stable"] = stable
+    if not alpha <= -req.sigma + 1e-9 * max(1.0, abs(alpha)):
+        failures.append(f"{label}: closed-loop eigenvalue at Re = {alpha:.4g} 1/s, right of -sigma = {-req.sigma:g}")
+    bw = bandwidth(closed_loop(model, op), f_min=0.01, f_max=1e4)
+    worst["bandwidth_hz"] = min(worst["bandwidth_hz"], bw)
+    if req.bandwidth_min_hz is not None and bw < req.bandwidth_min_hz * (1 - 1e-6):
+        failures.append(f"{label}: bandwidth {bw:.3g} Hz < {req.bandwidth_min_hz:g} Hz required")
+    st = _linear_step(model, op, req.step, req.t_step)
+    I_max, v_lim = limits
+    if st["overshoot"] > req.overshoot + 1e-4:
+        failures.append(f"{label}: linear step overshoot {100 * st['overshoot']:.2f} % > {100 * req.overshoot:g} %")
+    if st["i_q_peak_A"] > I_max * (1 + 1e-4):
+        failures.append(f"{label}: current peak {st['i_q_peak_A']:.3g} A > I_max {I_max:g} A on a "
+                        f"{req.step * 1e3:g} mm step")
+    if st["v_dq_peak_V"] > v_lim * (1 + 1e-4):
+        failures.append(f"{label}: voltage peak {st['v_dq_peak_V']:.4g} V > {v_lim:.4g} V on a "
+                        f"{req.step * 1e3:g} mm step")
+    return {"f_ext_N": F, "loops": loops, "bandwidth_hz": bw, "spectral_abscissa": alpha,
+            "stable": stable, "step": st}
+
+
+def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Requirements | None = None,
+           nonlinear_step: float = 0.0) -> dict:
+    """Check a gain set independently of the optimiser.
+
+    For every load case a fresh trim and AD linearisation with these gains
+    (:mod:`ema_casadi.linearisation`); per loop, the margins of the loop transfer
+    (:func:`ema_casadi.frequency.margins`, crossovers in 0.01 Hz - 100 kHz; GM is the
+    signed one of smallest magnitude, PM the smallest angular distance to -1), the
+    sensitivity peak and the closed-loop stability; the closed-loop -3 dB bandwidth and
+    the linear step (python-control) with its peaks of current and voltage. Optionally
+    a nonlinear step simulation (:func:`step_metrics`) at no load.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    params : Parameters
+        The parameter set with the gains to check.
+    loads : sequence of float
+        Load cases f_ext (N).
+    requirements : Requirements, optional
+        What every load case must meet (default :class:`Requirements`).
+    nonlinear_step : float
+        Amplitude (m) of a nonlinear step simulated at no load; 0 skips it.
+
+    Returns
+    -------
+    dict
+        ``loads`` (per load label: ``loops`` -> gm_db, f_pc_hz, gm_up_db, gm_down_db,
+        pm_deg, f_gc_hz, ms, stable; ``bandwidth_hz``, ``spectral_abscissa``, ``step``),
+        ``worst`` (smallest |GM|, PM, bandwidth, largest Ms over all), ``meets`` (bool),
+        ``failures`` (list of one-line texts) and ``nonlinear_step`` (or None).
+    """
+    req = requirements or Requirements()
+    p = params.vector()
+    pv = dict(zip(model.param_names, p))
+    limits = (pv["I_max"], pv["k_v"] * pv["V_dc"] / math.sqrt(3))
+    out, failures = {}, []
+    worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf}
+    for F in loads:
+        label = _load_label(F)
+        try:
+            op = operating_point(model, f_ext=F, p=p)
+        except LinearizationError as exc:
+            failures.append(f"{label}: {exc}")
+            continue
+        out[label] = _check_load(model, op, F, req, limits, worst, failures)
+    nl = step_metrics(model, params, nonlinear_step) if nonlinear_step else None
+    return {"loads": out, "worst": worst, "meets": not failures, "failures": failures, "nonlinear_step": nl}
+
+
+def step_metrics(model: Model, params: Parameters, amp: float = 1e-3, *, f_ext: float = 0.0,
+                 t_end: float = 0.4, t0: float = 0.01, band: float = 0.02) -> dict:
+    """Nonlinear step simulation (full model: friction, backlash, limits; CVODES) from
+    rest under the load (trimmed, screw against the loaded flank of the backlash).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    params : Parameters
+        The parameter set (gains included).
+    amp : float
+        Step amplitude (m) at ``t0``.
+    f_ext : float
+        Constant external force (N).
+    t_end : float
+        End time (s).
+    t0 : float
+        Time of the step (s).
+    band : float
+        Settling band (fraction of amp).
+
+    Returns
+    -------
+    dict
+        ``overshoot`` (fraction), ``settling_time_s`` (from the step; inf if it has not
+        settled by t_end), ``rise_time_s`` (10-90 %), ``i_q_peak_A``, ``v_dq_peak_V``,
+        ``x_final_m``, ``amp_m``, ``f_ext_N``, and the series ``t`` (s), ``x_rod`` (m),
+        ``i_q`` (A) for plots.
+    """
+    pv = params.vector()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "inside the backlash gap" at no load: expected here
+        # at rest under the load, the nut against the loaded flank of the gap
+        x0 = operating_point(model, f_ext=f_ext, backlash="keep", p=pv).x
+    res = simulate(model, t_end, x_cmd=Signal.step(amp, t0), f_ext=f_ext, p=pv, x0=x0,
+                   solver="cvodes", dt=1e-4, dt_out=1e-4, rtol=1e-7, atol=1e-10)
+    t, x = res.t, res["x_rod"]
+    # relative to the rest position before the step (a load compresses the screw)
+    x0 = float(np.interp(t0, t, x))
+    after = t >= t0
+    m = step_response_metrics(t[after] - t0, (x[after] - x0) / amp, band)
+    return {
+        "amp_m": amp, "f_ext_N": f_ext,
+        "overshoot": m["overshoot"],
+        "settling_time_s": m["settling_time_s"],
+        "rise_time_s": m["rise_time_s"],
+        "i_q_peak_A": float(np.max(np.abs(res["i_q"]))),
+        "v_dq_peak_V": float(np.max(np.hypot(res["v_d"], res["v_q"]))),
+        "x_final_m": float(x[-1]),
+        "t": t, "x_rod": x, "i_q": res["i_q"],
+    }
