@@ -92,6 +92,15 @@ class Model:
     holds: tuple = ()
     ignored: tuple = ()
     _p0: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: Functions derived from this model (rollouts, integrators, Jacobians), built once
+    #: and kept with it: they live and die with the model (a cache keyed by ``id(f)``
+    #: could hand a new model the functions of a freed one at the same address).
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["cache"] = {}
+        return state
 
     # -- sizes and names -------------------------------------------------------------
     @property

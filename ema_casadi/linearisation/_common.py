@@ -35,7 +35,6 @@ def signal_outputs(model: Model) -> tuple[str, ...]:
     outputs of a linear model."""
     return model.outputs_of("signal")
 
-_JAC: dict = {}
 
 
 def jacobian_function(model: Model) -> ca.Function:
@@ -43,8 +42,8 @@ def jacobian_function(model: Model) -> ca.Function:
 
     Built once per model and cached (a call costs tens of microseconds).
     """
-    entry = _JAC.get(id(model.f))
-    if entry is None or entry[0] is not model.f:
+    J = model.cache.get("jacobians")
+    if J is None:
         x = ca.SX.sym("x", model.nx)
         u = ca.SX.sym("u", model.nu)
         p = ca.SX.sym("p", len(model.param_names))
@@ -54,9 +53,8 @@ def jacobian_function(model: Model) -> ca.Function:
             [xdot, y, ca.jacobian(xdot, x), ca.jacobian(xdot, u), ca.jacobian(y, x), ca.jacobian(y, u)],
             ["x", "u", "p"], ["xdot", "y", "A", "B", "C", "D"],
         )
-        entry = (model.f, J)
-        _JAC[id(model.f)] = entry
-    return entry[1]
+        model.cache["jacobians"] = J
+    return J
 
 
 def _eval(model, x, u, p):

@@ -15,7 +15,6 @@ from ._result import SimulationError, _result, progress_bar
 from ._rk4 import outputs_at
 
 
-_INTEGRATORS: dict = {}
 _INTEGRATORS_MAX = 64
 
 #: Highest BDF order CVODES may use. BDF3 is A(86 deg)-stable, BDF4 only A(73 deg):
@@ -30,8 +29,9 @@ def _segment_integrator(model, sig, a: float, tout: np.ndarray, rtol: float, ato
     """CVODES over [a, tout[-1]] with the signals as expressions of t, cached: the
     parameters are an input, so a sweep or an optimiser re-running one scenario with
     other values reuses the integrator (creating one costs ~2 ms)."""
-    key = (id(model.f), tuple(sig.items()), a, len(tout), float(tout[0]), float(tout[-1]), rtol, atol)
-    if key not in _INTEGRATORS:
+    cache = model.cache.setdefault("cvodes", {})
+    key = (tuple(sig.items()), a, len(tout), float(tout[0]), float(tout[-1]), rtol, atol)
+    if key not in cache:
         x = ca.SX.sym("x", model.nx)
         p = ca.SX.sym("p", len(model.param_names))
         t = ca.SX.sym("t")
@@ -40,10 +40,10 @@ def _segment_integrator(model, sig, a: float, tout: np.ndarray, rtol: float, ato
             u[model.inputs.index(name)] = s.sym(t)
         dae = {"x": x, "p": p, "t": t, "ode": model.f(x, u, p)[0]}
         opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7, "max_order": BDF_MAX_ORDER}
-        if len(_INTEGRATORS) >= _INTEGRATORS_MAX:
-            _INTEGRATORS.pop(next(iter(_INTEGRATORS)))
-        _INTEGRATORS[key] = BufferCall(ca.integrator("F", "cvodes", dae, a, [float(v) for v in tout], opts))
-    return _INTEGRATORS[key]
+        if len(cache) >= _INTEGRATORS_MAX:
+            cache.pop(next(iter(cache)))
+        cache[key] = BufferCall(ca.integrator("F", "cvodes", dae, a, [float(v) for v in tout], opts))
+    return cache[key]
 
 
 def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):

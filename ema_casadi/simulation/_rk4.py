@@ -83,7 +83,6 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
     return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"], opts)
 
 
-_ROLLOUTS: dict = {}
 
 
 def _outputs_only(f: ca.Function) -> ca.Function:
@@ -98,13 +97,13 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
 
     Hybrid models count their mode switches inside the rollout (``count_modes``)."""
     count = model.hybrid
-    key = (id(model.f), zoh, k, M, jit)
-    if key not in _ROLLOUTS:
+    key = ("rollout", zoh, k, M, jit)
+    if key not in model.cache:
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
         parts = [_SOURCE, name, *(g.serialize() for g in (model.f, model.f_held, model.sample, model.project) if g is not None)]
         Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
-        _ROLLOUTS[key] = (BufferCall(Fc), info)
-    return _ROLLOUTS[key]
+        model.cache[key] = (BufferCall(Fc), info)
+    return model.cache[key]
 
 
 #: This module's code determines the generated rollouts: part of their cache key.
@@ -135,21 +134,20 @@ def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: s
 
 
 
-_OUTPUT_MAPS: dict = {}
 _MAP_CHUNK = 1024
 _FEW = 8
 
 
 def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
     """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n)."""
-    key = (id(model.f), jit)
-    if key not in _OUTPUT_MAPS:
+    key = ("outputs_map", jit)
+    if key not in model.cache:
         x = ca.MX.sym("x", model.nx, _MAP_CHUNK)
         u = ca.MX.sym("u", model.nu, _MAP_CHUNK)
         pp = ca.MX.sym("p", len(model.param_names))
         F = ca.Function("outputs_map", [x, u, pp], [model.f.map(_MAP_CHUNK)(x, u, pp)[1]])
-        _OUTPUT_MAPS[key] = BufferCall(compile_function(F, jit)[0])
-    call = _OUTPUT_MAPS[key]
+        model.cache[key] = BufferCall(compile_function(F, jit)[0])
+    call = model.cache[key]
     n = X.shape[1]
     if n <= _FEW:  # a few samples: the plain call beats a compiled 4096-column map
         return np.column_stack([np.asarray(model.f(X[:, i], U[:, i], p)[1]).ravel() for i in range(n)])
