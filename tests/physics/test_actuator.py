@@ -124,7 +124,10 @@ def test_energy_balance_closes(model_cache):
     lhs = np.trapezoid(r["P_dc"], r.t)
     rhs = r["E_stored"][-1] - r["E_stored"][0] + np.trapezoid(losses + r["P_load"], r.t)
     scale = np.trapezoid(np.abs(r["P_dc"]), r.t)
-    assert abs(lhs - rhs) < 2e-4 * scale  # trapezoid error at 2 us spacing
+    # trapezoid error at 2 us spacing: measured 3.7e-6, asserted x5; leaving out the
+    # contact-damping loss alone (2.7e-3) breaks it
+    assert abs(lhs - rhs) < 2e-5 * scale
+    assert np.trapezoid(r["P_contact"], r.t) > 100 * 2e-5 * scale
 
 
 def test_sampled_ecu_stays_close_to_continuous(model_cache):

@@ -224,4 +224,5 @@ def test_smooth_and_hybrid_agree_at_2_percent(params, model_cache, hybrid, f):
     h, t0 = _sine_run(hybrid(), A, f, dt=1e-4)
     s, _ = _sine_run(model_cache(), A, f, solver="cvodes", dt=1e-4, rtol=1e-8, atol=1e-11)
     (gh, ph), (gs, ps) = first_harmonic(h, f, t0), first_harmonic(s, f, t0)
-    assert abs(gh - gs) < 1.0 and abs(ph - ps) < 10.0
+    # measured at most 1.5e-5 dB and 3.8e-4 deg over these frequencies; x3
+    assert abs(gh - gs) < 5e-5 and abs(ph - ps) < 1.2e-3
