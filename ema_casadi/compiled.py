@@ -23,6 +23,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ._files import write_with
+
 __all__ = ["compile_function", "compile_keyed", "cache_dir", "compiler", "BufferCall"]
 
 _lock = threading.Lock()
@@ -85,8 +87,7 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
                     warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=3)
                     return f, info
                 # atomic: other processes see the whole library or none
-                shutil.move(str(tmp_so), str(so.with_suffix(".so.tmp")))
-                os.replace(so.with_suffix(".so.tmp"), so)
+                write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so")
         else:
             info["cached"] = True
         g = ca.external(name, str(so))
@@ -124,9 +125,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     g, info = compile_function(build(), jit)
     if info["compiled"]:
         src = Path(_loaded_path(g))
-        tmp = so.with_suffix(".so.tmp")
-        shutil.copyfile(src, tmp)
-        os.replace(tmp, so)
+        write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so")
     info["compile_time"] = time.perf_counter() - t0
     return g, info
 

@@ -9,15 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ._files import write_text
 from .assembly import build_model
 from .params import Parameters
 from .signals import Signal
 from .simulation import simulate, step_response_metrics
 
-__all__ = ["run_demo", "step_metrics"]
+__all__ = ["run_demo"]
 
 
-def step_metrics(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
+def _step_summary(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
     """Rise time 10-90 % (s), overshoot (%), settling time into +-band (s) and final
     error (m) of a step of y_final at t_step."""
     on = t >= t_step
@@ -31,16 +32,16 @@ def _simulations(model, out: Path, written: list) -> dict:
 
     res = {}
     r = simulate(model, 0.15, Signal.step(1e-3, 0.01), solver="cvodes", dt=1e-4)
-    res["step_1mm"] = step_metrics(r.t, r["x_rod"], 1e-3, 0.01)
+    res["step_1mm"] = _step_summary(r.t, r["x_rod"], 1e-3, 0.01)
     written.append(plot_simulation(r, out / "step_1mm.png", "1 mm step, no load"))
     r = simulate(model, 0.5, Signal.step(20e-3, 0.01), solver="cvodes", dt=1e-4)
     plateau = r["v_rod"][(r.t > 0.1) & (r.t < 0.2)]
-    res["step_20mm"] = {**step_metrics(r.t, r["x_rod"], 20e-3, 0.01), "slew_rate_mm_s": float(np.median(plateau) * 1e3)}
+    res["step_20mm"] = {**_step_summary(r.t, r["x_rod"], 20e-3, 0.01), "slew_rate_mm_s": float(np.median(plateau) * 1e3)}
     written.append(plot_simulation(r, out / "step_20mm.png", "20 mm step: rate limited at 80 mm/s"))
     x_cmd = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
     r = simulate(model, 1.5, x_cmd, 30e3, solver="cvodes", dt=1e-4)
-    losses = {k: float(np.trapezoid(r[k], r.t)) for k in ("P_cu", "P_inv_cond", "P_inv_sw", "P_screw_nut", "P_friction", "P_viscous", "P_contact")}
-    res["sine_30kN"] = {"energy_in_J": float(np.trapezoid(r["P_elec"], r.t)), "losses_J": losses,
+    losses = {k: float(np.trapezoid(r[k], r.t)) for k in model.outputs_of("loss")}
+    res["sine_30kN"] = {"energy_in_J": float(np.trapezoid(r["P_dc"], r.t)), "losses_J": losses,
                         "peak_current_A": float(np.abs(r["i_q"]).max())}
     written.append(plot_simulation(r, out / "sine_30kN.png", "1 mm step + 0.375 mm 1 Hz sine against 30 kN"))
     return res
@@ -138,9 +139,7 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
 
 
 def _write_summary(summary: dict, out: Path) -> None:
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=1, default=float))
-    tmp.replace(out / "summary.json")
+    write_text(out / "summary.json", json.dumps(summary, indent=1, default=float))
     tr = summary["time_responses"]
     lines = [
         f"# ema_casadi demo — {summary['model']}",
@@ -182,6 +181,4 @@ def _write_summary(summary: dict, out: Path) -> None:
               f"{nl['fig14b']['max_phase_diff_deg_30kN_to_5Hz']:.1f}° (paper: < 10°). "
               f"Points not settled: {nl['not_converged']}.", ""]
     lines += ["## Files", ""] + [f"- `{Path(p).name}`" for p in summary["written"]]
-    tmp = out / "summary.md.tmp"
-    tmp.write_text("\n".join(lines) + "\n")
-    tmp.replace(out / "summary.md")
+    write_text(out / "summary.md", "\n".join(lines) + "\n")

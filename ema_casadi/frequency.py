@@ -6,7 +6,7 @@ importing python-control.
 
 Margins of a loop transfer L(s) (negative feedback, closed loop L/(1+L)) are taken
 from its response on a dense log grid (default 0.01 Hz - 100 kHz, 200 points per
-decade), every crossover bracketed on the grid and refined by regula falsi:
+decade), every crossover bracketed on the grid and refined by SciPy's Brent method:
 
 ``pm_deg``
     The smallest phase rotation (lead or lag) that puts L on -1 at a gain crossover

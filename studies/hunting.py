@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
+from ema_casadi._files import write_text
 from ema_casadi import Signal
 from ema_casadi.plotting import plt, save
 
@@ -179,9 +180,7 @@ def main(argv=None) -> int:
               "model": str(args.model), "variants": {"motor": "pmsm", "screw": "elastic", "inverter": "ideal",
                                                       "controller": "PI"}}
     js = out / "hunting.json"
-    tmp = js.with_name(js.name + ".tmp")
-    tmp.write_text(json.dumps(result, indent=2))
-    tmp.replace(js)
+    write_text(js, json.dumps(result, indent=2))
     print(f"\nwrote {png} and {js}")
     return 0
 
