@@ -19,7 +19,21 @@ __all__ = ["run_demo", "step_metrics"]
 
 def step_metrics(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
     """Rise time 10-90 % (s), overshoot (%), settling time into +-band (s) and final
-    error (m) of a step of y_final at t_step."""
+    error (m) of a step of y_final at t_step.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times (s).
+    y : ndarray
+        Rod position (m).
+    y_final : float
+        Step height (m).
+    t_step : float
+        Step time (s).
+    band : float
+        Settling band as a fraction of ``y_final`` (-).
+    """
     on = t >= t_step
     m = step_response_metrics(t[on] - t_step, y[on] / y_final, band)
     return {"rise_time_s": m["rise_time_s"], "overshoot_pct": 100 * m["overshoot"],
@@ -110,7 +124,17 @@ def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool
 
 
 def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True) -> dict:
-    """Run the demo and write its files into ``out``. Returns the summary dict."""
+    """Run the demo and write its files into ``out``. Returns the summary dict.
+
+    Parameters
+    ----------
+    params : Parameters
+        Parameter set (its variants are the model's).
+    out : str or Path
+        Output folder (created).
+    progress : bool
+        Print a line per stage.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

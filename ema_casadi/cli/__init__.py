@@ -129,6 +129,13 @@ def build_parser():
 
 
 def main(argv=None) -> int:
+    """Run the ``ema`` command line and return its exit status.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments after the program name (default ``sys.argv[1:]``).
+    """
     parser, mods = build_parser()
     args = parser.parse_args(argv)
     mod = mods[args.command]

@@ -50,6 +50,15 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
     at -0.8 mm/s while its position repeated every five steps).
     With ``count_modes`` the (augmented) state carries two more entries at its end:
     the stick flag after the step and the running number of stick/slip switches.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    zoh : bool
+        Sampled ECU: augment the state with the held controller outputs.
+    count_modes : bool
+        Carry the stick flag and the switch count in the state (hybrid friction).
     """
     nx, nu = model.nx, model.nu
     nh = len(model.holds) if zoh else 0
@@ -141,7 +150,21 @@ _FEW = 8
 
 
 def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
-    """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n)."""
+    """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    X : ndarray
+        States (SI), one column per sample.
+    U : ndarray
+        Inputs (SI), one column per sample.
+    p : ndarray
+        Parameter vector (SI).
+    jit : bool
+        Compile the mapped output function to native code (cached on disk).
+    """
     key = (id(model.f), jit)
     if key not in _OUTPUT_MAPS:
         x = ca.MX.sym("x", model.nx, _MAP_CHUNK)
