@@ -34,7 +34,7 @@ import numpy as np
 
 from ._kwargs import check_keywords
 from .components import AssemblyError, Bus, Output, der, parts_for, validate_variants
-from .params import Parameters, ParameterError
+from .params import ParameterError, Parameters
 
 __all__ = ["Model", "build_model", "AssemblyError"]
 
@@ -205,7 +205,7 @@ class Model:
             Parameter vector in ``param_names`` order (SI); default the model's set.
         """
         pv = self.p() if p is None else p
-        return SimpleNamespace(**dict(zip(self.param_names, pv)))
+        return SimpleNamespace(**dict(zip(self.param_names, pv, strict=True)))
 
     def u(self, p=None, **values: float) -> np.ndarray:
         """Numeric input vector by name; missing inputs take their declared default

@@ -260,7 +260,7 @@ class Parameters:
             d[k] = float(v)
         return np.array([d[n] for n in self.names()], dtype=float)
 
-    def replace(self, **values: float) -> "Parameters":
+    def replace(self, **values: float) -> Parameters:
         """A copy with some flat parameters changed (validated like a file).
 
         Parameters

@@ -79,7 +79,8 @@ def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None)
             raise SignalError(f"'{text}': a percentage needs the stroke")
         return value / 100 * stroke
     if unit not in units:
-        raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{', %' if kind == 'length' else ''})")
+        percent = ", %" if kind == "length" else ""
+        raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{percent})")
     return value * units[unit]
 
 
@@ -223,14 +224,14 @@ class Signal:
     def breakpoints(self) -> list[float]:
         return sorted({b for term in self.terms for b in term.breakpoints()})
 
-    def __add__(self, other: "Signal") -> "Signal":
+    def __add__(self, other: Signal) -> Signal:
         return Signal(self.terms + other.terms, f"{self.text}+{other.text}".strip("+"))
 
     def __repr__(self):
         return f"Signal({self.text!r})"
 
     @staticmethod
-    def step(amp: float, t0: float = 0.0) -> "Signal":
+    def step(amp: float, t0: float = 0.0) -> Signal:
         """Step of ``amp`` at ``t0``.
 
         Parameters
@@ -243,7 +244,7 @@ class Signal:
         return Signal((_Term("step", a=amp, t0=t0),), f"step:{amp}@{t0}")
 
     @staticmethod
-    def ramp(rate: float, t0: float = 0.0) -> "Signal":
+    def ramp(rate: float, t0: float = 0.0) -> Signal:
         """Ramp of ``rate`` from ``t0``.
 
         Parameters
@@ -256,7 +257,7 @@ class Signal:
         return Signal((_Term("ramp", a=rate, t0=t0),), f"ramp:{rate}@{t0}")
 
     @staticmethod
-    def sine(amp: float, freq: float, t0: float = 0.0) -> "Signal":
+    def sine(amp: float, freq: float, t0: float = 0.0) -> Signal:
         """``amp`` sin(2 pi freq (t - t0)) from ``t0`` on.
 
         Parameters
@@ -271,7 +272,7 @@ class Signal:
         return Signal((_Term("sine", a=amp, f0=freq, t0=t0),), f"sine:{amp}@{freq}@{t0}")
 
     @staticmethod
-    def chirp(amp: float, f0: float, f1: float, duration: float, t0: float = 0.0) -> "Signal":
+    def chirp(amp: float, f0: float, f1: float, duration: float, t0: float = 0.0) -> Signal:
         """Linear frequency sweep from ``f0`` to ``f1``.
 
         Parameters
@@ -288,7 +289,7 @@ class Signal:
         return Signal((_Term("chirp", a=amp, f0=f0, f1=f1, t0=t0, T=duration),), f"chirp:{amp}@{f0}-{f1}")
 
     @staticmethod
-    def table(t, values) -> "Signal":
+    def table(t, values) -> Signal:
         """Linear interpolation of (t, values), held constant outside.
 
         Parameters

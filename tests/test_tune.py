@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import Signal, frequency as fr, linearize as lz, simulate
+from ema_casadi import Signal, simulate
+from ema_casadi import frequency as fr
+from ema_casadi import linearize as lz
 from ema_casadi import tune as T
 from ema_casadi.cli import main
 
@@ -41,7 +43,10 @@ def _step(model, params, amp=1e-3, t0=0.01, t_end=0.4):
     t, x = res.t, res["x_rod"] / amp
     after = t >= t0
     out = np.nonzero(np.abs(x[after] - 1) > 0.02)[0]
-    settle = t[after][out[-1] + 1] - t0 if len(out) and out[-1] + 1 < after.sum() else (0.0 if not len(out) else math.inf)
+    if not len(out):
+        settle = 0.0
+    else:
+        settle = t[after][out[-1] + 1] - t0 if out[-1] + 1 < after.sum() else math.inf
     return max(0.0, x.max() - 1), settle
 
 
@@ -99,7 +104,8 @@ def test_optimiser_loop_transfers_equal_fresh_linearisation(params, model_cache,
     prob = T._Problem(model, params, free, [0.0, 30e3], T.Requirements(), "tracking", start, f)
     for op in prob.cases:
         _, (Ak, B3, C3, D3), _ = prob._closed_loop(op)
-        G = np.array(ca.Function("G", [prob.theta], [prob.S_grid(Ak, B3, C3, D3, (2 * np.pi * f).reshape(1, -1))])(prob.theta0))
+        S = prob.S_grid(Ak, B3, C3, D3, (2 * np.pi * f).reshape(1, -1))
+        G = np.array(ca.Function("G", [prob.theta], [S])(prob.theta0))
         fresh = lz.operating_point(model, f_ext=op.f_ext, p=params.vector(**start))
         for j, loop in enumerate(T._LOOP_ORDER):
             S = 1 + G[0, j::3] + 1j * G[1, j::3]
@@ -113,7 +119,8 @@ def test_step_constraint_samples_equal_python_control(params, model_cache):
     model = model_cache()
     free = T.default_free(model)
     req = T.Requirements(step=1e-4, t_step=0.05)
-    prob = T._Problem(model, params, free, [30e3], req, "tracking", T.scaled_gains(params, 1.0, free), np.logspace(0, 3, 4))
+    start = T.scaled_gains(params, 1.0, free)
+    prob = T._Problem(model, params, free, [30e3], req, "tracking", start, np.logspace(0, 3, 4))
     X, t = prob._trajectories[0]
     op = prob.cases[0]
     _, _, (b, Cs, ds) = prob._closed_loop(op)

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params import ParameterError
-from ..signals import SignalError
 from ..export import ExportError
 from ..linearize import LinearizationError
+from ..params import ParameterError
+from ..signals import SignalError
 from ..simulation import SimulationError
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL"]

@@ -22,10 +22,10 @@ A state's derivative is the signal ``der(NAME)`` (see :func:`der`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Callable, ClassVar
-
+from typing import ClassVar
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Part", "Bus", "AssemblyError", "der",
@@ -215,7 +215,7 @@ class Part:
         """Providers: ``{name or tuple of names: fn(bus) -> expr or tuple}``."""
         return {}
 
-    def project(self, prev: "Bus", now: "Bus"):
+    def project(self, prev: Bus, now: Bus):
         """Discrete map applied after each step (hybrid parts): returns
         ``({state name: new value}, stick flag)`` or None for a continuous part.
 
@@ -289,7 +289,7 @@ class Bus:
             self._busy.pop()
         names = key if isinstance(key, tuple) else (key,)
         vals = val if isinstance(key, tuple) else (val,)
-        for n, v in zip(names, vals):
+        for n, v in zip(names, vals, strict=True):
             self._cache[n] = self._wrap[n](self, v) if n in self._wrap else v
         return self._cache[name]
 

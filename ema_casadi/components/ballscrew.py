@@ -118,8 +118,9 @@ def play_rate(x_in, v_in, x_play, B):
 # ---- parts: the screw owns the drive-train mechanics (shaft and rod) ------------------
 # Signals every screw provides besides its outputs: x_in, v_in (nut side), v_contact
 # (velocity at the friction contact), F_drive (force driving the contact: screw or
-# referred motor force minus the rod load, before friction and viscous), x_rod_mech, v_rod_mech (the rod's mechanical motion: what an end stop
-# touches; the rigid screw's x_rod is the position signal after the play), T_load.
+# referred motor force minus the rod load, before friction and viscous), x_rod_mech,
+# v_rod_mech (the rod's mechanical motion: what an end stop touches; the rigid screw's
+# x_rod is the position signal after the play), T_load.
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
 

@@ -89,7 +89,8 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
         out += [stick, n_switch + ca.fabs(stick - stick_prev)]
     # the stick tests repeat the contact-force expression: merge common subexpressions
     opts = {"cse": True} if model.hybrid else {}
-    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"], opts)
+    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"],
+                       ["x_next"], opts)
 
 
 _ROLLOUTS: dict = {}
@@ -110,7 +111,8 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
     key = (id(model.f), zoh, k, M, jit)
     if key not in _ROLLOUTS:
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
-        parts = [_SOURCE, name, *(g.serialize() for g in (model.f, model.f_held, model.sample, model.project) if g is not None)]
+        functions = (model.f, model.f_held, model.sample, model.project)
+        parts = [_SOURCE, name, *(g.serialize() for g in functions if g is not None)]
         Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
         _ROLLOUTS[key] = (BufferCall(Fc), info)
     return _ROLLOUTS[key]
@@ -228,7 +230,8 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
     y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
     Y_all = np.column_stack([y0, Y_out])
-    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh,
+            **cinfo}
     if model.hybrid:
         # the mode decided inside each step (identical to the rule in f except at the
         # instant of a band crossing) and the switches counted at every step
