@@ -1,4 +1,4 @@
-# ema_casadi — make demo | make test | make bench
+# ema_casadi — make demo | make test (ruff, then pytest) | make bench
 # Every target creates or refreshes .venv and installs the package (editable) into it.
 PYTHON ?= python3
 VENV   := .venv
@@ -20,6 +20,7 @@ demo: $(STAMP)
 	$(BIN)/ema demo --out $(OUT)
 
 test: $(STAMP)
+	$(BIN)/ruff check ema_casadi tests benchmarks studies
 	$(BIN)/python -m pytest -q -n 2
 
 test-all: $(STAMP)

@@ -35,6 +35,7 @@ import numpy_model  # noqa: E402
 
 import ema_casadi as ema  # noqa: E402
 from ema_casadi import sinestream as fr  # noqa: E402
+
 # the peer reuses the package's own settling loop and starting states (private on purpose)
 from ema_casadi.sinestream import _kernels, _run  # noqa: E402
 
@@ -97,7 +98,8 @@ def main():
     ap.add_argument("--quick", action="store_true", help="run the peer on the subset only (extrapolate)")
     args = ap.parse_args()
     load = os.getloadavg()[0]
-    print(f"cores {os.cpu_count()}, load average {load:.2f}" + ("  (machine busy: timings are pessimistic)" if load > 0.5 else ""))
+    busy = "  (machine busy: timings are pessimistic)" if load > 0.5 else ""
+    print(f"cores {os.cpu_count()}, load average {load:.2f}{busy}")
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
     amps, freqs = grid(params)
 
@@ -136,7 +138,8 @@ def main():
         peer_wall, peer_res = run_peer(tasks, P)
         how = "measured on the full grid"
     # agreement where both computed
-    dg = max(abs(20 * math.log10(abs(r["H"])) - resp.data["gain_db"][0, 0, ia, jf]) for (_, ia, jf), r in peer_res.items())
+    dg = max(abs(20 * math.log10(abs(r["H"])) - resp.data["gain_db"][0, 0, ia, jf])
+             for (_, ia, jf), r in peer_res.items())
     dp = max(abs(((math.degrees(np.angle(r["H"])) - resp.data["phase_deg"][0, 0, ia, jf]) + 180) % 360 - 180)
              for (_, ia, jf), r in peer_res.items())
     print(f"scipy LSODA full grid: {peer_wall:.1f} s ({how}); largest difference to ema_casadi "

@@ -55,15 +55,17 @@ def main():
             x = make(s)
             cold = time.perf_counter() - t0
             if err(x) <= TOL:
-                wall, x = timed(lambda: make(s), repeat) if repeat > 1 else (cold, x)
+                wall, x = timed(lambda s=s: make(s), repeat) if repeat > 1 else (cold, x)
                 rows.append((name, s, wall, cold, err(x)))
                 makers[name] = lambda s=s: make(s)
-                print(f"{name:38s} {s!s:18s} {wall * 1e3:10.1f} ms (first run {cold * 1e3:.1f} ms)  err {err(x) * 1e6:.3f} um", flush=True)
+                print(f"{name:38s} {s!s:18s} {wall * 1e3:10.1f} ms (first run {cold * 1e3:.1f} ms)  "
+                      f"err {err(x) * 1e6:.3f} um", flush=True)
                 return
         print(f"{name}: no setting reached {TOL * 1e6} um", flush=True)
 
     # ema_casadi: CVODES and compiled RK4 (compile time reported separately)
-    ladder("ema_casadi cvodes", lambda tol: ema.simulate(model, T_END, X_CMD, solver="cvodes", dt=1e-3, rtol=tol, atol=tol * 1e-3)["x_rod"],
+    ladder("ema_casadi cvodes",
+           lambda tol: ema.simulate(model, T_END, X_CMD, solver="cvodes", dt=1e-3, rtol=tol, atol=tol * 1e-3)["x_rod"],
            [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8], repeat=5)
     t0 = time.perf_counter()
     first = ema.simulate(model, T_END, X_CMD, dt=5e-6, dt_out=1e-3)
@@ -79,14 +81,18 @@ def main():
 
         edges = [0.0, 0.01, 0.5, T_END]  # restart at the command's breakpoints, as ema_casadi does
         x0, xs = np.zeros(9), []
-        for a, b in zip(edges[:-1], edges[1:]):
+        for a, b in zip(edges[:-1], edges[1:], strict=True):
             sel = GRID[(GRID >= a) & (GRID < b)] if b < T_END else GRID[GRID >= a]
             sol = solve_ivp(f, (a, b), x0, method=method, t_eval=sel, rtol=rtol, atol=rtol * 1e-3)
             xs.append(sol.y[7])
-            x0 = sol.y[:, -1] if sol.t[-1] == b else solve_ivp(f, (sol.t[-1], b), sol.y[:, -1], method=method, rtol=rtol, atol=rtol * 1e-3).y[:, -1]
+            if sol.t[-1] == b:
+                x0 = sol.y[:, -1]
+            else:
+                x0 = solve_ivp(f, (sol.t[-1], b), sol.y[:, -1], method=method, rtol=rtol, atol=rtol * 1e-3).y[:, -1]
         return np.concatenate(xs)
 
-    ladder("scipy solve_ivp LSODA (NumPy RHS)", lambda tol: scipy_run("LSODA", tol), [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=5)
+    ladder("scipy solve_ivp LSODA (NumPy RHS)", lambda tol: scipy_run("LSODA", tol),
+           [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=5)
     if not args.quick:
         ladder("scipy solve_ivp RK45 (NumPy RHS)", lambda tol: scipy_run("RK45", tol), [1e-4, 1e-6, 1e-8], repeat=1)
         import control as ct
@@ -94,11 +100,14 @@ def main():
         def ct_run(method, rtol):
             sys_ = ct.nlsys(lambda t, x, u, params: numpy_model.rhs(t, x, float(X_CMD(t)), 0.0, P["eta"], P),
                             lambda t, x, u, params: x[7], states=9, inputs=0, outputs=1, name="ema")
-            kw = {"solve_ivp_method": method, "solve_ivp_kwargs": {"rtol": rtol, "atol": rtol * 1e-3}} if method else {"solve_ivp_kwargs": {"rtol": rtol, "atol": rtol * 1e-3}}
+            kw = {"solve_ivp_kwargs": {"rtol": rtol, "atol": rtol * 1e-3}}
+            if method:
+                kw["solve_ivp_method"] = method
             return ct.input_output_response(sys_, GRID, 0, np.zeros(9), **kw).outputs
 
         ladder("python-control nlsys (default RK45)", lambda tol: ct_run(None, tol), [1e-4, 1e-6, 1e-8], repeat=1)
-        ladder("python-control nlsys (LSODA)", lambda tol: ct_run("LSODA", tol), [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=1)
+        ladder("python-control nlsys (LSODA)", lambda tol: ct_run("LSODA", tol),
+               [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], repeat=1)
 
     # headline ratio, robust to the machine's drift: the fastest ema_casadi method and
     # the fastest SciPy method timed alternately, 15 rounds, medians
@@ -111,7 +120,7 @@ def main():
             makers[name]()
             acc.append(time.perf_counter() - t0)
     m_ours, m_peer = statistics.median(t_ours), statistics.median(t_peer)
-    ratios = sorted(b / a for a, b in zip(t_ours, t_peer))
+    ratios = sorted(b / a for a, b in zip(t_ours, t_peer, strict=True))
     print(f"\nalternating, 15 rounds: {ours} {m_ours * 1e3:.1f} ms, {peer} {m_peer * 1e3:.1f} ms: "
           f"ratio of medians {m_peer / m_ours:.1f}x (per-round ratios {ratios[0]:.1f}-{ratios[-1]:.1f}x, "
           f"median {statistics.median(ratios):.1f}x)")

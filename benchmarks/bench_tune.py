@@ -70,7 +70,8 @@ def main(argv=None):
         return 0
     print(f"three-load tuning from 0.2 x reference gains, {args.repeat} runs each "
           f"(load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores)")
-    print("\n| Hessian | IPOPT status | iterations (rounds) | build (s) | IPOPT (s) | tune() total (s) | bandwidth (Hz) | < 30 s |")
+    print("\n| Hessian | IPOPT status | iterations (rounds) | build (s) | IPOPT (s) | tune() total (s) "
+          "| bandwidth (Hz) | < 30 s |")
     print("|---|---|---|---|---|---|---|---|")
     for hess, r in rows.items():
         m, run = r["median"], r["runs"][-1]

@@ -18,15 +18,20 @@ apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine
 
 from .assembly import AssemblyError, Model, build_model
 from .components import DEFAULT_VARIANTS, REGISTRY, VARIANTS
+from .export import ExportError, export_function, load_linear, save_linear
+from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
+from .linearisation import (
+    LinearizationError,
+    OperatingPointError,
+    linear_model,
+    linearize,
+    loop_transfer,
+    operating_point,
+)
 from .params import ParameterError, Parameters, load_parameters
 from .signals import Signal, SignalError, parse_signal
 from .simulation import SimResult, SimulationError, simulate
-from .linearisation import (
-    LinearizationError, OperatingPointError, linear_model, linearize, loop_transfer, operating_point,
-)
-from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
-from .export import ExportError, export_function, load_linear, save_linear
-from .sinestream import FreqResponse, FreqRespError, sine_stream
+from .sinestream import FreqRespError, FreqResponse, sine_stream
 from .tuning import Requirements, TuneError, TuneResult, tune
 
 __version__ = "0.1.0"

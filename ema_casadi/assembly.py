@@ -32,8 +32,9 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
+from ._kwargs import check_keywords
 from .components import AssemblyError, Bus, Output, der, parts_for, validate_variants
-from .params import Parameters, ParameterError
+from .params import ParameterError, Parameters
 
 __all__ = ["Model", "build_model", "AssemblyError"]
 
@@ -134,19 +135,43 @@ class Model:
         return {n: s.unit for n, s in self.state_info.items()}
 
     def index(self, name: str) -> int:
-        """Index of a state by name."""
+        """Index of a state by name.
+
+        Parameters
+        ----------
+        name : str
+            State name (``model.states``).
+        """
         return self.states.index(name)
 
     def yindex(self, name: str) -> int:
-        """Index of an output by name."""
+        """Index of an output by name.
+
+        Parameters
+        ----------
+        name : str
+            Output name (``model.outputs``).
+        """
         return self.outputs.index(name)
 
     def states_with(self, role: str) -> tuple[str, ...]:
-        """Names of the states that declare ``role`` (see :class:`~ema_casadi.components.State`)."""
+        """Names of the states that declare ``role``.
+
+        Parameters
+        ----------
+        role : str
+            A state role (see :class:`~ema_casadi.components.State`), e.g. ``rod_position``.
+        """
         return tuple(n for n, s in self.state_info.items() if role in s.roles)
 
     def state_with(self, role: str) -> str:
-        """The name of the one state with ``role``; AssemblyError if there is not exactly one."""
+        """The name of the one state with ``role``; AssemblyError if there is not exactly one.
+
+        Parameters
+        ----------
+        role : str
+            A state role (see :class:`~ema_casadi.components.State`).
+        """
         names = self.states_with(role)
         if len(names) != 1:
             raise AssemblyError(f"the model has {len(names)} states with role '{role}', expected one")
@@ -158,12 +183,27 @@ class Model:
         return frozenset(n for part in self.parts for n in part.params)
 
     def outputs_of(self, kind: str) -> tuple[str, ...]:
-        """Names of the outputs of a kind (``signal``, ``loss``, ``power``, ...)."""
+        """Names of the outputs of a kind.
+
+        Parameters
+        ----------
+        kind : str
+            One of :data:`~ema_casadi.components.OUTPUT_KINDS` (``signal``, ``loss``, ``power``, ...).
+        """
         return tuple(n for n, o in self.output_info.items() if o.kind == kind)
 
     # -- numeric vectors -------------------------------------------------------------
     def p(self, params: Parameters | None = None, **overrides) -> np.ndarray:
-        """Numeric parameter vector (defaults: the model's own set)."""
+        """Numeric parameter vector (defaults: the model's own set).
+
+        Parameters
+        ----------
+        params : Parameters, optional
+            Parameter set (default the model's).
+        **overrides : float
+            Flat parameter values by name (SI); an unknown name raises
+            :class:`~ema_casadi.params.UnknownParameterError` (a TypeError).
+        """
         if params is None and not overrides:  # the common case, cached (params are frozen)
             if self._p0 is None:
                 self._p0 = self.params.vector()
@@ -171,26 +211,44 @@ class Model:
         return (params or self.params).vector(**overrides)
 
     def pdict(self, p=None) -> SimpleNamespace:
-        """Parameter values by name (attribute access), from ``p`` or the model's set."""
-        pv = self.p() if p is None else p
-        return SimpleNamespace(**dict(zip(self.param_names, pv)))
+        """Parameter values by name (attribute access), from ``p`` or the model's set.
 
-    def _check_inputs(self, values: dict):
-        for k in values:
-            if k not in self.input_info:
-                raise KeyError(f"unknown input '{k}'; inputs are {', '.join(self.inputs)}")
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector in ``param_names`` order (SI); default the model's set.
+        """
+        pv = self.p() if p is None else p
+        return SimpleNamespace(**dict(zip(self.param_names, pv, strict=True)))
 
     def u(self, p=None, **values: float) -> np.ndarray:
         """Numeric input vector by name; missing inputs take their declared default
-        (``eta``: the parameter set's efficiency; injections 0)."""
-        self._check_inputs(values)
+        (``eta``: the parameter set's efficiency; injections 0).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector the defaults are read from (default the model's set).
+        **values : float
+            Input values by name (SI, the unit in ``model.input_info``); an unknown name
+            raises TypeError.
+        """
+        check_keywords("Model.u", values, self.inputs)
         P = self.pdict(p)
         return np.array([float(values[n]) if n in values else _default(self.input_info[n], P) for n in self.inputs])
 
     def u_expr(self, p, **values) -> ca.SX:
-        """Symbolic or numeric input column by name, defaults as :meth:`u` (``p`` may be
-        a symbol: defaults that name a parameter are read from it)."""
-        self._check_inputs(values)
+        """Symbolic or numeric input column by name, defaults as :meth:`u`.
+
+        Parameters
+        ----------
+        p : casadi.SX or array_like
+            Parameter vector (may be a symbol: defaults that name a parameter are read
+            from it).
+        **values : casadi.SX or float
+            Input values by name (SI); an unknown name raises TypeError.
+        """
+        check_keywords("Model.u_expr", values, self.inputs)
         P = SimpleNamespace(**{n: p[i] for i, n in enumerate(self.param_names)})
         return ca.vertcat(*[values[n] if n in values else _default(self.input_info[n], P) for n in self.inputs])
 
@@ -199,12 +257,24 @@ class Model:
         return np.array([s.x0 for s in self.state_info.values()], dtype=float)
 
     def full_scale(self, p=None) -> np.ndarray:
-        """Full-scale magnitude of every state (SI), as the parts declare it."""
+        """Full-scale magnitude of every state (SI), as the parts declare it.
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
         P = self.pdict(p)
         return np.array([float(s.scale(P)) for s in self.state_info.values()])
 
     def travel(self, p=None) -> dict[str, float]:
-        """Position-like states -> rod travel (m) per unit of the state."""
+        """Position-like states -> rod travel (m) per unit of the state.
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
         P = self.pdict(p)
         return {n: float(s.travel(P)) for n, s in self.state_info.items() if s.travel is not None}
 

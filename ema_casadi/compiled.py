@@ -50,8 +50,20 @@ def compiler() -> str | None:
 def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dict]:
     """Return a native version of ``f`` (or ``f`` itself without a compiler).
 
-    Returns (function, info) where info holds ``compiled`` (bool), ``cached`` (bool,
-    loaded without compiling) and ``compile_time`` (s).
+    Parameters
+    ----------
+    f : casadi.Function
+        The function to compile (C code generated, built once and cached on disk).
+    jit : bool
+        False returns ``f`` unchanged.
+
+    Returns
+    -------
+    function : casadi.Function
+        The native function, or ``f``.
+    info : dict
+        ``compiled`` (bool), ``cached`` (bool, loaded without compiling) and
+        ``compile_time`` (s).
     """
     global _warned
     info = {"compiled": False, "cached": False, "compile_time": 0.0}
@@ -103,8 +115,21 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     library is loaded without building the Function at all. Building a long
     ``mapaccum`` rollout takes ~1 s, longer than loading it.
 
-    ``key_parts``: strings or bytes that determine the generated code; ``build()``
-    returns the Function (only called on a cache miss or without ``jit``).
+    Parameters
+    ----------
+    name : str
+        File-name stem of the cached library.
+    key_parts : iterable of str or bytes
+        What determines the generated code; hashed into the cache key.
+    build : callable
+        ``build() -> casadi.Function``; only called on a cache miss or without ``jit``.
+    jit : bool
+        False builds and returns the Function uncompiled.
+
+    Returns
+    -------
+    function, info
+        As :func:`compile_function`.
     """
     if not jit or compiler() is None:
         return compile_function(build(), jit)
@@ -144,6 +169,11 @@ class BufferCall:
     (~100 ns each), which dominates long rollouts; ``Function.buffer`` reads and
     writes column-major NumPy memory directly. Each thread gets its own buffer (and
     CasADi memory), so one BufferCall may be used from several threads at once.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        The function called.
     """
 
     def __init__(self, f: ca.Function):

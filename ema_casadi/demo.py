@@ -20,7 +20,21 @@ __all__ = ["run_demo"]
 
 def _step_summary(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
     """Rise time 10-90 % (s), overshoot (%), settling time into +-band (s) and final
-    error (m) of a step of y_final at t_step."""
+    error (m) of a step of y_final at t_step.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times (s).
+    y : ndarray
+        Rod position (m).
+    y_final : float
+        Step height (m).
+    t_step : float
+        Step time (s).
+    band : float
+        Settling band as a fraction of ``y_final`` (-).
+    """
     on = t >= t_step
     m = step_response_metrics(t[on] - t_step, y[on] / y_final, band)
     return {"rise_time_s": m["rise_time_s"], "overshoot_pct": 100 * m["overshoot"],
@@ -36,7 +50,8 @@ def _simulations(model, out: Path, written: list) -> dict:
     written.append(plot_simulation(r, out / "step_1mm.png", "1 mm step, no load"))
     r = simulate(model, 0.5, Signal.step(20e-3, 0.01), solver="cvodes", dt=1e-4)
     plateau = r["v_rod"][(r.t > 0.1) & (r.t < 0.2)]
-    res["step_20mm"] = {**_step_summary(r.t, r["x_rod"], 20e-3, 0.01), "slew_rate_mm_s": float(np.median(plateau) * 1e3)}
+    res["step_20mm"] = {**_step_summary(r.t, r["x_rod"], 20e-3, 0.01),
+                        "slew_rate_mm_s": float(np.median(plateau) * 1e3)}
     written.append(plot_simulation(r, out / "step_20mm.png", "20 mm step: rate limited at 80 mm/s"))
     x_cmd = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
     r = simulate(model, 1.5, x_cmd, 30e3, solver="cvodes", dt=1e-4)
@@ -61,7 +76,8 @@ def _frequency(model, out: Path, written: list) -> dict:
         b = bode(T, f)
         b["label"] = f"x_rod/x_cmd, f_ext = {load / 1e3:g} kN"
         curves.append(b)
-        at = {fx: (float(np.interp(fx, f, b["mag_db"])), float(np.interp(fx, f, b["phase_deg"]))) for fx in (1, 2, 5, 10)}
+        at = {fx: (float(np.interp(fx, f, b["mag_db"])), float(np.interp(fx, f, b["phase_deg"])))
+              for fx in (1, 2, 5, 10)}
         res["closed_loop"][f"{load / 1e3:g}kN"] = {
             "bandwidth_3db_hz": float(bandwidth(T)),
             "at_hz": {str(k): {"mag_db": v[0], "phase_deg": v[1]} for k, v in at.items()},
@@ -69,8 +85,8 @@ def _frequency(model, out: Path, written: list) -> dict:
     written.append(plot_bode(curves, out / "bode_closed_loop.png", title="closed loop x_rod/x_cmd (small signal)"))
     op0 = operating_point(model)
     K = dynamic_stiffness(model, op0, f)
-    written.append(plot_bode([{"freq_hz": f, "mag_db": K["mag_db"] - 120, "phase_deg": K["phase_deg"], "label": "-f_ext/x_rod"}],
-                             out / "dynamic_stiffness.png", title="dynamic stiffness (0 dB = 1 N/um)",
+    stiffness = {"freq_hz": f, "mag_db": K["mag_db"] - 120, "phase_deg": K["phase_deg"], "label": "-f_ext/x_rod"}
+    written.append(plot_bode([stiffness], out / "dynamic_stiffness.png", title="dynamic stiffness (0 dB = 1 N/um)",
                              mag_label="stiffness (dB re 1 N/um)"))
     res["static_stiffness_N_per_m"] = float(K["magnitude"][0])
     m = loop_margins(model, op0)
@@ -104,14 +120,25 @@ def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool
     res["fig14a"] = rows
     c0, c30 = b.curve(load=0.0), b.curve(load=30e3)
     fb = np.asarray(b.axes["frequency"])
-    res["fig14b"] = {"max_phase_diff_deg_30kN_to_5Hz": float(np.abs(c30["phase_deg"] - c0["phase_deg"])[fb <= 5.0].max())}
+    phase_diff = np.abs(c30["phase_deg"] - c0["phase_deg"])[fb <= 5.0]
+    res["fig14b"] = {"max_phase_diff_deg_30kN_to_5Hz": float(phase_diff.max())}
     res["not_converged"] = len(a.not_converged()) + len(b.not_converged())
     res["wall_time_s"] = {"fig14a": a.info.get("wall_time"), "fig14b": b.info.get("wall_time")}
     return res
 
 
 def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True) -> dict:
-    """Run the demo and write its files into ``out``. Returns the summary dict."""
+    """Run the demo and write its files into ``out``. Returns the summary dict.
+
+    Parameters
+    ----------
+    params : Parameters
+        Parameter set (its variants are the model's).
+    out : str or Path
+        Output folder (created).
+    progress : bool
+        Print a line per stage.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -153,7 +180,8 @@ def _write_summary(summary: dict, out: Path) -> None:
     ]
     for k in ("step_1mm", "step_20mm"):
         m = tr[k]
-        lines.append(f"| {k} | {m['rise_time_s'] * 1e3:.1f} | {m['overshoot_pct']:.2f} | {m['settling_time_s'] * 1e3:.1f} |")
+        lines.append(f"| {k} | {m['rise_time_s'] * 1e3:.1f} | {m['overshoot_pct']:.2f} | "
+                     f"{m['settling_time_s'] * 1e3:.1f} |")
     lines += ["", f"Slew rate on the 20 mm step: {tr['step_20mm']['slew_rate_mm_s']:.2f} mm/s (limit 80).", ""]
     s = tr["sine_30kN"]
     lines += ["Against 30 kN (1 mm step + 0.375 mm, 1 Hz sine, 1.5 s): electrical input "
@@ -168,7 +196,8 @@ def _write_summary(summary: dict, out: Path) -> None:
               "|---|---|---|---|---|---|---|"]
     for k, m in summary["margins"].items():
         lines.append(f"| {k} | {m['gm_db']:.1f} | {m['f_pc_hz'] or float('nan'):.3g} | {m['pm_deg']:.1f} | "
-                     f"{m['f_gc_hz'] or float('nan'):.3g} | {m['disk_margin']:.2f} | {'yes' if m['meets_requirement'] else 'NO'} |")
+                     f"{m['f_gc_hz'] or float('nan'):.3g} | {m['disk_margin']:.2f} | "
+                     f"{'yes' if m['meets_requirement'] else 'NO'} |")
     lines.append("")
     nl = summary["nonlinear_frequency_response"]
     lines += ["## Nonlinear frequency response (sine stream, paper Fig. 14)", "",
@@ -176,7 +205,8 @@ def _write_summary(summary: dict, out: Path) -> None:
               "|---|---|---|---|---|---|"]
     for amp, r in nl["fig14a"].items():
         g = r["gain_db_at"]
-        lines.append(f"| {amp} | {r['max_dev_db_0.1_6Hz']:.2f} | {g['1.5']:.2f} | {g['2.5']:.2f} | {g['5.0']:.2f} | {r['phase_deg_at_5Hz']:.1f} |")
+        lines.append(f"| {amp} | {r['max_dev_db_0.1_6Hz']:.2f} | {g['1.5']:.2f} | {g['2.5']:.2f} | {g['5.0']:.2f} | "
+                     f"{r['phase_deg_at_5Hz']:.1f} |")
     lines += ["", f"Fig. 14b: largest phase difference between 30 kN and no load up to 5 Hz at 0.5 %: "
               f"{nl['fig14b']['max_phase_diff_deg_30kN_to_5Hz']:.1f}° (paper: < 10°). "
               f"Points not settled: {nl['not_converged']}.", ""]

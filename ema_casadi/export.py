@@ -150,9 +150,18 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, unit
 def load_linear(path: str | Path) -> tuple[LinearModel, dict]:
     """Read a file written by :func:`save_linear`.
 
-    Returns (LinearModel without operating-point object, dict with the operating point
-    as saved: ``x``, ``u``, ``y``, ``x_cmd``, ``f_ext``, ``v_rod``, names, parameters,
-    policy, variants).
+    Parameters
+    ----------
+    path : str or Path
+        A ``.json``, ``.npz`` or ``.mat`` file (the format from the suffix).
+
+    Returns
+    -------
+    lin : LinearModel
+        The model, without an operating-point object.
+    op : dict
+        The operating point as saved: ``x``, ``u``, ``y`` (SI), ``x_cmd`` (m),
+        ``f_ext`` (N), ``v_rod`` (m/s), names, parameters, policy, variants.
     """
     path = Path(path)
     fmt = _format_of(path, None, LINEAR_FORMATS)
@@ -202,7 +211,13 @@ def load_linear(path: str | Path) -> tuple[LinearModel, dict]:
 
 
 def model_signature(model: Model) -> dict:
-    """Names and units of x, u, p and y, the variants and the parameter values."""
+    """Names and units of x, u, p and y, the variants and the parameter values.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    """
     return {
         "function": "f(x, u, p) -> (xdot, y)",
         "variants": dict(model.variants),
@@ -226,7 +241,10 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     fmt : {"casadi", "c"}, optional
         Default: from the suffix (``.casadi`` or ``.c``).
 
-    Returns the paths written (the file(s) and the ``.json`` sidecar).
+    Returns
+    -------
+    list of Path
+        The paths written (the file(s) and the ``.json`` sidecar).
     """
     path = Path(path)
     fmt = _format_of(path, fmt, FUNCTION_FORMATS)

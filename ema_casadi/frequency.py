@@ -38,6 +38,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from ._kwargs import check_keywords, keywords_of
 from .assembly import Model
 from .linearisation import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
 
@@ -48,9 +49,20 @@ __all__ = [
 
 REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
 
+#: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearize.operating_point`.
+_OP_KEYWORDS = keywords_of(operating_point)
+
 
 def frequency_grid(f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200) -> np.ndarray:
-    """Log-spaced frequencies (Hz)."""
+    """Log-spaced frequencies (Hz).
+
+    Parameters
+    ----------
+    f_min, f_max : float
+        The ends (Hz), 0 < f_min < f_max.
+    per_decade : int
+        Points per decade.
+    """
     if not (0 < f_min < f_max):
         raise ValueError(f"frequency range must satisfy 0 < f_min < f_max, got {f_min}, {f_max}")
     n = max(2, int(math.ceil(per_decade * math.log10(f_max / f_min))) + 1)
@@ -70,6 +82,7 @@ def freqresp(sys, f_hz) -> np.ndarray:
     Parameters
     ----------
     sys : LinearModel or control.StateSpace
+        The system (its A, B, C, D are used).
     f_hz : array_like
         Frequencies (Hz).
     """
@@ -101,6 +114,15 @@ def bode(sys, f_hz=None, *, input: str | None = None, output: str | None = None)
     Returns a dict with ``freq_hz``, ``mag_db`` (20 log10 |H|, in dB re the system's
     SI unit ratio), ``phase_deg`` (unwrapped, starting in (-180, 180] at the lowest
     frequency) and ``response`` (complex).
+
+    Parameters
+    ----------
+    sys : LinearModel or control.StateSpace
+        The system; SISO unless ``input`` or ``output`` picks a pair.
+    f_hz : array_like, optional
+        Frequencies (Hz); default 0.1 Hz - 2 kHz, 100 points per decade.
+    input, output : str, optional
+        Input and output names of the pair (default the first of each).
     """
     if input is not None or output is not None:
         sys = _select(sys, input, output)
@@ -129,6 +151,29 @@ class LoopMargins:
     """Stability margins of one loop (see the module docstring for definitions).
 
     Frequencies in Hz, gains in dB, phases in degrees, delays in s.
+
+    Attributes
+    ----------
+    loop : str
+        Loop name.
+    gm_db, f_pc_hz : float
+        Gain margin (dB) and its phase-crossover frequency (Hz, None without one).
+    pm_deg, f_gc_hz : float
+        Phase margin (deg) and its gain-crossover frequency (Hz, None without one).
+    disk_margin : float
+        Balanced disk margin alpha (-).
+    disk_gm_db, disk_pm_deg : float
+        The gain (dB) and phase (deg) variations the disk margin allows.
+    f_disk_hz : float
+        Frequency of the disk margin (Hz).
+    delay_margin_s : float
+        Smallest loop delay that destabilises (s).
+    stable : bool
+        Whether the nominal closed loop is stable.
+    gain_crossovers, phase_crossovers : list of dict
+        Every crossover: ``f_hz`` with ``pm_deg`` (signed) or ``gm_db``.
+    outer : str
+        ``closed`` or ``open``: how the other loops were taken (:func:`loop_margins`).
     """
 
     loop: str
@@ -147,7 +192,15 @@ class LoopMargins:
     outer: str = "closed"
 
     def meets(self, gm_db: float = REQUIREMENT["gm_db"], pm_deg: float = REQUIREMENT["pm_deg"]) -> bool:
-        """Stable with |GM| >= gm_db (either direction) and PM >= pm_deg."""
+        """Stable with |GM| >= gm_db (either direction) and PM >= pm_deg.
+
+        Parameters
+        ----------
+        gm_db : float
+            Required gain margin (dB).
+        pm_deg : float
+            Required phase margin (deg).
+        """
         return bool(self.stable and abs(self.gm_db) >= gm_db and self.pm_deg >= pm_deg)
 
     def as_dict(self) -> dict:
@@ -295,20 +348,27 @@ def loop_margins(
     Parameters
     ----------
     model : Model
+        The assembled model.
     op : OperatingPoint, optional
         Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     loops : "all", a loop name or a sequence of them
+        The loop breaks.
     outer : {"closed", "open"}
         Other loops closed (loop-at-a-time, default) or the outer ones opened.
     f_min, f_max, per_decade
-        Crossover search window and grid (see :func:`margins`).
+        Crossover search window (Hz) and grid (points per decade), see :func:`margins`.
+    **op_kwargs
+        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
+        unknown keyword raises TypeError.
     """
+    check_keywords("loop_margins", op_kwargs, _OP_KEYWORDS)
     if op is None:
-        op = operating_point(model, **op_kwargs)
+        op, op_kwargs = operating_point(model, **op_kwargs), {}
     names = list(model.loops) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
     out = {}
     for name in names:
-        L = loop_model(model, name, op, outer=outer)
+        L = loop_model(model, name, op, outer=outer, **op_kwargs)  # op and op_kwargs both: refused there
         m = margins(L, f_min=f_min, f_max=f_max, per_decade=per_decade, loop=name)
         m.outer = outer
         out[name] = m
@@ -317,7 +377,20 @@ def loop_margins(
 
 # ---------------------------------------------------------------------------------
 def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> LinearModel:
-    """Closed-loop x_rod/x_cmd (m/m) as a SISO :class:`LinearModel`."""
+    """Closed-loop x_rod/x_cmd (m/m) as a SISO :class:`LinearModel`.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    op : OperatingPoint, optional
+        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+    **op_kwargs
+        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
+        unknown keyword raises TypeError.
+    """
+    check_keywords("closed_loop", op_kwargs, _OP_KEYWORDS)
     lin = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"], **op_kwargs)
     lin.name = "T_x"
     return lin
@@ -325,7 +398,20 @@ def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> 
 
 def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> LinearModel:
     """Closed-loop x_rod/f_ext (m/N) as a SISO :class:`LinearModel` (negative at low
-    frequency: a positive force pushes the rod in)."""
+    frequency: a positive force pushes the rod in).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    op : OperatingPoint, optional
+        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+    **op_kwargs
+        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
+        unknown keyword raises TypeError.
+    """
+    check_keywords("compliance", op_kwargs, _OP_KEYWORDS)
     lin = linear_model(model, op, inputs=["f_ext"], outputs=["x_rod"], **op_kwargs)
     lin.name = "compliance"
     return lin
@@ -336,7 +422,21 @@ def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None,
 
     Returns a dict with ``freq_hz``, ``stiffness`` (complex, N/m), ``magnitude`` (N/m),
     ``mag_db`` (dB re 1 N/m) and ``phase_deg``.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    op : OperatingPoint, optional
+        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+    f_hz : array_like, optional
+        Frequencies (Hz); default 0.1 Hz - 2 kHz, 100 points per decade.
+    **op_kwargs
+        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
+        unknown keyword raises TypeError.
     """
+    check_keywords("dynamic_stiffness", op_kwargs, _OP_KEYWORDS)
     G = compliance(model, op, **op_kwargs)
     f = frequency_grid(0.1, 2e3, 100) if f_hz is None else np.asarray(f_hz, float)
     K = -1.0 / freqresp(G, f)[0, 0]
@@ -346,7 +446,17 @@ def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None,
 
 def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1e5) -> float:
     """Lowest frequency (Hz) at which |H| falls to ``level_db`` below its value at f_min
-    (refined between grid points); inf if it never does."""
+    (refined between grid points); inf if it never does.
+
+    Parameters
+    ----------
+    sys : LinearModel or control.StateSpace
+        A SISO system.
+    level_db : float
+        The level relative to the low-frequency gain (dB).
+    f_min, f_max : float
+        Search window (Hz).
+    """
     _siso(sys)
     f = frequency_grid(f_min, f_max, 200)
     db = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
@@ -363,7 +473,13 @@ def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1
 
 def modes(sys) -> list[dict]:
     """Oscillatory modes of A: natural frequency (Hz) and damping ratio, one per pair,
-    sorted by frequency."""
+    sorted by frequency.
+
+    Parameters
+    ----------
+    sys : LinearModel or control.StateSpace
+        The system (its A is used).
+    """
     lam = np.linalg.eigvals(_abcd(sys)[0])
     out = []
     for z in lam[lam.imag > 0]:

@@ -28,6 +28,7 @@ from ._files import write_text
 
 __all__ = [
     "ParameterError",
+    "UnknownParameterError",
     "Parameters",
     "load_parameters",
     "GROUPS",
@@ -37,6 +38,11 @@ __all__ = [
 class ParameterError(ValueError):
     """A parameter file or variant choice is invalid. The message is one line that
     names the file and the key and says what was expected."""
+
+
+class UnknownParameterError(ParameterError, TypeError):
+    """A keyword naming no parameter (:meth:`Parameters.vector`, :meth:`Parameters.replace`):
+    a ParameterError like any bad parameter, a TypeError like any unexpected keyword."""
 
 
 # Value checks ---------------------------------------------------------------------
@@ -172,6 +178,10 @@ def _nearest(name: str, options) -> str:
     return f" (did you mean '{match[0]}'?)" if match else ""
 
 
+def _unknown(func: str, key: str, names) -> str:
+    return f"{func}() got an unexpected keyword argument '{key}': no parameter of that name{_nearest(key, names)}"
+
+
 def _variant_table(model, src: str) -> dict[str, str]:
     """The [model] table: variant key -> value names (checked against the registry of
     parts when a model is built)."""
@@ -189,6 +199,16 @@ class Parameters:
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
     :meth:`names` order for the CasADi model's parameter input.
+
+    Attributes
+    ----------
+    actuator, screw, friction, motor, power, control, thermal, endstop : dataclass
+        The parameter groups of :data:`GROUPS`, each value in the SI unit its field
+        declares (:meth:`units`).
+    variants : dict
+        The default variant choice of the set (its ``[model]`` table).
+    source : str
+        Where the set came from (a file path), named in error messages.
     """
 
     actuator: Actuator
@@ -226,26 +246,46 @@ class Parameters:
         return out
 
     def vector(self, **overrides: float) -> np.ndarray:
-        """Flat numeric vector for the model's ``p`` input; ``overrides`` by flat name."""
+        """Flat numeric vector for the model's ``p`` input.
+
+        Parameters
+        ----------
+        **overrides : float
+            Values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
+        """
         d = self.as_dict()
         for k, v in overrides.items():
             if k not in d:
-                raise ParameterError(f"unknown parameter '{k}'{_nearest(k, d)}")
+                raise UnknownParameterError(_unknown("Parameters.vector", k, d))
             d[k] = float(v)
         return np.array([d[n] for n in self.names()], dtype=float)
 
-    def replace(self, **values: float) -> "Parameters":
-        """A copy with some flat parameters changed (validated like a file)."""
+    def replace(self, **values: float) -> Parameters:
+        """A copy with some flat parameters changed (validated like a file).
+
+        Parameters
+        ----------
+        **values : float
+            New values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
+        """
         raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
         for k, v in values.items():
             if k not in flat_group:
-                raise ParameterError(f"unknown parameter '{k}'{_nearest(k, flat_group)}")
+                raise UnknownParameterError(_unknown("Parameters.replace", k, flat_group))
             raw[flat_group[k]][k] = v
         return _build(raw, self.variants, self.source, plain=True)
 
     def to_toml(self, path: str | Path, header: str = "") -> Path:
-        """Write the set as a parameter file (atomically: no half-written file)."""
+        """Write the set as a parameter file (atomically: no half-written file).
+
+        Parameters
+        ----------
+        path : str or Path
+            The TOML file to write.
+        header : str
+            Text written as comment lines at the top.
+        """
         lines = [f"# {line}" for line in header.splitlines()] if header else []
         lines += ["[model]"] + [f'{k} = "{v}"' for k, v in self.variants.items()]
         for g, cls in GROUPS.items():

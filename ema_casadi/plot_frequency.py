@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
 from .plotting import save  # sets the Agg backend before pyplot is imported
-
-import matplotlib.pyplot as plt  # noqa: E402
 
 __all__ = ["plot_bode", "plot_loop_margins"]
 
@@ -114,7 +113,7 @@ def plot_loop_margins(loops: dict, path: str | Path, *, title: str = "") -> Path
     """
     n = len(loops)
     fig, axes = plt.subplots(2, n, figsize=(5.2 * n, 7), sharex="col", squeeze=False)
-    for j, (name, (bode, m)) in enumerate(loops.items()):
+    for j, (bode, m) in enumerate(loops.values()):
         ax_m, ax_p = axes[0, j], axes[1, j]
         ax_m.semilogx(bode["freq_hz"], bode["mag_db"], lw=1.3)
         ax_p.semilogx(bode["freq_hz"], bode["phase_deg"], lw=1.3)

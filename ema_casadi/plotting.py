@@ -36,7 +36,17 @@ def save(fig, path: str | Path) -> Path:
 
 
 def plot_simulation(res, path: str | Path, title: str = "") -> Path:
-    """Command and rod position, rod velocity, current, voltage against time."""
+    """Command and rod position, rod velocity, current, voltage against time.
+
+    Parameters
+    ----------
+    res : SimResult
+        The simulation.
+    path : str or Path
+        The image file written.
+    title : str
+        Figure title.
+    """
     t = res.t
     fig, ax = plt.subplots(4, 1, figsize=(8, 9), sharex=True)
     ax[0].plot(t, res["x_cmd"] * 1e3, "k--", lw=1, label="x_cmd")

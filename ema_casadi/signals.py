@@ -55,8 +55,16 @@ _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None) -> float:
     """Read ``text`` as a quantity of ``kind`` and return it in SI.
 
-    ``bare`` is the unit of a number without suffix; ``%`` is a percentage of
-    ``stroke`` (lengths only).
+    Parameters
+    ----------
+    text : str
+        A number with an optional unit suffix (``"10kN"``, ``"2 mm"``, ``"5%"``).
+    kind : {"length", "force", "rate", "frequency", "time", "dimensionless", "angular_velocity", "current"}
+        Quantity; sets the allowed unit suffixes.
+    bare : str
+        Unit of a number without suffix (e.g. ``"mm"``).
+    stroke : float, optional
+        Stroke (m): ``%`` is a percentage of it (lengths only).
     """
     text = text.strip()
     m = re.fullmatch(rf"({_NUM})\s*([^\d\s]*)", text)
@@ -71,7 +79,8 @@ def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None)
             raise SignalError(f"'{text}': a percentage needs the stroke")
         return value / 100 * stroke
     if unit not in units:
-        raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{', %' if kind == 'length' else ''})")
+        percent = ", %" if kind == "length" else ""
+        raise SignalError(f"'{text}': unknown {kind} unit '{unit}' (use {', '.join(units)}{percent})")
     return value * units[unit]
 
 
@@ -175,7 +184,18 @@ class _Term:
 
 @dataclass(frozen=True)
 class Signal:
-    """A scalar input signal u(t) in SI units: a sum of terms."""
+    """A scalar input signal u(t) in SI units: a sum of terms.
+
+    Build one with :meth:`step`, :meth:`ramp`, :meth:`sine`, :meth:`chirp`,
+    :meth:`table`, :func:`constant` or :func:`parse_signal`, and add them with ``+``.
+
+    Attributes
+    ----------
+    terms : tuple
+        The terms summed (private term records).
+    text : str
+        The description the signal was built from (for reports).
+    """
 
     terms: tuple = field(default_factory=tuple)
     text: str = ""
@@ -189,7 +209,13 @@ class Signal:
         return out
 
     def sym(self, t):
-        """CasADi expression of the symbol t."""
+        """CasADi expression of the symbol t.
+
+        Parameters
+        ----------
+        t : casadi.SX or casadi.MX
+            Time symbol (s).
+        """
         out = 0 * t
         for term in self.terms:
             out = out + term.sym(t)
@@ -198,35 +224,81 @@ class Signal:
     def breakpoints(self) -> list[float]:
         return sorted({b for term in self.terms for b in term.breakpoints()})
 
-    def __add__(self, other: "Signal") -> "Signal":
+    def __add__(self, other: Signal) -> Signal:
         return Signal(self.terms + other.terms, f"{self.text}+{other.text}".strip("+"))
 
     def __repr__(self):
         return f"Signal({self.text!r})"
 
     @staticmethod
-    def step(amp: float, t0: float = 0.0) -> "Signal":
-        """Step of ``amp`` (SI) at ``t0`` (s)."""
+    def step(amp: float, t0: float = 0.0) -> Signal:
+        """Step of ``amp`` at ``t0``.
+
+        Parameters
+        ----------
+        amp : float
+            Step height (SI unit of the input it drives: m, N, ...).
+        t0 : float
+            Step time (s).
+        """
         return Signal((_Term("step", a=amp, t0=t0),), f"step:{amp}@{t0}")
 
     @staticmethod
-    def ramp(rate: float, t0: float = 0.0) -> "Signal":
-        """Ramp of ``rate`` (SI per second) from ``t0`` (s)."""
+    def ramp(rate: float, t0: float = 0.0) -> Signal:
+        """Ramp of ``rate`` from ``t0``.
+
+        Parameters
+        ----------
+        rate : float
+            Slope (SI unit of the input per second, e.g. m/s).
+        t0 : float
+            Start time (s).
+        """
         return Signal((_Term("ramp", a=rate, t0=t0),), f"ramp:{rate}@{t0}")
 
     @staticmethod
-    def sine(amp: float, freq: float, t0: float = 0.0) -> "Signal":
-        """``amp`` sin(2 pi freq (t - t0)) from ``t0`` on (freq in Hz)."""
+    def sine(amp: float, freq: float, t0: float = 0.0) -> Signal:
+        """``amp`` sin(2 pi freq (t - t0)) from ``t0`` on.
+
+        Parameters
+        ----------
+        amp : float
+            Amplitude (SI unit of the input).
+        freq : float
+            Frequency (Hz).
+        t0 : float
+            Start time (s).
+        """
         return Signal((_Term("sine", a=amp, f0=freq, t0=t0),), f"sine:{amp}@{freq}@{t0}")
 
     @staticmethod
-    def chirp(amp: float, f0: float, f1: float, duration: float, t0: float = 0.0) -> "Signal":
-        """Linear sweep f0 -> f1 (Hz) over ``duration`` (s)."""
+    def chirp(amp: float, f0: float, f1: float, duration: float, t0: float = 0.0) -> Signal:
+        """Linear frequency sweep from ``f0`` to ``f1``.
+
+        Parameters
+        ----------
+        amp : float
+            Amplitude (SI unit of the input).
+        f0, f1 : float
+            Start and end frequency (Hz).
+        duration : float
+            Sweep time (s).
+        t0 : float
+            Start time (s).
+        """
         return Signal((_Term("chirp", a=amp, f0=f0, f1=f1, t0=t0, T=duration),), f"chirp:{amp}@{f0}-{f1}")
 
     @staticmethod
-    def table(t, values) -> "Signal":
-        """Linear interpolation of (t, values), held constant outside."""
+    def table(t, values) -> Signal:
+        """Linear interpolation of (t, values), held constant outside.
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s), at least two, strictly increasing.
+        values : array_like
+            Values at ``t`` (SI unit of the input).
+        """
         t = np.asarray(t, float)
         v = np.asarray(values, float)
         if t.ndim != 1 or t.shape != v.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
@@ -235,7 +307,13 @@ class Signal:
 
 
 def constant(value: float) -> Signal:
-    """A constant signal."""
+    """A constant signal.
+
+    Parameters
+    ----------
+    value : float
+        The value (SI unit of the input).
+    """
     return Signal((_Term("const", a=float(value)),), f"{value}")
 
 

@@ -49,8 +49,8 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi._files import write_text
 from ema_casadi import Signal
+from ema_casadi._files import write_text
 from ema_casadi.plotting import plt, save
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,7 +65,7 @@ def hunting(res, t_from: float) -> dict:
     amp = 0.5 * float(np.ptp(e))
     mid, band = 0.5 * (e.max() + e.min()), 0.5 * amp
     ups, low = [], False  # upward passes through mid + band/2 after being below mid - band/2
-    for ti, ei in zip(t, e):
+    for ti, ei in zip(t, e, strict=True):
         if ei < mid - 0.5 * band:
             low = True
         elif low and ei > mid + 0.5 * band:
@@ -76,7 +76,10 @@ def hunting(res, t_from: float) -> dict:
 
 
 def run_case(model, p, t_end, dt, solver, repeats, dt_out):
-    kw = dict(dt=dt, dt_out=dt_out, p=p) if solver == "rk4" else dict(dt=dt_out, p=p, solver="cvodes", rtol=1e-8, atol=1e-11)
+    if solver == "rk4":
+        kw = dict(dt=dt, dt_out=dt_out, p=p)
+    else:
+        kw = dict(dt=dt_out, p=p, solver="cvodes", rtol=1e-8, atol=1e-11)
     res = ema.simulate(model, t_end, STEP, **kw)  # warm-up: compiles (or loads) the rollout
     walls = []
     for _ in range(repeats):
@@ -89,8 +92,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", default=str(ROOT / "models" / "cesa_ema.toml"), help="parameter file (TOML)")
     ap.add_argument("--out", default="out", help="folder for hunting.png and hunting.json (default out/)")
-    ap.add_argument("--k-i-x", type=float, default=3000.0, help="position-loop integral gain K_i_x (1/s^2); default 3000")
-    ap.add_argument("--t-end", type=float, default=4.0, help="simulated time (s); hunting is measured over its second half")
+    ap.add_argument("--k-i-x", type=float, default=3000.0,
+                    help="position-loop integral gain K_i_x (1/s^2); default 3000")
+    ap.add_argument("--t-end", type=float, default=4.0,
+                    help="simulated time (s); hunting is measured over its second half")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per case (median); default 3")
     ap.add_argument("--dt-out", type=float, default=1e-3,
                     help="spacing of the kept samples (s), the same for every case; default 1e-3 (200 per cycle)")
@@ -124,15 +129,15 @@ def main(argv=None) -> int:
         repeats = 1 if (dt is not None and dt < 1e-6) else args.repeats
         res, wall = run_case(model, model.p(K_i_x=args.k_i_x), args.t_end, dt, solver, repeats, args.dt_out)
         h = hunting(res, t_from)
-        label = f"{fr}, {'RK4 dt=%g s' % dt if solver == 'rk4' else 'CVODES, located switches'}"
+        label = f"{fr}, {f'RK4 dt={dt:g} s' if solver == 'rk4' else 'CVODES, located switches'}"
         row = {"friction": fr, "solver": solver, "dt": dt, "amplitude_um": h["amplitude"] * 1e6,
                "frequency_hz": h["frequency"], "mean_error_um": h["mean_error"] * 1e6, "wall_time_s": wall,
                "mode_switches": res.info.get("mode_switches"), "label": label}
         rows.append(row)
         traces.append((label, res))
         f_txt = f"{h['frequency']:.2f}" if h["frequency"] else "-"
-        print(f"{label:34s} amplitude {row['amplitude_um']:8.4f} um  frequency {f_txt:>6s} Hz  wall {wall * 1e3:8.1f} ms",
-              flush=True)
+        print(f"{label:34s} amplitude {row['amplitude_um']:8.4f} um  frequency {f_txt:>6s} Hz  "
+              f"wall {wall * 1e3:8.1f} ms", flush=True)
 
     by = {(r["friction"], r["dt"]): r for r in rows}
     h4, s5 = by[("hybrid", 1e-4)], by[("smooth", 1e-5)]

@@ -107,7 +107,8 @@ def main(argv=None):
             "nonlinear_step_1mm": {f"{F / 1e3:g} kN": {k: v for k, v in s.items() if k not in ("t", "x_rod", "i_q")}
                                    for F, s in steps.items()},
         }
-    print("\n| gains | load | overshoot (%) | 2 % settling (ms) | peak i_q (A) | peak abs(v_dq) (V) |\n|---|---|---|---|---|---|")
+    print("\n| gains | load | overshoot (%) | 2 % settling (ms) | peak i_q (A) | peak abs(v_dq) (V) |\n"
+          "|---|---|---|---|---|---|")
     for name, d in summary["sets"].items():
         for lbl, s in d["nonlinear_step_1mm"].items():
             print(f"| {name} | {lbl} | {100 * s['overshoot']:.2f} | {1e3 * s['settling_time_s']:.1f} | "

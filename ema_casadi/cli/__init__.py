@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..params import ParameterError
-from ..signals import SignalError
 from ..export import ExportError
 from ..linearisation import LinearizationError
+from ..params import ParameterError
+from ..signals import SignalError
 from ..simulation import SimulationError
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL"]
@@ -129,6 +129,13 @@ def build_parser():
 
 
 def main(argv=None) -> int:
+    """Run the ``ema`` command line and return its exit status.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments after the program name (default ``sys.argv[1:]``).
+    """
     parser, mods = build_parser()
     args = parser.parse_args(argv)
     mod = mods[args.command]

@@ -21,8 +21,10 @@ KINDS = ("closed", "stiffness", "open")
 
 def add_arguments(p):
     p.add_argument("--kind", choices=KINDS, default="closed", help="closed (x_rod/x_cmd, default), stiffness, open")
-    p.add_argument("--loop", choices=list(LOOPS), default="position", help="loop break for --kind open; default position")
-    p.add_argument("--outer", choices=OUTER, default="closed", help="for --kind open: the other loops closed or the outer ones open")
+    p.add_argument("--loop", choices=list(LOOPS), default="position",
+                   help="loop break for --kind open; default position")
+    p.add_argument("--outer", choices=OUTER, default="closed",
+                   help="for --kind open: the other loops closed or the outer ones open")
     add_frequency_window(p, 0.1, 2e3)
     p.add_argument("--points", type=int, default=400, help="number of log-spaced frequencies; default 400")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="Bode plot (margins marked for --kind open)")

@@ -31,12 +31,16 @@ def add_arguments(p):
     p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
     p.add_argument("--dt", type=float, default=5e-6, help="RK4 step, or CVODES output spacing (s); default 5e-6")
     p.add_argument("--dt-out", type=float, default=None, help="spacing of the saved samples (s); default 1e-4")
-    p.add_argument("--solver", choices=SOLVERS, default="rk4", help="rk4 (fixed step, compiled) or cvodes (variable step)")
+    p.add_argument("--solver", choices=SOLVERS, default="rk4",
+                   help="rk4 (fixed step, compiled) or cvodes (variable step)")
     p.add_argument("--zoh", action="store_true", help="sampled ECU at its rates (rk4 only)")
-    p.add_argument("--out", default=None, metavar="FILE", help="write the time series: .csv (column t, then one per signal, SI) or .npz")
-    p.add_argument("--plot", default=None, metavar="FILE.png", help="plot command, position, velocity, current, voltage")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="write the time series: .csv (column t, then one per signal, SI) or .npz")
+    p.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="plot command, position, velocity, current, voltage")
     p.add_argument("--event-tol", type=float, default=1e-7,
-                   help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); default 1e-7")
+                   help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); "
+                        "default 1e-7")
     p.add_argument("--progress", action="store_true", help="progress bar on stderr")
 
 

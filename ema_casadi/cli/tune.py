@@ -151,7 +151,10 @@ def _fmt(v, spec):
 
 def report(r: dict) -> None:
     req = r["requirements"]
-    bound = f"Ms <= {req['ms']:g}" if req["ms"] is not None else f"GM >= {req['gm_db']:g} dB, PM >= {req['pm_deg']:g} deg"
+    if req["ms"] is not None:
+        bound = f"Ms <= {req['ms']:g}"
+    else:
+        bound = f"GM >= {req['gm_db']:g} dB, PM >= {req['pm_deg']:g} deg"
     print(f"{r['message']}")
     print(f"objective {r['objective']}: {r['objective_value']:.4g}{' Hz' if r['objective'] == 'bandwidth' else ''}; "
           f"IPOPT {r['status']}, {r['iterations']} iterations in {r['rounds']} solve(s), "

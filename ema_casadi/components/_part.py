@@ -22,10 +22,10 @@ A state's derivative is the signal ``der(NAME)`` (see :func:`der`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Callable, ClassVar
-
+from typing import ClassVar
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Part", "Bus", "AssemblyError", "der",
@@ -47,7 +47,13 @@ class AssemblyError(ValueError):
 
 
 def der(name: str) -> str:
-    """Bus name of the time derivative of state ``name``."""
+    """Bus name of the time derivative of state ``name``.
+
+    Parameters
+    ----------
+    name : str
+        State name.
+    """
     return f"der({name})"
 
 
@@ -89,8 +95,19 @@ class State:
 
 @dataclass(frozen=True)
 class Input:
-    """A model input a part reads (SI unit; ``kind`` is its quantity for the signal
-    parser; ``default`` a number or the name of a parameter giving it)."""
+    """A model input a part reads.
+
+    Attributes
+    ----------
+    name, unit, doc : str
+        Name (SPEC symbol), SI unit, one-line meaning.
+    kind : str
+        Its quantity for the signal parser, one of :data:`INPUT_KINDS`.
+    default : float or str
+        Value when not driven (SI), or the name of the parameter giving it.
+    injection : bool
+        A loop-break injection (zero unless driven; listed after the other inputs).
+    """
 
     name: str
     unit: str
@@ -102,7 +119,15 @@ class Input:
 
 @dataclass(frozen=True)
 class Output:
-    """An output a part provides: name, SI unit, kind (:data:`OUTPUT_KINDS`), meaning."""
+    """An output a part provides.
+
+    Attributes
+    ----------
+    name, unit, doc : str
+        Name (SPEC symbol), SI unit, one-line meaning.
+    kind : str
+        One of :data:`OUTPUT_KINDS`.
+    """
 
     name: str
     unit: str
@@ -113,8 +138,21 @@ class Output:
 @dataclass(frozen=True)
 class Loop:
     """A feedback loop a part closes, with its break (the paper's "Gain = 1" block):
-    the feedback is ``flag * measured + injection``; ``rate`` names the ECU sample-rate
-    parameter of the loop."""
+    the feedback is ``flag * measured + injection``.
+
+    Attributes
+    ----------
+    name : str
+        Loop name (``position``, ``velocity``, ``current``).
+    flag : str
+        The loop-closure flag parameter (1 closed, 0 open).
+    injection : str
+        The input added at the break.
+    measured : str
+        The fed-back signal.
+    rate : str
+        The parameter giving the loop's ECU sample rate (Hz).
+    """
 
     name: str
     flag: str
@@ -125,7 +163,17 @@ class Loop:
 
 @dataclass(frozen=True)
 class Hold:
-    """A controller output held between the samples of ``loop`` (zero-order hold)."""
+    """A controller output held between the samples of ``loop`` (zero-order hold).
+
+    Attributes
+    ----------
+    name : str
+        The held signal.
+    unit : str
+        Its SI unit.
+    loop : str
+        The loop whose samples update it.
+    """
 
     name: str
     unit: str
@@ -138,6 +186,11 @@ class Part:
     ``family`` and ``value`` are the variant key and value it serves (``screw``,
     ``elastic``). ``options`` lists the sub-choices it reads, with their allowed values
     (first the default), e.g. the smooth friction's ``friction_shape``.
+
+    Parameters
+    ----------
+    options : dict, optional
+        The values of the options this part reads (default: each option's default).
     """
 
     family: ClassVar[str] = ""
@@ -162,9 +215,17 @@ class Part:
         """Providers: ``{name or tuple of names: fn(bus) -> expr or tuple}``."""
         return {}
 
-    def project(self, prev: "Bus", now: "Bus"):
+    def project(self, prev: Bus, now: Bus):
         """Discrete map applied after each step (hybrid parts): returns
-        ``({state name: new value}, stick flag)`` or None for a continuous part."""
+        ``({state name: new value}, stick flag)`` or None for a continuous part.
+
+        Parameters
+        ----------
+        prev : Bus
+            The signals at the start of the step.
+        now : Bus
+            The signals at its end.
+        """
         return None
 
     @property
@@ -179,6 +240,21 @@ class Bus:
     ``bus["x_rod"]`` returns a state, an input or the value of the provider of that
     name (evaluated once and cached). ``bus.P.K_x`` is a parameter symbol. Overrides
     replace a signal (the held controller outputs of the sampled ECU).
+
+    Parameters
+    ----------
+    providers : dict
+        Signal name -> (key, provider) from the parts' :meth:`Part.signals`.
+    x, u : dict
+        State and input symbols by name.
+    P : SimpleNamespace
+        Parameter symbols by flat name.
+    roles : dict
+        State role -> the names of the states declaring it.
+    overrides : dict, optional
+        Signals replaced by the given expressions.
+    wrap : dict, optional
+        Signal name -> ``fn(bus, value)`` applied to the provider's value.
     """
 
     def __init__(self, providers: dict, x: dict, u: dict, P: SimpleNamespace,
@@ -213,21 +289,39 @@ class Bus:
             self._busy.pop()
         names = key if isinstance(key, tuple) else (key,)
         vals = val if isinstance(key, tuple) else (val,)
-        for n, v in zip(names, vals):
+        for n, v in zip(names, vals, strict=True):
             self._cache[n] = self._wrap[n](self, v) if n in self._wrap else v
         return self._cache[name]
 
     def state_name(self, role: str) -> str:
-        """The name of the one state with ``role``."""
+        """The name of the one state with ``role``.
+
+        Parameters
+        ----------
+        role : str
+            A state role (see :class:`State`).
+        """
         names = self._roles.get(role, ())
         if len(names) != 1:
             raise AssemblyError(f"expected one state with role '{role}', the parts declare {len(names)}")
         return names[0]
 
     def state(self, role: str):
-        """The symbol of the one state with ``role``."""
+        """The symbol of the one state with ``role``.
+
+        Parameters
+        ----------
+        role : str
+            A state role (see :class:`State`).
+        """
         return self.x[self.state_name(role)]
 
     def feedback(self, loop: Loop):
-        """``flag * measured + injection`` of a loop."""
+        """``flag * measured + injection`` of a loop.
+
+        Parameters
+        ----------
+        loop : Loop
+            The loop.
+        """
         return getattr(self.P, loop.flag) * self[loop.measured] + self[loop.injection]

@@ -55,6 +55,13 @@ def validate_variants(variants: dict | None, where: str = "variant") -> dict[str
     """Complete a variant dict with defaults and check every key and value.
 
     Raises :class:`VariantError` naming ``where`` and the key, listing the allowed values.
+
+    Parameters
+    ----------
+    variants : dict or None
+        Variant key -> value, partial (missing keys take their defaults).
+    where : str
+        Named in the error message (the file or argument the dict came from).
     """
     if variants is not None and not isinstance(variants, dict):
         raise VariantError(f"{where}: expected a dict of variant names, got {type(variants).__name__}")
@@ -72,7 +79,13 @@ def validate_variants(variants: dict | None, where: str = "variant") -> dict[str
 
 def parts_for(variants: dict) -> tuple[list[Part], list[str]]:
     """The parts of a complete variant dict, in assembly order, and the option keys
-    that none of them reads (ignored: e.g. ``friction_shape`` with hybrid friction)."""
+    that none of them reads (ignored: e.g. ``friction_shape`` with hybrid friction).
+
+    Parameters
+    ----------
+    variants : dict
+        A complete variant dict (:func:`validate_variants`).
+    """
     parts, read = [], set()
     for key, values in REGISTRY.items():
         cls = values[variants[key]]

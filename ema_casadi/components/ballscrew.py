@@ -20,22 +20,47 @@ P_BLEND = 0.1
 
 
 def lead_ratio(P):
-    """Rod travel per shaft radian, p / (2 pi) (m/rad)."""
+    """Rod travel per shaft radian, p / (2 pi) (m/rad).
+
+    Parameters
+    ----------
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses the lead ``p``, m).
+    """
     return P.p / (2 * ca.pi)
 
 
 def efficiency_factor(F, omega, eta, P):
     """Factor g in T_load = (p/2 pi) F g: 1/eta when the motor drives the load
-    (F omega > 0), eta_inv when the load back-drives; blended over P_BLEND watts."""
+    (F omega > 0), eta_inv when the load back-drives; blended over P_BLEND watts.
+
+    Parameters
+    ----------
+    F : SX
+        Force the nut transmits to the rod (N).
+    omega : SX
+        Shaft speed (rad/s).
+    eta : SX
+        Direct efficiency of the screw-nut (-).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``p``, m, and ``eta_inv``, -).
+    """
     w = 0.5 * (1 + ca.tanh(F * omega * lead_ratio(P) / P_BLEND))
     return w / eta + (1 - w) * P.eta_inv
 
 
 def dead_zone(delta, B):
-    """Dead zone of total width B (m): 0 inside |delta| <= B/2, delta -+ B/2 outside.
+    """Dead zone of total width B: 0 inside |delta| <= B/2, delta -+ B/2 outside.
 
     Written as fmax(delta - B/2, 0) + fmin(delta + B/2, 0) so that with B = 0 the AD
     slope at delta = 0 is exactly 1 (two half-slopes), not 1/2.
+
+    Parameters
+    ----------
+    delta : SX
+        Deflection across the gap (m).
+    B : SX
+        Backlash, the total gap width (m).
     """
     return ca.fmax(delta - B / 2, 0) + ca.fmin(delta + B / 2, 0)
 
@@ -46,6 +71,19 @@ def elastic(phi, omega, x_rod, v_rod, P):
     Delta = x_in - x_rod with x_in = phi p/(2 pi);
     F_in = C dz(Delta) + c_c dDelta/dt while in contact (|Delta| >= B/2).
     Returns (F_in (N), Delta (m), E_spring (J), P_contact (W), in_contact).
+
+    Parameters
+    ----------
+    phi : SX
+        Shaft angle (rad).
+    omega : SX
+        Shaft speed (rad/s).
+    x_rod : SX
+        Rod position (m).
+    v_rod : SX
+        Rod velocity (m/s).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``p``, ``B``, ``C``, ``c_c``).
     """
     x_in = phi * lead_ratio(P)
     v_in = omega * lead_ratio(P)
@@ -59,8 +97,20 @@ def elastic(phi, omega, x_rod, v_rod, P):
 
 
 def play_rate(x_in, v_in, x_play, B):
-    """Play (hysteresis) operator of width B as an ODE: the output x_play follows the
-    input only while the input pushes on an edge of the gap (m/s)."""
+    """Play (hysteresis) operator of width B as an ODE: the rate of x_play (m/s), which
+    follows the input only while the input pushes on an edge of the gap.
+
+    Parameters
+    ----------
+    x_in : SX
+        Input position, the nut side (m).
+    v_in : SX
+        Input velocity (m/s).
+    x_play : SX
+        Output position, the rod side (m).
+    B : SX
+        Backlash, the total gap width (m).
+    """
     gap = x_in - x_play
     return ca.if_else(gap >= B / 2, ca.fmax(v_in, 0), 0) + ca.if_else(gap <= -B / 2, ca.fmin(v_in, 0), 0)
 
@@ -68,8 +118,9 @@ def play_rate(x_in, v_in, x_play, B):
 # ---- parts: the screw owns the drive-train mechanics (shaft and rod) ------------------
 # Signals every screw provides besides its outputs: x_in, v_in (nut side), v_contact
 # (velocity at the friction contact), F_drive (force driving the contact: screw or
-# referred motor force minus the rod load, before friction and viscous), x_rod_mech, v_rod_mech (the rod's mechanical motion: what an end stop
-# touches; the rigid screw's x_rod is the position signal after the play), T_load.
+# referred motor force minus the rod load, before friction and viscous), x_rod_mech,
+# v_rod_mech (the rod's mechanical motion: what an end stop touches; the rigid screw's
+# x_rod is the position signal after the play), T_load.
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
 

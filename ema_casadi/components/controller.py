@@ -29,7 +29,15 @@ SQRT3 = 3**0.5
 
 
 def clamp(u, lo, hi):
-    """Saturate ``u`` to [lo, hi]."""
+    """Saturate ``u`` to [lo, hi].
+
+    Parameters
+    ----------
+    u : SX
+        The value (any unit).
+    lo, hi : SX
+        The limits (the unit of ``u``).
+    """
     return ca.fmin(ca.fmax(u, lo), hi)
 
 
@@ -37,6 +45,21 @@ def pi_law(e, z, K_p, K_i, u_lim, u_ff=0):
     """PI with symmetric clamp +-u_lim, feed-forward and back-calculation anti-windup.
 
     Returns (u_sat, u_unsat, z_dot). ``z`` is the integral part in output units.
+
+    Parameters
+    ----------
+    e : SX
+        Control error (input unit).
+    z : SX
+        Integral part (output unit).
+    K_p : SX
+        Proportional gain (output unit per input unit).
+    K_i : SX
+        Integral gain (output unit per input unit and second).
+    u_lim : SX
+        Output limit, symmetric (output unit).
+    u_ff : SX or float
+        Feed-forward added before the clamp (output unit).
     """
     u = K_p * e + z + u_ff
     u_sat = clamp(u, -u_lim, u_lim)
@@ -49,6 +72,19 @@ def position_law(x_cmd, x_fb, z_x, P, integral: bool):
 
     omega_cmd = (2 pi/p)(K_x e + K_i_x int e), clamped to the rate limit
     omega_max = 2 pi v_max / p. Returns (omega_cmd, z_x_dot or None).
+
+    Parameters
+    ----------
+    x_cmd : SX
+        Commanded rod position (m).
+    x_fb : SX
+        Fed-back rod position (m).
+    z_x : SX or None
+        Integral part (rad/s); unused without ``integral``.
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``p``, ``v_max``, ``K_x``, ``K_i_x``).
+    integral : bool
+        PI (True) or P (False) law.
     """
     k = 2 * ca.pi / P.p
     e = x_cmd - x_fb
@@ -62,7 +98,19 @@ def position_law(x_cmd, x_fb, z_x, P, integral: bool):
 def velocity_law(omega_cmd, omega_fb, z_w, P):
     """Speed PI (rad/s) -> current command (A, q axis), clamped to +-I_max.
 
-    Returns (i_cmd, z_w_dot)."""
+    Returns (i_cmd, z_w_dot).
+
+    Parameters
+    ----------
+    omega_cmd : SX
+        Speed command (rad/s).
+    omega_fb : SX
+        Fed-back motor speed (rad/s).
+    z_w : SX
+        Integral part (A).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``K_p_w``, ``T_i_w``, ``I_max``).
+    """
     i_cmd, _, z_dot = pi_law(omega_cmd - omega_fb, z_w, P.K_p_w, P.K_p_w / P.T_i_w, P.I_max)
     return i_cmd, z_dot
 
@@ -73,6 +121,19 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P):
     Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
     (the power-invariant equivalent of SPEC §2.3), plus back-EMF feed-forward
     K_e*omega, the counterpart of FOC decoupling. Returns (v, z_i_dot).
+
+    Parameters
+    ----------
+    i_cmd : SX
+        Current command (A).
+    i_fb : SX
+        Fed-back winding current (A).
+    omega : SX
+        Motor speed (rad/s), for the back-EMF feed-forward.
+    z_i : SX
+        Integral part (V).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``K_p_i``, ``K_i_i``, ``k_v``, ``V_dc``).
     """
     K_e = 1.5 * P.pp * P.psi
     v_lim = 1.5 * P.k_v * P.V_dc / SQRT3
@@ -87,6 +148,22 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P):
     (v_d -= omega_e L_q i_q, v_q += omega_e (L_d i_d + psi)); the voltage vector is
     scaled onto the linear-SVPWM circle |v_dq| <= k_v V_dc / sqrt(3).
     Returns (v_d, v_q, z_d_dot, z_q_dot).
+
+    Parameters
+    ----------
+    i_q_cmd : SX
+        q-current command (A).
+    i_d_fb, i_q_fb : SX
+        Fed-back d and q currents (A).
+    i_d, i_q : SX
+        The d and q currents for the decoupling terms (A).
+    omega : SX
+        Motor (mechanical) speed (rad/s).
+    z_d, z_q : SX
+        Integral parts (V).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``L_d``, ``L_q``, ``K_p_i``,
+        ``K_i_i``, ``k_v``, ``V_dc``).
     """
     omega_e = P.pp * omega
     e_d = 0 - i_d_fb

@@ -26,10 +26,23 @@ __all__ = ["stop_force", "Elastic"]
 
 
 def stop_force(x, v, stroke, k_stop, d_stop):
-    """ElastoGap stop at +-stroke for rod position ``x`` (m) and velocity ``v`` (m/s).
+    """ElastoGap stop at +-stroke.
 
     Returns (F_stop (N, magnitude, >= 0), F on the rod as a load (N, positive pushes the
     rod in, like f_ext), penetration (m), E_stop (J), P_stop (W)).
+
+    Parameters
+    ----------
+    x : SX
+        Rod position (m).
+    v : SX
+        Rod velocity (m/s).
+    stroke : SX
+        Stroke from the centre to either stop (m).
+    k_stop : SX
+        Stop stiffness (N/m).
+    d_stop : SX
+        Stop damping (N s/m).
     """
     s = ca.sign(x)
     pen = ca.fmax(ca.fabs(x) - stroke, 0)

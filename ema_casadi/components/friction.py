@@ -27,7 +27,15 @@ SHAPES = ("tanh", "fermi")
 
 
 def sliding_level(f_ext, P):
-    """Resistive force level while sliding (eq. 7): F_r = F_seal + |F_ext| (2 pi/p) C_bear (N)."""
+    """Resistive force level while sliding (eq. 7): F_r = F_seal + |F_ext| (2 pi/p) C_bear (N).
+
+    Parameters
+    ----------
+    f_ext : SX
+        External rod force (N).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``F_seal``, ``p``, ``C_bear``).
+    """
     return P.F_seal + ca.fabs(f_ext) * (2 * ca.pi / P.p) * P.C_bear
 
 
@@ -42,7 +50,22 @@ def _s(v, v_s, shape):
 def smooth(v, F_r, P, shape="tanh", stribeck=False):
     """Simplified friction (eq. 3): F_r s(v) [+ (F_start - F_r) e^-(v/v_st)^2 s(v)] + c_v v.
 
-    Returns (F_friction (N), its Coulomb part without the viscous term (N))."""
+    Returns (F_friction (N), its Coulomb part without the viscous term (N)).
+
+    Parameters
+    ----------
+    v : SX
+        Velocity at the contact (m/s).
+    F_r : SX
+        Sliding level (eq. 7) (N).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``v_s``, ``c_v`` and, with ``stribeck``,
+        ``r_start``, ``v_st``).
+    shape : {"tanh", "fermi"}
+        The smooth sign function s(v).
+    stribeck : bool
+        Add the Stribeck hump up to F_start = r_start F_r at rest.
+    """
     s = _s(v, P.v_s, shape)
     F_c = F_r * s
     if stribeck:
@@ -63,7 +86,8 @@ def hybrid(v, F_app, F_r, P, F_hold=None):
         and c_v v for the rigid screw.
     F_r : SX
         Sliding level (eq. 7) (N); F_start = r_start F_r (eq. 8).
-    P : namespace of parameter symbols (``eps``, ``r_start``, ``c_v``).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``eps``, ``r_start``, ``c_v``).
     F_hold : SX, optional
         ``F_app`` with the contact at rest (v = 0) (N), used for the stick test so that
         it agrees with :func:`stick_entry` (velocity-dependent terms such as contact
@@ -99,6 +123,17 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
     for the light rod of the elastic screw: sliding friction changes its velocity by
     F_r h / M ~ 5e-3 m/s per 1e-4 s step, fifty times the band width, so a step would
     rarely end inside the band. Returns 1 (stick) or 0.
+
+    Parameters
+    ----------
+    v_prev, v : SX
+        Contact velocity at the start and the end of the step (m/s).
+    F_hold : SX
+        Applied force with the contact at rest (N).
+    F_r : SX
+        Sliding level (eq. 7) (N).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``eps``, ``r_start``).
     """
     entered = ca.logic_or(ca.fabs(v) < P.eps, v_prev * v < 0)
     return ca.logic_and(entered, ca.fabs(F_hold) <= P.r_start * F_r)

@@ -15,12 +15,18 @@ __all__ = ["ideal", "averaged_losses", "Ideal"]
 
 
 def ideal(v):
-    """Averaged inverter: winding voltage = commanded voltage (V)."""
+    """Averaged inverter: winding voltage = commanded voltage.
+
+    Parameters
+    ----------
+    v : SX
+        Commanded voltage (V).
+    """
     return v
 
 
 def averaged_losses(I_hat, P):
-    """Averaged losses of a 3-leg two-level bridge (W) for phase-current amplitude I_hat (A).
+    """Averaged losses of a 3-leg two-level bridge (W).
 
     Each leg conducts its phase current through an IGBT or a diode at every instant,
     so with sinusoidal phase currents of amplitude I_hat: mean|i| = 2 I_hat/pi,
@@ -28,6 +34,14 @@ def averaged_losses(I_hat, P):
     diode data averaged; switching: 3 f_sw E_sw (V_dc/V_sw_ref)(mean|i|/I_sw_ref).
     At standstill the phase currents are DC; the same formula is used (documented
     approximation). Returns (P_cond, P_sw).
+
+    Parameters
+    ----------
+    I_hat : SX
+        Phase-current amplitude (A).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``V_CE0``, ``V_F0``, ``r_CE``, ``r_F``, ``f_sw``,
+        ``E_sw``, ``V_dc``, ``V_sw_ref``, ``I_sw_ref``).
     """
     i_abs = 2 * I_hat / ca.pi
     i_sq = I_hat**2 / 2

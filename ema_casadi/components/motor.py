@@ -15,6 +15,17 @@ def dc(i, v, omega, P):
     Power-invariant equivalent of the PMSM q axis (i = i_q, v = 1.5 v_q):
     K_t = K_e = 1.5 pp psi, R_dc = 1.5 R, L_dc = 1.5 L_q.
     Returns (di/dt (A/s), T (N m), P_elec (W), P_cu (W), E_mag (J)).
+
+    Parameters
+    ----------
+    i : SX
+        Winding current (A).
+    v : SX
+        Winding voltage (V).
+    omega : SX
+        Motor speed (rad/s).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``R``, ``L_q``).
     """
     K_t = 1.5 * P.pp * P.psi
     R_dc, L_dc = 1.5 * P.R, 1.5 * P.L_q
@@ -29,6 +40,17 @@ def pmsm(i_d, i_q, v_d, v_q, omega, P):
     L_q di_q/dt = v_q - R i_q - omega_e (L_d i_d + psi)
     T = 1.5 pp (psi i_q + (L_d - L_q) i_d i_q),  omega_e = pp omega.
     Returns (di_d/dt, di_q/dt (A/s), T (N m), P_elec (W), P_cu (W), E_mag (J)).
+
+    Parameters
+    ----------
+    i_d, i_q : SX
+        d and q currents (A).
+    v_d, v_q : SX
+        d and q voltages (V).
+    omega : SX
+        Motor (mechanical) speed (rad/s).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``R``, ``L_d``, ``L_q``).
     """
     omega_e = P.pp * omega
     di_d = (v_d - P.R * i_d + omega_e * P.L_q * i_q) / P.L_d
@@ -41,7 +63,21 @@ def pmsm(i_d, i_q, v_d, v_q, omega, P):
 
 
 def shaft(omega, T, T_load, J, P):
-    """J d omega/dt = T - b_m omega - T_load. Returns d omega/dt (rad/s^2)."""
+    """J d omega/dt = T - b_m omega - T_load. Returns d omega/dt (rad/s^2).
+
+    Parameters
+    ----------
+    omega : SX
+        Shaft speed (rad/s).
+    T : SX
+        Motor torque (N m).
+    T_load : SX
+        Load torque on the shaft (N m).
+    J : SX
+        Inertia on the shaft (kg m^2).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``b_m``).
+    """
     return (T - P.b_m * omega - T_load) / J
 
 

@@ -54,8 +54,14 @@ closed loop is L/(1+L)).
 """
 
 from ._common import (
-    BACKLASH_POLICIES, FRICTION_POLICIES, LOOPS, OUTER, LinearizationError, OperatingPointError,
-    jacobian_function, signal_outputs,
+    BACKLASH_POLICIES,
+    FRICTION_POLICIES,
+    LOOPS,
+    OUTER,
+    LinearizationError,
+    OperatingPointError,
+    jacobian_function,
+    signal_outputs,
 )
 from ._linear import LinearModel, linear_model, linearize, loop_model, loop_transfer
 from ._trim import OperatingPoint, operating_point

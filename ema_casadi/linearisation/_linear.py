@@ -31,7 +31,7 @@ class LinearModel:
     name: str = "ema"
     open_loops: tuple = ()
 
-    def select(self, inputs=None, outputs=None, name: str | None = None) -> "LinearModel":
+    def select(self, inputs=None, outputs=None, name: str | None = None) -> LinearModel:
         """The sub-model from some inputs to some outputs (by name)."""
         ii = [self.inputs.index(n) for n in (inputs or self.inputs)]
         oo = [self.outputs.index(n) for n in (outputs or self.outputs)]
@@ -116,7 +116,8 @@ def linear_model(
         inputs=inputs, outputs=outputs, op=op, open_loops=open_loops,
         name="ema" + "".join(f"_open_{n}" for n in open_loops),
     )
-    bad = [outputs[i] for i in range(len(outputs)) if not np.all(np.isfinite(lin.C[i])) or not np.all(np.isfinite(lin.D[i]))]
+    bad = [outputs[i] for i in range(len(outputs))
+           if not np.all(np.isfinite(lin.C[i])) or not np.all(np.isfinite(lin.D[i]))]
     if bad or not (np.all(np.isfinite(lin.A)) and np.all(np.isfinite(lin.B))):
         raise LinearizationError(f"the Jacobian is not finite at this point (outputs: {', '.join(bad) or '-'})")
     return lin

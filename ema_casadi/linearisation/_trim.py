@@ -66,9 +66,9 @@ class OperatingPoint:
         return {
             "x_cmd": self.x_cmd, "f_ext": self.f_ext, "v_rod": self.v_rod,
             "eta": float(self.u[self.inputs.index("eta")]),
-            "states": {n: float(v) for n, v in zip(self.states, self.x)},
-            "inputs": {n: float(v) for n, v in zip(self.inputs, self.u)},
-            "outputs": {n: float(v) for n, v in zip(self.outputs, self.y)},
+            "states": {n: float(v) for n, v in zip(self.states, self.x, strict=False)},
+            "inputs": {n: float(v) for n, v in zip(self.inputs, self.u, strict=False)},
+            "outputs": {n: float(v) for n, v in zip(self.outputs, self.y, strict=False)},
             "policy": self.policy,
             "residual": self.residual,
             "variants": dict(self.variants),
@@ -143,8 +143,8 @@ def _efficiency_factor(model: Model, y) -> float:
 
 def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v_rod: float):
     names = model.param_names
-    pv = dict(zip(names, p))
-    y = dict(zip(model.outputs, op_y))
+    pv = dict(zip(names, p, strict=False))
+    y = dict(zip(model.outputs, op_y, strict=False))
     where = f"at f_ext = {f_ext / 1e3:.4g} kN" + (f", v_rod = {v_rod * 1e3:.4g} mm/s" if v_rod else "")
     i_need, I_max = abs(y["i_cmd"]), pv["I_max"]
     if i_need >= I_max * (1 - 1e-9):
@@ -157,7 +157,8 @@ def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v
     if abs(y["omega_cmd"]) >= w_max * (1 - 1e-9):
         raise OperatingPointError(
             f"no operating point below the rate limit {where}: the speed command "
-            f"{abs(y['omega_cmd']) * pv['p'] / (2 * math.pi) * 1e3:.4g} mm/s reaches v_max = {pv['v_max'] * 1e3:.4g} mm/s"
+            f"{abs(y['omega_cmd']) * pv['p'] / (2 * math.pi) * 1e3:.4g} mm/s reaches "
+            f"v_max = {pv['v_max'] * 1e3:.4g} mm/s"
         )
     v_lim = pv["k_v"] * pv["V_dc"] / math.sqrt(3)
     v_dq = math.hypot(y["v_d"], y["v_q"])

@@ -89,7 +89,8 @@ def simulate(
     if solver == "rk4":
         res = _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, decimate, jit, progress)
     elif model.hybrid:
-        res = _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, event_tol, progress)
+        res = _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, event_tol,
+                                      progress)
     else:
         res = _simulate_cvodes(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, progress)
     res.info["wall_time"] = time.perf_counter() - t_wall

@@ -14,7 +14,6 @@ from ._inputs import _initial_projection, _input_matrix
 from ._result import SimulationError, _result, progress_bar
 from ._rk4 import outputs_at
 
-
 _INTEGRATORS_MAX = 64
 
 #: Highest BDF order CVODES may use. BDF3 is A(86 deg)-stable, BDF4 only A(73 deg):
@@ -56,7 +55,7 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
     xc = np.asarray(x0, float)
     steps = 0
     t_compute = time.perf_counter()
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
         inside = np.nonzero((grid > a + 1e-12) & (grid <= b + 1e-12))[0]
         tout = grid[inside]
         if not len(tout) or abs(tout[-1] - b) > 1e-12:

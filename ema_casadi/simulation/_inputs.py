@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kwargs import check_keywords
 from ..assembly import Model
 from ..signals import Signal, constant, parse_signal
 from ._result import SimulationError
@@ -22,9 +23,7 @@ def _as_signal(value, name: str, kind: str) -> Signal:
 def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
     """Every model input that is driven (given, or not an injection) as a Signal, by
     name; the quantity kind of each input selects its units."""
-    for name in given:
-        if name not in model.input_info:
-            raise SimulationError(f"unknown input '{name}'; the model's inputs are {', '.join(model.inputs)}")
+    check_keywords("simulate", given, model.inputs)
     P = model.pdict(pv)
     sig = {}
     for name, inp in model.input_info.items():

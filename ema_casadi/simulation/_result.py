@@ -23,6 +23,17 @@ class SimResult:
     """Named time series of a simulation (SI units).
 
     ``res["x_rod"]`` looks a name up among outputs, then inputs, then states.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times (s).
+    inputs, outputs, states : dict
+        Name -> samples (SI, the unit in :meth:`units`).
+    info : dict
+        Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
+    unit_table : dict
+        Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
     """
 
     t: np.ndarray
@@ -54,12 +65,24 @@ class SimResult:
         return np.column_stack([self.t] + [self[c] for c in cols])
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write column ``t`` then one column per signal (SI); atomic."""
+        """Write column ``t`` then one column per signal (SI); atomic.
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+        """
         return write_with(path, lambda tmp: np.savetxt(
             tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g"))
 
     def to_npz(self, path: str | Path) -> Path:
-        """Write all signals as named arrays (plus ``t``); atomic."""
+        """Write all signals as named arrays (plus ``t``); atomic.
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.npz`` file.
+        """
         return write_with(path, lambda tmp: np.savez(tmp, t=self.t, **{c: self[c] for c in self.columns()[1:]}),
                           suffix=".npz")
 
@@ -71,9 +94,21 @@ class SimResult:
 def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> dict:
     """Metrics of a normalised step response y(t) (final value 1, step at t = 0).
 
-    Returns ``rise_time_s`` (10-90 %, inf if 90 % is never reached), ``overshoot``
-    (fraction) and ``settling_time_s`` (last entry into 1 +- band; 0 if never outside,
-    inf if still outside at the end).
+    Parameters
+    ----------
+    t : ndarray
+        Times (s) from the step.
+    y : ndarray
+        The response divided by its final value (-).
+    band : float
+        Settling band as a fraction of the final value (-).
+
+    Returns
+    -------
+    dict
+        ``rise_time_s`` (10-90 %, inf if 90 % is never reached), ``overshoot``
+        (fraction) and ``settling_time_s`` (last entry into 1 +- band; 0 if never
+        outside, inf if still outside at the end).
     """
     i10, i90 = np.argmax(y >= 0.1), np.argmax(y >= 0.9)
     outside = np.nonzero(np.abs(y - 1) > band)[0]
@@ -94,7 +129,17 @@ def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> d
 
 
 def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
-    """Draw a one-line progress bar on stderr (fraction 0..1; a newline at 1)."""
+    """Draw a one-line progress bar on stderr (a newline at 1).
+
+    Parameters
+    ----------
+    frac : float
+        Fraction done, 0..1.
+    enabled : bool
+        Draw at all (callers pass their ``progress`` flag).
+    label : str
+        Text before the bar.
+    """
     if not enabled:
         return
     n = int(30 * frac)

@@ -50,6 +50,15 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
     at -0.8 mm/s while its position repeated every five steps).
     With ``count_modes`` the (augmented) state carries two more entries at its end:
     the stick flag after the step and the running number of stick/slip switches.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    zoh : bool
+        Sampled ECU: augment the state with the held controller outputs.
+    count_modes : bool
+        Carry the stick flag and the switch count in the state (hybrid friction).
     """
     nx, nu = model.nx, model.nu
     nh = len(model.holds) if zoh else 0
@@ -80,7 +89,8 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
         out += [stick, n_switch + ca.fabs(stick - stick_prev)]
     # the stick tests repeat the contact-force expression: merge common subexpressions
     opts = {"cse": True} if model.hybrid else {}
-    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"], ["x_next"], opts)
+    return ca.Function("rk4_step", [xa, U3, flags, p, h], [ca.vertcat(*out)], ["x", "U3", "flags", "p", "h"],
+                       ["x_next"], opts)
 
 
 
@@ -100,7 +110,8 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
     key = ("rollout", zoh, k, M, jit)
     if key not in model.cache:
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
-        parts = [_SOURCE, name, *(g.serialize() for g in (model.f, model.f_held, model.sample, model.project) if g is not None)]
+        functions = (model.f, model.f_held, model.sample, model.project)
+        parts = [_SOURCE, name, *(g.serialize() for g in functions if g is not None)]
         Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
         model.cache[key] = (BufferCall(Fc), info)
     return model.cache[key]
@@ -139,7 +150,21 @@ _FEW = 8
 
 
 def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
-    """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n)."""
+    """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    X : ndarray
+        States (SI), one column per sample.
+    U : ndarray
+        Inputs (SI), one column per sample.
+    p : ndarray
+        Parameter vector (SI).
+    jit : bool
+        Compile the mapped output function to native code (cached on disk).
+    """
     key = ("outputs_map", jit)
     if key not in model.cache:
         x = ca.MX.sym("x", model.nx, _MAP_CHUNK)
@@ -203,7 +228,8 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
     y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
     Y_all = np.column_stack([y0, Y_out])
-    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh,
+            **cinfo}
     if model.hybrid:
         # the mode decided inside each step (identical to the rule in f except at the
         # instant of a band crossing) and the switches counted at every step

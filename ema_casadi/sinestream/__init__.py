@@ -62,8 +62,7 @@ from ._parse import parse_amplitudes, parse_freqs, parse_loads
 from ._plot import plot_bode
 from ._result import FIELDS, FreqRespError, FreqResponse
 from ._run import sine_stream
-from ._studies import (PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ, paper_fig14a,
-                       paper_fig14b, run_study)
+from ._studies import PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ, paper_fig14a, paper_fig14b, run_study
 
 __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream", "hybrid_available", "harmonics", "plot_bode",

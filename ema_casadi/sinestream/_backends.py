@@ -59,13 +59,15 @@ def _dask_chunk(params, build, settle, keep, chunk) -> list:
 def _run_dask(address, tasks, params, build, settle, keep, progress) -> dict:
     """Points in chunks on the Dask scheduler at ``address``; -> index -> point dict."""
     try:
-        from dask.distributed import Client, as_completed as dask_completed
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
     except ImportError:
         raise FreqRespError("--scheduler needs Dask: pip install 'ema_casadi[dask]' (dask[distributed])") from None
     try:
         client = Client(address, timeout="10s")
     except Exception as exc:  # noqa: BLE001 - any connection problem is the user's address
-        raise FreqRespError(f"scheduler {address}: cannot connect ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        raise FreqRespError(f"scheduler {address}: cannot connect ({type(exc).__name__}: {first})") from None
     try:
         n_workers = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
         # a few chunks per worker thread: balance without per-point scheduling overhead

@@ -16,7 +16,7 @@ from ..params import Parameters
 from ._backends import _cores, _run_dask, _run_local
 from ._kernels import _Settle, _stepper, hybrid_available
 from ._parse import _as_axis
-from ._result import FreqResponse, FreqRespError
+from ._result import FreqRespError, FreqResponse
 
 
 def sine_stream(

@@ -3,12 +3,11 @@
 
 from __future__ import annotations
 
-import difflib
-import inspect
 from pathlib import Path
 
 import numpy as np
 
+from .._kwargs import check_keywords, keywords_of
 from ..params import Parameters
 from ._plot import plot_bode
 from ._run import sine_stream
@@ -21,21 +20,7 @@ PAPER_BAND = (0.1, 30.0)
 PAPER_NFREQ = 40
 
 #: Keywords of :func:`sine_stream` a study passes on (all but ``params``).
-_STREAM_KEYWORDS = tuple(inspect.signature(sine_stream).parameters)[1:]
-
-
-def _check_keywords(func: str, kwargs: dict, fixed: tuple = ()) -> None:
-    """TypeError naming ``func`` for a keyword :func:`sine_stream` does not take or the
-    study sets itself (``fixed``)."""
-    allowed = [k for k in _STREAM_KEYWORDS if k not in fixed]
-    for key in kwargs:
-        if key in allowed:
-            continue
-        if key in fixed:
-            raise TypeError(f"{func}() sets '{key}' itself; it passes on only {', '.join(allowed)}")
-        close = difflib.get_close_matches(key, allowed, n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else f"; it takes {', '.join(allowed)}"
-        raise TypeError(f"{func}() got an unexpected keyword argument '{key}'{hint}")
+_STREAM_KEYWORDS = keywords_of(sine_stream)
 
 
 def run_study(params: Parameters, out_dir: str | Path, name: str, title: str = "", **kwargs):
@@ -63,7 +48,7 @@ def run_study(params: Parameters, out_dir: str | Path, name: str, title: str = "
     png : Path
         The Bode plot.
     """
-    _check_keywords("run_study", kwargs)
+    check_keywords("run_study", kwargs, _STREAM_KEYWORDS)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     resp = sine_stream(params, **kwargs)
@@ -102,7 +87,7 @@ def paper_fig14a(params: Parameters, out_dir: str | Path, *, freqs=None, **kwarg
     png : Path
         The Bode plot.
     """
-    _check_keywords("paper_fig14a", kwargs, fixed=("amplitudes", "loads"))
+    check_keywords("paper_fig14a", kwargs, _STREAM_KEYWORDS, fixed=("amplitudes", "loads"))
     amps = [a / 100 * params.actuator.stroke for a in PAPER_AMPLITUDES_PCT]
     return run_study(params, out_dir, "fig14a", "Fig. 14a: sine stream, no load, amplitudes in % of 75 mm",
                      amplitudes=amps, freqs=_paper_freqs(freqs), loads=[0.0], **kwargs)
@@ -133,7 +118,7 @@ def paper_fig14b(params: Parameters, out_dir: str | Path, *, freqs=None, **kwarg
     png : Path
         The Bode plot.
     """
-    _check_keywords("paper_fig14b", kwargs, fixed=("amplitudes", "loads"))
+    check_keywords("paper_fig14b", kwargs, _STREAM_KEYWORDS, fixed=("amplitudes", "loads"))
     amp = PAPER_AMPLITUDES_PCT[0] / 100 * params.actuator.stroke
     return run_study(params, out_dir, "fig14b", "Fig. 14b: sine stream at 0.5 % of 75 mm, loads",
                      amplitudes=[amp], freqs=_paper_freqs(freqs), loads=list(PAPER_LOADS), **kwargs)

@@ -126,7 +126,13 @@ from ._plot import plot_tuning
 from ._problem import TuningProblem
 from ._report import describe_constraint
 from ._requirements import (
-    GAINS, OBJECTIVES, Requirements, TuneError, default_free, exclusion_disk, scaled_gains,
+    GAINS,
+    OBJECTIVES,
+    Requirements,
+    TuneError,
+    default_free,
+    exclusion_disk,
+    scaled_gains,
 )
 from ._solve import TuneResult, tune
 from ._verify import step_metrics, verify

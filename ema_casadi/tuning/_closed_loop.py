@@ -57,7 +57,7 @@ class _ClosedLoop:
                 p = op.p_lin.copy()
                 if k:  # random gains
                     gains = self.scaling.values(self.scaling.random_theta(rng))
-                    for g, v in zip(self.scaling.free, gains):
+                    for g, v in zip(self.scaling.free, gains, strict=False):
                         p[self.names.index(g)] = v
                 _, _, A, B, _, _ = (np.array(v) for v in self.jac(op.x, op.u_lin, p))
                 pattern_A = pattern_A + np.abs(A)

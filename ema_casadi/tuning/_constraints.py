@@ -96,7 +96,7 @@ def _limit_groups(op, X, Cs, ds, req: Requirements, names: list) -> list[_Group]
     Y = Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])
     i_q = op.output("i_q") + Y[0, :]
     v_d, v_q = op.output("v_d") + Y[1, :], op.output("v_q") + Y[2, :]
-    pv = dict(zip(names, op.p))
+    pv = dict(zip(names, op.p, strict=False))
     v_lim = pv["k_v"] * pv["V_dc"] / math.sqrt(3)
     r_i = (i_q / pv["I_max"]) ** 2
     r_v = (v_d**2 + v_q**2) / v_lim**2

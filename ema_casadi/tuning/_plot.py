@@ -47,9 +47,9 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
 
 
 def _plot_bode(result, model, sets, path):
-    from ..plotting import save  # first: it selects the Agg backend
-
     import matplotlib.pyplot as plt
+
+    from ..plotting import save  # first: it selects the Agg backend
 
     f = frequency_grid(0.1, 1e4, 60)
     F = result.loads[0]
@@ -77,9 +77,9 @@ def _plot_bode(result, model, sets, path):
 
 
 def _plot_step(result, model, sets, path):
-    from ..plotting import save  # first: it selects the Agg backend
-
     import matplotlib.pyplot as plt
+
+    from ..plotting import save  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     amp = None

@@ -15,7 +15,13 @@ from ..params import Parameters
 from ._callbacks import spectral_abscissa
 from ._closed_loop import _LOOP_ORDER, _ClosedLoop
 from ._constraints import (
-    _SHARED, _Group, _bandwidth_groups, _dense_minima, _eigenvalue_group, _limit_groups, _loop_groups,
+    _SHARED,
+    _bandwidth_groups,
+    _dense_minima,
+    _eigenvalue_group,
+    _Group,
+    _limit_groups,
+    _loop_groups,
     _overshoot_group,
 )
 from ._kernels import _sensitivity_function, _soft_min, _step_states
@@ -258,14 +264,14 @@ class TuningProblem:
         gains = self._scaling.values(theta)
         groups = []
         slack = np.atleast_1d(np.array(val(self._slack), float).ravel())
-        for grp, sl in zip(self.groups, slack):
+        for grp, sl in zip(self.groups, slack, strict=False):
             v = np.atleast_1d(np.array(val(grp.expr), float).ravel())
             j = int(np.argmin(v))
             groups.append({"kind": grp.kind, "loads": list(grp.loads), "loop": grp.loop, "min": float(v[j]),
                            "slack": float(sl),
                            "at_hz": float(grp.freqs[j]) if grp.freqs is not None else None})
         x_lam = (np.array(val(self._opti.x), float).ravel(), np.array(val(self._opti.lam_g), float).ravel())
-        return {"gains": dict(zip(self.free, map(float, gains))), "warm": x_lam,
+        return {"gains": dict(zip(self.free, map(float, gains), strict=False)), "warm": x_lam,
                 "groups": groups, "objective": float(val(self._J_main)),
                 "f_b": float(val(self._fb)) if self._fb is not None else None}
 

@@ -60,7 +60,7 @@ class _GainScaling:
     def theta_of(self, gains: dict) -> np.ndarray:
         """The variables that give these gains (SI, by name)."""
         return np.array([math.log(gains[g] / self.ref[g]) if ls else gains[g] / self._linear_scale()
-                         for g, ls in zip(self.free, self.log_scaled)])
+                         for g, ls in zip(self.free, self.log_scaled, strict=False)])
 
     def random_theta(self, rng: np.random.Generator) -> np.ndarray:
         """Random variables near the start, no gain zero (a zero gain hides the states

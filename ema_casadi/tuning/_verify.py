@@ -150,7 +150,7 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     """
     req = requirements or Requirements()
     p = params.vector()
-    pv = dict(zip(model.param_names, p))
+    pv = dict(zip(model.param_names, p, strict=False))
     limits = (pv["I_max"], pv["k_v"] * pv["V_dc"] / math.sqrt(3))
     out, failures = {}, []
     worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf}

@@ -61,6 +61,6 @@ def test_simulate_is_thread_safe(model_cache):
     sequential = [run(k) for k in gains]
     with ThreadPoolExecutor(4) as pool:
         parallel = list(pool.map(run, gains))
-    for a, b in zip(sequential, parallel):
+    for a, b in zip(sequential, parallel, strict=True):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(sequential[0], sequential[-1])

@@ -82,7 +82,7 @@ def test_casadi_function_round_trip(model_cache, tmp_path):
     sig = json.loads(written[1].read_text())
     assert sig["states"] == list(model.states) and len(sig["param_values"]) == len(model.param_names)
     args = _random_args(model)
-    for a, b in zip(g(*args), model.f(*args)):
+    for a, b in zip(g(*args), model.f(*args), strict=True):
         np.testing.assert_array_equal(np.array(a), np.array(b))
 
 
@@ -97,7 +97,7 @@ def test_generated_c_compiles_and_matches(model_cache, tmp_path):
                    check=True, capture_output=True)
     g = ca.external("ema_f", str(so))
     args = _random_args(model, 2)
-    for a, b in zip(g(*args), model.f(*args)):
+    for a, b in zip(g(*args), model.f(*args), strict=True):
         np.testing.assert_allclose(np.array(a), np.array(b), rtol=1e-12, atol=1e-300)
 
 

@@ -55,7 +55,7 @@ def test_ad_jacobian_equals_central_difference(model_cache, variants, point):
             args_hi = (hi, u, p) if which == "x" else (x, hi, p)
             f_lo = [np.array(v).ravel() for v in model.f(*args_lo)]
             f_hi = [np.array(v).ravel() for v in model.f(*args_hi)]
-            cols.append([(a - b) / (2 * h) for a, b in zip(f_hi, f_lo)])
+            cols.append([(a - b) / (2 * h) for a, b in zip(f_hi, f_lo, strict=True)])
         return np.array([c[0] for c in cols]).T, np.array([c[1] for c in cols]).T
 
     A_fd, C_fd = central("x", x, x_fs)
@@ -239,7 +239,7 @@ def test_reference_closed_loop_flat_and_spec_anchors(model_cache):
     assert np.max(np.abs(20 * np.log10(np.abs(fr.freqresp(T, f)[0, 0])))) < 0.5
     anchors = {1.0: (-0.03, -4.8), 2.0: (-0.12, -9.4), 5.0: (-0.57, -22.0), 10.0: (-1.33, -39.3)}
     H = fr.freqresp(T, list(anchors))[0, 0]
-    for (fa, (mag, ph)), h in zip(anchors.items(), H):
+    for (fa, (mag, ph)), h in zip(anchors.items(), H, strict=True):
         assert 20 * np.log10(abs(h)) == pytest.approx(mag, abs=0.01), fa
         assert np.degrees(np.angle(h)) == pytest.approx(ph, abs=0.06), fa
     assert fr.bandwidth(T) == pytest.approx(20.0, abs=1.0)

@@ -114,7 +114,8 @@ def test_margins_agree_with_python_control(reference):
         sel = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5)
         ours = sorted(c["f_hz"] for c in m.phase_crossovers)
         np.testing.assert_allclose(sorted(wpc[sel] / (2 * np.pi)), ours, rtol=1e-6)
-        np.testing.assert_allclose(sorted(20 * np.log10(gm[sel])), sorted(c["gm_db"] for c in m.phase_crossovers), atol=1e-6)
+        np.testing.assert_allclose(sorted(20 * np.log10(gm[sel])), sorted(c["gm_db"] for c in m.phase_crossovers),
+                                   atol=1e-6)
         np.testing.assert_allclose(sorted(pm), sorted(c["pm_deg"] for c in m.gain_crossovers), atol=1e-6)
         dm, dgm, dpm = control.disk_margins(L, w)
         assert m.disk_margin == pytest.approx(dm, rel=1e-4)  # ours is refined between grid points
@@ -163,7 +164,8 @@ def test_cli_margins_json(capsys):
 @pytest.mark.parametrize("kind", ["closed", "stiffness", "open"])
 def test_cli_bode_json_and_plot(capsys, tmp_path, kind):
     png = tmp_path / "b.png"
-    status = main(["bode", str(REFERENCE), "--kind", kind, "--loop", "velocity", "--points", "50", "--plot", str(png), "--json"])
+    status = main(["bode", str(REFERENCE), "--kind", kind, "--loop", "velocity", "--points", "50",
+                   "--plot", str(png), "--json"])
     r = json.loads(capsys.readouterr().out)
     assert status == 0 and png.stat().st_size > 0
     assert len(r["freq_hz"]) == len(r["mag_db"]) == len(r["phase_deg"]) == 50

@@ -40,7 +40,8 @@ def test_csv_table(tmp_path):
 
 
 def test_symbolic_equals_numpy():
-    s = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5) + Signal.chirp(1e-4, 1, 5, 1.0) + Signal.table([0, 1], [0, 1e-3])
+    s = (Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5) + Signal.chirp(1e-4, 1, 5, 1.0)
+         + Signal.table([0, 1], [0, 1e-3]))
     t = ca.SX.sym("t")
     f = ca.Function("s", [t], [s.sym(t)])
     grid = np.linspace(0, 1.2, 37)

@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import Signal, frequency as fr, linearisation as lz, simulate
+from ema_casadi import Signal, simulate
+from ema_casadi import frequency as fr
+from ema_casadi import linearisation as lz
 from ema_casadi import tuning as T
 from ema_casadi.cli import main
 
@@ -41,7 +43,10 @@ def _step(model, params, amp=1e-3, t0=0.01, t_end=0.4):
     t, x = res.t, res["x_rod"] / amp
     after = t >= t0
     out = np.nonzero(np.abs(x[after] - 1) > 0.02)[0]
-    settle = t[after][out[-1] + 1] - t0 if len(out) and out[-1] + 1 < after.sum() else (0.0 if not len(out) else math.inf)
+    if not len(out):
+        settle = 0.0
+    else:
+        settle = t[after][out[-1] + 1] - t0 if out[-1] + 1 < after.sum() else math.inf
     return max(0.0, x.max() - 1), settle
 
 

@@ -25,7 +25,8 @@ CASES = {
     "wrong type": (('value = 3.0, unit = "kg"', 'value = "3.0", unit = "kg"'), r"\[screw\] M: expected a number"),
     "non-finite": (('value = 3.0, unit = "kg"', 'value = nan, unit = "kg"'), r"\[screw\] M: expected a finite number"),
     "non-positive": (('value = 3.0, unit = "kg"', 'value = -3.0, unit = "kg"'), r"\[screw\] M: must be positive"),
-    "wrong unit": (('value = 3.0, unit = "kg"', 'value = 3.0, unit = "g"'), r"\[screw\] M: unit 'g' is not the expected SI unit 'kg'"),
+    "wrong unit": (('value = 3.0, unit = "kg"', 'value = 3.0, unit = "g"'),
+                   r"\[screw\] M: unit 'g' is not the expected SI unit 'kg'"),
     "unknown variant": (('motor = "pmsm"', 'motor = "bldc"'), r"unknown motor variant 'bldc'; allowed: pmsm, dc"),
 }
 
@@ -70,10 +71,11 @@ def test_bad_flags(tmp_path, capsys, argv, pattern):
 
 def test_missing_model_file_as_a_process(tmp_path):
     out = tmp_path / "run.csv"
-    proc = subprocess.run([sys.executable, "-m", "ema_casadi.cli", "simulate", str(tmp_path / "none.toml"), "--out", str(out)],
+    missing = tmp_path / "none.toml"
+    proc = subprocess.run([sys.executable, "-m", "ema_casadi.cli", "simulate", str(missing), "--out", str(out)],
                           capture_output=True, text=True)
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == [f"ema simulate: error: {tmp_path / 'none.toml'}: no such parameter file"]
+    assert proc.stderr.strip().splitlines() == [f"ema simulate: error: {missing}: no such parameter file"]
     assert "Traceback" not in proc.stderr
     assert not out.exists()
 

@@ -121,7 +121,7 @@ def test_stuck_intervals_of_the_reference_scenario_hold_the_rod_exactly(params, 
     res = ema.simulate(hybrid(), 1.0, REFERENCE, dt=1e-4, solver=solver, rtol=1e-10, atol=1e-13)
     stuck = res["stick"] > 0.5
     edges = np.flatnonzero(np.diff(np.r_[0, stuck.astype(int), 0]))
-    runs = list(zip(edges[::2], edges[1::2]))
+    runs = list(zip(edges[::2], edges[1::2], strict=True))
     assert len(runs) >= 3  # at rest before the step, after settling, at the sine's reversal
     for a, b in runs:
         assert np.ptp(res["x_rod"][a:b]) < 1e-12
