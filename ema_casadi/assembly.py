@@ -73,6 +73,8 @@ class Model:
     ignored : tuple of str
         Option keys of the variant dict that no chosen part reads (e.g.
         ``friction_shape`` with hybrid friction): accepted and ignored.
+    cache : dict
+        Functions derived from the model (rollouts, integrators, Jacobians), kept with it.
     """
 
     variants: dict

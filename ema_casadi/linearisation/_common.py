@@ -32,15 +32,25 @@ class OperatingPointError(LinearizationError):
 
 def signal_outputs(model: Model) -> tuple[str, ...]:
     """Outputs that are signals (not powers, energies or the stick flag): the default
-    outputs of a linear model."""
-    return model.outputs_of("signal")
+    outputs of a linear model.
 
+    Parameters
+    ----------
+    model : Model
+        The assembled model (its parts declare each output's kind).
+    """
+    return model.outputs_of("signal")
 
 
 def jacobian_function(model: Model) -> ca.Function:
     """``J(x, u, p) -> (xdot, y, A, B, C, D)``: the model and its exact AD Jacobians.
 
-    Built once per model and cached (a call costs tens of microseconds).
+    Built once per model and cached on it (a call costs tens of microseconds).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
     """
     J = model.cache.get("jacobians")
     if J is None:

@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._kwargs import check_keywords, keywords_of
 from ..assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
@@ -18,6 +19,19 @@ class LinearModel:
     Duck-compatible with ``control.StateSpace`` for the ``A, B, C, D`` attributes, so
     :mod:`ema_casadi.frequency` takes either; :meth:`to_statespace` makes the named
     python-control object.
+
+    Parameters
+    ----------
+    A, B, C, D : ndarray
+        The exact AD Jacobians (SI units of the named signals).
+    states, inputs, outputs : tuple of str
+        Names of the entries of x, u and y.
+    op : OperatingPoint, optional
+        The point it was taken at.
+    name : str
+        Label (``ema``, ``L_position``, ...).
+    open_loops : tuple of str
+        Loops opened at their break.
     """
 
     A: np.ndarray
@@ -32,7 +46,15 @@ class LinearModel:
     open_loops: tuple = ()
 
     def select(self, inputs=None, outputs=None, name: str | None = None) -> LinearModel:
-        """The sub-model from some inputs to some outputs (by name)."""
+        """The sub-model from some inputs to some outputs (by name).
+
+        Parameters
+        ----------
+        inputs, outputs : sequence of str, optional
+            Names to keep (default all).
+        name : str, optional
+            Label of the sub-model (default this model's).
+        """
         ii = [self.inputs.index(n) for n in (inputs or self.inputs)]
         oo = [self.outputs.index(n) for n in (outputs or self.outputs)]
         return replace(
@@ -73,13 +95,18 @@ def linear_model(
     Parameters
     ----------
     model : Model
+        The assembled model.
     op : OperatingPoint, optional
         Default: :func:`operating_point` ``(model, **op_kwargs)``.
     open_loops : sequence of {"position", "velocity", "current"}
         Loops opened at their break (flag 0, injection at the measured value).
     inputs, outputs : sequence of str, optional
         Default: all inputs; the signal outputs (:func:`signal_outputs`).
+    **op_kwargs
+        Keywords of :func:`operating_point`, only without ``op``; an unknown one raises
+        TypeError.
     """
+    check_keywords("linear_model", op_kwargs, keywords_of(operating_point))
     if op is None:
         op = operating_point(model, **op_kwargs)
     elif op_kwargs:
@@ -126,9 +153,20 @@ def linear_model(
 def linearize(model: Model, op: OperatingPoint | None = None, **kwargs):
     """Exact AD linearisation as a named ``control.StateSpace``.
 
-    Same arguments as :func:`linear_model`; the operating point travels with the
-    :class:`LinearModel` (``linear_model(...).op``) - use that when you need both.
+    The operating point travels with the :class:`LinearModel` (``linear_model(...).op``)
+    - use that when you need both.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    op : OperatingPoint, optional
+        Default: :func:`operating_point` from the keywords.
+    **kwargs
+        Keywords of :func:`linear_model` (``open_loops``, ``inputs``, ``outputs``) and,
+        without ``op``, of :func:`operating_point`; an unknown one raises TypeError.
     """
+    check_keywords("linearize", kwargs, (*keywords_of(linear_model, 2), *keywords_of(operating_point)))
     return linear_model(model, op, **kwargs).to_statespace()
 
 
@@ -136,17 +174,25 @@ def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, out
                **op_kwargs) -> LinearModel:
     """The loop transfer L(s) at a break as a SISO :class:`LinearModel`.
 
+    ``L = -G_{d -> measurement}`` with this loop open; input is the injection name,
+    output ``-<measurement>``.
+
     Parameters
     ----------
-    loop : {"position", "velocity", "current"}
+    model : Model
+        The assembled model.
+    loop : str
+        A loop of ``model.loops`` (``position``, ``velocity``, ``current``).
+    op : OperatingPoint, optional
+        Default: :func:`operating_point` ``(model, **op_kwargs)``.
     outer : {"closed", "open"}
         ``"closed"`` (default): loop-at-a-time, every other loop closed (the margin the
         whole system has at that point). ``"open"``: the loops outside this one are
         opened too (the cascade-design view: inner loops closed, outer open).
-
-    ``L = -G_{d -> measurement}`` with this loop open; input is the injection name,
-    output ``-<measurement>``.
+    **op_kwargs
+        Keywords of :func:`operating_point` (without ``op``); an unknown one raises TypeError.
     """
+    check_keywords("loop_model", op_kwargs, keywords_of(operating_point))
     (loop,) = _loops(model, loop)
     if outer not in OUTER:
         raise LinearizationError(f"outer '{outer}' unknown; choose one of {', '.join(OUTER)}")
@@ -159,5 +205,20 @@ def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, out
 
 def loop_transfer(model: Model, loop: str, op: OperatingPoint | None = None, *, outer: str = "closed",
                   **op_kwargs):
-    """:func:`loop_model` as a named ``control.StateSpace``."""
+    """:func:`loop_model` as a named ``control.StateSpace``.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    loop : str
+        A loop of ``model.loops``.
+    op : OperatingPoint, optional
+        Default: :func:`operating_point` ``(model, **op_kwargs)``.
+    outer : {"closed", "open"}
+        As in :func:`loop_model`.
+    **op_kwargs
+        Keywords of :func:`operating_point` (without ``op``); an unknown one raises TypeError.
+    """
+    check_keywords("loop_transfer", op_kwargs, keywords_of(operating_point))
     return loop_model(model, loop, op, outer=outer, **op_kwargs).to_statespace()

@@ -32,8 +32,14 @@ class OperatingPoint:
         ``friction``, ``backlash``, the parameter ``overrides`` applied and the
         frozen efficiency factor ``g_eff`` (None when not frozen).
     states, inputs, outputs, param_names : tuple of str
+        Names of the entries of x, u, y and p.
     residual : float
         Largest relative residual of the trim equations.
+    variants : dict
+        The model's variants (a point belongs to one model).
+    u_lin, p_lin : ndarray
+        Where the Jacobian is evaluated: ``u`` and ``p`` with the efficiency blend
+        frozen (friction policy ``off``; package docstring).
     """
 
     x: np.ndarray
@@ -56,9 +62,23 @@ class OperatingPoint:
     p_lin: np.ndarray | None = None
 
     def state(self, name: str) -> float:
+        """A state's value at the point (SI).
+
+        Parameters
+        ----------
+        name : str
+            State name.
+        """
         return float(self.x[self.states.index(name)])
 
     def output(self, name: str) -> float:
+        """An output's value at the point (SI).
+
+        Parameters
+        ----------
+        name : str
+            Output name.
+        """
         return float(self.y[self.outputs.index(name)])
 
     def as_dict(self) -> dict:

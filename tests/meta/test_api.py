@@ -28,22 +28,6 @@ import ema_casadi
 from ema_casadi.components import INPUT_KINDS, OPTIONS, OUTPUT_KINDS, REGISTRY
 from ema_casadi.params import Parameters
 
-#: Modules being restructured (the linearisation/tuning split) and their offenders, by
-#: ``__qualname__``: expected failures (strict) while they live there; once the code
-#: moves the marks fall away and the tests must pass.
-SPLIT_MODULES = ("ema_casadi.linearize", "ema_casadi.tune")
-SPLIT = "fixed in the linearisation/tuning split"
-SPLIT_OFFENDERS = {
-    # with an operating point given, op keywords raise LinearizationError, not TypeError
-    "kwargs": {"linear_model[op]", "linearize[op]", "loop_model[op]", "loop_transfer[op]"},
-    "docs": {
-        "LinearModel", "LinearModel.select", "OperatingPoint", "OperatingPoint.state", "OperatingPoint.output",
-        "jacobian_function", "signal_outputs", "linear_model", "linearize", "loop_model", "loop_transfer",
-        "TuneResult", "TuneResult.write", "default_free", "describe_constraint", "exclusion_disk", "plot_tuning",
-        "scaled_gains", "step_metrics", "verify",
-    },
-}
-
 
 # -- the public API -----------------------------------------------------------------
 def _public_modules():
@@ -89,15 +73,9 @@ FUNCTIONS = {q: f for q, f in API.items() if inspect.isfunction(f)}
 
 
 def _case(qualname, obj, *rest, test, label=""):
-    """One parameter set, xfail when it is a known offender of the split modules."""
+    """One parameter set, named by the object's qualified name (and a label)."""
     key = obj.__qualname__ + (f"[{label}]" if label else "")
-    split = obj.__module__ in SPLIT_MODULES and key in SPLIT_OFFENDERS[test]
-    # the failure expected: a LinearizationError escaping pytest.raises(TypeError), or
-    # the docstring assertion; anything else still fails
-    raises = ema_casadi.LinearizationError if test == "kwargs" else AssertionError
-    marks = [pytest.mark.xfail(reason=SPLIT, strict=True, raises=raises)] if split else []
-    return pytest.param(qualname, obj, *rest, id=qualname.removeprefix("ema_casadi.") + key[len(obj.__qualname__):],
-                        marks=marks)
+    return pytest.param(qualname, obj, *rest, id=qualname.removeprefix("ema_casadi.") + key[len(obj.__qualname__):])
 
 
 def test_the_walk_finds_the_api():
