@@ -15,7 +15,6 @@ import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import threading
 import warnings
 from pathlib import Path
@@ -23,7 +22,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ._files import write_with
+from ._files import scratch_dir, write_with
 
 __all__ = ["compile_function", "compile_keyed", "cache_dir", "compiler", "BufferCall"]
 
@@ -89,7 +88,7 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
             info.update(compiled=True, cached=True)
             return _loaded[str(so)], info
         if not so.exists():
-            with tempfile.TemporaryDirectory() as tmp:
+            with scratch_dir() as tmp:  # removed on an interrupt too
                 c_file = Path(tmp) / f"{name}.c"
                 c_file.write_text(src)
                 tmp_so = Path(tmp) / so.name
@@ -99,7 +98,8 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
                     warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=3)
                     return f, info
                 # atomic: other processes see the whole library or none
-                write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so")
+                # loaded at once: not deferred to the end of the command's outputs
+                write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
         else:
             info["cached"] = True
         g = ca.external(name, str(so))
@@ -150,7 +150,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     g, info = compile_function(build(), jit)
     if info["compiled"]:
         src = Path(_loaded_path(g))
-        write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so")
+        write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so", stage=False)
     info["compile_time"] = time.perf_counter() - t0
     return g, info
 

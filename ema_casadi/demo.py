@@ -1,5 +1,10 @@
 """The main job on a parameter set (``ema demo``): step and sine responses, Bode,
-margins, nonlinear frequency-response map; PNGs and ``summary.md``/``summary.json``."""
+margins, nonlinear frequency-response map; PNGs and ``summary.md``/``summary.json``.
+
+The output folder is assembled beside its place and moved in at the end
+(:func:`ema_casadi._files.atomic_dir`): it appears whole or not at all, also when the
+run fails or is interrupted. An existing folder is replaced whole, and refused if it
+holds anything but :data:`DEMO_FILES` (so no other file is ever removed)."""
 
 from __future__ import annotations
 
@@ -9,13 +14,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import write_text
+from ._files import atomic_dir, check_folder, write_text
 from .assembly import build_model
 from .params import Parameters
 from .signals import Signal
 from .simulation import simulate, step_response_metrics
 
-__all__ = ["run_demo"]
+__all__ = ["run_demo", "DEMO_FILES"]
+
+#: The files the demo writes into its folder.
+DEMO_FILES = (
+    "step_1mm.png", "step_20mm.png", "sine_30kN.png", "bode_closed_loop.png", "dynamic_stiffness.png", "margins.png",
+    "fig14a.png", "fig14a.csv", "fig14b.png", "fig14b.csv", "summary.json", "summary.md",
+)
 
 
 def _step_summary(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, band: float = 0.02) -> dict:
@@ -128,19 +139,21 @@ def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool
 
 
 def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True) -> dict:
-    """Run the demo and write its files into ``out``. Returns the summary dict.
+    """Run the demo and write its files into the folder ``out``. Returns the summary dict.
 
     Parameters
     ----------
     params : Parameters
         Parameter set (its variants are the model's).
     out : str or Path
-        Output folder (created).
+        Output folder: assembled beside it and moved into place at the end; an
+        existing folder is replaced whole (refused, with
+        :class:`~ema_casadi._files.OutputPathError`, if it holds other files than
+        :data:`DEMO_FILES`).
     progress : bool
         Print a line per stage.
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_folder(out, DEMO_FILES)
     t0 = time.perf_counter()
     model = build_model(params)
     written: list[Path] = []
@@ -150,17 +163,18 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
         if progress:
             print(f"[demo] {name} ({time.perf_counter() - t0:.1f} s)", flush=True)
 
-    stage("time responses")
-    summary["time_responses"] = _simulations(model, out, written)
-    stage("linearisation, Bode, margins")
-    fr = _frequency(model, out, written)
-    summary["margins"] = fr.pop("margins")
-    summary["small_signal"] = fr
-    stage("nonlinear frequency-response maps (paper Fig. 14a/b)")
-    summary["nonlinear_frequency_response"] = _nonlinear_maps(params, out, written, progress)
-    summary["wall_time_s"] = time.perf_counter() - t0
-    summary["written"] = [str(p) for p in written]
-    _write_summary(summary, out)
+    with atomic_dir(out) as tmp:
+        stage("time responses")
+        summary["time_responses"] = _simulations(model, tmp, written)
+        stage("linearisation, Bode, margins")
+        fr = _frequency(model, tmp, written)
+        summary["margins"] = fr.pop("margins")
+        summary["small_signal"] = fr
+        stage("nonlinear frequency-response maps (paper Fig. 14a/b)")
+        summary["nonlinear_frequency_response"] = _nonlinear_maps(params, tmp, written, progress)
+        summary["wall_time_s"] = time.perf_counter() - t0
+        summary["written"] = [str(out / Path(p).name) for p in written]
+        _write_summary(summary, tmp)
     summary["written"] += [str(out / "summary.json"), str(out / "summary.md")]
     return summary
 

@@ -35,13 +35,12 @@ import json
 import os
 import re
 import shutil
-import tempfile
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from ._files import write_with
+from ._files import scratch_dir, transaction, write_with
 from .assembly import Model
 from .linearisation import LinearModel, OperatingPoint
 
@@ -252,21 +251,34 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
         raise ExportError(f"{path}: folder {path.parent} does not exist")
     sidecar = json.dumps(model_signature(model), indent=1)
     written = []
-    if fmt == "casadi":
-        written.append(write_with(path, lambda t: model.f.save(str(t))))
-    else:
-        name = path.stem
-        if path.suffix != ".c" or not re.fullmatch(r"[A-Za-z_]\w*", name):
-            raise ExportError(f"{path}: C export needs a file NAME.c with NAME a C identifier")
-        x, u, p = (ca.SX.sym(n, k) for n, k in (("x", model.nx), ("u", model.nu), ("p", len(model.param_names))))
-        fn = ca.Function(name, [x, u, p], list(model.f(x, u, p)), ["x", "u", "p"], ["xdot", "y"])
-        with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-            gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
-            gen.add(fn)
-            gen.generate(tmp + os.sep)
-            for suffix in (".c", ".h"):
-                target = path.with_suffix(suffix)
-                written.append(write_with(target, lambda t, s=suffix: shutil.copyfile(Path(tmp) / f"{name}{s}", t)))
-    side = path.with_name(path.name + ".json")
-    written.append(write_with(side, lambda t: t.write_text(sidecar)))
+    # the files of one export appear together or not at all
+    with transaction():
+        if fmt == "casadi":
+            written.append(write_with(path, lambda t: model.f.save(str(t))))
+        else:
+            name = path.stem
+            if path.suffix != ".c" or not re.fullmatch(r"[A-Za-z_]\w*", name):
+                raise ExportError(f"{path}: C export needs a file NAME.c with NAME a C identifier")
+            x, u, p = (ca.SX.sym(n, k) for n, k in (("x", model.nx), ("u", model.nu), ("p", len(model.param_names))))
+            fn = ca.Function(name, [x, u, p], list(model.f(x, u, p)), ["x", "u", "p"], ["xdot", "y"])
+            with scratch_dir() as tmp:
+                gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
+                gen.add(fn)
+                gen.generate(str(tmp) + os.sep)
+                for suffix in (".c", ".h"):
+                    written.append(write_with(path.with_suffix(suffix),
+                                              lambda t, s=suffix: shutil.copyfile(tmp / f"{name}{s}", t)))
+        written.append(write_with(sidecar_path(path), lambda t: t.write_text(sidecar)))
     return written
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """The JSON file naming the entries of x, u, p and y beside a nonlinear export.
+
+    Parameters
+    ----------
+    path : str or Path
+        The exported ``.casadi`` or ``.c`` file.
+    """
+    path = Path(path)
+    return path.with_name(path.name + ".json")
