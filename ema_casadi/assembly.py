@@ -18,6 +18,12 @@ For sampled (zero-order-hold) control the same wiring is also exposed split in t
 :attr:`Model.holds`) and ``sample(x, u, p, h, flags)`` (one ECU update of the loops
 whose flag is 1; flags in :attr:`Model.loops` order).
 
+The physical envelope (SPEC §7): parts declare a :class:`~ema_casadi.components.Bound`
+on the states and outputs they bring, and named envelope limits (the rod's
+``overtravel``) that another part may widen (the end stop does);
+:meth:`Model.envelope` evaluates them for a parameter vector, and every simulation
+is checked against it (:mod:`ema_casadi.simulation`).
+
 Hybrid parts (stick-slip friction) add the discrete map
 ``project(x_prev, x, u, p) -> (x_next, stick)`` that an integrator applies after each
 step (or at each located switching instant); for a continuous model it is the identity.
@@ -26,6 +32,7 @@ step (or at each located switching instant); for a continuous model it is the id
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -269,6 +276,42 @@ class Model:
         P = self.pdict(p)
         return np.array([float(s.scale(P)) for s in self.state_info.values()])
 
+    def envelope_limits(self, p=None) -> dict[str, float]:
+        """The named envelope limits the parts declare (e.g. ``overtravel``, m), each at
+        the widest value any part gives it.
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        limits: dict[str, float] = {}
+        for part in self.parts:
+            for name, fn in part.limits.items():
+                limits[name] = max(limits.get(name, -math.inf), float(fn(P)))
+        return limits
+
+    def envelope(self, p=None) -> dict[str, float]:
+        """The physical envelope: signal name -> bound on its magnitude (SI), for the
+        states, inputs and outputs whose parts declare one (``|x_rod| <= stroke +
+        overtravel``, the currents within 3 x I_max, the load within 3 x the force the
+        motor holds, ...). A run that leaves it is failed
+        (:class:`~ema_casadi.simulation.RunFailed`).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        E = SimpleNamespace(**vars(self.pdict(p)), **self.envelope_limits(p))
+        out: dict[str, float] = {}
+        for table in (self.state_info, self.input_info, self.output_info):
+            for name, d in table.items():
+                if d.bound is not None:
+                    out[name] = min(out.get(name, math.inf), float(d.bound.limit(E)))
+        return out
+
     def travel(self, p=None) -> dict[str, float]:
         """Position-like states -> rod travel (m) per unit of the state.
 
@@ -347,6 +390,9 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     states, inputs, outputs, providers, loops, holds = _declarations(parts)
 
     names = Parameters.names()
+    clash = sorted({n for part in parts for n in part.limits} & set(names))
+    if clash:
+        raise AssemblyError(f"envelope limits {clash} have the names of parameters")
     p = ca.SX.sym("p", len(names))
     P = SimpleNamespace(**{n: p[i] for i, n in enumerate(names)})
     u = ca.SX.sym("u", len(inputs))

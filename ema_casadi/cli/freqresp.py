@@ -9,6 +9,9 @@ of the motor current i_q are reported per point.
 AMPLITUDES: comma list, 0.5% (of the 75 mm stroke), 0.5mm, 250um; a bare number is mm.
 FREQS: comma list 0.1,1,5 or a log-spaced range F0-F1:N (0.1-30:40); Hz.
 LOADS: comma list 0,10kN,30kN; a bare number is N (positive pushes the rod in).
+Every point has a status (converged, not_converged, failed) and a reason; a failed
+point (it left the physical envelope, went non-finite or its integrator gave up) has
+no values and makes the command exit with status 3 after writing the whole table.
 Example: ema freqresp --amplitudes 0.5%,10% --freqs 0.1-30:40 --out fr.csv --plot fr.png
 """
 
@@ -83,6 +86,7 @@ def run(args) -> dict:
         "points": points,
         "not_converged": resp.info["not_converged"],
         "failed": resp.info["failed"],
+        "failure": resp.failure(),
         "wall_time": resp.info["wall_time"],
         "simulated_time": resp.info["simulated_time"],
         "periods_total": resp.info["periods_total"],

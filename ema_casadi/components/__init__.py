@@ -8,11 +8,26 @@ to its part; :mod:`ema_casadi.assembly` composes the chosen parts by signal name
 """
 
 from . import ballscrew, controller, endstop, friction, inverter, motor
-from ._part import INPUT_KINDS, OUTPUT_KINDS, AssemblyError, Bus, Hold, Input, Loop, Output, Part, State, der
+from ._part import (
+    INPUT_KINDS,
+    MARGIN,
+    OUTPUT_KINDS,
+    AssemblyError,
+    Bound,
+    Bus,
+    Hold,
+    Input,
+    Loop,
+    Output,
+    Part,
+    State,
+    der,
+)
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
     "ballscrew", "controller", "endstop", "friction", "inverter", "motor",
-    "INPUT_KINDS", "OUTPUT_KINDS", "AssemblyError", "Bus", "Hold", "Input", "Loop", "Output", "Part", "State", "der",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Hold", "Input", "Loop", "Output",
+    "Part", "State", "der",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
 ]

@@ -11,6 +11,10 @@ submodels):
 - control :class:`Loop` entries it closes and the controller outputs it :class:`Hold`\\ s
   between ECU samples,
 - contributions to summed signals (stored energy, the load on the rod),
+- the physical envelope of what it brings: a :class:`Bound` on a state, input or output
+  (``|value| <= bound(P)``), and named envelope ``limits`` that other parts may widen
+  (the end stop widens the rod's ``overtravel``); every simulation is checked
+  against it (:meth:`~ema_casadi.assembly.Model.envelope`),
 
 and a :meth:`Part.signals` table of *providers*: functions of the :class:`Bus` that
 return one signal (or several at once). The bus resolves a signal on demand, by name,
@@ -28,8 +32,8 @@ from types import SimpleNamespace
 from typing import ClassVar
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Part", "Bus", "AssemblyError", "der",
-    "OUTPUT_KINDS", "INPUT_KINDS",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Part", "Bus", "AssemblyError", "der",
+    "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN",
 ]
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
@@ -39,6 +43,13 @@ OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature")
+
+
+#: Factor between what the actuator can do and its physical envelope (:class:`Bound`):
+#: generous enough for any manoeuvre within its ratings, tight enough that a run
+#: beyond it (a current no winding survives, a back-EMF far above the DC link) is
+#: garbage, not a result.
+MARGIN = 3.0
 
 
 class AssemblyError(ValueError):
@@ -55,6 +66,29 @@ def der(name: str) -> str:
         State name.
     """
     return f"der({name})"
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The physical envelope of one signal: ``|value| <= limit(E)``.
+
+    A run whose signal leaves it is reported as failed, never as a result (SPEC §7).
+    Bounds are generous (a few times what the actuator can do), so they catch
+    garbage — a rod running away, a current no winding survives — not a demanding
+    but physical manoeuvre.
+
+    Attributes
+    ----------
+    limit : callable
+        ``limit(E) -> float`` (SI, the signal's unit), from the numeric parameters and
+        the model's envelope limits (``E.stroke``, ``E.overtravel``, ...; see
+        :attr:`Part.limits`).
+    why : str
+        What the bound is, for the failure message ("3 x I_max").
+    """
+
+    limit: Callable
+    why: str
 
 
 @dataclass(frozen=True)
@@ -81,6 +115,8 @@ class State:
         move at the commanded rod speed through it.
     loop : str, optional
         For controller integrators: the loop whose ECU sample period integrates it.
+    bound : Bound, optional
+        Its physical envelope (None: only checked to be finite).
     """
 
     name: str
@@ -91,6 +127,7 @@ class State:
     scale: Callable = lambda P: 1.0
     travel: Callable | None = None
     loop: str | None = None
+    bound: Bound | None = None
 
 
 @dataclass(frozen=True)
@@ -107,6 +144,8 @@ class Input:
         Value when not driven (SI), or the name of the parameter giving it.
     injection : bool
         A loop-break injection (zero unless driven; listed after the other inputs).
+    bound : Bound, optional
+        Its physical envelope (None: only checked to be finite).
     """
 
     name: str
@@ -115,6 +154,7 @@ class Input:
     doc: str
     default: float | str = 0.0
     injection: bool = False
+    bound: Bound | None = None
 
 
 @dataclass(frozen=True)
@@ -127,12 +167,15 @@ class Output:
         Name (SPEC symbol), SI unit, one-line meaning.
     kind : str
         One of :data:`OUTPUT_KINDS`.
+    bound : Bound, optional
+        Its physical envelope (None: only checked to be finite).
     """
 
     name: str
     unit: str
     doc: str
     kind: str = "signal"
+    bound: Bound | None = None
 
 
 @dataclass(frozen=True)
@@ -207,6 +250,9 @@ class Part:
     stored: ClassVar[tuple] = ()
     #: signals that load the rod (N, positive pushes the rod in); summed into F_load_rod
     loads: ClassVar[tuple] = ()
+    #: named envelope limits, ``name -> fn(P)`` (SI), read by the :class:`Bound` of any
+    #: part; where several parts declare one, the widest holds (a part can only widen)
+    limits: ClassVar[dict] = {}
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})

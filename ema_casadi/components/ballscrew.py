@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
-from ._part import Input, Output, Part, State, der
-from .motor import shaft
+from ._part import MARGIN, Bound, Input, Output, Part, State, der
+from .motor import no_load_speed, shaft
 
 __all__ = [
-    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "P_BLEND",
-    "Elastic", "Rigid", "F_EXT", "ETA",
+    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "P_BLEND",
+    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA",
 ]
 
 #: Width (W) over which the screw-nut efficiency switches between the direct and the
@@ -121,7 +123,35 @@ def play_rate(x_in, v_in, x_play, B):
 # referred motor force minus the rod load, before friction and viscous), x_rod_mech,
 # v_rod_mech (the rod's mechanical motion: what an end stop touches; the rigid screw's
 # x_rod is the position signal after the play), T_load.
-F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
+def held_force(P):
+    """Largest rod force the motor holds through the screw at the current limit,
+    K_t I_max / ((p/2 pi) eta_inv) (N; 61.7 kN on the reference set).
+
+    Parameters
+    ----------
+    P : SimpleNamespace
+        Parameter values by flat name (uses ``pp``, ``psi``, ``I_max``, ``p``, ``eta_inv``).
+    """
+    return 1.5 * P.pp * P.psi * P.I_max / (P.p / (2 * math.pi) * P.eta_inv)
+
+
+# ---- physical envelope (SPEC §7): what a run may do before it is garbage -------------
+#: How far the rod may pass the stroke without end stops (m): a real rod would hit
+#: its housing there, so a model rod beyond it is running away. The end-stop part
+#: widens this ``overtravel`` limit by the stops' own deflection.
+OVERTRAVEL = 1e-3
+_TRAVEL = Bound(lambda E: E.stroke + E.overtravel, "stroke + overtravel")
+_NUT_ANGLE = Bound(lambda E: (E.stroke + E.overtravel) / _r(E), "stroke + overtravel, at the nut")
+_SPEED = Bound(lambda E: MARGIN * no_load_speed(E), f"{MARGIN:g} x the no-load speed V_dc/K_e")
+_ROD_SPEED = Bound(lambda E: MARGIN * no_load_speed(E) * _r(E), f"{MARGIN:g} x the no-load speed, at the rod")
+_FORCE = Bound(lambda E: MARGIN * held_force(E), f"{MARGIN:g} x the largest force the motor holds")
+# the elastic rod also rings on the screw spring: a load step F excites F/sqrt(C M)
+# (1.1 m/s at 30 kN on the reference set), so its bound adds that of the largest load
+_RINGING_ROD = Bound(lambda E: MARGIN * no_load_speed(E) * _r(E) + MARGIN * held_force(E) / math.sqrt(E.C * E.M),
+                     f"{MARGIN:g} x the no-load speed at the rod + its ringing under the largest load step")
+_LIMITS = {"overtravel": lambda P: OVERTRAVEL}
+
+F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE)
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
 
 
@@ -131,22 +161,27 @@ def _r(P):
 
 def _shaft_states(contact: bool):
     return (
-        State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / _r(P), travel=_r),
+        State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / _r(P), travel=_r,
+              bound=_NUT_ANGLE),
         State("omega", "rad/s", "motor speed", roles=("shaft_speed",) + (("contact_velocity",) if contact else ()),
-              scale=lambda P: P.v_max / _r(P)),
+              scale=lambda P: P.v_max / _r(P), bound=_SPEED),
     )
 
 
-_OUT = (
-    Output("x_rod", "m", "rod position, the sensor signal"),
-    Output("v_rod", "m/s", "rod velocity"),
-    Output("x_in", "m", "nut-side position phi*p/(2 pi)"),
-    Output("omega", "rad/s", "motor speed"),
-    Output("F_in", "N", "screw force on the rod"),
-    Output("g_screw", "1", "screw-nut torque factor T_load/(F p/2pi): 1/eta driving, eta_inv back-driven", kind="aux"),
-    Output("P_screw_nut", "W", "screw-nut efficiency loss", kind="loss"),
-    Output("P_load", "W", "power delivered to the load, f_ext*v_rod", kind="power"),
-)
+def _outputs(rod_speed: Bound) -> tuple:
+    return (
+        Output("x_rod", "m", "rod position, the sensor signal", bound=_TRAVEL),
+        Output("v_rod", "m/s", "rod velocity", bound=rod_speed),
+        Output("x_in", "m", "nut-side position phi*p/(2 pi)", bound=_TRAVEL),
+        Output("omega", "rad/s", "motor speed", bound=_SPEED),
+        Output("F_in", "N", "screw force on the rod"),
+        Output("g_screw", "1", "screw-nut torque factor T_load/(F p/2pi): 1/eta driving, eta_inv back-driven",
+               kind="aux"),
+        Output("P_screw_nut", "W", "screw-nut efficiency loss", kind="loss"),
+        Output("P_load", "W", "power delivered to the load, f_ext*v_rod", kind="power"),
+    )
+
+
 _PARAMS = ("p", "eta_inv", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
 
 
@@ -157,14 +192,17 @@ class Elastic(Part):
     family, value = "screw", "elastic"
     doc = "two-mass: dead-zone spring with contact damping between nut and rod"
     states = _shaft_states(contact=False) + (
-        State("x_rod", "m", "rod position", roles=("rod_position",), scale=lambda P: P.stroke, travel=lambda P: 1.0),
-        State("v_rod", "m/s", "rod velocity", roles=("rod_velocity", "contact_velocity"), scale=lambda P: P.v_max),
+        State("x_rod", "m", "rod position", roles=("rod_position",), scale=lambda P: P.stroke, travel=lambda P: 1.0,
+              bound=_TRAVEL),
+        State("v_rod", "m/s", "rod velocity", roles=("rod_velocity", "contact_velocity"), scale=lambda P: P.v_max,
+              bound=_RINGING_ROD),
     )
     inputs = (F_EXT, ETA)
-    outputs = _OUT + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
+    outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
+    limits = _LIMITS
 
     def signals(self):
         def screw(b):
@@ -206,13 +244,14 @@ class Rigid(Part):
     doc = "one-mass: rod rigid on the shaft, backlash as a play on the position signal"
     states = _shaft_states(contact=True) + (
         State("x_play", "m", "rod position after the backlash play", roles=("rod_position", "play"),
-              scale=lambda P: P.stroke, travel=lambda P: 1.0),
+              scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL),
     )
     inputs = (F_EXT, ETA)
-    outputs = _OUT
+    outputs = _outputs(_ROD_SPEED)
     params = _PARAMS + ("B",)
     stored = ("E_kin",)
     loads = ("f_ext",)
+    limits = _LIMITS
 
     def signals(self):
         def drive(b):

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ._part import Input, Output, Part
+from ._part import Output, Part
+from .ballscrew import F_EXT
 
 __all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "SHAPES", "Smooth", "Hybrid"]
 
@@ -142,7 +143,6 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
 # ---- parts: friction at the contact the screw part names (v_contact, F_drive) ---------
 # Each provides F_friction, F_c (its Coulomb part), stick and F_net, the net force on the
 # contact (F_drive minus friction), besides its outputs.
-_F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in")
 _OUT = (
     Output("F_friction", "N", "friction force at the contact, referred to the rod"),
     Output("stick", "1", "1 while stuck (hybrid friction)", kind="flag"),
@@ -165,7 +165,7 @@ class Smooth(Part):
 
     family, value = "friction", "smooth"
     doc = "smooth Coulomb law F_r s(v) (+ Stribeck hump) + viscous"
-    inputs = (_F_EXT,)
+    inputs = (F_EXT,)
     outputs = _OUT
     params = _PARAMS + ("v_s", "r_start", "v_st")
     options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
@@ -186,7 +186,7 @@ class Hybrid(Part):
 
     family, value = "friction", "hybrid"
     doc = "Karnopp stick-slip: dead band eps, breakaway F_start = r_start F_r"
-    inputs = (_F_EXT,)
+    inputs = (F_EXT,)
     outputs = _OUT
     params = _PARAMS + ("eps", "r_start")
 

@@ -4,9 +4,9 @@ dq frame (amplitude-invariant), and the shaft."""
 from __future__ import annotations
 
 from . import controller
-from ._part import Hold, Input, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Hold, Input, Loop, Output, Part, State, der
 
-__all__ = ["dc", "pmsm", "shaft", "Pmsm", "Dc", "CURRENT_LOOP"]
+__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "Pmsm", "Dc", "CURRENT_LOOP", "CURRENT_BOUND"]
 
 
 def dc(i, v, omega, P):
@@ -81,12 +81,28 @@ def shaft(omega, T, T_load, J, P):
     return (T - P.b_m * omega - T_load) / J
 
 
+def no_load_speed(P):
+    """Speed at which the back-EMF equals the DC link, V_dc / K_e with K_e = 1.5 pp psi
+    (rad/s): the motor cannot drive itself faster, and a load that back-drives it
+    beyond a few times this speed overdrives the inverter's diodes.
+
+    Parameters
+    ----------
+    P : SimpleNamespace
+        Parameter values by flat name (uses ``V_dc``, ``pp``, ``psi``).
+    """
+    return P.V_dc / (1.5 * P.pp * P.psi)
+
+
 # ---- parts: each motor brings its own current controller (FOC or simple PI) ----------
 CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q", rate="f_s_i")
+#: Envelope of the winding currents: the speed loop commands at most I_max; a few
+#: times that only flows when the back-EMF runs away from the voltage limit.
+CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
 
 _COMMON_OUT = (
-    Output("i_d", "A", "d-axis current (0 for the dc motor)"),
-    Output("i_q", "A", "q-axis current (the dc motor's current)"),
+    Output("i_d", "A", "d-axis current (0 for the dc motor)", bound=CURRENT_BOUND),
+    Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND),
     Output("T_m", "N*m", "motor torque"),
     Output("P_elec", "W", "electrical power into the windings", kind="power"),
     Output("P_cu", "W", "copper loss", kind="loss"),
@@ -115,8 +131,8 @@ class Pmsm(Part):
     states = (
         State("z_d", "V", "d-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
         State("z_q", "V", "q-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
-        State("i_d", "A", "d-axis current", roles=("current",), scale=_amps),
-        State("i_q", "A", "q-axis current", roles=("current",), scale=_amps),
+        State("i_d", "A", "d-axis current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
+        State("i_q", "A", "q-axis current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
     )
     stored = ("E_mag",)
 
@@ -148,7 +164,7 @@ class Dc(Part):
     holds = Pmsm.holds
     states = (
         State("z_i", "V", "current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
-        State("i", "A", "winding current", roles=("current",), scale=_amps),
+        State("i", "A", "winding current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
     )
     stored = ("E_mag",)
 

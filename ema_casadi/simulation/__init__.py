@@ -35,15 +35,25 @@ Hybrid (stick-slip) friction is a hybrid system, and both solvers wrap it:
   1e-7 s) by re-integrating from the last accepted state; ``model.project`` is applied
   at the located instant and the integrator restarted. ``info`` holds
   ``mode_switches`` and ``switch_times``.
+
+Every run is checked against the model's physical envelope
+(:meth:`~ema_casadi.assembly.Model.envelope`, ``_envelope``): after every rollout chunk
+(RK4) or integrator segment (CVODES) the kept samples of every bounded state, output
+and input are compared with their bounds, and checked to be finite. A run that leaves
+the envelope, goes non-finite or whose integrator gives up raises :class:`RunFailed`
+with the reason, the time and the result up to the failure. The chunk loops also
+honour an interrupt (:mod:`ema_casadi._interrupts`) between chunks.
 """
 
 
 from ._api import SOLVERS, simulate
 from ._cvodes import BDF_MAX_ORDER
+from ._envelope import Monitor, RunFailed
 from ._result import SimResult, SimulationError, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
 
 __all__ = [
-    "simulate", "SimResult", "SOLVERS", "SimulationError", "rk4_step_function", "step_response_metrics",
+    "simulate", "SimResult", "SOLVERS", "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
+    "step_response_metrics",
     "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER",
 ]

@@ -9,9 +9,11 @@ import time
 import casadi as ca
 import numpy as np
 
+from .._interrupts import check as check_interrupt
 from ..compiled import BufferCall
+from ._envelope import Monitor, RunFailed, captured_stderr, integrator_failure
 from ._inputs import _initial_projection, _input_matrix
-from ._result import SimulationError, _result, progress_bar
+from ._result import _result, progress_bar
 from ._rk4 import outputs_at
 
 _INTEGRATORS_MAX = 64
@@ -45,30 +47,72 @@ def _segment_integrator(model, sig, a: float, tout: np.ndarray, rtol: float, ato
     return cache[key]
 
 
+def _call(F, args, to_time=None, t_default=0.0):
+    """Call a CVODES integrator; an integrator failure becomes ``(what, time)`` in the
+    raised :class:`_Gave_up`, with CasADi's printout kept off the terminal."""
+    with captured_stderr() as log:
+        try:
+            return F(*args)
+        except RuntimeError as exc:
+            check_interrupt()  # CasADi turns an interrupt inside the call into a RuntimeError
+            raise _GaveUp(*integrator_failure(exc, log.getvalue(), to_time, t_default)) from None
+
+
+class _GaveUp(Exception):
+    def __init__(self, what, time):
+        super().__init__(what)
+        self.what, self.time = what, time
+
+
+def _check(monitor, model, sig, pv, grid, X, Y, i0, i1):
+    """Outputs of samples i0..i1-1 into Y; RunFailed with the run up to the failure if
+    one of them leaves the envelope."""
+    if i1 <= i0:
+        return
+    U = _input_matrix(model, sig, grid[i0:i1])
+    Y[:, i0:i1] = outputs_at(model, X[:, i0:i1], U, pv)
+    bad = monitor.first(grid[i0:i1], X[:, i0:i1], Y[:, i0:i1], U)
+    if bad is not None:
+        raise RunFailed(bad.what, bad.time, _partial(model, sig, grid, X, Y, i0 + bad.index + 1))
+
+
+def _partial(model, sig, grid, X, Y, n):
+    """The run's first n samples (outputs already computed) as a SimResult."""
+    return _result(model, sig, grid[:n], X[:, :n], Y[:, :n], {"partial": True})
+
+
 def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
     n_out = int(math.ceil(t_end / dt_out - 1e-9))
     grid = np.arange(n_out + 1) * dt_out
     cuts = [b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]]
     edges = sorted({0.0, float(grid[-1]), *cuts})
     X = np.empty((model.nx, len(grid)))
+    Y = np.empty((model.ny, len(grid)))
     X[:, 0] = x0
     xc = np.asarray(x0, float)
-    steps = 0
+    monitor = Monitor(model, pv)
+    _check(monitor, model, sig, pv, grid, X, Y, 0, 1)
+    steps, done = 0, 1
     t_compute = time.perf_counter()
     for a, b in zip(edges[:-1], edges[1:], strict=True):
+        check_interrupt()
         inside = np.nonzero((grid > a + 1e-12) & (grid <= b + 1e-12))[0]
         tout = grid[inside]
         if not len(tout) or abs(tout[-1] - b) > 1e-12:
             tout = np.append(tout, b)
         F = _segment_integrator(model, sig, a, tout, rtol, atol)
-        xf = F(xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3)[0]
+        try:
+            xf = _call(F, (xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3),
+                       t_default=a)[0]
+        except _GaveUp as exc:
+            raise RunFailed(exc.what, exc.time, _partial(model, sig, grid, X, Y, done)) from None
         steps += int(F.stats().get("nsteps", 0))
         X[:, inside] = xf[:, : len(inside)]
+        if len(inside):
+            _check(monitor, model, sig, pv, grid, X, Y, done, inside[-1] + 1)
+            done = inside[-1] + 1
         xc = xf[:, -1]
         progress_bar(b / edges[-1], progress)
-    if not np.all(np.isfinite(X)):
-        raise SimulationError("the simulation diverged (non-finite state)")
-    Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
     info = {"dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
             "compiled": False, "compile_time": 0.0, "rtol": rtol, "atol": atol}
     return _result(model, sig, grid, X, Y, info)
@@ -160,7 +204,11 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
     stats = {"steps": 0, "calls": 0}
 
     def integrate(F, x, t0, H, n):
-        out = F(x, nz, np.concatenate([pv, [t0, H]]), np.zeros((0, n)), nz, nz, nz)
+        try:
+            out = _call(F, (x, nz, np.concatenate([pv, [t0, H]]), np.zeros((0, n)), nz, nz, nz),
+                        lambda tau: t0 + H * tau, t0)
+        except _GaveUp as exc:
+            raise RunFailed(exc.what, exc.time, _partial(model, sig, grid, X, Y, gi)) from None
         stats["steps"] += int(F.stats().get("nsteps", 0))
         stats["calls"] += 1
         return out[0], out[2]  # xf (nx x n), qf (2 x n)
@@ -170,12 +218,17 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
 
     x0, _ = _initial_projection(model, sig, pv, x0)
     X = np.empty((model.nx, len(grid)))
+    Y = np.empty((model.ny, len(grid)))
     X[:, 0] = x0
     x, t, gi = x0, 0.0, 1  # state, time, index of the next output sample
+    monitor = Monitor(model, pv)
+    _check(monitor, model, sig, pv, grid, X, Y, 0, 1)
     stuck = stuck_at(x, t)
     switch_times = []
     t_compute = time.perf_counter()
     while gi <= n_out:
+        check_interrupt()
+        g_start = gi
         b_next = next((c for c in cuts if c > t + 1e-12), math.inf)
         on_grid = abs(t - grid[gi - 1]) <= 1e-12 * max(1.0, t)
         if on_grid:
@@ -213,10 +266,8 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
             if abs(t - grid[gi]) <= 1e-12 * max(1.0, t):
                 X[:, gi] = x
                 gi += 1
+        _check(monitor, model, sig, pv, grid, X, Y, g_start, gi)
         progress_bar(min(1.0, t / grid[-1]), progress)
-    if not np.all(np.isfinite(X)):
-        raise SimulationError("the simulation diverged (non-finite state)")
-    Y = outputs_at(model, X, _input_matrix(model, sig, grid), pv)
     info = {"dt_out": dt_out, "steps": stats["steps"], "integrator_calls": stats["calls"],
             "compute_time": time.perf_counter() - t_compute, "compiled": False, "compile_time": 0.0,
             "rtol": rtol, "atol": atol, "event_tol": event_tol,

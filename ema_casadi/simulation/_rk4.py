@@ -10,10 +10,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from .._interrupts import check as check_interrupt
 from ..assembly import Model
 from ..compiled import BufferCall, compile_function, compile_keyed
+from ._envelope import Monitor, RunFailed
 from ._inputs import _initial_projection, _input_matrix
-from ._result import SimulationError, _result, progress_bar
+from ._result import _result, progress_bar
 
 STEPS_PER_CALL = 20000
 
@@ -200,16 +202,38 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
     M = max(1, min(n_out, STEPS_PER_CALL // k))
+    monitor = Monitor(model, pv)
+    x0, stick0 = _initial_projection(model, sig, pv, x0)
+    bad = monitor.first([0.0], x0, None, _input_matrix(model, sig, [0.0]))
+    if bad is not None:  # before the rollout is compiled
+        raise RunFailed(bad.what, 0.0, None)
     F, cinfo = _rollout(model, zoh, k, M, jit)
     nh = len(model.holds) if zoh else 0
-    x0, stick0 = _initial_projection(model, sig, pv, x0)
     counter = [stick0, 0.0] if model.hybrid else []
     xa = np.concatenate([x0, np.zeros(nh), counter])
     rates = [pv[model.param_names.index(loop.rate)] for loop in model.loops.values()]
     X_out = np.empty((len(xa), n_out))
     Y_out = np.empty((model.ny, n_out))
     t_compute = time.perf_counter()
+
+    def result(n):
+        """The run's first n kept samples after t = 0 as a SimResult."""
+        t_out = np.arange(n + 1) * k * dt
+        X_all = np.column_stack([x0, X_out[: model.nx, :n]])
+        # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
+        y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
+        Y_all = np.column_stack([y0, Y_out[:, :n]])
+        info = {"dt": dt, "steps": min(n_steps, n * k), "decimate": k,
+                "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+        if model.hybrid:
+            # the mode decided inside each step (identical to the rule in f except at
+            # the instant of a band crossing) and the switches counted at every step
+            Y_all[model.yindex("stick")] = np.concatenate([[stick0], X_out[model.nx + nh, :n]])
+            info["mode_switches"] = int(round(X_out[model.nx + nh + 1, n - 1])) if n else 0
+        return _result(model, sig, t_out, X_all, Y_all, info)
+
     for c0 in range(0, n_out, M):
+        check_interrupt()
         steps = np.arange(c0 * k, (c0 + M) * k)
         t = steps * dt
         t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
@@ -219,20 +243,15 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         m = min(M, n_out - c0)
         X_out[:, c0 : c0 + m] = Xc[:, :m]
         Y_out[:, c0 : c0 + m] = Yc[:, :m]
+        # inputs at the kept samples: the end of each block of k steps
+        bad = monitor.first((np.arange(c0, c0 + m) + 1) * k * dt, Xc[: model.nx, :m], Yc[:, :m],
+                            U[:, 3 * k - 1 :: 3 * k][:, :m])
+        if bad is not None:
+            what = bad.what
+            if what.startswith("non-finite") and (bad.finite_before or c0 > 0):
+                # from inside the envelope to non-finite within one kept sample: RK4 unstable
+                what += f" right after a sample inside the envelope (RK4 step dt = {dt:g} s: too long?)"
+            raise RunFailed(what, bad.time, result(c0 + bad.index + 1))
         xa = Xc[:, -1]
         progress_bar(min(1.0, (c0 + m) / n_out), progress)
-    if not np.all(np.isfinite(X_out)):
-        raise SimulationError(f"the simulation diverged (non-finite state); try a smaller dt than {dt} s")
-    t_out = np.concatenate([[0.0], np.arange(1, n_out + 1) * k * dt])
-    X_all = np.column_stack([x0, X_out[: model.nx]])
-    # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
-    y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
-    Y_all = np.column_stack([y0, Y_out])
-    info = {"dt": dt, "steps": n_steps, "decimate": k, "compute_time": time.perf_counter() - t_compute, "zoh": zoh,
-            **cinfo}
-    if model.hybrid:
-        # the mode decided inside each step (identical to the rule in f except at the
-        # instant of a band crossing) and the switches counted at every step
-        Y_all[model.yindex("stick")] = np.concatenate([[stick0], X_out[model.nx + nh]])
-        info["mode_switches"] = int(round(X_out[model.nx + nh + 1, -1])) if n_out else 0
-    return _result(model, sig, t_out, X_all, Y_all, info)
+    return result(n_out)

@@ -14,11 +14,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from .. import _interrupts
 from ..assembly import Model, build_model
 from ..compiled import BufferCall
 from ..params import ParameterError, Parameters
 from ..signals import Signal
-from ..simulation import STEPS_PER_CALL, simulate
+from ..simulation import STEPS_PER_CALL, RunFailed, simulate
+from ..simulation._envelope import Monitor, captured_stderr, integrator_failure
 
 #: Largest contraction ratio assumed for a settling transient (also the value taken
 #: while only one period-to-period change is known).
@@ -41,9 +43,12 @@ def _inputs(model: Model, pa, tau, PA, taus):
 
 class _PeriodMap:
     """The one simulator of a model variant: ``(x0, [p; A; f; F_ext]) -> (x(1 period),
-    x_rod and i_q at tau = k/K, k = 1..K)`` by CVODES in normalised time."""
+    x_rod and i_q at tau = k/K, k = 1..K)`` by CVODES in normalised time.
 
-    def __init__(self, model: Model, samples: int, rtol: float, atol: float):
+    :meth:`period` also returns every state, output and input at the K samples, for
+    the envelope check (``monitored``; the integration itself is the same)."""
+
+    def __init__(self, model: Model, samples: int, rtol: float, atol: float, monitored: bool = True):
         nx, npar = model.nx, len(model.param_names)
         self.nx, self.npar, self.K = nx, npar, samples
         x = ca.SX.sym("x", nx)
@@ -60,13 +65,46 @@ class _PeriodMap:
         Xk = integ(x0=X0, p=PA)["xf"]
         Y = model.f.map(samples)(Xk, U, PA[:npar])[1]
         sel = [model.outputs.index("x_rod"), model.outputs.index("i_q")]
-        self.F = ca.Function("sine_period", [X0, PA], [Xk[:, -1], Y[sel, :]], ["x0", "pa"], ["x1", "y"])
+        outs, names = [Xk[:, -1], Y[sel, :]], ["x1", "y"]
+        if monitored:
+            outs, names = outs + [ca.vertcat(Xk, Y, U)], names + ["z"]
+        self.F = ca.Function("sine_period", [X0, PA], outs, ["x0", "pa"], names)
         self.call = BufferCall(self.F)  # per-thread buffers, one shared Function
+        self.model, self.monitored = model, monitored
 
     def __call__(self, x0, pa):
-        """One period from x0; returns (x at the period's end, (2, K) samples)."""
-        x1, y = self.call(x0, pa)
-        return x1.ravel(), y
+        """One period from x0; returns (x at the period's end, (2, K) samples), NaN if
+        the integrator failed."""
+        try:
+            return self.period(x0, pa)[:2]
+        except _GaveUp:
+            return np.full(self.nx, np.nan), np.full((2, self.K), np.nan)
+
+    def period(self, x0, pa):
+        """One period from x0: (x at its end, (2, K) samples, states/outputs/inputs at
+        the samples or None); an integrator failure is ``_GaveUp(what, tau)``."""
+        with captured_stderr() as log:
+            try:
+                out = self.call(x0, pa)
+            except RuntimeError as exc:
+                _interrupts.check()
+                raise _GaveUp(*integrator_failure(exc, log.getvalue())) from None
+        return out[0].ravel(), out[1], (out[2] if self.monitored else None)
+
+    def first_outside(self, monitor: Monitor, z, freq, k):
+        """The first sample of period k (1-based) outside the envelope, as (what, t), or None."""
+        m = self.model
+        taus = (k - 1) + np.arange(1, self.K + 1) / self.K
+        bad = monitor.first(taus / freq, z[: m.nx], z[m.nx : m.nx + m.ny], z[m.nx + m.ny :])
+        return None if bad is None else (bad.what, bad.time)
+
+
+class _GaveUp(Exception):
+    """The period's integrator failed: ``what`` and CVODES's normalised time ``tau``."""
+
+    def __init__(self, what, tau):
+        super().__init__(what)
+        self.what, self.tau = what, tau
 
 
 class _HybridPeriods:
@@ -85,6 +123,15 @@ class _HybridPeriods:
         self.k_min = max(samples, -(-STEPS_PER_CALL // self.DECIMATE))
 
     def __call__(self, x0, pa):
+        """One period from x0; returns (x at the period's end, samples), NaN if the run failed."""
+        try:
+            return self.period(x0, pa)[:2]
+        except RunFailed:
+            return np.full(self.model.nx, np.nan), np.full((2, self.K), np.nan)
+
+    def period(self, x0, pa):
+        """One period: (x at its end, samples, None); :func:`simulate` checks the
+        envelope itself and raises RunFailed."""
         p = pa[: self.npar]
         A, freq, f_ext = pa[self.npar :]
         n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
@@ -93,7 +140,7 @@ class _HybridPeriods:
                        dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
         y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
-        return x1, y
+        return x1, y, None
 
 
 def harmonics(y: np.ndarray):
@@ -136,20 +183,38 @@ class _Settle:
     max_periods: int = 60
 
 
-def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool) -> dict:
-    """Run periods until the x_rod harmonic settles (package docstring); return the point."""
+def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool, stop=None) -> dict:
+    """Run periods until the x_rod harmonic settles (package docstring); return the point.
+
+    Every period is checked against the model's envelope: a point that leaves it, goes
+    non-finite or whose integrator fails is returned ``failed`` with the reason and
+    its time (its values NaN). ``stop`` (an Event) or an interrupt ends the loop."""
     x = np.asarray(x0, float)
+    monitor = Monitor(step.model, pa[: len(step.model.param_names)])
+    u0 = step.model.u(pa[: len(step.model.param_names)], f_ext=pa[-1], x_cmd=0.0)
+    bad = monitor.first([0.0], x, None, u0)
+    if bad is not None:
+        return _failed(0, f"{bad.what} at the start: the actuator cannot hold the load at rest (the state after "
+                          "1 s at rest under it is outside the envelope)")
     H_prev, e_prev = None, None
     kept = []
     converged = False
     k = 0
     for k in range(1, s.max_periods + 1):
+        if (stop is not None and stop.is_set()) or _interrupts.requested() is not None:
+            raise _interrupts.Interrupted(_interrupts.requested() or 2)
         try:
-            x, y = step(x, pa)
-        except RuntimeError:  # the integrator gave up
-            return _failed(k)
+            x, y, z = step.period(x, pa)
+        except _GaveUp as exc:
+            return _failed(k, f"{exc.what} at t = {(k - 1 + exc.tau) / freq:.6g} s (period {k})")
+        except RunFailed as exc:  # the hybrid points' simulate()
+            return _failed(k, f"{exc.what} at t = {(k - 1) / freq + exc.time:.6g} s (period {k})")
+        if z is not None:
+            out = step.first_outside(monitor, z, freq, k)
+            if out is not None:
+                return _failed(k, f"{out[0]} at t = {out[1]:.6g} s (period {k})")
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-            return _failed(k)
+            return _failed(k, f"non-finite x_rod or i_q in period {k}")
         if keep:
             kept.append(y)
         c1, thd, mean = harmonics(y)
@@ -167,6 +232,8 @@ def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool) -> dict:
     out = {
         "H": H, "distortion": float(thd[0]), "I": I, "i_q_distortion": float(thd[1]),
         "x_offset": float(mean[0]), "periods": k, "converged": converged, "failed": False,
+        "status": "converged" if converged else "not_converged",
+        "reason": "" if converged else f"not settled within {s.max_periods} periods",
     }
     if keep:
         out["samples"] = _kept_samples(kept, A, freq)
@@ -180,9 +247,11 @@ def _kept_samples(kept: list, A: float, freq: float) -> dict:
     return {"t": t, "x_cmd": A * np.sin(2 * np.pi * freq * t), "x_rod": Y[0], "i_q": Y[1]}
 
 
-def _failed(k):
+def _failed(k, reason: str):
+    """A failed point: no values (NaN), never converged, with the reason."""
     return {"H": complex(np.nan, np.nan), "distortion": np.nan, "I": complex(np.nan, np.nan),
-            "i_q_distortion": np.nan, "x_offset": np.nan, "periods": k, "converged": False, "failed": True}
+            "i_q_distortion": np.nan, "x_offset": np.nan, "periods": k, "converged": False, "failed": True,
+            "status": "failed", "reason": reason}
 
 
 _STEPPERS: dict = {}

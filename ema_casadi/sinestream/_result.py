@@ -13,12 +13,16 @@ import numpy as np
 from .._files import write_with
 from ..simulation import SimulationError
 
-#: Result fields per point, with units.
+#: Result fields per point, with units. ``status`` is ``converged``, ``not_converged``
+#: (not settled within max_periods: the last period's values) or ``failed`` (the run
+#: left the physical envelope, went non-finite or its integrator gave up: no values,
+#: NaN); ``reason`` says why a point is not converged, with the time of a failure.
 FIELDS = {
     "gain_db": "dB", "phase_deg": "deg", "distortion": "1",
     "i_q_amp": "A", "i_q_phase_deg": "deg", "i_q_distortion": "1",
-    "x_offset": "m", "periods": "1", "converged": "1",
+    "x_offset": "m", "periods": "1", "converged": "1", "status": "", "reason": "",
 }
+STATUSES = ("converged", "not_converged", "failed")
 
 
 class FreqRespError(SimulationError):
@@ -39,7 +43,9 @@ class FreqResponse:
         :data:`FIELDS`: ``gain_db`` (dB), ``phase_deg`` (deg, unwrapped along frequency,
         relative to x_cmd), ``distortion`` (-) of x_rod; ``i_q_amp`` (A), ``i_q_phase_deg``
         (deg, relative to x_cmd), ``i_q_distortion`` (-); ``x_offset`` (m, mean rod
-        position over the last period); ``periods`` simulated; ``converged`` (bool).
+        position over the last period); ``periods`` simulated; ``converged`` (bool);
+        ``status`` and ``reason`` (str, see :data:`FIELDS`). A failed point is never
+        converged and has no values (NaN).
     variants : dict
         Label -> complete variant dict.
     info : dict
@@ -79,7 +85,10 @@ class FreqResponse:
             }
             for k in FIELDS:
                 v = self.data[k][idx]
-                row[k] = bool(v) if k == "converged" else (int(v) if k == "periods" else float(v))
+                if k in ("status", "reason"):
+                    row[k] = str(v)
+                else:
+                    row[k] = bool(v) if k == "converged" else (int(v) if k == "periods" else float(v))
             out.append(row)
         return out
 
@@ -135,8 +144,24 @@ class FreqResponse:
         return out
 
     def not_converged(self) -> list[dict]:
-        """Rows (as :meth:`rows`) of the points that did not settle within ``max_periods``."""
+        """Rows (as :meth:`rows`) of the points that did not settle within ``max_periods``
+        or failed."""
         return [r for r in self.rows() if not r["converged"]]
+
+    def failed(self) -> list[dict]:
+        """Rows (as :meth:`rows`) of the failed points (``status`` failed, with the reason)."""
+        return [r for r in self.rows() if r["status"] == "failed"]
+
+    def failure(self) -> str | None:
+        """One line on the failed points (how many, the first one and why), or None."""
+        bad = self.failed()
+        if not bad:
+            return None
+        r = bad[0]
+        where = f"load {r['load_N'] / 1e3:g} kN, amplitude {r['amplitude_m'] * 1e3:g} mm, {r['freq_Hz']:g} Hz"
+        if len(self.axes["variant"]) > 1:
+            where = f"{r['variant']}, {where}"
+        return f"{len(bad)} of {self.data['status'].size} points failed; first ({where}): {r['reason']}"
 
     def to_dict(self) -> dict:
         """JSON-ready: axes (SI), variants, units, info and one entry per point."""

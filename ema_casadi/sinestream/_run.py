@@ -13,6 +13,7 @@ import numpy as np
 from ..assembly import Model
 from ..components import validate_variants
 from ..params import Parameters
+from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
 from ._kernels import _Settle, _stepper, hybrid_available
 from ._parse import _as_axis
@@ -182,6 +183,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     rods = [n for n in model.states_with("rod_position") if n not in model.states_with("play")]
     rod = rods[0] if rods else model.state_with("shaft_angle")
     j_rod, per_unit = model.index(rod), travel[rod]
+    monitor = Monitor(model, p)
     out = {}
     for il, load in enumerate(loads):
         # at rest under the load: 1 s with the command held at zero
@@ -201,7 +203,11 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
             g_rod = abs(Xc[j_rod]) * per_unit
             for ia, A in enumerate(amplitudes):
                 scale = A * min(1.0, v_max / max(w * g_rod * A, 1e-300))
-                out[il, ia, jf] = x_rest + scale * Xc.imag
+                guess = x_rest + scale * Xc.imag
+                # a guess outside the physical envelope (the linearised hybrid rod is
+                # stuck: its "response" drives the currents far beyond I_max) would
+                # start the run in garbage: start at rest instead
+                out[il, ia, jf] = x_rest if monitor.first([0.0], guess) is not None else guess
     return out
 
 
@@ -212,6 +218,8 @@ def _collect(results: dict, shape: tuple, keep: bool):
     data = {k: np.full(shape, np.nan) for k in ("distortion", "i_q_distortion", "x_offset")}
     periods = np.zeros(shape, int)
     conv = np.zeros(shape, bool)
+    status = np.full(shape, "", object)
+    reason = np.full(shape, "", object)
     samples_out = {} if keep else None
     failed = 0
     for idx, r in results.items():
@@ -219,6 +227,7 @@ def _collect(results: dict, shape: tuple, keep: bool):
         for k in data:
             data[k][idx] = r[k]
         periods[idx], conv[idx] = r["periods"], r["converged"]
+        status[idx], reason[idx] = r["status"], r["reason"]
         failed += bool(r["failed"])
         if keep and "samples" in r:
             samples_out[idx] = r["samples"]
@@ -232,6 +241,8 @@ def _collect(results: dict, shape: tuple, keep: bool):
         "x_offset": data["x_offset"],
         "periods": periods,
         "converged": conv,
+        "status": status,
+        "reason": reason,
     }
     return data, samples_out, failed
 
