@@ -16,23 +16,38 @@ Packages (``ema.simulation``, ``ema.linearisation``, ``ema.sinestream``, ...) ar
 apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine_stream``).
 """
 
-from .assembly import AssemblyError, Model, build_model
-from .components import DEFAULT_VARIANTS, REGISTRY, VARIANTS
-from .export import ExportError, export_function, load_linear, save_linear
-from .frequency import bode, closed_loop, dynamic_stiffness, loop_margins, margins
-from .linearisation import (
-    LinearizationError,
-    OperatingPointError,
-    linear_model,
-    linearize,
-    loop_transfer,
-    operating_point,
-)
-from .params import ParameterError, Parameters, load_parameters
-from .signals import Signal, SignalError, parse_signal
-from .simulation import SimResult, SimulationError, simulate
-from .sinestream import FreqRespError, FreqResponse, sine_stream
-from .tuning import Requirements, TuneError, TuneResult, tune
+from importlib import import_module
+
+# Names are imported on first use (PEP 562): ``import ema_casadi.cli`` stays light, so
+# the ``ema`` command installs its SIGINT/SIGTERM handlers before CasADi, SciPy and
+# matplotlib load (SPEC §7: Ctrl-C during start-up is an interrupt, not a traceback).
+_EXPORTS = {
+    ".assembly": ("AssemblyError", "Model", "build_model"),
+    ".components": ("DEFAULT_VARIANTS", "REGISTRY", "VARIANTS"),
+    ".export": ("ExportError", "export_function", "load_linear", "save_linear"),
+    ".frequency": ("bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins"),
+    ".linearisation": ("LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer",
+                       "operating_point"),
+    ".params": ("ParameterError", "Parameters", "load_parameters"),
+    ".signals": ("Signal", "SignalError", "parse_signal"),
+    ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate"),
+    ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
+    ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
+}
+_WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        value = getattr(import_module(_WHERE[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'ema_casadi' has no attribute '{name}'")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
+
 
 __version__ = "0.1.0"
 
@@ -40,7 +55,7 @@ __all__ = [
     "AssemblyError", "Model", "build_model",
     "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "Signal", "SignalError", "parse_signal",
-    "SimResult", "SimulationError", "simulate",
+    "RunFailed", "SimResult", "SimulationError", "simulate",
     "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",

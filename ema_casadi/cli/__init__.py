@@ -7,53 +7,82 @@ and ``run(args) -> dict`` (the ``--json`` result) plus optionally ``report(resul
 file. Every command takes the model file as first argument, ``--variant KEY=VALUE``
 (repeatable) and ``--json``.
 
-User mistakes (bad file, key, flag or value) end with exit status 2 and one line on
-stderr naming what was wrong; no traceback, no half-written output file.
+Exit status and stderr (SPEC §7), always one line, never a traceback:
+
+- 0: done;
+- 2: a mistake in a file, key, flag or value (checked before any work, outputs
+  included: a path that cannot be written is refused up front);
+- 3: a run failed (left the physical envelope, went non-finite, its integrator gave
+  up: :class:`~ema_casadi.simulation.RunFailed`), or, for ``ema freqresp``, a
+  requested point failed (the table is still written, with its status column);
+- 130 / 143: interrupted by SIGINT (Ctrl-C) / SIGTERM, within about a second.
+
+Outputs are written atomically and committed together at the end of the command
+(:func:`ema_casadi._files.transaction`): an error, a failed run or an interrupt leaves
+no output and no temporary file.
+
+Importing this package costs next to nothing (``sys`` and the signal module): what
+else the command line needs, the standard library's argparse included, loads after
+:func:`main` has installed its signal handlers, so an interrupt during start-up is an
+interrupt, not a traceback.
 """
 
 from __future__ import annotations
 
-import argparse
-import importlib
-import json
-import pkgutil
 import sys
-from pathlib import Path
+import threading
+from typing import TYPE_CHECKING
 
-import numpy as np
+from .. import _interrupts
 
-from ..export import ExportError
-from ..linearisation import LinearizationError
-from ..params import ParameterError
-from ..signals import SignalError
-from ..simulation import SimulationError
+if TYPE_CHECKING:
+    from pathlib import Path
 
-__all__ = ["main", "UserError", "DEFAULT_MODEL"]
+__all__ = ["main", "UserError", "DEFAULT_MODEL", "check_output_path", "check_output_dir"]
 
 DEFAULT_MODEL = "models/cesa_ema.toml"
+
+#: Exit status of a failed run (and of ``ema freqresp`` with a failed point).
+EXIT_FAILED = 3
 
 
 class UserError(ValueError):
     """A mistake in the command line; reported as one line, exit status 2."""
 
 
-USER_ERRORS = (UserError, ParameterError, SignalError, SimulationError, LinearizationError, ExportError)
+def _user_errors() -> tuple:
+    from .. import _files
+    from ..export import ExportError
+    from ..linearisation import LinearizationError
+    from ..params import ParameterError
+    from ..signals import SignalError
+    from ..simulation import SimulationError
+
+    return (UserError, _files.OutputPathError, ParameterError, SignalError, SimulationError, LinearizationError,
+            ExportError)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, not usage + message
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
-        sys.exit(2)
+def _parser_class():
+    import argparse
+
+    class _Parser(argparse.ArgumentParser):
+        def error(self, message):  # one line, not usage + message
+            sys.stderr.write(f"{self.prog}: error: {message}\n")
+            sys.exit(2)
+
+    return _Parser
 
 
 def _variant(text: str) -> tuple[str, str]:
+    import argparse
+
     key, sep, value = text.partition("=")
     if not sep or not key or not value:
         raise argparse.ArgumentTypeError(f"--variant expects KEY=VALUE, got '{text}'")
     return key.strip(), value.strip()
 
 
-def add_common(p: argparse.ArgumentParser) -> None:
+def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
                    help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
@@ -74,6 +103,10 @@ def load(args):
 
 
 def _jsonable(obj):
+    from pathlib import Path
+
+    import numpy as np
+
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -91,18 +124,60 @@ def _jsonable(obj):
 
 
 def check_output_path(path: str | None, suffixes: tuple[str, ...], flag: str) -> Path | None:
-    """Validate an output path before any work: suffix and an existing folder."""
+    """Validate an output file before any work: its suffix, and that it can be written
+    (its folder exists, is a folder and takes a file; the path is not a folder).
+
+    Parameters
+    ----------
+    path : str or None
+        The path given (None: the flag was not used).
+    suffixes : tuple of str
+        Allowed endings, lower case (``(".csv", ".npz")``).
+    flag : str
+        The flag, for the message (``"--out"``).
+    """
+    from pathlib import Path
+
+    from .. import _files
+
     if path is None:
         return None
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise UserError(f"{flag} {path}: expected a file ending in {' or '.join(suffixes)}")
-    if not p.parent.exists():
-        raise UserError(f"{flag} {path}: folder {p.parent} does not exist")
-    return p
+    try:
+        return _files.check_file(p, f"{flag} {path}")
+    except _files.OutputPathError as exc:
+        raise UserError(str(exc)) from None
+
+
+def check_output_dir(path: str | None, names, flag: str) -> Path | None:
+    """Validate an output folder before any work: it can be assembled beside its place
+    and moved in; an existing folder is replaced whole, so it may hold only ``names``.
+
+    Parameters
+    ----------
+    path : str or None
+        The folder given (None: the flag was not used).
+    names : iterable of str
+        The files the command writes into it.
+    flag : str
+        The flag, for the message (``"--out"``).
+    """
+    from .. import _files
+
+    if path is None:
+        return None
+    try:
+        return _files.check_folder(path, names, f"{flag} {path}")
+    except _files.OutputPathError as exc:
+        raise UserError(str(exc)) from None
 
 
 def _commands():
+    import importlib
+    import pkgutil
+
     mods = []
     for info in pkgutil.iter_modules(__path__):
         if info.name.startswith("_"):
@@ -114,6 +189,9 @@ def _commands():
 
 
 def build_parser():
+    import argparse
+
+    _Parser = _parser_class()
     parser = _Parser(prog="ema", description="Electromechanical actuator toolkit (CasADi). "
                      "Run 'ema COMMAND --help' for a command's options.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
@@ -131,22 +209,113 @@ def build_parser():
 def main(argv=None) -> int:
     """Run the ``ema`` command line and return its exit status.
 
+    SIGINT and SIGTERM are handled from the first statement on (exit status 130 /
+    143, one line on stderr, no output left). With ``argv`` None — the ``ema`` process
+    itself — an interrupt ends the process at once after the cleanup (no wait for
+    worker threads), and a run that cannot unwind within a second (IPOPT) is ended by
+    a watchdog the same way.
+
     Parameters
     ----------
     argv : list of str, optional
         Arguments after the program name (default ``sys.argv[1:]``).
     """
+    process = argv is None
+    stop = _Stop(sys.argv[1:] if process else list(argv))
+    with _interrupts.handling(stop.force_exit if process else None, on_signal=stop.silence):
+        try:
+            status = _run(argv, stop)
+        except _interrupts.Interrupted as exc:
+            status = stop.report(exc.signum)
+        except KeyboardInterrupt:
+            status = stop.report(2)
+        except BaseException:
+            if _interrupts.requested() is None:
+                raise
+            status = stop.report(_interrupts.requested())  # an interrupt CasADi turned into an error
+        finally:
+            stop.unsilence()
+        if stop.reported and process:
+            stop.exit(status)
+        return status
+
+
+class _Stop:
+    """What an interrupt does: silence the unwinding, remove the temporaries, write the
+    one line, end the process (the ``ema`` process itself)."""
+
+    def __init__(self, words):
+        self.command = words[0] if words and not words[0].startswith("-") else None
+        self.reported = False
+        self.stderr = None
+        self._once = threading.Lock()  # the main thread and the watchdog may both report
+
+    def silence(self, signum):
+        # what the unwinding prints (CasADi's warnings, a worker's error) is not for the
+        # user: the one line of report() is
+        self.stderr = sys.stderr
+        sys.stderr = _Silent()
+
+    def unsilence(self):
+        if isinstance(sys.stderr, _Silent):
+            sys.stderr = self.stderr
+
+    def report(self, signum) -> int:
+        from .. import _files
+
+        with self._once:
+            if not self.reported:
+                self.reported = True
+                _files.remove_temporaries()
+                stream = self.stderr or sys.stderr
+                stream.write(f"ema {self.command}: interrupted\n" if self.command else "ema: interrupted\n")
+                stream.flush()
+        return _interrupts.exit_status(signum)
+
+    def exit(self, status):
+        import os
+
+        sys.stdout.flush()
+        os._exit(status)
+
+    def force_exit(self, signum):  # the watchdog: the run did not unwind in time
+        self.exit(self.report(signum))
+
+
+class _Silent:
+    """A stream that drops what is written to it."""
+
+    def write(self, s):
+        return len(s)
+
+    def flush(self):
+        pass
+
+
+def _run(argv, stop) -> int:
+    """Parse, run the command in one output transaction, report; the exit status."""
+    import json
+
+    from .. import _files
+    from ..simulation import RunFailed
+
     parser, mods = build_parser()
     args = parser.parse_args(argv)
+    stop.command = args.command
     mod = mods[args.command]
+    errors = _user_errors()
     try:
-        result = mod.run(args)
-    except USER_ERRORS as exc:
+        with _files.transaction():
+            result = mod.run(args)
+            _interrupts.check()
+    except errors as exc:
+        _interrupts.check()
         sys.stderr.write(f"ema {args.command}: error: {exc}\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write(f"ema {args.command}: interrupted\n")
-        return 130
+    except RunFailed as exc:
+        _interrupts.check()
+        sys.stderr.write(f"ema {args.command}: failed: {exc}\n")
+        return EXIT_FAILED
     if args.json:
         json.dump(_jsonable(result), sys.stdout, indent=1)
         sys.stdout.write("\n")
@@ -157,6 +326,10 @@ def main(argv=None) -> int:
         else:
             json.dump(_jsonable(result), sys.stdout, indent=1)
             sys.stdout.write("\n")
+    failure = result.get("failure") if isinstance(result, dict) else None
+    if failure:
+        sys.stderr.write(f"ema {args.command}: failed: {failure}\n")
+        return EXIT_FAILED
     return 0
 
 

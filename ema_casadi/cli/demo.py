@@ -3,8 +3,8 @@ nonlinear frequency-response map; PNGs plus summary.md and summary.json in --out
 
 from __future__ import annotations
 
-from ..demo import run_demo
-from . import UserError, load
+from ..demo import DEMO_FILES, run_demo
+from . import check_output_dir, load
 
 COMMAND = "demo"
 ORDER = 1
@@ -12,16 +12,14 @@ HELP = "main job: responses, Bode, margins, frequency-response map -> out/"
 
 
 def add_arguments(p):
-    p.add_argument("--out", default="out", metavar="DIR", help="output folder (created); default out/")
+    p.add_argument("--out", default="out", metavar="DIR",
+                   help="output folder, assembled beside it and moved into place at the end; an existing folder "
+                        "is replaced whole, and refused if it holds files the demo does not write; default out/")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def run(args) -> dict:
-    from pathlib import Path
-
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
+    out = check_output_dir(args.out, DEMO_FILES, "--out")
     params, _ = load(args)
     return run_demo(params, out, progress=not (args.quiet or args.json))
 

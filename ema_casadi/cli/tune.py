@@ -15,8 +15,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from .._files import atomic_dir
 from ..signals import SignalError, parse_quantity
-from . import UserError, check_output_path, load
+from . import UserError, check_output_dir, check_output_path, load
+
+#: The files --plot-dir receives (the folder is replaced whole: it may hold only these).
+PLOT_FILES = ("tune_bode.png", "tune_step.png")
 
 COMMAND = "tune"
 ORDER = 7
@@ -58,7 +62,9 @@ def add_arguments(p):
                    help="nonlinear step simulated before and after (0 skips it); default 1mm")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="parameter file with the tuned gains")
     p.add_argument("--plot-dir", default=None, metavar="DIR",
-                   help="write tune_bode.png and tune_step.png (before/after) into DIR")
+                   help="write tune_bode.png and tune_step.png (before/after) into the folder DIR, assembled "
+                        "beside it and moved into place; an existing DIR is replaced whole (refused if it holds "
+                        "other files)")
 
 
 def _length(text, flag, stroke):
@@ -84,13 +90,7 @@ def run(args) -> dict:
     from ..tuning import Requirements, TuneError, default_free, plot_tuning, scaled_gains, tune
 
     out = check_output_path(args.out, (".toml",), "--out")
-    plot_dir = None
-    if args.plot_dir is not None:
-        plot_dir = Path(args.plot_dir)
-        if not plot_dir.parent.exists():
-            raise UserError(f"--plot-dir {args.plot_dir}: folder {plot_dir.parent} does not exist")
-        if plot_dir.exists() and not plot_dir.is_dir():
-            raise UserError(f"--plot-dir {args.plot_dir}: exists and is not a folder")
+    plot_dir = check_output_dir(args.plot_dir, PLOT_FILES, "--plot-dir")
     for flag, val, ok, what in (
         ("--gm", args.gm, args.gm > 0, "a positive number of dB"),
         ("--pm", args.pm, 0 < args.pm < 90, "between 0 and 90 deg"),
@@ -133,9 +133,9 @@ def run(args) -> dict:
     if out is not None:
         written.append(str(res.write(out)))
     if plot_dir is not None:
-        plot_dir.mkdir(exist_ok=True)
         before = params.replace(**res.gains_before)
-        written.extend(str(w) for w in plot_tuning(res, model, before, plot_dir))
+        with atomic_dir(plot_dir) as tmp:
+            written.extend(str(plot_dir / Path(w).name) for w in plot_tuning(res, model, before, tmp))
     r = res.to_dict()
     for key in ("before", "after"):
         nl = r[key].get("nonlinear_step")
