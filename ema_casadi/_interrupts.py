@@ -8,6 +8,10 @@ not swallow it). CasADi turns an exception raised inside one of its calls into a
 errors asks :func:`check` first, and long loops (simulation chunks, sine-stream
 periods on worker threads, which never see signals) poll :func:`requested`.
 
+A signal that arrives before :func:`handling` — while the ``ema`` process is still
+importing its command line — is recorded by :func:`record_early` and replayed by
+:func:`replay_early` as soon as the handling starts.
+
 Some work cannot be interrupted from Python (IPOPT keeps iterating after a failed
 callback and the tuner then carries on): a watchdog started by the first signal
 ends the process ``grace`` seconds later with the same status, after the caller's
@@ -17,14 +21,17 @@ ends the process ``grace`` seconds later with the same status, after the caller'
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
 
-__all__ = ["Interrupted", "handling", "requested", "check", "exit_status"]
+__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 _received: int | None = None
+_early: int | None = None
 _watchdog = None
 _on_timeout = None
 _on_signal = None
@@ -66,6 +73,33 @@ def check() -> None:
     """Raise :class:`Interrupted` if a signal arrived (call where CasADi may have eaten it)."""
     if _received is not None:
         raise Interrupted(_received)
+
+
+def record_early() -> None:
+    """In the ``ema`` process only (``python -m ema_casadi.cli`` or the ``ema`` script):
+    record SIGINT/SIGTERM from now until :func:`handling` takes over."""
+    argv = list(getattr(sys, "orig_argv", ()))
+    cli = "-m" in argv and argv[argv.index("-m") + 1 : argv.index("-m") + 2] == ["ema_casadi.cli"]
+    if not (cli or os.path.basename(sys.argv[0] if sys.argv else "") == "ema"):
+        return
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            if signal.getsignal(s) is not signal.SIG_IGN:  # ignored by the parent: stays ignored
+                signal.signal(s, _record)
+
+
+def _record(signum, frame):
+    global _early
+    if _early is None:
+        _early = signum
+
+
+def replay_early() -> None:
+    """Handle a signal :func:`record_early` kept (call first thing inside :func:`handling`)."""
+    global _early
+    if _early is not None:
+        signum, _early = _early, None
+        _handler(signum, None)
 
 
 def _handler(signum, frame):
@@ -110,7 +144,8 @@ def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
     _received, _watchdog, _on_timeout, _on_signal, _grace = None, None, on_timeout, on_signal, grace
     _cancel.clear()
     for s in SIGNALS:
-        signal.signal(s, _handler)
+        if previous[s] is not signal.SIG_IGN:  # ignored by the parent (a background job): stays ignored
+            signal.signal(s, _handler)
     try:
         yield
     finally:

@@ -35,6 +35,8 @@ from typing import TYPE_CHECKING
 
 from .. import _interrupts
 
+_interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
+
 if TYPE_CHECKING:
     from pathlib import Path
 
@@ -224,6 +226,7 @@ def main(argv=None) -> int:
     stop = _Stop(sys.argv[1:] if process else list(argv))
     with _interrupts.handling(stop.force_exit if process else None, on_signal=stop.silence):
         try:
+            _interrupts.replay_early()  # a signal that came during start-up
             status = _run(argv, stop)
         except _interrupts.Interrupted as exc:
             status = stop.report(exc.signum)
