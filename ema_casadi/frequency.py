@@ -49,7 +49,7 @@ __all__ = [
 
 REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
 
-#: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearize.operating_point`.
+#: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearisation.operating_point`.
 _OP_KEYWORDS = keywords_of(operating_point)
 
 
@@ -358,7 +358,7 @@ def loop_margins(
     f_min, f_max, per_decade
         Crossover search window (Hz) and grid (points per decade), see :func:`margins`.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
@@ -384,9 +384,9 @@ def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> 
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
@@ -405,9 +405,9 @@ def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> L
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
@@ -428,11 +428,11 @@ def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None,
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     f_hz : array_like, optional
         Frequencies (Hz); default 0.1 Hz - 2 kHz, 100 points per decade.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """

@@ -94,7 +94,7 @@ def test_spectral_abscissa_gradient_matches_finite_differences():
 def test_optimiser_loop_transfers_equal_fresh_linearisation(params, model_cache, variants):
     """The optimiser's symbolic loop sensitivities S = 1 + G_jj (closed loop, balanced,
     reduced states, real arithmetic) equal 1/(1 + L) of the loop transfers linearised
-    with each loop opened (ema_casadi.linearize), at 0 and 30 kN, within 1e-7."""
+    with each loop opened (ema_casadi.linearisation), at 0 and 30 kN, within 1e-7."""
     model = model_cache(**variants)
     free = T.default_free(model)
     start = T.scaled_gains(params, 0.7, free)
