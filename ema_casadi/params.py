@@ -325,7 +325,10 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         value = raw["value"]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ParameterError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ParameterError(f"{where}: expected a finite number, got an integer of {len(str(value))} digits") from None
     if not math.isfinite(value):
         raise ParameterError(f"{where}: expected a finite number, got {value}")
     check = meta["check"]

@@ -71,7 +71,7 @@ def run(args) -> dict:
     freqs = parse_freqs(args.freqs)
     loads = parse_loads(args.loads)
     check_grid({"--loads": len(loads), "--amplitudes": len(amplitudes), "--freqs": len(np.unique(freqs))},
-               args.max_periods, args.jobs or 1)
+               args.max_periods, args.jobs or 1, "--max-periods")
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     resp = sine_stream(params, amplitudes, freqs, loads, variants=model.variants, jobs=args.jobs,
                        scheduler=args.scheduler, max_periods=args.max_periods, tol_db=args.tol_db,

@@ -35,9 +35,10 @@ def check_window(args, per_decade: int | None = None) -> None:
 
     if not (math.isfinite(args.fmin) and math.isfinite(args.fmax) and 0 < args.fmin < args.fmax):
         raise UserError(f"--fmin/--fmax must satisfy 0 < fmin < fmax (Hz), got {args.fmin:g}, {args.fmax:g}")
-    n = (per_decade or 0) * math.log10(args.fmax / args.fmin)
+    decades = math.log10(args.fmax) - math.log10(args.fmin)
+    n = (per_decade or 0) * decades
     if n > MAX_FREQ_POINTS:
-        raise UserError(f"--fmin/--fmax {args.fmin:g}-{args.fmax:g} Hz: {math.log10(args.fmax / args.fmin):.3g} "
+        raise UserError(f"--fmin/--fmax {args.fmin:g}-{args.fmax:g} Hz: {decades:.3g} "
                         f"decades at {per_decade} frequencies per decade = {n:.3g}, above the limit of "
                         f"{MAX_FREQ_POINTS} (MAX_FREQ_POINTS)")
 

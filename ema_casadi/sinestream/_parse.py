@@ -113,7 +113,7 @@ def _as_axis(values, name, unit, positive=True) -> np.ndarray:
     return a
 
 
-def check_grid(counts: dict, max_periods: int, jobs: int = 1) -> None:
+def check_grid(counts: dict, max_periods: int, jobs: int = 1, periods_label: str = "max_periods") -> None:
     """Refuse a sine-stream grid above :data:`MAX_SINE_STREAM_POINTS` points or
     :data:`MAX_SINE_STREAM_PERIODS` worst-case periods, with the estimate.
 
@@ -125,9 +125,11 @@ def check_grid(counts: dict, max_periods: int, jobs: int = 1) -> None:
         Periods after which a point stops (the worst case per point).
     jobs : int
         Worker threads (divides the time estimate).
+    periods_label : str
+        The name of ``max_periods`` in the message (the argument or flag).
     """
     points = int(np.prod([max(1, int(n)) for n in counts.values()], dtype=float))
-    axes = " x ".join(f"{n} {label}" for label, n in counts.items())
+    axes = " x ".join(f"{label} {n}" for label, n in counts.items())
     names = "/".join(counts)
     if points > MAX_SINE_STREAM_POINTS:
         raise FreqRespError(f"{names}: {axes} = {points:.3g} points, above the limit of {MAX_SINE_STREAM_POINTS} "
@@ -135,8 +137,8 @@ def check_grid(counts: dict, max_periods: int, jobs: int = 1) -> None:
                             f" on one core at {SECONDS_PER_PERIOD * 1e3:g} ms per period")
     worst = points * max_periods
     if worst > MAX_SINE_STREAM_PERIODS:
-        raise FreqRespError(f"{names} with max_periods {max_periods}: up to {worst:.3g} periods, above the limit of "
-                            f"{MAX_SINE_STREAM_PERIODS:.0e} (MAX_SINE_STREAM_PERIODS); up to "
+        raise FreqRespError(f"{names} with {periods_label} {max_periods}: up to {worst:.3g} periods, above the "
+                            f"limit of {MAX_SINE_STREAM_PERIODS:.0e} (MAX_SINE_STREAM_PERIODS); up to "
                             f"{_hours(worst * SECONDS_PER_PERIOD / max(1, jobs))} on {max(1, jobs)} core(s) at "
                             f"{SECONDS_PER_PERIOD * 1e3:g} ms per period")
 
