@@ -32,9 +32,11 @@ HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
 def add_arguments(p):
     p.add_argument("--x-cmd", default="step:1mm@0.01", metavar="SIGNAL",
-                   help="commanded rod position (bare numbers in mm); default step:1mm@0.01")
+                   help="commanded rod position (bare numbers in mm; in a CSV file m unless the header names a "
+                        "unit); default step:1mm@0.01")
     p.add_argument("--f-ext", default="0", metavar="SIGNAL",
-                   help="external rod force, positive pushes the rod in (bare numbers in N); default 0")
+                   help="external rod force, positive pushes the rod in (bare numbers in N, also in a CSV file); "
+                        "default 0")
     p.add_argument("--input", action="append", default=[], metavar="NAME=SIGNAL",
                    help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
