@@ -41,6 +41,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ._checks import describe, instance
 from ._files import write_with
 from .assembly import Model
 from .linearisation import LinearModel, OperatingPoint
@@ -57,7 +58,15 @@ class ExportError(ValueError):
     """Bad export request or unreadable file (one line, names the file)."""
 
 
+def _path(path) -> Path:
+    if not isinstance(path, (str, Path)):
+        raise ExportError(f"path: expected a file path (str or Path), got {describe(path)}")
+    return Path(path)
+
+
 def _format_of(path: Path, fmt: str | None, allowed) -> str:
+    if fmt is not None and not isinstance(fmt, str):
+        raise ExportError(f"fmt: expected one of {', '.join(allowed)}, got {describe(fmt)}")
     fmt = (fmt or path.suffix.lstrip(".")).lower()
     if fmt not in allowed:
         raise ExportError(f"{path}: format '{fmt}' unknown; choose one of {', '.join(allowed)}")
@@ -98,7 +107,10 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, unit
     units : dict, optional
         Signal name -> SI unit, the model's one unit table (``model.units``).
     """
-    path = Path(path)
+    instance(lin, LinearModel, "lin", ExportError, " (from linear_model)")
+    path = _path(path)
+    if units is not None and not isinstance(units, dict):
+        raise ExportError(f"units: expected a dict signal name -> unit (model.units), got {describe(units)}")
     fmt = _format_of(path, fmt, LINEAR_FORMATS)
     if not path.parent.exists():
         raise ExportError(f"{path}: folder {path.parent} does not exist")
@@ -163,7 +175,7 @@ def load_linear(path: str | Path) -> tuple[LinearModel, dict]:
         The operating point as saved: ``x``, ``u``, ``y`` (SI), ``x_cmd`` (m),
         ``f_ext`` (N), ``v_rod`` (m/s), names, parameters, policy, variants.
     """
-    path = Path(path)
+    path = _path(path)
     fmt = _format_of(path, None, LINEAR_FORMATS)
     if not path.exists():
         raise ExportError(f"{path}: no such file")
@@ -218,6 +230,7 @@ def model_signature(model: Model) -> dict:
     model : Model
         The assembled model.
     """
+    instance(model, Model, "model", ExportError, " (from build_model)")
     return {
         "function": "f(x, u, p) -> (xdot, y)",
         "variants": dict(model.variants),
@@ -246,7 +259,8 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     list of Path
         The paths written (the file(s) and the ``.json`` sidecar).
     """
-    path = Path(path)
+    instance(model, Model, "model", ExportError, " (from build_model)")
+    path = _path(path)
     fmt = _format_of(path, fmt, FUNCTION_FORMATS)
     if not path.parent.exists():
         raise ExportError(f"{path}: folder {path.parent} does not exist")

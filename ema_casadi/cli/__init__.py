@@ -17,6 +17,7 @@ import argparse
 import importlib
 import json
 import pkgutil
+import re
 import sys
 from pathlib import Path
 
@@ -128,6 +129,44 @@ def build_parser():
     return parser, mods
 
 
+_NEGATIVE = re.compile(r"-[0-9.]")
+
+
+def join_negative_values(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """``--f-ext -30kN`` -> ``--f-ext=-30kN``: a token that starts with '-' and a digit or
+    '.' after a flag that takes a value is that flag's value (argparse alone reads
+    ``-30kN`` as an unknown option). Long flags and their unambiguous prefixes are
+    recognised; nothing after ``--`` is touched.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments after the program name.
+    parser : argparse.ArgumentParser
+        The ``ema`` parser (its subcommands say which flags take a value).
+    """
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    choices = subs[0].choices if subs else {}
+    out, i, sub = [], 0, None
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            return out + argv[i:]
+        if sub is None and tok in choices:
+            sub = choices[tok]
+        elif sub is not None and tok.startswith("--") and "=" not in tok and i + 1 < len(argv) \
+                and _NEGATIVE.match(argv[i + 1]):
+            flags = {o: a.nargs is None for a in sub._actions for o in a.option_strings if o.startswith("--")}
+            match = [o for o in flags if o == tok] or [o for o in flags if o.startswith(tok)]
+            if len(match) == 1 and flags[match[0]]:
+                out.append(f"{tok}={argv[i + 1]}")
+                i += 2
+                continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     """Run the ``ema`` command line and return its exit status.
 
@@ -137,6 +176,7 @@ def main(argv=None) -> int:
         Arguments after the program name (default ``sys.argv[1:]``).
     """
     parser, mods = build_parser()
+    argv = join_negative_values(list(sys.argv[1:] if argv is None else argv), parser)
     args = parser.parse_args(argv)
     mod = mods[args.command]
     try:
