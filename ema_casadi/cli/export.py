@@ -7,8 +7,9 @@ read back with casadi.Function.load) or c (generated C code NAME.c + NAME.h) whe
 --out names a .casadi / .c file; they write a sidecar FILE.json naming the entries
 of x, u, p and y.
 Nonlinear model for other tools (ema_casadi.fmu): --format fmu-me (FMI 3.0 model
-exchange, smooth friction), fmu-cs (FMI 2.0 co-simulation of the fixed-step RK4 with
-the hybrid friction inside; --dt sets its internal step, default 1e-5 s), c (a
+exchange, smooth friction), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
+co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets its
+internal step, default 1e-5 s), c (a
 folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
 casadi (a folder: serialised Functions and their layout) when --out is a folder.
 Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
@@ -39,6 +40,8 @@ def add_arguments(p):
                         "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
                    help="fmu-cs: internal fixed step; c, casadi: default step of the simulator (default 1e-5)")
+    p.add_argument("--fmi-version", choices=["2.0", "3.0"], default="2.0",
+                   help="fmu-cs: FMI version of the co-simulation FMU (default 2.0; fmu-me is always 3.0)")
     p.add_argument("--open", action="append", choices=list(LOOPS), default=[], metavar="LOOP",
                    help="linear formats: open a loop at its break; repeatable")
     add_operating_point_arguments(p)
@@ -62,7 +65,7 @@ def _run_model_export(args) -> dict:
         raise UserError(f"--out {exc}") from None
     params, model = load(args)
     try:
-        r = export_model(model, out, args.format, dt=args.dt)
+        r = export_model(model, out, args.format, dt=args.dt, fmi_version=args.fmi_version)
     except ExportError as exc:
         raise UserError(f"--format {args.format}: {exc}") from None
     except OSError as exc:

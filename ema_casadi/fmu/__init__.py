@@ -6,9 +6,10 @@
     start values, event indicators, units); the importer's own solver integrates it.
     Hybrid friction is refused: its stick-slip map is not an ODE.
 ``fmu-cs`` (:func:`export_fmu_cs`)
-    FMI 2.0 co-simulation containing generated C of the toolkit's own fixed-step RK4
-    step (hybrid stick-slip projection and switch counting inside), sub-stepped with
-    the internal step ``dt_internal`` (default 1e-5 s); no Python on the importing side.
+    FMI 2.0 (or 3.0) co-simulation containing generated C of the toolkit's own
+    fixed-step RK4 step (hybrid stick-slip projection and switch counting inside),
+    sub-stepped with the internal step ``dt_internal`` (default 1e-5 s); no Python on
+    the importing side.
 ``c`` (:func:`export_c`)
     A self-contained C folder: model functions, fixed-step simulator, layout header,
     example ``main.c`` (the reference scenario) and a Makefile.
@@ -69,7 +70,8 @@ def check_output(path, fmt: str) -> Path:
     return check_target(path, FORMATS[fmt])
 
 
-def export(model: Model, path, fmt: str, *, dt: float | None = None, platforms=("linux64", "win64")) -> dict:
+def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version: str = "2.0",
+           platforms=("linux64", "win64")) -> dict:
     """Export ``model`` in one of :data:`FORMATS`.
 
     Parameters
@@ -82,6 +84,8 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, platforms=(
     dt : float, optional
         Internal step of ``fmu-cs`` / default step of ``c`` and ``casadi`` (s);
         default 1e-5 s. Not used by ``fmu-me`` (the importer's solver chooses).
+    fmi_version : {"2.0", "3.0"}
+        FMI version of ``fmu-cs`` (``fmu-me`` is always 3.0).
     platforms : sequence of str
         FMU binaries to build: ``linux64``, ``win64`` (skipped without MinGW-w64).
 
@@ -97,7 +101,7 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, platforms=(
     if fmt == "fmu-me":
         return export_fmu_me(model, path, platforms=platforms)
     if fmt == "fmu-cs":
-        return export_fmu_cs(model, path, dt_internal=step, platforms=platforms)
+        return export_fmu_cs(model, path, dt_internal=step, fmi_version=fmi_version, platforms=platforms)
     if fmt == "c":
         return export_c(model, path, dt=step)
     return export_casadi(model, path, dt=step)

@@ -19,7 +19,7 @@ from pathlib import Path
 from ..compiled import compiler
 from ..export import ExportError
 
-__all__ = ["Target", "targets", "build_all", "pe_exports", "MINGW"]
+__all__ = ["Target", "targets", "build_all", "pe_exports", "MINGW", "BuildClock"]
 
 MINGW = "x86_64-w64-mingw32-gcc"
 INCLUDE = Path(__file__).with_name("_include")
@@ -84,6 +84,31 @@ def targets(platforms=("linux64", "win64")) -> list[Target]:
         else:
             raise ExportError(f"platform '{key}' unknown; choose linux64 or win64")
     return out
+
+
+class BuildClock:
+    """Wall time and CPU time (this process and its finished child processes, i.e. the
+    compilers) since creation: the CPU time does not grow when other work shares the
+    machine, the wall time does."""
+
+    def __init__(self):
+        self.t0, self.cpu0 = time.perf_counter(), self._cpu()
+
+    @staticmethod
+    def _cpu() -> float:
+        t = time.process_time()
+        try:
+            import resource
+
+            ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t += ru.ru_utime + ru.ru_stime
+        except ImportError:  # Windows: the compilers' time is not counted
+            pass
+        return t
+
+    def times(self) -> dict:
+        """``build_time`` (wall, s) and ``build_cpu_time`` (s)."""
+        return {"build_time": time.perf_counter() - self.t0, "build_cpu_time": self._cpu() - self.cpu0}
 
 
 def build_all(jobs: list[tuple[Target, list, Path]], include_dirs=()) -> float:

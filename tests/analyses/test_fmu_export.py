@@ -29,7 +29,11 @@ STEP = Signal.step(1e-3, 0.01)
 NEEDS_CC = pytest.mark.skipif(compiled.compiler() is None, reason="no C compiler on this machine")
 NEEDS_MINGW = pytest.mark.skipif(not any(t.key == "win64" for t in fmu.targets()),
                                  reason=f"{fmu.MINGW} not installed (apt-get install gcc-mingw-w64-x86-64)")
-BUILD_LIMIT = 10.0  # s, acceptance
+#: s, acceptance "each FMU builds in under 10 s", checked on the build's CPU time (this
+#: process and the compilers, all binaries summed): the wall time is that or less on an
+#: idle 2-core machine (3.1-3.8 s measured) but grows with whatever else runs beside the
+#: test; the benchmark (benchmarks/bench_fmu.py) reports the wall times.
+BUILD_LIMIT = 10.0
 
 
 def step_input(t_end=T_END):
@@ -62,7 +66,7 @@ def test_model_exchange_validates_and_matches_simulate(me):
     """FMPy validates it; CVode on the FMU = ema.simulate within 1e-9 m of x_rod."""
     model, info = me
     assert validate_fmu(str(info["path"])) == []
-    assert info["build_time"] < BUILD_LIMIT, info
+    assert info["build_cpu_time"] < BUILD_LIMIT, info
     assert info["inputs"] == ["x_cmd", "f_ext", "eta"]
     res, ref = me_run(info["path"]), cvodes(model)
     err = np.max(np.abs(res["x_rod"] - np.interp(res["time"], ref.t, ref["x_rod"])))
@@ -129,7 +133,7 @@ def test_co_simulation_validates_and_matches_rk4(cs):
     """FMPy co-simulation = the toolkit's RK4 at the same internal step within 1e-12 m."""
     model, info = cs
     assert validate_fmu(str(info["path"])) == []
-    assert info["build_time"] < BUILD_LIMIT, info
+    assert info["build_cpu_time"] < BUILD_LIMIT, info
     res = cs_run(info["path"])
     t, x = held_reference(model)
     i = np.searchsorted(t, res["time"] - 1e-12)
@@ -175,7 +179,7 @@ def test_co_simulation_hybrid_hunting(model_cache, tmp_path):
     model = model_cache(friction="hybrid", controller="PI")
     info = fmu.export_fmu_cs(model, tmp_path / "ema_hyb.fmu")
     assert validate_fmu(str(info["path"])) == []
-    assert info["build_time"] < BUILD_LIMIT, info
+    assert info["build_cpu_time"] < BUILD_LIMIT, info
     res = cs_run(info["path"], 4.0, ("x_rod", "mode_switches"), K_i_x=3000.0)
     ref = simulate(model, 4.0, STEP, dt=1e-5, dt_out=1e-3, p=model.p(K_i_x=3000.0))
     amp = 0.5 * np.ptp(res["x_rod"][res["time"] >= 2.0] - 1e-3)
@@ -184,6 +188,26 @@ def test_co_simulation_hybrid_hunting(model_cache, tmp_path):
     assert amp_ref > 2e-6  # it hunts (README: 3.30 um)
     assert abs(amp / amp_ref - 1) < 0.01
     assert abs(res["mode_switches"][-1] - ref.info["mode_switches"]) <= 0.02 * ref.info["mode_switches"]
+
+
+@NEEDS_CC
+def test_co_simulation_fmi3_equals_fmi2(cs, tmp_path):
+    """The FMI 3.0 co-simulation FMU validates and gives the FMI 2.0 one's x_rod, bit for bit."""
+    model, info2 = cs
+    info3 = fmu.export_fmu_cs(model, tmp_path / "ema_cs3.fmu", fmi_version="3.0")
+    assert info3["fmi_version"] == "3.0" and info3["build_cpu_time"] < BUILD_LIMIT
+    assert validate_fmu(str(info3["path"])) == []
+    a, b = cs_run(info2["path"]), cs_run(info3["path"])
+    np.testing.assert_array_equal(a["time"], b["time"])
+    np.testing.assert_array_equal(a["x_rod"], b["x_rod"])
+    if any(t.key == "win64" for t in fmu.targets()):
+        import zipfile
+
+        with zipfile.ZipFile(info3["path"]) as z:
+            dll = tmp_path / "cs3.dll"
+            dll.write_bytes(z.read("binaries/x86_64-windows/ema_cs3.dll"))
+        assert {"fmi3InstantiateCoSimulation", "fmi3DoStep", "fmi3GetFloat64", "fmi3SetFloat64",
+                "fmi3EnterStepMode", "fmi3GetFMUState"} <= set(fmu.pe_exports(dll))
 
 
 FMI2_CS_FUNCTIONS = [

@@ -68,5 +68,5 @@ def test_export_writes_fmu_and_reports(tmp_path, capsys):
                  "--out", str(out), "--json"]) == 0
     r = json.loads(capsys.readouterr().out)
     assert r["written"] == [str(out)] and out.is_file() and r["dt_internal"] == 1e-4
-    assert "linux64" in r["platforms"] and r["build_time"] < 10
+    assert "linux64" in r["platforms"] and r["build_cpu_time"] < 10
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ema_cs.fmu"]  # no temporary files
