@@ -278,8 +278,8 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     return written
 
 
-def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None = None, fmi_version: str = "2.0",
-                 platforms=("linux64", "win64")) -> dict:
+def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None = None,
+                 fmi_version: str | None = None, platforms=("linux64", "win64")) -> dict:
     """Export the nonlinear model as an FMU, a C folder or a CasADi folder.
 
     Dispatches to :func:`ema_casadi.fmu.export` (see there).
@@ -292,8 +292,8 @@ def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None =
     fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
     dt : float, optional
         Internal step of ``fmu-cs``, default step of ``c`` and ``casadi`` (s; 1e-5).
-    fmi_version : {"2.0", "3.0"}
-        FMI version of ``fmu-cs`` (``fmu-me`` is FMI 3.0).
+    fmi_version : {"2.0", "3.0"}, optional
+        FMI version of ``fmu-cs`` (default 2.0; ``fmu-me`` is FMI 3.0).
     platforms : sequence of str
         FMU binaries: ``linux64``, ``win64`` (built where MinGW-w64 is installed).
     """

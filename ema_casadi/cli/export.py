@@ -40,7 +40,7 @@ def add_arguments(p):
                         "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
                    help="fmu-cs: internal fixed step; c, casadi: default step of the simulator (default 1e-5)")
-    p.add_argument("--fmi-version", choices=["2.0", "3.0"], default="2.0",
+    p.add_argument("--fmi-version", choices=["2.0", "3.0"], default=None,
                    help="fmu-cs: FMI version of the co-simulation FMU (default 2.0; fmu-me is always 3.0)")
     p.add_argument("--open", action="append", choices=list(LOOPS), default=[], metavar="LOOP",
                    help="linear formats: open a loop at its break; repeatable")

@@ -70,7 +70,7 @@ def check_output(path, fmt: str) -> Path:
     return check_target(path, FORMATS[fmt])
 
 
-def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version: str = "2.0",
+def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version: str | None = None,
            platforms=("linux64", "win64")) -> dict:
     """Export ``model`` in one of :data:`FORMATS`.
 
@@ -83,9 +83,9 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version
     fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
     dt : float, optional
         Internal step of ``fmu-cs`` / default step of ``c`` and ``casadi`` (s);
-        default 1e-5 s. Not used by ``fmu-me`` (the importer's solver chooses).
-    fmi_version : {"2.0", "3.0"}
-        FMI version of ``fmu-cs`` (``fmu-me`` is always 3.0).
+        default 1e-5 s. ``fmu-me`` has none (the importer's solver chooses): an error.
+    fmi_version : {"2.0", "3.0"}, optional
+        FMI version of ``fmu-cs`` (default 2.0); ``fmu-me`` is FMI 3.0 only.
     platforms : sequence of str
         FMU binaries to build: ``linux64``, ``win64`` (skipped without MinGW-w64).
 
@@ -95,13 +95,19 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version
         What was written (``path``) and how long it took (``build_time``, s).
     """
     path = check_output(path, fmt)
+    if fmt == "fmu-me" and dt is not None:
+        raise ExportError("dt: a model-exchange FMU has no step (the importing tool's solver chooses); "
+                          "the fixed-step FMU is fmu-cs")
+    if fmi_version is not None and fmt != "fmu-cs" and not (fmt == "fmu-me" and fmi_version == "3.0"):
+        raise ExportError(f"fmi_version {fmi_version}: only fmu-cs has a choice (2.0 or 3.0); "
+                          "fmu-me is FMI 3.0")
     step = DT_DEFAULT if dt is None else dt
     if not (isinstance(step, (int, float)) and 0 < step < 1):
         raise ExportError(f"dt must be a step in seconds between 0 and 1, got {dt!r}")
     if fmt == "fmu-me":
         return export_fmu_me(model, path, platforms=platforms)
     if fmt == "fmu-cs":
-        return export_fmu_cs(model, path, dt_internal=step, fmi_version=fmi_version, platforms=platforms)
+        return export_fmu_cs(model, path, dt_internal=step, fmi_version=fmi_version or "2.0", platforms=platforms)
     if fmt == "c":
         return export_c(model, path, dt=step)
     return export_casadi(model, path, dt=step)

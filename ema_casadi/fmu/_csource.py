@@ -13,6 +13,7 @@ from pathlib import Path
 import casadi as ca
 
 from ..assembly import Model
+from ..params import Parameters
 from ._functions import augmented_names, fixed_step_functions
 from ._layout import layout
 
@@ -52,8 +53,6 @@ def layout_doc(model: Model, dt: float = DT_DEFAULT) -> dict:
     lay = layout(model)
     exposed = {v.index for v in lay.parameters}
     units = model.units
-    from ..params import Parameters
-
     punits = Parameters.units()
     extra = [{"name": "stick", "unit": "1", "description": "friction mode after the step: 1 stuck, 0 sliding"},
              {"name": "mode_switches", "unit": "1", "description": "stick/slip switches counted since the start"}]

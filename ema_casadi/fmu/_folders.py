@@ -21,6 +21,7 @@ import time
 
 from .._files import write_with
 from ..assembly import Model
+from ..export import ExportError
 from ._csource import C_DIR, DT_DEFAULT, layout_doc, write_c_sources
 from ._functions import SIM_STEPS, fixed_step_functions
 from ._pack import check_target, export_folder
@@ -85,6 +86,8 @@ def export_casadi(model: Model, folder, *, n_sim: int = SIM_STEPS, dt: float = D
         ``path``, ``files`` and ``build_time`` (s).
     """
     t0 = time.perf_counter()
+    if not (isinstance(n_sim, int) and not isinstance(n_sim, bool) and n_sim >= 1):
+        raise ExportError(f"n_sim must be a positive number of steps, got {n_sim!r}")
     folder = check_target(folder, "folder")
     fns = fixed_step_functions(model, n_sim=n_sim)
     doc = layout_doc(model, dt)

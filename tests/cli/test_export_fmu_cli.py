@@ -55,9 +55,16 @@ def test_hybrid_model_exchange_refused(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_bad_step_refused(tmp_path, capsys):
-    assert main(["export", str(REFERENCE), "--format", "fmu-cs", "--dt", "0", "--out", str(tmp_path / "x.fmu")]) == 2
-    one_line_error(capsys, "dt must be a step")
+@pytest.mark.parametrize("argv, pattern", [
+    (["--format", "fmu-cs", "--dt", "0", "--out", "x.fmu"], "dt must be a step"),
+    (["--format", "fmu-me", "--dt", "1e-5", "--out", "x.fmu"], "has no step"),
+    (["--format", "c", "--fmi-version", "3.0", "--out", "ema_c"], "only fmu-cs has a choice"),
+    (["--format", "fmu-me", "--fmi-version", "2.0", "--out", "x.fmu"], "fmu-me is FMI 3.0"),
+])
+def test_flags_that_do_not_apply_refused(tmp_path, capsys, argv, pattern):
+    argv = [str(tmp_path / a) if a in ("x.fmu", "ema_c") else a for a in argv]
+    assert main(["export", str(REFERENCE), *argv]) == 2
+    one_line_error(capsys, pattern)
     assert list(tmp_path.iterdir()) == []
 
 
