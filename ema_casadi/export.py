@@ -25,6 +25,10 @@ writes generated C code (``.c`` and ``.h``, CasADi's calling convention). Both w
 sidecar ``<file>.json`` naming the entries of x, u, p and y, with the parameter
 values of the set, because a Function carries only its input/output names.
 
+FMUs, the self-contained C folder and the CasADi folder with the fixed-step
+simulator (:func:`export_model`, formats :data:`MODEL_FORMATS`) are in
+:mod:`ema_casadi.fmu`.
+
 Every file is written to a temporary name in the target folder and then renamed, so
 a failure leaves no half-written file.
 """
@@ -46,11 +50,13 @@ from ._files import write_with
 from .assembly import Model
 from .linearisation import LinearModel, OperatingPoint
 
-__all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "ExportError", "save_linear", "load_linear",
-           "export_function", "model_signature"]
+__all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "MODEL_FORMATS", "ExportError", "save_linear", "load_linear",
+           "export_function", "export_model", "model_signature"]
 
 LINEAR_FORMATS = ("mat", "npz", "json")
 FUNCTION_FORMATS = ("casadi", "c")
+#: Formats of :func:`export_model` (:mod:`ema_casadi.fmu`).
+MODEL_FORMATS = ("fmu-me", "fmu-cs", "c", "casadi")
 FORMAT_ID = "ema_casadi.linear/1"
 
 
@@ -284,3 +290,27 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     side = path.with_name(path.name + ".json")
     written.append(write_with(side, lambda t: t.write_text(sidecar)))
     return written
+
+
+def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None = None,
+                 fmi_version: str | None = None, platforms=("linux64", "win64")) -> dict:
+    """Export the nonlinear model as an FMU, a C folder or a CasADi folder.
+
+    Dispatches to :func:`ema_casadi.fmu.export` (see there).
+
+    Parameters
+    ----------
+    model : Model
+    path : str or Path
+        The ``.fmu`` file (``fmu-me``, ``fmu-cs``) or the folder (``c``, ``casadi``).
+    fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
+    dt : float, optional
+        Internal step of ``fmu-cs``, default step of ``c`` and ``casadi`` (s; 1e-5).
+    fmi_version : {"2.0", "3.0"}, optional
+        FMI version of ``fmu-cs`` (default 2.0; ``fmu-me`` is FMI 3.0).
+    platforms : sequence of str
+        FMU binaries: ``linux64``, ``win64`` (built where MinGW-w64 is installed).
+    """
+    from . import fmu
+
+    return fmu.export(model, path, fmt, dt=dt, fmi_version=fmi_version, platforms=platforms)
