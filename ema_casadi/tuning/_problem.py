@@ -161,7 +161,8 @@ class TuningProblem:
             opti.subject_to(self._g[i] + self._slack[i] >= 0)
         logs = [theta[i] for i, ls in enumerate(self._scaling.log_scaled) if ls]
         effort = _EFFORT * ca.sumsqr(ca.vertcat(*logs)) if logs else 0
-        self._J_main = -self._fb_log if objective == "bandwidth" else (ca.mmax(ca.vertcat(*ise)) if len(ise) > 1 else ise[0])
+        worst_ise = ca.mmax(ca.vertcat(*ise)) if len(ise) > 1 else ise[0]
+        self._J_main = -self._fb_log if objective == "bandwidth" else worst_ise
         self._J_function = ca.Function(
             "main_objective", [theta, self._fb_log if self._fb is not None else ca.MX.sym("unused")], [self._J_main])
         opti.minimize(self._J_main + effort + _PENALTY * ca.sum1(self._slack))
@@ -311,7 +312,7 @@ class TuningProblem:
         """Per group: ``kind``, ``loads``, ``loop``, ``min`` (smallest normalised value),
         ``slack`` and ``at_hz`` (where the smallest value is, for grid groups)."""
         rows = []
-        for grp, v, sl in zip(self.groups, values, slack):
+        for grp, v, sl in zip(self.groups, values, slack, strict=False):
             j = int(np.argmin(v))
             rows.append({"kind": grp.kind, "loads": list(grp.loads), "loop": grp.loop, "min": float(v[j]),
                          "slack": float(sl), "at_hz": float(grp.freqs[j]) if grp.freqs is not None else None})
@@ -331,7 +332,8 @@ class TuningProblem:
         theta = self._scaling.theta_of(gains)
         fb_log = math.log(f_b / 10.0) if f_b is not None else (self._fb_log0 if self._fb is not None else 0.0)
         exprs = [grp.expr for grp in self.groups]
-        f = ca.Function("group_values", [self._scaling.theta, self._fb_log if self._fb is not None else ca.MX.sym("unused")], exprs)
+        fb = self._fb_log if self._fb is not None else ca.MX.sym("unused")
+        f = ca.Function("group_values", [self._scaling.theta, fb], exprs)
         values = [np.atleast_1d(np.array(v, float).ravel()) for v in f(theta, fb_log)] if len(exprs) > 1 else \
             [np.atleast_1d(np.array(f(theta, fb_log), float).ravel())]
         return self._group_rows(values, np.zeros(len(self.groups)))
@@ -369,7 +371,7 @@ class TuningProblem:
             g = np.array(self._group_function(theta, fb_log), float).ravel()
             if not np.all(np.isfinite(g)) or np.any(g < -_FEAS_TOL):
                 continue
-            out.append({"gains": dict(zip(self.free, map(float, self._scaling.values(theta)))),
+            out.append({"gains": dict(zip(self.free, map(float, self._scaling.values(theta)), strict=False)),
                         "objective": float(self._J_function(theta, fb_log)),
                         "f_b": 10.0 * math.exp(fb_log) if self._fb is not None else None})
         return sorted(out, key=lambda c: c["objective"])

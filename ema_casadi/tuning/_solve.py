@@ -198,7 +198,7 @@ def _solve_rounds(model, params, free, loads, req, objective, start, freqs, max_
     rounds, the summed iterations, the summed IPOPT time (s), the last problem and the
     iterates (theta, fb_log) of every solve."""
     iterations, solve_time, rounds, warm, iterates = 0, 0.0, 0, None, []
-    for rounds in range(1, _ROUNDS + 1):
+    for rounds in range(1, _ROUNDS + 1):  # noqa: B007 (the last value is returned)
         prob = TuningProblem(model, params, free, loads, req, objective, start, freqs)
         out = prob.solve(max_iter, hessian, warm)
         iterates.extend(prob.iterates)

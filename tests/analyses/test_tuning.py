@@ -117,7 +117,8 @@ def test_step_constraint_samples_equal_python_control(params, model_cache):
     model = model_cache()
     free = T.default_free(model)
     req = T.Requirements(step=1e-4, t_step=0.05)
-    prob = T.TuningProblem(model, params, free, [30e3], req, "tracking", T.scaled_gains(params, 1.0, free), np.logspace(0, 3, 4))
+    start = T.scaled_gains(params, 1.0, free)
+    prob = T.TuningProblem(model, params, free, [30e3], req, "tracking", start, np.logspace(0, 3, 4))
     t, Y = prob.step_response(0)  # rows x_rod, i_q, v_d, v_q at the start gains
     op = prob.cases[0]
     lin = lz.linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod", "i_q", "v_d", "v_q"])
@@ -360,7 +361,7 @@ def _tune_from_reference(params, model_cache, variants, loads):
     return res
 
 
-_VARIANTS = [dict(zip(("motor", "screw", "friction", "controller"), combo)) for combo in
+_VARIANTS = [dict(zip(("motor", "screw", "friction", "controller"), combo, strict=False)) for combo in
              __import__("itertools").product(("pmsm", "dc"), ("elastic", "rigid"), ("smooth", "hybrid"), ("P", "PI"))]
 
 
