@@ -25,6 +25,10 @@ writes generated C code (``.c`` and ``.h``, CasADi's calling convention). Both w
 sidecar ``<file>.json`` naming the entries of x, u, p and y, with the parameter
 values of the set, because a Function carries only its input/output names.
 
+FMUs, the self-contained C folder and the CasADi folder with the fixed-step
+simulator (:func:`export_model`, formats :data:`MODEL_FORMATS`) are in
+:mod:`ema_casadi.fmu`.
+
 Every file is written to a temporary name in the target folder and then renamed, so
 a failure leaves no half-written file.
 """
@@ -40,15 +44,18 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ._checks import describe, instance
 from ._files import scratch_dir, transaction, write_with
 from .assembly import Model
 from .linearisation import LinearModel, OperatingPoint
 
-__all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "ExportError", "save_linear", "load_linear",
-           "export_function", "model_signature"]
+__all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "MODEL_FORMATS", "ExportError", "save_linear", "load_linear",
+           "export_function", "export_model", "model_signature"]
 
 LINEAR_FORMATS = ("mat", "npz", "json")
 FUNCTION_FORMATS = ("casadi", "c")
+#: Formats of :func:`export_model` (:mod:`ema_casadi.fmu`).
+MODEL_FORMATS = ("fmu-me", "fmu-cs", "c", "casadi")
 FORMAT_ID = "ema_casadi.linear/1"
 
 
@@ -56,7 +63,15 @@ class ExportError(ValueError):
     """Bad export request or unreadable file (one line, names the file)."""
 
 
+def _path(path) -> Path:
+    if not isinstance(path, (str, Path)):
+        raise ExportError(f"path: expected a file path (str or Path), got {describe(path)}")
+    return Path(path)
+
+
 def _format_of(path: Path, fmt: str | None, allowed) -> str:
+    if fmt is not None and not isinstance(fmt, str):
+        raise ExportError(f"fmt: expected one of {', '.join(allowed)}, got {describe(fmt)}")
     fmt = (fmt or path.suffix.lstrip(".")).lower()
     if fmt not in allowed:
         raise ExportError(f"{path}: format '{fmt}' unknown; choose one of {', '.join(allowed)}")
@@ -97,7 +112,10 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, unit
     units : dict, optional
         Signal name -> SI unit, the model's one unit table (``model.units``).
     """
-    path = Path(path)
+    instance(lin, LinearModel, "lin", ExportError, " (from linear_model)")
+    path = _path(path)
+    if units is not None and not isinstance(units, dict):
+        raise ExportError(f"units: expected a dict signal name -> unit (model.units), got {describe(units)}")
     fmt = _format_of(path, fmt, LINEAR_FORMATS)
     if not path.parent.exists():
         raise ExportError(f"{path}: folder {path.parent} does not exist")
@@ -162,7 +180,7 @@ def load_linear(path: str | Path) -> tuple[LinearModel, dict]:
         The operating point as saved: ``x``, ``u``, ``y`` (SI), ``x_cmd`` (m),
         ``f_ext`` (N), ``v_rod`` (m/s), names, parameters, policy, variants.
     """
-    path = Path(path)
+    path = _path(path)
     fmt = _format_of(path, None, LINEAR_FORMATS)
     if not path.exists():
         raise ExportError(f"{path}: no such file")
@@ -217,6 +235,7 @@ def model_signature(model: Model) -> dict:
     model : Model
         The assembled model.
     """
+    instance(model, Model, "model", ExportError, " (from build_model)")
     return {
         "function": "f(x, u, p) -> (xdot, y)",
         "variants": dict(model.variants),
@@ -245,7 +264,8 @@ def export_function(model: Model, path: str | Path, fmt: str | None = None) -> l
     list of Path
         The paths written (the file(s) and the ``.json`` sidecar).
     """
-    path = Path(path)
+    instance(model, Model, "model", ExportError, " (from build_model)")
+    path = _path(path)
     fmt = _format_of(path, fmt, FUNCTION_FORMATS)
     if not path.parent.exists():
         raise ExportError(f"{path}: folder {path.parent} does not exist")
@@ -282,3 +302,27 @@ def sidecar_path(path: str | Path) -> Path:
     """
     path = Path(path)
     return path.with_name(path.name + ".json")
+
+
+def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None = None,
+                 fmi_version: str | None = None, platforms=("linux64", "win64")) -> dict:
+    """Export the nonlinear model as an FMU, a C folder or a CasADi folder.
+
+    Dispatches to :func:`ema_casadi.fmu.export` (see there).
+
+    Parameters
+    ----------
+    model : Model
+    path : str or Path
+        The ``.fmu`` file (``fmu-me``, ``fmu-cs``) or the folder (``c``, ``casadi``).
+    fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
+    dt : float, optional
+        Internal step of ``fmu-cs``, default step of ``c`` and ``casadi`` (s; 1e-5).
+    fmi_version : {"2.0", "3.0"}, optional
+        FMI version of ``fmu-cs`` (default 2.0; ``fmu-me`` is FMI 3.0).
+    platforms : sequence of str
+        FMU binaries: ``linux64``, ``win64`` (built where MinGW-w64 is installed).
+    """
+    from . import fmu
+
+    return fmu.export(model, path, fmt, dt=dt, fmi_version=fmi_version, platforms=platforms)

@@ -28,6 +28,12 @@ decade), every crossover bracketed on the grid and refined by SciPy's Brent meth
 All margins assume the nominal closed loop is stable; ``stable`` says whether it is
 (closed-loop eigenvalues; modes on the imaginary axis within round-off, like the rigid
 screw's redundant shaft angle, count as neutral).
+
+Arguments are checked first: a wrong type or value raises
+:class:`~ema_casadi.linearisation.LinearizationError` naming it, and a frequency grid
+above :data:`MAX_FREQ_POINTS` is refused with its memory estimate (the batched solve
+holds n_f x n x (n + inputs) complex numbers: 26 GB for 2e7 frequencies of the 9-state
+reference model).
 """
 
 from __future__ import annotations
@@ -38,18 +44,34 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from ._checks import describe, instance, integer, number
 from ._kwargs import check_keywords, keywords_of
 from .assembly import Model
-from .linearisation import LinearModel, OperatingPoint, linear_model, loop_model, operating_point
+from .linearisation import (
+    LOOPS,
+    OUTER,
+    LinearizationError,
+    LinearModel,
+    OperatingPoint,
+    linear_model,
+    loop_model,
+    operating_point,
+)
 
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
-    "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes",
+    "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes", "check_points", "MAX_FREQ_POINTS",
 ]
 
 REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
 
-#: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearize.operating_point`.
+#: Most frequencies one response may have (0.2 GB for the 9-state reference model; a
+#: point costs about 4.3 us, measured on a 2-core x86-64 machine).
+MAX_FREQ_POINTS = 100_000
+#: Measured cost of one frequency of :func:`freqresp` on the reference model (s).
+SECONDS_PER_FREQ_POINT = 4.3e-6
+
+#: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearisation.operating_point`.
 _OP_KEYWORDS = keywords_of(operating_point)
 
 
@@ -63,17 +85,73 @@ def frequency_grid(f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 20
     per_decade : int
         Points per decade.
     """
+    f_min = number(f_min, "f_min", LinearizationError, unit="Hz", positive=True)
+    f_max = number(f_max, "f_max", LinearizationError, unit="Hz", positive=True)
+    per_decade = integer(per_decade, "per_decade", LinearizationError, minimum=1)
     if not (0 < f_min < f_max):
-        raise ValueError(f"frequency range must satisfy 0 < f_min < f_max, got {f_min}, {f_max}")
-    n = max(2, int(math.ceil(per_decade * math.log10(f_max / f_min))) + 1)
+        raise LinearizationError(f"frequency range must satisfy 0 < f_min < f_max, got {f_min}, {f_max}")
+    decades = math.log10(f_max) - math.log10(f_min)
+    if per_decade * decades > MAX_FREQ_POINTS:
+        check_points(per_decade * decades, "f_min/f_max/per_decade")
+    n = max(2, int(math.ceil(per_decade * decades)) + 1)
     return np.logspace(math.log10(f_min), math.log10(f_max), n)
 
 
-def _abcd(sys):
-    if isinstance(sys, tuple):
+def check_points(n: int, label: str, nx: int = 9, error: type = LinearizationError) -> None:
+    """Refuse a frequency grid above :data:`MAX_FREQ_POINTS` with its estimate.
+
+    Parameters
+    ----------
+    n : int
+        Number of frequencies.
+    label : str
+        The argument or flag named in the message.
+    nx : int
+        States of the system (sizes the estimate).
+    error : type
+        The exception raised.
+    """
+    if n > MAX_FREQ_POINTS:
+        size = 16.0 * n * nx * (nx + 1)
+        raise error(f"{label}: {n:.3g} frequencies, above the limit of {MAX_FREQ_POINTS} (MAX_FREQ_POINTS); "
+                    f"the response of a {nx}-state model would hold {size / 1e9:.3g} GB and take about "
+                    f"{n * SECONDS_PER_FREQ_POINT:.3g} s at {SECONDS_PER_FREQ_POINT * 1e6:g} us per frequency")
+
+
+def _frequencies(f_hz, label: str, nx: int) -> np.ndarray:
+    """``f_hz`` as a 1-D array of positive finite frequencies (Hz), at most
+    :data:`MAX_FREQ_POINTS`."""
+    try:
+        f = np.atleast_1d(np.asarray(f_hz, float))
+    except (TypeError, ValueError):
+        raise LinearizationError(f"{label}: expected frequencies in Hz, got {describe(f_hz)}") from None
+    if f.ndim != 1 or f.size == 0:
+        raise LinearizationError(f"{label}: expected a 1-D sequence of frequencies in Hz, got shape {f.shape}")
+    check_points(f.size, label, nx)
+    if not (np.all(np.isfinite(f)) and np.all(f > 0)):
+        bad = f[~(np.isfinite(f) & (f > 0))][0]
+        raise LinearizationError(f"{label}: frequencies must be positive and finite (Hz), got {bad}")
+    return f
+
+
+def _abcd(sys, name: str = "sys"):
+    if isinstance(sys, tuple) and len(sys) == 4:
         sys = LinearModel(*sys, (), (), ())
-    return (np.atleast_2d(np.asarray(sys.A, float)), np.atleast_2d(np.asarray(sys.B, float)),
-            np.atleast_2d(np.asarray(sys.C, float)), np.atleast_2d(np.asarray(sys.D, float)))
+    if not all(hasattr(sys, k) for k in "ABCD"):
+        raise LinearizationError(f"{name}: expected a LinearModel or control.StateSpace (with A, B, C, D), "
+                                 f"got {describe(sys)}")
+    try:
+        A, B, C, D = (np.atleast_2d(np.asarray(getattr(sys, k), float)) for k in "ABCD")
+    except (TypeError, ValueError):
+        raise LinearizationError(f"{name}: A, B, C, D must be numeric matrices") from None
+    n = A.shape[0] if A.size else 0
+    fits = D.shape == (C.shape[0], B.shape[1])
+    if n:
+        fits = fits and A.shape == (n, n) and B.shape[0] == n and C.shape[1] == n
+    if not fits:
+        raise LinearizationError(f"{name}: A, B, C, D do not fit together (shapes {A.shape}, {B.shape}, {C.shape}, "
+                                 f"{D.shape})")
+    return A, B, C, D
 
 
 def freqresp(sys, f_hz) -> np.ndarray:
@@ -87,8 +165,8 @@ def freqresp(sys, f_hz) -> np.ndarray:
         Frequencies (Hz).
     """
     A, B, C, D = _abcd(sys)
-    f = np.atleast_1d(np.asarray(f_hz, float))
-    n = A.shape[0]
+    f = _frequencies(f_hz, "f_hz", A.shape[0])
+    n = A.shape[0] if A.size else 0
     if n == 0:
         return np.repeat(D[:, :, None].astype(complex), len(f), axis=2)
     M = (2j * np.pi * f)[:, None, None] * np.eye(n) - A
@@ -97,10 +175,11 @@ def freqresp(sys, f_hz) -> np.ndarray:
     return np.moveaxis(H, 0, 2)
 
 
-def _siso(sys, what="the system"):
-    A, B, C, D = _abcd(sys)
+def _siso(sys, what="the system", name="sys"):
+    A, B, C, D = _abcd(sys, name)
     if B.shape[1] != 1 or C.shape[0] != 1:
-        raise ValueError(f"{what} must be SISO (1 input, 1 output), has {B.shape[1]} inputs and {C.shape[0]} outputs")
+        raise LinearizationError(f"{what} must be SISO (1 input, 1 output), has {B.shape[1]} inputs and "
+                                 f"{C.shape[0]} outputs; pick a pair with input=/output=")
     return A, B, C, D
 
 
@@ -126,18 +205,23 @@ def bode(sys, f_hz=None, *, input: str | None = None, output: str | None = None)
     """
     if input is not None or output is not None:
         sys = _select(sys, input, output)
-    _siso(sys)
-    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else np.asarray(f_hz, float)
+    A = _siso(sys)[0]
+    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else _frequencies(f_hz, "f_hz", A.shape[0])
     H = freqresp(sys, f)[0, 0]
     return {"freq_hz": f, "mag_db": 20 * np.log10(np.abs(H)), "phase_deg": _unwrap_deg(H), "response": H}
 
 
 def _select(sys, input, output):
+    A, B, C, D = _abcd(sys)
+    for label, name, names in (("input", input, getattr(sys, "inputs", getattr(sys, "input_labels", ()))),
+                               ("output", output, getattr(sys, "outputs", getattr(sys, "output_labels", ())))):
+        if name is not None and name not in list(names):
+            raise LinearizationError(f"{label}: '{name}' is not an {label} of the system; it has "
+                                     f"{', '.join(map(str, names)) or 'no names'}")
     if isinstance(sys, LinearModel):
         return sys.select([input] if input else None, [output] if output else None)
     ii = list(sys.input_labels).index(input) if input else 0
     oo = list(sys.output_labels).index(output) if output else 0
-    A, B, C, D = _abcd(sys)
     return LinearModel(A, B[:, [ii]], C[[oo], :], D[[oo]][:, [ii]], (), (input,), (output,))
 
 
@@ -224,7 +308,9 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
     loop : str
         Label stored in the result.
     """
-    A, B, C, D = _siso(L, "the loop transfer")
+    A, B, C, D = _siso(L, "the loop transfer", "L")
+    if not isinstance(loop, str):
+        raise LinearizationError(f"loop: expected a label (str), got {describe(loop)}")
     d = float(D[0, 0])
     eye = np.eye(A.shape[0])
 
@@ -358,11 +444,19 @@ def loop_margins(
     f_min, f_max, per_decade
         Crossover search window (Hz) and grid (points per decade), see :func:`margins`.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
     check_keywords("loop_margins", op_kwargs, _OP_KEYWORDS)
+    _model_op(model, op)
+    if outer not in OUTER:
+        raise LinearizationError(f"outer: expected one of {', '.join(OUTER)}, got {describe(outer)}")
+    frequency_grid(f_min, f_max, per_decade)  # checks the window before the trim
+    if not (loops == "all" or isinstance(loops, str) or (isinstance(loops, (list, tuple))
+                                                          and all(isinstance(n, str) for n in loops))):
+        raise LinearizationError(f"loops: expected 'all', a loop name or a list of them ({', '.join(LOOPS)}), "
+                                 f"got {describe(loops)}")
     if op is None:
         op, op_kwargs = operating_point(model, **op_kwargs), {}
     names = list(model.loops) if loops == "all" else ([loops] if isinstance(loops, str) else list(loops))
@@ -384,13 +478,14 @@ def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> 
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
     check_keywords("closed_loop", op_kwargs, _OP_KEYWORDS)
+    _model_op(model, op)
     lin = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"], **op_kwargs)
     lin.name = "T_x"
     return lin
@@ -405,13 +500,14 @@ def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> L
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
     check_keywords("compliance", op_kwargs, _OP_KEYWORDS)
+    _model_op(model, op)
     lin = linear_model(model, op, inputs=["f_ext"], outputs=["x_rod"], **op_kwargs)
     lin.name = "compliance"
     return lin
@@ -428,17 +524,18 @@ def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None,
     model : Model
         The assembled model.
     op : OperatingPoint, optional
-        Default :func:`~ema_casadi.linearize.operating_point` ``(model, **op_kwargs)``.
+        Default :func:`~ema_casadi.linearisation.operating_point` ``(model, **op_kwargs)``.
     f_hz : array_like, optional
         Frequencies (Hz); default 0.1 Hz - 2 kHz, 100 points per decade.
     **op_kwargs
-        Arguments of :func:`~ema_casadi.linearize.operating_point` when ``op`` is not
+        Arguments of :func:`~ema_casadi.linearisation.operating_point` when ``op`` is not
         given (``x_cmd`` in m, ``f_ext`` in N, ``v_rod`` in m/s, ``friction``, ...); an
         unknown keyword raises TypeError.
     """
     check_keywords("dynamic_stiffness", op_kwargs, _OP_KEYWORDS)
+    _model_op(model, op)
+    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else _frequencies(f_hz, "f_hz", model.nx)
     G = compliance(model, op, **op_kwargs)
-    f = frequency_grid(0.1, 2e3, 100) if f_hz is None else np.asarray(f_hz, float)
     K = -1.0 / freqresp(G, f)[0, 0]
     return {"freq_hz": f, "stiffness": K, "magnitude": np.abs(K), "mag_db": 20 * np.log10(np.abs(K)),
             "phase_deg": _unwrap_deg(K)}
@@ -458,6 +555,7 @@ def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1
         Search window (Hz).
     """
     _siso(sys)
+    level_db = number(level_db, "level_db", LinearizationError, unit="dB")
     f = frequency_grid(f_min, f_max, 200)
     db = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
     m = db - db[0] - level_db
@@ -469,6 +567,13 @@ def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1
     x = _root(lambda t: 20 * math.log10(abs(freqresp(sys, [10**t])[0, 0, 0])) - db[0] - level_db,
                       lf[i], lf[i + 1], m[i], m[i + 1])
     return 10**x
+
+
+def _model_op(model, op) -> None:
+    """LinearizationError unless ``model`` is a Model and ``op`` None or an OperatingPoint."""
+    instance(model, Model, "model", LinearizationError, " (from build_model)")
+    if op is not None:
+        instance(op, OperatingPoint, "op", LinearizationError, " (from operating_point)")
 
 
 def modes(sys) -> list[dict]:

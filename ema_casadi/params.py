@@ -24,7 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from ._checks import describe, number
 from ._files import write_text
+from .signals import decode_utf8
 
 __all__ = [
     "ParameterError",
@@ -257,7 +259,7 @@ class Parameters:
         for k, v in overrides.items():
             if k not in d:
                 raise UnknownParameterError(_unknown("Parameters.vector", k, d))
-            d[k] = float(v)
+            d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
         return np.array([d[n] for n in self.names()], dtype=float)
 
     def replace(self, **values: float) -> Parameters:
@@ -323,7 +325,10 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         value = raw["value"]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ParameterError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ParameterError(f"{where}: expected a finite number, got an integer of {len(str(value))} digits") from None
     if not math.isfinite(value):
         raise ParameterError(f"{where}: expected a finite number, got {value}")
     check = meta["check"]
@@ -382,18 +387,26 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     Raises
     ------
     ParameterError
-        One-line message naming the file and key: missing or unknown key (with the
-        nearest valid name), wrong type or unit, non-finite or out-of-range value,
-        unknown variant.
+        One-line message naming the file and key: unreadable file or not UTF-8 text (a
+        UTF-8 byte-order mark is accepted), not TOML, missing or unknown table or key
+        (with the nearest valid name), wrong type or unit, non-finite or out-of-range
+        value, unknown variant.
     """
+    if not isinstance(path, (str, Path)):
+        raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
+    if variants is not None and not isinstance(variants, dict):
+        raise ParameterError(f"variants: expected a dict of variant names, got {describe(variants)}")
     path = Path(path)
     src = str(path)
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except FileNotFoundError:
         raise ParameterError(f"{src}: no such parameter file") from None
+    except IsADirectoryError:
+        raise ParameterError(f"{src}: is a folder, not a parameter file") from None
     except OSError as exc:
-        raise ParameterError(f"{src}: cannot read ({exc.strerror})") from None
+        raise ParameterError(f"{src}: cannot read ({exc.strerror or exc})") from None
+    text = decode_utf8(data, src, ParameterError)  # a UTF-8 byte-order mark is accepted
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -13,18 +13,34 @@ Text syntax, terms joined with ``+``::
     sine:AMP@FREQ[@T0]  AMP*sin(2 pi FREQ (t - T0)) from T0 on
     chirp:AMP@F0-F1     linear sweep F0 -> F1 over the simulated time
     <number>            a constant
-    FILE.csv            a table t,value (linear interpolation, held at the ends)
+    FILE.csv            a table: time and one signal column (linear interpolation,
+                        held at the ends)
+    FILE.csv:COLUMN     one column of a multi-column table (``run.csv:x_rod``)
 
 Amplitudes take unit suffixes: ``1mm``, ``250um``, ``0.01m``, ``0.5%`` (of the stroke),
 ``10kN``, ``500N``; rates ``80mm/s``; frequencies ``2`` or ``2Hz``; times ``0.5`` or
 ``0.5s``. A bare number is read in the quantity's default unit, which the CLI states
 (mm for positions, N for forces).
+
+Tables (SPEC §6 Files) are UTF-8 (a byte-order mark is accepted) and in SI units
+unless the header names another unit: the CLI's "bare numbers are mm" rule is for flag
+values only, never for a file. Layout: a header row whose first column is the time,
+named ``time`` or ``t``; an optional ``Unit:`` row under it (the MATLAB Simulation
+Data Inspector layout the toolkit writes: ``Unit:`` in the time column, then each
+signal column's unit); then one row per sample, time strictly increasing. A unit may
+also follow a name in brackets (``x_cmd [mm]``, ``f_ext [kN]``, ``time [ms]``); other
+metadata rows of the Simulation Data Inspector (``Type:``, ``Interp:``, ...) are
+skipped, lines starting with ``#`` are comments. A file of two columns without a
+header is read as time (s) and value (SI).
 """
 
 from __future__ import annotations
 
 import csv
+import difflib
+import io
 import math
+import numbers
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +48,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "constant"]
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "constant",
+           "read_text", "decode_utf8", "TIME_NAMES"]
 
 
 class SignalError(ValueError):
@@ -224,6 +241,39 @@ class Signal:
     def breakpoints(self) -> list[float]:
         return sorted({b for term in self.terms for b in term.breakpoints()})
 
+    def shifted(self, t0: float) -> Signal:
+        """The same signal seen from ``t0`` on: ``s.shifted(t0)(t) == s(t + t0)``.
+
+        Parameters
+        ----------
+        t0 : float
+            The new time origin (s).
+        """
+        t0 = _real(t0, "Signal.shifted", "t0")
+
+        def at(t):  # snap round-off to the new origin, so no breakpoint lands at +1e-17 s
+            v = t - t0
+            return 0.0 if abs(v) <= 1e-12 * max(1.0, abs(t), abs(t0)) else v
+
+        terms = []
+        for term in self.terms:
+            if term.kind == "table":
+                tt, vv = term.table
+                terms.append(_Term("table", table=(tuple(at(t) for t in tt), vv)))
+            elif term.kind == "const":
+                terms.append(term)
+            else:
+                terms.append(_Term(term.kind, a=term.a, f0=term.f0, f1=term.f1, t0=at(term.t0), T=term.T))
+        return Signal(tuple(terms), self.text)
+
+    def finite(self) -> bool:
+        """Whether every number of every term is finite."""
+        for term in self.terms:
+            values = (term.a, term.f0, term.f1, term.t0, term.T, *(v for col in term.table for v in col))
+            if not all(isinstance(v, numbers.Real) and math.isfinite(v) for v in values):
+                return False
+        return True
+
     def __add__(self, other: Signal) -> Signal:
         return Signal(self.terms + other.terms, f"{self.text}+{other.text}".strip("+"))
 
@@ -241,6 +291,7 @@ class Signal:
         t0 : float
             Step time (s).
         """
+        amp, t0 = _real(amp, "Signal.step", "amp"), _real(t0, "Signal.step", "t0")
         return Signal((_Term("step", a=amp, t0=t0),), f"step:{amp}@{t0}")
 
     @staticmethod
@@ -254,6 +305,7 @@ class Signal:
         t0 : float
             Start time (s).
         """
+        rate, t0 = _real(rate, "Signal.ramp", "rate"), _real(t0, "Signal.ramp", "t0")
         return Signal((_Term("ramp", a=rate, t0=t0),), f"ramp:{rate}@{t0}")
 
     @staticmethod
@@ -269,6 +321,8 @@ class Signal:
         t0 : float
             Start time (s).
         """
+        amp, t0 = _real(amp, "Signal.sine", "amp"), _real(t0, "Signal.sine", "t0")
+        freq = _real(freq, "Signal.sine", "freq", positive=True)
         return Signal((_Term("sine", a=amp, f0=freq, t0=t0),), f"sine:{amp}@{freq}@{t0}")
 
     @staticmethod
@@ -286,6 +340,9 @@ class Signal:
         t0 : float
             Start time (s).
         """
+        amp, t0 = _real(amp, "Signal.chirp", "amp"), _real(t0, "Signal.chirp", "t0")
+        f0, f1 = _real(f0, "Signal.chirp", "f0"), _real(f1, "Signal.chirp", "f1")
+        duration = _real(duration, "Signal.chirp", "duration", positive=True)
         return Signal((_Term("chirp", a=amp, f0=f0, f1=f1, t0=t0, T=duration),), f"chirp:{amp}@{f0}-{f1}")
 
     @staticmethod
@@ -299,11 +356,16 @@ class Signal:
         values : array_like
             Values at ``t`` (SI unit of the input).
         """
-        t = np.asarray(t, float)
-        v = np.asarray(values, float)
+        try:
+            t = np.asarray(t, float)
+            v = np.asarray(values, float)
+        except (TypeError, ValueError):
+            raise SignalError("Signal.table: t and values must be arrays of numbers") from None
         if t.ndim != 1 or t.shape != v.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
-            raise SignalError("a table needs at least two rows with strictly increasing t")
-        return Signal((_Term("table", table=(tuple(t), tuple(v))),), "table")
+            raise SignalError("Signal.table: a table needs at least two rows with strictly increasing t")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise SignalError("Signal.table: non-finite value in the table")
+        return Signal((_Term("table", table=(tuple(map(float, t)), tuple(map(float, v)))),), "table")
 
 
 def constant(value: float) -> Signal:
@@ -314,28 +376,202 @@ def constant(value: float) -> Signal:
     value : float
         The value (SI unit of the input).
     """
-    return Signal((_Term("const", a=float(value)),), f"{value}")
+    value = _real(value, "constant", "value")
+    return Signal((_Term("const", a=value),), f"{value}")
 
 
-def _read_table(path: Path, scale: float) -> Signal:
+def _real(value, func: str, name: str, positive: bool = False) -> float:
+    """A finite real number (not a bool or a string), or SignalError naming it."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    if ok:
+        value = float(value)
+        ok = math.isfinite(value) and (value > 0 or not positive)
+    if not ok:
+        what = "a positive finite number" if positive else "a finite number"
+        text = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+        raise SignalError(f"{func}: {name}: expected {what}, got {type(value).__name__} {text}")
+    return value
+
+
+#: Names the time column of a table may have (SPEC §6: ``time``; ``t`` accepted).
+TIME_NAMES = ("time", "t")
+_HEADER_CELL = re.compile(r"^\s*(.*?)\s*(?:\[([^\]]*)\])?\s*$")
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """A file's text, decoded as UTF-8 (a byte-order mark is accepted and dropped).
+
+    Raises :class:`SignalError` with one line naming the file when it cannot be read or
+    is not UTF-8 (e.g. saved as Latin-1 or UTF-16).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the messages (``"signal table"``).
+    """
+    path = Path(path)
     try:
-        with path.open(newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SignalError(f"{path}: no such {what}") from None
+    except IsADirectoryError:
+        raise SignalError(f"{path}: is a folder, not a {what}") from None
     except OSError as exc:
-        raise SignalError(f"{path}: cannot read ({exc.strerror})") from None
-    if rows and not re.fullmatch(_NUM, rows[0][0].strip()):
-        rows = rows[1:]  # header
+        raise SignalError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return decode_utf8(data, path, SignalError)
+
+
+def decode_utf8(data: bytes, path, error: type) -> str:
+    """``data`` decoded as UTF-8 with an optional byte-order mark, or ``error`` naming
+    ``path``, the offending byte and its offset.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content.
+    path : str or Path
+        The file, named in the message.
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise error(f"{path}: UTF-16 text; save the file as UTF-8")
     try:
-        data = np.array([[float(r[0]), float(r[1])] for r in rows])
-    except (ValueError, IndexError):
-        raise SignalError(f"{path}: expected two numeric columns t,value") from None
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                    "save the file as UTF-8") from None
+
+
+def _unit_scale(unit: str, kind: str, where: str, stroke: float | None) -> float:
+    """Factor to SI of a column's unit (empty: SI) for a quantity ``kind``."""
+    if unit in ("", SI_UNIT[kind]):
+        return 1.0
+    if kind == "length" and unit == "%":
+        if stroke is None:
+            raise SignalError(f"{where}: unit '%' needs the stroke")
+        return stroke / 100
+    units = _UNITS[kind]
+    if unit not in units:
+        pct = ", %" if kind == "length" else ""
+        raise SignalError(f"{where}: unit '{unit}' is not a {kind} unit (use {', '.join(units)}{pct})")
+    return units[unit]
+
+
+def _table_rows(path: Path) -> list[list[str]]:
+    text = read_text(path, "signal table")
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise SignalError(f"{path}: not a CSV table ({exc})") from None
+    numbered = [(i + 1, [c.strip() for c in r]) for i, r in enumerate(rows)]
+    return [(n, r) for n, r in numbered if any(r) and not r[0].startswith("#")]
+
+
+def _header(path: Path, rows):
+    """(names, units from brackets, units from a Unit: row, data rows) of a table."""
+    if not rows:
+        raise SignalError(f"{path}: empty table; expected a header 'time,NAME' and rows of numbers")
+    first_line, first = rows[0]
+    if re.fullmatch(_NUM, first[0]):
+        names = ["t"] + [f"column {j + 1}" for j in range(1, len(first))]
+        return names, [""] * len(first), None, rows
+    names, bracket = [], []
+    for j, cell in enumerate(first):
+        name, unit = _HEADER_CELL.fullmatch(cell).groups()
+        if not name:
+            raise SignalError(f"{path}: column {j + 1} of the header has no name")
+        names.append(name)
+        bracket.append((unit or "").strip())
+    if names[0].lower() not in TIME_NAMES:
+        raise SignalError(f"{path}: the first column must be the time, named 'time' or 't', got '{names[0]}'")
+    seen = set()
+    for j, name in enumerate(names):
+        if j and name.lower() in TIME_NAMES:
+            raise SignalError(f"{path}: column {j + 1} '{name}' is a second time column; one time column only")
+        if name in seen:
+            raise SignalError(f"{path}: column '{name}' appears twice in the header")
+        seen.add(name)
+    unit_row, data = None, rows[1:]
+    while data and data[0][1][0].endswith(":") and not re.fullmatch(_NUM, data[0][1][0]):
+        line, meta = data.pop(0)
+        if meta[0].lower() == "unit:":
+            if unit_row is not None:
+                raise SignalError(f"{path}: line {line}: a second 'Unit:' row")
+            if len(meta) > len(names):
+                raise SignalError(f"{path}: line {line}: the 'Unit:' row has {len(meta)} cells for "
+                                  f"{len(names)} columns")
+            unit_row = meta + [""] * (len(names) - len(meta))
+    return names, bracket, unit_row, data
+
+
+def _read_table(path: Path, column: str | None, kind: str, stroke: float | None) -> Signal:
+    """A signal from one column of a CSV table (module docstring: layout and units)."""
+    names, bracket, unit_row, data = _header(path, _table_rows(path))
+    signals = names[1:]
+    if column is None:
+        if len(signals) != 1:
+            raise SignalError(f"{path}: {len(signals)} signal columns ({', '.join(signals[:8])}"
+                              f"{', ...' if len(signals) > 8 else ''}); pick one with {path.name}:COLUMN")
+        j = 1
+    else:
+        if column not in signals:
+            near = difflib.get_close_matches(column, signals, n=1)
+            hint = f" (did you mean '{near[0]}'?)" if near else f"; columns: {', '.join(signals[:8])}"
+            raise SignalError(f"{path}: no column '{column}'{hint}")
+        j = names.index(column)
+    where = f"{path}: column '{names[j]}'"
+    unit = bracket[j]
+    if unit_row is not None and unit_row[j]:
+        if unit and unit != unit_row[j]:
+            raise SignalError(f"{where}: unit [{unit}] in the header but '{unit_row[j]}' in the Unit: row")
+        unit = unit_row[j]
+    scale = _unit_scale(unit, kind, where, stroke)
+    t_scale = _unit_scale(bracket[0], "time", f"{path}: column '{names[0]}'", None)
     if len(data) < 2:
-        raise SignalError(f"{path}: expected at least two rows t,value")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        raise SignalError(f"{path}: column t must increase strictly")
-    if not np.all(np.isfinite(data)):
-        raise SignalError(f"{path}: non-finite value in the table")
-    return Signal.table(data[:, 0], data[:, 1] * scale)
+        raise SignalError(f"{path}: expected at least two rows of numbers under the header")
+    t, v = np.empty(len(data)), np.empty(len(data))
+    for i, (line, row) in enumerate(data):
+        if len(row) != len(names):
+            raise SignalError(f"{path}: line {line} has {len(row)} cells, the header {len(names)}")
+        for jj, out in ((0, t), (j, v)):
+            try:
+                out[i] = float(row[jj])
+            except ValueError:
+                raise SignalError(f"{path}: line {line}, column '{names[jj]}': '{row[jj]}' is not a number") from None
+            if not math.isfinite(out[i]):
+                raise SignalError(f"{path}: line {line}, column '{names[jj]}': non-finite value '{row[jj]}'")
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if len(bad):
+        raise SignalError(f"{path}: line {data[bad[0] + 1][0]}: the time must increase strictly "
+                          f"({t[bad[0] + 1]:g} after {t[bad[0]]:g})")
+    sig = Signal.table(t * t_scale, v * scale)
+    return Signal(sig.terms, f"{path}" + (f":{column}" if column else ""))
+
+
+_TABLE = re.compile(r"(?is)^(.+?\.csv)(?::([^:]+))?$")
+
+
+def _table_reference(part: str) -> tuple[Path, str | None] | None:
+    """(file, column or None) if a term names a table: ``FILE.csv``, ``FILE.csv:COLUMN``
+    or an existing file (``FILE:COLUMN``)."""
+    m = _TABLE.fullmatch(part)
+    if m:
+        return Path(m.group(1)), (m.group(2).strip() if m.group(2) else None)
+    if Path(part).is_file():
+        return Path(part), None
+    head, sep, col = part.rpartition(":")
+    if sep and head and Path(head).is_file():
+        return Path(head), col.strip() or None
+    return None
+
+
+def _terms(text: str) -> list[str]:
+    """Split on '+' but not inside a number's exponent (``1e+3``)."""
+    return re.split(r"(?<![0-9.][eE])\+", text)
 
 
 def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | None = None,
@@ -348,9 +584,11 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
         The description; a number or Signal is passed through (number in SI).
     kind : str
         Quantity of the signal (``length``, ``force``, ``dimensionless``,
-        ``angular_velocity``, ``current``); sets the allowed unit suffixes.
+        ``angular_velocity``, ``current``); sets the allowed unit suffixes and the
+        units a table column may name.
     bare : str, optional
-        Unit of numbers without suffix (default: the SI unit, ``m`` or ``N``).
+        Unit of numbers without suffix in the text (default: the SI unit, ``m`` or
+        ``N``). Tables are always SI unless their header names a unit.
     stroke : float, optional
         Stroke (m) for ``%`` amplitudes.
     duration : float, optional
@@ -358,23 +596,25 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
     """
     if isinstance(text, Signal):
         return text
-    if isinstance(text, (int, float)):
-        return constant(float(text))
+    if isinstance(text, numbers.Real) and not isinstance(text, (bool, np.bool_)):
+        return constant(_real(text, "parse_signal", "text"))
+    if not isinstance(text, str):
+        raise SignalError(f"expected a signal string, a number or a Signal, got {type(text).__name__} {text!r}"[:160])
     if kind not in SI_UNIT:
         raise SignalError(f"unknown quantity kind '{kind}'; known: {', '.join(SI_UNIT)}")
     bare = bare or SI_UNIT[kind]
     rate_bare = bare + "/s"
     out = Signal()
-    for part in str(text).split("+"):
+    for part in _terms(text):
         part = part.strip()
         if not part:
             raise SignalError(f"'{text}': empty term")
+        table = _table_reference(part)
         name, _, rest = part.partition(":")
         args = rest.split("@") if rest else []
         try:
-            if not rest and (part.lower().endswith(".csv") or Path(part).is_file()):
-                scale = _UNITS[kind][bare]
-                out = out + _read_table(Path(part), scale)
+            if table is not None:
+                out = out + _read_table(table[0], table[1], kind, stroke)
             elif not rest:
                 out = out + constant(parse_quantity(part, kind, bare, stroke))
             elif name == "step" and 1 <= len(args) <= 2:
@@ -408,8 +648,8 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
                 )
         except SignalError as exc:
             msg = str(exc)
-            raise SignalError(msg if msg.startswith("'") or "csv" in msg.lower() else f"'{part}': {msg}") from None
-    for term in out.terms:
-        if not all(math.isfinite(v) for v in (term.a, term.f0, term.f1, term.t0)):
-            raise SignalError(f"'{text}': non-finite value")
+            named = msg.startswith("'") or table is not None
+            raise SignalError(msg if named else f"'{part}': {msg}") from None
+    if not out.finite():
+        raise SignalError(f"'{text}': non-finite value")
     return Signal(out.terms, str(text))

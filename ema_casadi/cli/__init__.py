@@ -208,6 +208,45 @@ def build_parser():
     return parser, mods
 
 
+def join_negative_values(argv: list[str], parser) -> list[str]:
+    """``--f-ext -30kN`` -> ``--f-ext=-30kN``: a token that starts with '-' and a digit or
+    '.' after a flag that takes a value is that flag's value (argparse alone reads
+    ``-30kN`` as an unknown option). Long flags and their unambiguous prefixes are
+    recognised; nothing after ``--`` is touched.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments after the program name.
+    parser : argparse.ArgumentParser
+        The ``ema`` parser (its subcommands say which flags take a value).
+    """
+    import argparse
+    import re
+
+    negative = re.compile(r"-[0-9.]")
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    choices = subs[0].choices if subs else {}
+    out, i, sub = [], 0, None
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            return out + argv[i:]
+        if sub is None and tok in choices:
+            sub = choices[tok]
+        elif sub is not None and tok.startswith("--") and "=" not in tok and i + 1 < len(argv) \
+                and negative.match(argv[i + 1]):
+            flags = {o: a.nargs is None for a in sub._actions for o in a.option_strings if o.startswith("--")}
+            match = [o for o in flags if o == tok] or [o for o in flags if o.startswith(tok)]
+            if len(match) == 1 and flags[match[0]]:
+                out.append(f"{tok}={argv[i + 1]}")
+                i += 2
+                continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     """Run the ``ema`` command line and return its exit status.
 
@@ -303,6 +342,7 @@ def _run(argv, stop) -> int:
     from ..simulation import RunFailed
 
     parser, mods = build_parser()
+    argv = join_negative_values(list(sys.argv[1:] if argv is None else argv), parser)
     args = parser.parse_args(argv)
     stop.command = args.command
     mod = mods[args.command]

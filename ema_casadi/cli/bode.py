@@ -8,6 +8,9 @@ Example: ema bode --kind closed --plot bode.png --json
 
 from __future__ import annotations
 
+import argparse
+import math
+
 from ..linearisation import LOOPS, OUTER
 from . import UserError, check_output_path, load
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
@@ -26,21 +29,34 @@ def add_arguments(p):
     p.add_argument("--outer", choices=OUTER, default="closed",
                    help="for --kind open: the other loops closed or the outer ones open")
     add_frequency_window(p, 0.1, 2e3)
-    p.add_argument("--points", type=int, default=400, help="number of log-spaced frequencies; default 400")
+    p.add_argument("--points", type=_count, default=400,
+                   help="number of log-spaced frequencies (at most 100000); default 400")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="Bode plot (margins marked for --kind open)")
     add_operating_point_arguments(p)
+
+
+def _count(text: str) -> int:
+    """A whole number, also written 2e7; argparse reports anything else as one line."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got '{text}'") from None
+    if not (math.isfinite(v) and v == int(v)):
+        raise argparse.ArgumentTypeError(f"expected a whole number, got '{text}'")
+    return int(v)
 
 
 def run(args) -> dict:
     import numpy as np
 
-    from ..frequency import bandwidth, bode, closed_loop, dynamic_stiffness, margins, modes
+    from ..frequency import bandwidth, bode, check_points, closed_loop, dynamic_stiffness, margins, modes
     from ..linearisation import loop_model
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     check_window(args)
     if args.points < 2:
         raise UserError(f"--points must be at least 2, got {args.points}")
+    check_points(args.points, f"--points {args.points}", error=UserError)
     params, model = load(args)
     op = operating_point_from_args(args, params, model)
     f = np.logspace(np.log10(args.fmin), np.log10(args.fmax), args.points)

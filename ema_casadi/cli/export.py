@@ -3,38 +3,82 @@
 Linear model at an operating point (same flags as ema linearize): --format mat
 (MATLAB/Octave: A B C D, cell arrays of names and units, struct op), npz or json.
 Nonlinear model f(x, u, p) -> (xdot, y): --format casadi (serialised CasADi Function,
-read back with casadi.Function.load) or c (generated C code NAME.c + NAME.h). The
-nonlinear exports write a sidecar FILE.json naming the entries of x, u, p and y.
-Example: ema export --format mat --f-ext 10kN --out ema_lin.mat
+read back with casadi.Function.load) or c (generated C code NAME.c + NAME.h) when
+--out names a .casadi / .c file; they write a sidecar FILE.json naming the entries
+of x, u, p and y.
+Nonlinear model for other tools (ema_casadi.fmu): --format fmu-me (FMI 3.0 model
+exchange, smooth friction), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
+co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets its
+internal step, default 1e-5 s), c (a
+folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
+casadi (a folder: serialised Functions and their layout) when --out is a folder.
+Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
+          ema export --format fmu-cs --variant friction=hybrid --out ema_cs.fmu
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..export import FUNCTION_FORMATS, LINEAR_FORMATS
+from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
 ORDER = 8
-HELP = "export the linear model (mat/npz/json) or the nonlinear one (casadi/c)"
+HELP = "export the linear model (mat/npz/json) or the nonlinear one (fmu-me/fmu-cs/c/casadi)"
 SUFFIX = {"mat": ".mat", "npz": ".npz", "json": ".json", "casadi": ".casadi", "c": ".c"}
 
 
 def add_arguments(p):
-    p.add_argument("--format", choices=[*LINEAR_FORMATS, *FUNCTION_FORMATS], required=True,
-                   help="mat, npz, json (linear model); casadi, c (nonlinear model)")
+    formats = list(dict.fromkeys([*LINEAR_FORMATS, *FUNCTION_FORMATS, *MODEL_FORMATS]))
+    p.add_argument("--format", choices=formats, required=True,
+                   help="mat, npz, json (linear model); fmu-me, fmu-cs, c, casadi (nonlinear model)")
     p.add_argument("--out", default=None, metavar="PATH",
-                   help="output file; default ema_lin.<format> (linear) or ema_f.casadi / ema_f.c")
+                   help="output; default ema_lin.<format> (linear), ema_me.fmu / ema_cs.fmu, the folders "
+                        "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
+    p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
+                   help="fmu-cs: internal fixed step; c, casadi: default step of the simulator (default 1e-5)")
+    p.add_argument("--fmi-version", choices=["2.0", "3.0"], default=None,
+                   help="fmu-cs: FMI version of the co-simulation FMU (default 2.0; fmu-me is always 3.0)")
     p.add_argument("--open", action="append", choices=list(LOOPS), default=[], metavar="LOOP",
                    help="linear formats: open a loop at its break; repeatable")
     add_operating_point_arguments(p)
 
 
+def _model_export(args) -> bool:
+    """Formats of ema_casadi.fmu; c and casadi unless --out names the single file."""
+    if args.format in MODEL_FORMATS and args.format not in FUNCTION_FORMATS:
+        return True
+    return args.format in FUNCTION_FORMATS and not (args.out and Path(args.out).suffix == SUFFIX[args.format])
+
+
+def _run_model_export(args) -> dict:
+    from .. import fmu
+    from ..export import ExportError, export_model
+
+    out = args.out or fmu.DEFAULTS[args.format]
+    try:
+        fmu.check_output(out, args.format)
+    except ExportError as exc:
+        raise UserError(f"--out {exc}") from None
+    params, model = load(args)
+    try:
+        r = export_model(model, out, args.format, dt=args.dt, fmi_version=args.fmi_version)
+    except ExportError as exc:
+        raise UserError(f"--format {args.format}: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
+    return {"model": args.model, "variants": model.variants, "format": args.format, "written": [str(r["path"])],
+            **{k: v for k, v in r.items() if k != "path"}}
+
+
 def run(args) -> dict:
     from ..export import ExportError, export_function, save_linear
+
+    if _model_export(args):
+        return _run_model_export(args)
 
     linear = args.format in LINEAR_FORMATS
     default = ("ema_lin" if linear else "ema_f") + SUFFIX[args.format]

@@ -8,7 +8,10 @@ of the motor current i_q are reported per point.
 
 AMPLITUDES: comma list, 0.5% (of the 75 mm stroke), 0.5mm, 250um; a bare number is mm.
 FREQS: comma list 0.1,1,5 or a log-spaced range F0-F1:N (0.1-30:40); Hz.
-LOADS: comma list 0,10kN,30kN; a bare number is N (positive pushes the rod in).
+LOADS: comma list 0,10kN,30kN; a bare number is N (positive pushes the rod in); a
+pulling load may follow its flag: --loads -30kN,0.
+Grids above 100000 points (or 1e7 periods in the worst case, points x --max-periods)
+are refused with the estimate.
 Every point has a status (converged, not_converged, failed) and a reason; a failed
 point (it left the physical envelope, went non-finite or its integrator gave up) has
 no values and makes the command exit with status 3 after writing the whole table.
@@ -21,7 +24,10 @@ import argparse
 import math
 import sys
 
+import numpy as np
+
 from ..sinestream import parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
+from ..sinestream._parse import check_grid
 from . import UserError, check_output_path, load
 
 COMMAND = "freqresp"
@@ -67,6 +73,8 @@ def run(args) -> dict:
     amplitudes = parse_amplitudes(args.amplitudes, params.actuator.stroke)
     freqs = parse_freqs(args.freqs)
     loads = parse_loads(args.loads)
+    check_grid({"--loads": len(loads), "--amplitudes": len(amplitudes), "--freqs": len(np.unique(freqs))},
+               args.max_periods, args.jobs or 1, "--max-periods")
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     resp = sine_stream(params, amplitudes, freqs, loads, variants=model.variants, jobs=args.jobs,
                        scheduler=args.scheduler, max_periods=args.max_periods, tol_db=args.tol_db,

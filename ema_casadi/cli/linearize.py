@@ -10,6 +10,7 @@ Example: ema linearize --f-ext 20kN --out lin.mat --json
 
 from __future__ import annotations
 
+import math
 import sys
 import warnings
 
@@ -45,10 +46,13 @@ def operating_point_from_args(args, params, model):
     values = {}
     for flag, attr, kind, bare in (("--x-cmd", "x_cmd", "length", "mm"), ("--f-ext", "f_ext", "force", "N"),
                                    ("--v-rod", "v_rod", "rate", "mm/s")):
+        text = str(getattr(args, attr))
         try:
-            values[attr] = parse_quantity(str(getattr(args, attr)), kind, bare, stroke=params.actuator.stroke)
+            values[attr] = parse_quantity(text, kind, bare, stroke=params.actuator.stroke)
         except SignalError as exc:
             raise UserError(f"{flag} {exc}") from None
+        if not math.isfinite(values[attr]):
+            raise UserError(f"{flag} '{text}': not a finite number")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

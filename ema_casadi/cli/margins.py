@@ -28,9 +28,19 @@ def add_frequency_window(p, f_min: float, f_max: float) -> None:
     p.add_argument("--fmax", type=float, default=f_max, help=f"highest frequency (Hz); default {f_max:g}")
 
 
-def check_window(args) -> None:
+def check_window(args, per_decade: int | None = None) -> None:
+    """--fmin/--fmax: 0 < fmin < fmax, and with ``per_decade`` a grid of that density
+    within the limit."""
+    from ..frequency import MAX_FREQ_POINTS
+
     if not (math.isfinite(args.fmin) and math.isfinite(args.fmax) and 0 < args.fmin < args.fmax):
         raise UserError(f"--fmin/--fmax must satisfy 0 < fmin < fmax (Hz), got {args.fmin:g}, {args.fmax:g}")
+    decades = math.log10(args.fmax) - math.log10(args.fmin)
+    n = (per_decade or 0) * decades
+    if n > MAX_FREQ_POINTS:
+        raise UserError(f"--fmin/--fmax {args.fmin:g}-{args.fmax:g} Hz: {decades:.3g} "
+                        f"decades at {per_decade} frequencies per decade = {n:.3g}, above the limit of "
+                        f"{MAX_FREQ_POINTS} (MAX_FREQ_POINTS)")
 
 
 def add_arguments(p):
@@ -46,7 +56,7 @@ def run(args) -> dict:
     from ..frequency import REQUIREMENT, loop_margins
 
     plot = check_output_path(args.plot, (".png",), "--plot")
-    check_window(args)
+    check_window(args, per_decade=200)
     t0 = time.perf_counter()
     params, model = load(args)
     op = operating_point_from_args(args, params, model)

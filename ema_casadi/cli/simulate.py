@@ -1,8 +1,17 @@
 """Time simulation of the actuator.
 
 SIGNAL: step:AMP[@T0], ramp:RATE[@T0], sine:AMP@FREQ[@T0], chirp:AMP@F0-F1, a constant,
-or a CSV file t,value; join terms with '+'. Positions take 1mm, 250um, 0.01m or 0.5%
-(of the stroke); a bare number is mm. Forces take 10kN or 500N; a bare number is N.
+a CSV file (time and one signal column) or FILE.csv:COLUMN (one column of a table, e.g.
+a run written by --out: run.csv:x_rod); join terms with '+'. Positions take 1mm, 250um,
+0.01m or 0.5% (of the stroke); a bare number is mm. Forces take 10kN or 500N; a bare
+number is N. A negative value may follow its flag: --f-ext -30kN.
+CSV files are UTF-8 and SI: bare numbers in a file are m, N, s (the mm rule is for flag
+values only) unless the header names a unit (x_cmd [mm], f_ext [kN], time [ms]) or a
+'Unit:' row follows the header (the layout --out writes: time, then one column per
+signal, then Unit: and each unit; MATLAB's Simulation Data Inspector reads it).
+Samples: every --dt-out and at --t-end itself (the last interval shorter when --dt-out
+does not divide --t-end); with rk4, --t-end and --dt-out must be whole numbers of --dt.
+Runs above 1e9 RK4 steps or a 1 GiB result are refused with the estimate.
 Example: ema simulate --x-cmd "step:1mm@0.01+sine:0.375mm@1@0.5" --t-end 1 --out run.csv
 """
 
@@ -13,6 +22,7 @@ import time
 
 from ..signals import parse_signal
 from ..simulation import SOLVERS, simulate
+from ..simulation._api import check_run
 from . import UserError, check_output_path, load
 
 COMMAND = "simulate"
@@ -22,20 +32,25 @@ HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
 def add_arguments(p):
     p.add_argument("--x-cmd", default="step:1mm@0.01", metavar="SIGNAL",
-                   help="commanded rod position (bare numbers in mm); default step:1mm@0.01")
+                   help="commanded rod position (bare numbers in mm; in a CSV file m unless the header names a "
+                        "unit); default step:1mm@0.01")
     p.add_argument("--f-ext", default="0", metavar="SIGNAL",
-                   help="external rod force, positive pushes the rod in (bare numbers in N); default 0")
+                   help="external rod force, positive pushes the rod in (bare numbers in N, also in a CSV file); "
+                        "default 0")
     p.add_argument("--input", action="append", default=[], metavar="NAME=SIGNAL",
                    help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
     p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
     p.add_argument("--dt", type=float, default=5e-6, help="RK4 step, or CVODES output spacing (s); default 5e-6")
-    p.add_argument("--dt-out", type=float, default=None, help="spacing of the saved samples (s); default 1e-4")
+    p.add_argument("--dt-out", type=float, default=None,
+                   help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
+                        "the last sample is at --t-end")
     p.add_argument("--solver", choices=SOLVERS, default="rk4",
                    help="rk4 (fixed step, compiled) or cvodes (variable step)")
     p.add_argument("--zoh", action="store_true", help="sampled ECU at its rates (rk4 only)")
     p.add_argument("--out", default=None, metavar="FILE",
-                   help="write the time series: .csv (column t, then one per signal, SI) or .npz")
+                   help="write the time series: .csv (column time, then one per signal, a Unit: row, SI, 17 "
+                        "digits), .mat (struct ema_sim: time, one field per signal, units) or .npz")
     p.add_argument("--plot", default=None, metavar="FILE.png",
                    help="plot command, position, velocity, current, voltage")
     p.add_argument("--event-tol", type=float, default=1e-7,
@@ -44,13 +59,27 @@ def add_arguments(p):
     p.add_argument("--progress", action="store_true", help="progress bar on stderr")
 
 
+#: simulate()'s argument names as the flags that set them (messages name the flag).
+FLAGS = {"t_end": "--t-end", "dt": "--dt", "dt_out": "--dt-out", "event_tol": "--event-tol",
+         "solver": "--solver", "zoh": "--zoh"}
+
+
 def run(args) -> dict:
-    out = check_output_path(args.out, (".csv", ".npz"), "--out")
+    out = check_output_path(args.out, (".csv", ".npz", ".mat"), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")
-    for flag, val in (("--t-end", args.t_end), ("--dt", args.dt), ("--event-tol", args.event_tol)):
-        if not (math.isfinite(val) and val > 0):
+    for flag, val in (("--t-end", args.t_end), ("--dt", args.dt), ("--dt-out", args.dt_out),
+                      ("--event-tol", args.event_tol)):
+        if val is not None and not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
+    if args.dt_out is not None:
+        dt_out = args.dt_out
+    elif args.solver == "rk4":
+        dt_out = args.dt * max(1, round(1e-4 / args.dt))
+    else:
+        dt_out = max(args.dt, 1e-4)
     params, model = load(args)
+    check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
+              event_tol=args.event_tol, labels=FLAGS, error=UserError)
     stroke = params.actuator.stroke
     try:
         x_cmd = parse_signal(args.x_cmd, "length", bare="mm", stroke=stroke, duration=args.t_end)
@@ -61,13 +90,13 @@ def run(args) -> dict:
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
-    dt_out = args.dt_out if args.dt_out is not None else max(args.dt, 1e-4)
     t0 = time.perf_counter()
     res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
                    zoh=args.zoh, event_tol=args.event_tol, progress=args.progress, **others)
     written = []
     if out is not None:
-        written.append(str(res.to_csv(out) if out.suffix.lower() == ".csv" else res.to_npz(out)))
+        writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
+        written.append(str(writer(out)))
     if plot is not None:
         from ..plotting import plot_simulation
 

@@ -6,7 +6,10 @@ and phase margins on the position, velocity and current loops (--gm/--pm, or a
 sensitivity peak --ms), overshoot (--overshoot), current and voltage within their
 limits on a step of --step, optional minimum bandwidth and eigenvalue bound. The
 result is verified independently (fresh linearisation, the toolkit's margins, a
-nonlinear step simulation) and written as a parameter file (--out).
+nonlinear step simulation) and written as a parameter file (--out). From start gains
+that already meet every requirement the result is never worse than the start: should
+IPOPT fail there, the best verified iterate (or the start itself) is returned, and
+the first line of the report says so.
 Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir out
 """
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._checks import describe, instance
 from .._kwargs import check_keywords, keywords_of
 from ..assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
@@ -55,6 +56,10 @@ class LinearModel:
         name : str, optional
             Label of the sub-model (default this model's).
         """
+        for label, names, have in (("inputs", inputs, self.inputs), ("outputs", outputs, self.outputs)):
+            unknown = [n for n in (names or ()) if n not in have]
+            if unknown:
+                raise LinearizationError(f"{label}: '{unknown[0]}' is not one of {', '.join(have)}")
         ii = [self.inputs.index(n) for n in (inputs or self.inputs)]
         oo = [self.outputs.index(n) for n in (outputs or self.outputs)]
         return replace(
@@ -74,6 +79,9 @@ class LinearModel:
 def _loops(model: Model, names) -> tuple[str, ...]:
     if isinstance(names, str):
         names = (names,)
+    if names is not None and not (isinstance(names, (list, tuple)) and all(isinstance(n, str) for n in names)):
+        raise LinearizationError(f"loops: expected a loop name or a list of them ({', '.join(model.loops)}), "
+                                 f"got {describe(names)}")
     out = tuple(names or ())
     for n in out:
         if n not in model.loops:
@@ -107,6 +115,12 @@ def linear_model(
         TypeError.
     """
     check_keywords("linear_model", op_kwargs, keywords_of(operating_point))
+    instance(model, Model, "model", LinearizationError, " (from build_model)")
+    if op is not None:
+        instance(op, OperatingPoint, "op", LinearizationError, " (from operating_point)")
+    for label, names in (("inputs", inputs), ("outputs", outputs)):
+        if names is not None and (isinstance(names, str) or not all(isinstance(n, str) for n in names)):
+            raise LinearizationError(f"{label}: expected a list of signal names, got {describe(names)}")
     if op is None:
         op = operating_point(model, **op_kwargs)
     elif op_kwargs:
@@ -193,6 +207,9 @@ def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, out
         Keywords of :func:`operating_point` (without ``op``); an unknown one raises TypeError.
     """
     check_keywords("loop_model", op_kwargs, keywords_of(operating_point))
+    instance(model, Model, "model", LinearizationError, " (from build_model)")
+    if not isinstance(loop, str):
+        raise LinearizationError(f"loop: expected one of {', '.join(model.loops)}, got {describe(loop)}")
     (loop,) = _loops(model, loop)
     if outer not in OUTER:
         raise LinearizationError(f"outer '{outer}' unknown; choose one of {', '.join(OUTER)}")

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._checks import instance, integer, number, vector
 from ..assembly import Model
 from ..params import Parameters
 from ._common import _LIFT, BACKLASH_POLICIES, FRICTION_POLICIES, LinearizationError, OperatingPointError, _eval
@@ -269,6 +270,7 @@ def operating_point(
     LinearizationError
         Unknown policy, or ``friction="smooth"`` with the hybrid friction variant.
     """
+    _check_request(model, x_cmd, f_ext, v_rod, eta, params, p, tol, max_iter)
     pv = _request_vector(model, params, p, x_cmd, f_ext, v_rod)
     p_pol, overrides = _policy_vector(model, pv, friction, backlash)
     if friction == "smooth":
@@ -296,6 +298,25 @@ def operating_point(
         outputs=model.outputs, param_names=model.param_names, residual=rel,
         variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin,
     )
+
+
+def _check_request(model, x_cmd, f_ext, v_rod, eta, params, p, tol, max_iter) -> None:
+    """Types and values of a trim request: OperatingPointError naming the argument."""
+    err = OperatingPointError
+    instance(model, Model, "model", err, " (from build_model)")
+    for name, val, unit in (("x_cmd", x_cmd, "m"), ("f_ext", f_ext, "N"), ("v_rod", v_rod, "m/s")):
+        if isinstance(val, str):
+            raise err(f"{name}: expected a number in {unit}, got str {val!r} (text with units is for the "
+                      "command line; ema_casadi.signals.parse_quantity reads it)")
+        number(val, name, err, unit=unit)
+    if eta is not None:
+        number(eta, "eta", err, unit="-", positive=True)
+    if params is not None:
+        instance(params, Parameters, "params", err, " (from load_parameters)")
+    if p is not None:
+        vector(p, "p", err, len(model.param_names), " (the model's parameter vector)")
+    number(tol, "tol", err, positive=True)
+    integer(max_iter, "max_iter", err, minimum=1)
 
 
 def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:

@@ -1,4 +1,26 @@
-"""``simulate()``: validate the request, build the input signals, run a solver."""
+"""``simulate()``: validate the request, plan the output grid, refuse work the machine
+cannot do, build the input signals, run a solver.
+
+Output grid (SPEC §7, no sample past the end): samples at 0, dt_out, 2 dt_out, ... and
+at ``t_end`` itself; when dt_out does not divide t_end the last interval is shorter
+(t_end 0.25 s with dt_out 0.1 s gives 0, 0.1, 0.2, 0.25 s), and a dt_out longer than
+t_end gives the two samples 0 and t_end. RK4 takes fixed steps, so for ``rk4`` t_end
+must be a whole number of steps dt and dt_out a whole number of steps (refused
+otherwise, with the numbers). The rollout is run at a decimation that divides both the
+sample spacing and the number of steps, at most :data:`~ema_casadi.simulation.STEPS_PER_CALL`
+steps per kept sample, and thinned to the requested grid: a large dt_out/dt costs
+nothing extra. ``cvodes`` integrates the whole intervals and then the last, shorter one.
+
+Limits (module constants, checked before anything is built):
+
+:data:`MAX_STEPS`
+    RK4 steps of one run (t_end/dt).
+:data:`MAX_RESULT_BYTES`
+    Kept samples x signals x 8 bytes of the result (the peak memory of a run, with
+    the rollout buffers and a CSV being written, is about three times this).
+:data:`RK4_SECONDS_PER_STEP`
+    The measured cost of one compiled RK4 step, for the time estimate in messages.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +29,27 @@ import time
 
 import numpy as np
 
+from .._checks import describe, instance, integer, number, vector
 from ..assembly import Model
 from ..params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._inputs import _input_signals
 from ._result import SimResult, SimulationError
-from ._rk4 import _simulate_rk4
+from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 
 SOLVERS = ("rk4", "cvodes")
+
+#: Most RK4 steps one run may take (about 12 min at :data:`RK4_SECONDS_PER_STEP`).
+MAX_STEPS = 10**9
+#: Largest result (kept samples x signals x 8 bytes) one run may build: 1 GiB.
+MAX_RESULT_BYTES = 2**30
+#: Wall time of one compiled RK4 step (s), measured on the reference model (pmsm,
+#: elastic, smooth friction; 0.64 us decimated, 1.2 us with every step kept) on a
+#: 2-core x86-64 machine: the basis of the time estimate in a refusal.
+RK4_SECONDS_PER_STEP = 0.7e-6
+
+#: Relative slack when a time must be a whole number of steps or samples.
+_WHOLE = 1e-9
 
 
 def simulate(
@@ -41,12 +76,19 @@ def simulate(
 ) -> SimResult:
     """Simulate ``model`` from 0 to ``t_end`` (s).
 
+    Samples are kept at 0, ``dt_out``, 2 ``dt_out``, ... and at ``t_end`` (the last
+    interval shorter when ``dt_out`` does not divide ``t_end``); never past ``t_end``.
+    Every argument is checked first: a wrong type or value raises
+    :class:`SimulationError` (:class:`~ema_casadi.signals.SignalError` for a signal)
+    naming it, and a run above :data:`MAX_STEPS` or :data:`MAX_RESULT_BYTES` is refused
+    with the estimate before anything is built (module docstring).
+
     Parameters
     ----------
     model : Model
         From :func:`~ema_casadi.assembly.build_model`.
     t_end : float
-        End time (s).
+        End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str
         Commanded rod position (m), external force (N, positive pushes the rod in),
         screw efficiency (-, default the parameter set's eta).
@@ -61,12 +103,13 @@ def simulate(
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
     x0 : array, optional
-        Initial state (default: at rest, all zero).
+        Initial state, one value per ``model.states`` (default: at rest, all zero).
     zoh : bool
         Sampled ECU at its rates (rk4 only).
     decimate, dt_out : int or float, optional
-        Keep every ``decimate``-th step, or one sample per ``dt_out`` seconds
-        (default: every step for rk4, every ``dt`` for cvodes).
+        Keep every ``decimate``-th step, or one sample per ``dt_out`` seconds (for
+        ``rk4`` a whole number of steps); default every step for rk4, every ``dt`` for
+        cvodes.
     rtol, atol : float
         CVODES tolerances.
     event_tol : float
@@ -77,36 +120,252 @@ def simulate(
     progress : bool
         Progress bar on stderr.
     """
-    _check_request(t_end, dt, solver, zoh, event_tol)
-    pv = np.asarray(p, float) if p is not None else model.p(params)
-    if pv.shape != (len(model.param_names),):
-        raise SimulationError(f"p must have {len(model.param_names)} entries, got shape {pv.shape}")
+    instance(model, Model, "model", SimulationError, " (from build_model)")
+    plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
+                     event_tol=event_tol, rtol=rtol, atol=atol)
+    if params is not None:
+        instance(params, Parameters, "params", SimulationError, " (from load_parameters)")
+    if p is not None:
+        pv = vector(p, "p", SimulationError, len(model.param_names), " (the model's parameter vector)")
+    else:
+        pv = model.p(params)
     sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
-    x0 = model.x0() if x0 is None else np.asarray(x0, float)
-    if decimate is None:
-        decimate = max(1, int(round(dt_out / dt))) if dt_out else 1
+    if x0 is None:
+        x0 = model.x0()
+    else:
+        x0 = vector(x0, "x0", SimulationError, model.nx, f" (one per state: {', '.join(model.states)})")
     t_wall = time.perf_counter()
     if solver == "rk4":
-        res = _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, decimate, jit, progress)
-    elif model.hybrid:
-        res = _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, event_tol,
-                                      progress)
+        res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
     else:
-        res = _simulate_cvodes(model, t_end, sig, pv, x0, dt_out or dt * decimate, rtol, atol, progress)
+        res = _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress))
     res.info["wall_time"] = time.perf_counter() - t_wall
-    res.info.update(solver=solver, variants=dict(model.variants), t_end=t_end)
+    res.info.update(solver=solver, variants=dict(model.variants), t_end=plan.t_end)
     return res
 
 
-def _check_request(t_end, dt, solver, zoh, event_tol):
-    if solver not in SOLVERS:
-        raise SimulationError(f"solver '{solver}' unknown; choose one of {', '.join(SOLVERS)}")
-    for name, val in (("t_end", t_end), ("dt", dt)):
-        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-            raise SimulationError(f"{name} must be a positive finite number of seconds, got {val!r}")
-    if dt > t_end:
-        raise SimulationError(f"dt ({dt} s) is longer than t_end ({t_end} s)")
+class _Plan:
+    """The checked request: end time, step, sample spacing, and for rk4 the numbers of
+    steps (``n_steps``), steps per sample (``k``) and the rollout's decimation (``k_run``)."""
+
+    def __init__(self, t_end, dt, spacing, n_steps=None, k=None, k_run=None):
+        self.t_end, self.dt, self.spacing = t_end, dt, spacing
+        self.n_steps, self.k, self.k_run = n_steps, k, k_run
+
+    @property
+    def samples(self) -> int:
+        """Samples of the result (0 and t_end included)."""
+        if self.k is not None:
+            return -(-self.n_steps // self.k) + 1
+        return _whole_intervals(self.t_end, self.spacing) + 1 + (self._tail() > 0)
+
+    @property
+    def kept(self) -> int:
+        """Samples the run holds before thinning (rk4: at the rollout's decimation)."""
+        return self.n_steps // self.k_run + 1 if self.k_run is not None else self.samples
+
+    def _tail(self) -> float:
+        n = _whole_intervals(self.t_end, self.spacing)
+        r = self.t_end - n * self.spacing
+        return r if r > _WHOLE * self.spacing else 0.0
+
+
+def _whole_intervals(t_end: float, spacing: float) -> int:
+    """Whole intervals of ``spacing`` in [0, t_end] (round-off tolerated)."""
+    return int(math.floor(t_end / spacing * (1 + _WHOLE)))
+
+
+def _steps_in(length: float, dt: float):
+    """``length / dt`` as an int if it is whole (round-off tolerated), else None."""
+    n = round(length / dt)
+    return n if n >= 1 and abs(n * dt - length) <= _WHOLE * max(length, dt) else None
+
+
+def _largest_divisor(n: int, cap: int) -> int:
+    """Largest divisor of ``n`` that is at most ``cap``."""
+    if n <= cap:
+        return n
+    best = 1
+    for d in range(1, math.isqrt(n) + 1):
+        if n % d == 0:
+            if d <= cap:
+                best = max(best, d)
+            if n // d <= cap:
+                best = max(best, n // d)
+    return best
+
+
+def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solver="rk4", zoh=False,
+              event_tol=1e-7, rtol=1e-8, atol=1e-11, labels: dict | None = None, error: type = SimulationError):
+    """Check a simulation request and plan its output grid, before anything is built.
+
+    Raises ``error`` with one line naming the argument (by its name in ``labels``, e.g.
+    ``{"dt_out": "--dt-out"}`` for the command line): a bad type or value, a t_end or
+    dt_out that is not a whole number of RK4 steps, or a run above :data:`MAX_STEPS`
+    or :data:`MAX_RESULT_BYTES` (with the estimate and the limit).
+
+    Parameters
+    ----------
+    model : Model
+        The model to run (its signal count sizes the result).
+    t_end, dt, dt_out, decimate, solver, zoh, event_tol, rtol, atol
+        As in :func:`simulate`.
+    labels : dict, optional
+        Argument name -> the name to show in messages.
+    error : type
+        The exception raised.
+
+    Returns
+    -------
+    object
+        The plan (private): end time, step, sample spacing, step counts.
+    """
+    labels = labels or {}
+
+    def lab(name):
+        return labels.get(name, name)
+
+    if not isinstance(solver, str) or solver not in SOLVERS:
+        raise error(f"{lab('solver')} '{solver}' unknown; choose one of {', '.join(SOLVERS)}")
+    t_end = _seconds(t_end, lab("t_end"), error)
+    dt = _seconds(dt, lab("dt"), error)
+    if dt_out is not None:
+        dt_out = _seconds(dt_out, lab("dt_out"), error)
+    if decimate is not None:
+        decimate = integer(decimate, lab("decimate"), error, minimum=1)
+        if dt_out is not None:
+            raise error(f"give {lab('decimate')} or {lab('dt_out')}, not both")
+    event_tol = _seconds(event_tol, lab("event_tol"), error)
+    for name, val in (("rtol", rtol), ("atol", atol)):
+        number(val, lab(name), error, positive=True)
     if zoh and solver != "rk4":
-        raise SimulationError("zoh (sampled ECU) needs solver rk4")
-    if not (math.isfinite(event_tol) and event_tol > 0):
-        raise SimulationError(f"event_tol must be a positive number of seconds, got {event_tol!r}")
+        raise error(f"{lab('zoh')} (sampled ECU) needs solver rk4")
+    n_signals = model.nu + model.ny + model.nx
+    if solver == "rk4":
+        if dt > t_end:
+            raise error(f"{lab('dt')} ({dt:g} s) is longer than {lab('t_end')} ({t_end:g} s)")
+        steps = t_end / dt
+        if steps > MAX_STEPS:
+            raise error(f"{lab('t_end')} {t_end:g} s / {lab('dt')} {dt:g} s = {steps:.3g} RK4 steps, "
+                        f"about {_duration(steps * RK4_SECONDS_PER_STEP)} at {RK4_SECONDS_PER_STEP * 1e6:g} us "
+                        f"per step (measured); the limit is {MAX_STEPS:.0e} steps (MAX_STEPS)")
+        n_steps = _steps_in(t_end, dt)
+        if n_steps is None:
+            raise error(f"{lab('t_end')} {t_end:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
+                        f"({steps:.6g}); choose a dt that divides t_end")
+        if decimate is not None:
+            k = decimate
+        elif dt_out is not None:
+            k = _steps_in(dt_out, dt)
+            if k is None:
+                raise error(f"{lab('dt_out')} {dt_out:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
+                            f"({dt_out / dt:.6g}); the samples fall on steps")
+        else:
+            k = 1
+        k = min(k, n_steps)
+        k_run = _largest_divisor(math.gcd(k, n_steps), STEPS_PER_CALL)
+        plan = _Plan(t_end, dt, k * dt, n_steps, k, k_run)
+    else:
+        spacing = dt_out if dt_out is not None else dt * (decimate or 1)
+        spacing_label = lab("dt_out") if dt_out is not None else lab("dt")
+        if t_end / spacing > MAX_RESULT_BYTES:  # before counting samples as an int
+            raise error(_too_big(t_end / spacing, n_signals, lab("t_end"), t_end, spacing_label, spacing))
+        plan = _Plan(t_end, dt, min(spacing, t_end))
+    kept = plan.kept
+    if kept * n_signals * 8 > MAX_RESULT_BYTES:
+        if dt_out is not None or solver == "cvodes":
+            spacing_label, spacing = lab("dt_out") if dt_out is not None else lab("dt"), plan.spacing
+        else:
+            spacing_label, spacing = lab("dt"), dt
+        note = f" (kept every {plan.k_run} steps so that the samples end at t_end)" if kept > plan.samples else ""
+        raise error(_too_big(kept, n_signals, lab("t_end"), t_end, spacing_label, spacing, note))
+    return plan
+
+
+def _too_big(samples, n_signals, t_label, t_end, spacing_label, spacing, note="") -> str:
+    size = samples * n_signals * 8
+    return (f"{t_label} {t_end:g} s with {spacing_label} {spacing:g} s: {samples:.3g} samples{note} x {n_signals} "
+            f"signals x 8 B = {_bytes(size)}, above the limit of {_bytes(MAX_RESULT_BYTES)} (MAX_RESULT_BYTES); "
+            f"use a longer {spacing_label} or a shorter {t_label}")
+
+
+def _seconds(value, label, error) -> float:
+    try:
+        return number(value, label, error, unit="s", positive=True)
+    except error:
+        raise error(f"{label} must be a positive finite number of seconds, got {_shown(value)}") from None
+
+
+def _shown(value) -> str:
+    return repr(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else describe(value)
+
+
+def _bytes(n: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n / 1e3:.3g} kB"
+
+
+def _duration(s: float) -> str:
+    for unit, size in (("years", 3.15e7), ("days", 86400), ("h", 3600), ("min", 60)):
+        if s >= size:
+            return f"{s / size:.3g} {unit}"
+    return f"{s:.3g} s"
+
+
+# -- running the plan ----------------------------------------------------------------
+def _run_rk4(model, plan: _Plan, sig, pv, x0, zoh, jit, progress) -> SimResult:
+    """The rollout at decimation ``k_run`` over ``n_steps``, thinned to every k-th step
+    plus the last one."""
+    res = _simulate_rk4(model, plan.n_steps * plan.dt, sig, pv, x0, plan.dt, zoh, plan.k_run, jit, progress)
+    if plan.k_run != plan.k:
+        steps = np.arange(len(res.t)) * plan.k_run
+        keep = np.nonzero((steps % plan.k == 0) | (steps == plan.n_steps))[0]
+        res = _thin(res, keep)
+    res.t[-1] = plan.t_end  # the same instant, without the round-off of n dt
+    res.info.update(decimate=plan.k, dt_out=plan.spacing)
+    return res
+
+
+def _thin(res: SimResult, keep: np.ndarray) -> SimResult:
+    return SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
+                     outputs={k: v[keep] for k, v in res.outputs.items()},
+                     states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table)
+
+
+def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress) -> SimResult:
+    """The whole intervals of dt_out, then the last, shorter one from where they ended."""
+
+    def run(t_end, signals, x_start, spacing):
+        if model.hybrid:
+            return _simulate_cvodes_hybrid(model, t_end, signals, pv, x_start, spacing, rtol, atol, event_tol,
+                                           progress)
+        return _simulate_cvodes(model, t_end, signals, pv, x_start, spacing, rtol, atol, progress)
+
+    n = _whole_intervals(plan.t_end, plan.spacing)  # >= 1: the spacing is at most t_end
+    t_full, tail = n * plan.spacing, plan._tail()
+    if not tail:
+        res = run(t_full, sig, x0, plan.spacing)
+        res.t[-1] = plan.t_end
+        res.info["dt_out"] = plan.spacing
+        return res
+    head = run(t_full, sig, x0, plan.spacing)
+    x_end = np.array([head.states[s][-1] for s in model.states])
+    shifted = {name: s.shifted(t_full) for name, s in sig.items()}
+    last = run(tail, shifted, x_end, tail)
+    t = np.append(head.t, plan.t_end)
+    info = dict(head.info)
+    for key in ("steps", "integrator_calls", "compute_time", "mode_switches"):
+        if key in info:
+            info[key] = info[key] + last.info.get(key, 0)
+    if "switch_times" in info:
+        info["switch_times"] = np.concatenate([info["switch_times"], np.asarray(last.info["switch_times"]) + t_full])
+    info.update(dt_out=plan.spacing, restarts_at=[t_full])
+    return SimResult(
+        t=t, inputs={name: s(t) for name, s in sig.items()},
+        outputs={k: np.append(v, last.outputs[k][-1]) for k, v in head.outputs.items()},
+        states={k: np.append(v, last.states[k][-1]) for k, v in head.states.items()},
+        info=info, unit_table=head.unit_table,
+    )
+

@@ -4,20 +4,29 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._checks import describe
 from .._kwargs import check_keywords
 from ..assembly import Model
-from ..signals import Signal, constant, parse_signal
-from ._result import SimulationError
+from ..signals import Signal, SignalError, constant, parse_signal
 
 
 def _as_signal(value, name: str, kind: str) -> Signal:
+    """A model input's value as a Signal; SignalError naming the input otherwise (a
+    non-finite number or Signal, a string that does not parse, another type)."""
     if isinstance(value, Signal):
+        if not value.finite():
+            raise SignalError(f"{name}: non-finite value in the signal {value.text or value!r}")
         return value
-    if isinstance(value, (int, float, np.floating)) and not isinstance(value, bool):
+    if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        if not np.isfinite(value):
+            raise SignalError(f"{name}: expected a finite number, a Signal or a signal string, got {float(value)}")
         return constant(float(value))
     if isinstance(value, str):
-        return parse_signal(value, kind)
-    raise SimulationError(f"input {name}: expected a number, a Signal or a signal string, got {type(value).__name__}")
+        try:
+            return parse_signal(value, kind)
+        except SignalError as exc:
+            raise SignalError(f"{name}: {exc}") from None
+    raise SignalError(f"{name}: expected a number, a Signal or a signal string, got {describe(value)}")
 
 
 def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:

@@ -52,7 +52,8 @@ class SimResult:
         raise KeyError(f"no signal '{name}'; have {', '.join(self.columns()[1:])}")
 
     def columns(self) -> list[str]:
-        """Column names of :meth:`to_csv`: t, inputs, outputs, states not already outputs."""
+        """The signals in table order: ``t`` (the time; :meth:`to_csv` names it ``time``),
+        inputs, outputs, states not already outputs."""
         extra = [n for n in self.states if n not in self.outputs]
         return ["t", *self.inputs, *self.outputs, *extra]
 
@@ -65,15 +66,56 @@ class SimResult:
         return np.column_stack([self.t] + [self[c] for c in cols])
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write column ``t`` then one column per signal (SI); atomic.
+        """Write the time series as CSV (SPEC §6 Files); atomic.
+
+        The layout of MATLAB's Simulation Data Inspector: a header row ``time`` then one
+        column per signal (:meth:`columns`), a second row ``Unit:`` followed by each
+        signal's SI unit (:meth:`units`), then one row per sample, every number with 17
+        significant digits (a float written and read back is the same float).
+        :func:`~ema_casadi.signals.parse_signal` reads it back (``run.csv:x_rod``).
 
         Parameters
         ----------
         path : str or Path
             The CSV file.
         """
-        return write_with(path, lambda tmp: np.savetxt(
-            tmp, self.table(), delimiter=",", header=",".join(self.columns()), comments="", fmt="%.10g"))
+        cols = self.columns()[1:]
+        units = self.units()
+        head = ",".join(["time", *cols]) + "\n" + ",".join(["Unit:", *(units[c] for c in cols)]) + "\n"
+
+        def write(tmp):
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                fh.write(head)
+                np.savetxt(fh, self.table(), delimiter=",", fmt="%.17g")
+
+        return write_with(path, write)
+
+    def to_mat(self, path: str | Path, name: str = "ema_sim") -> Path:
+        """Write the time series as a MATLAB struct (SPEC §6 Files); atomic.
+
+        One struct variable ``name`` with the field ``time`` (s), one field per signal
+        (:meth:`columns`, SI, column vectors) and ``units`` (a struct: signal name ->
+        unit text, ``time`` included); ``load('run.mat'); ema_sim.x_rod``.
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.mat`` file.
+        name : str
+            Name of the struct variable in the file.
+        """
+        from scipy.io import savemat
+
+        cols = self.columns()[1:]
+        units = self.units()
+        run = {"time": np.asarray(self.t, float), **{c: np.asarray(self[c], float) for c in cols},
+               "units": {"time": "s", **{c: units[c] for c in cols}}}
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                savemat(fh, {name: run}, oned_as="column")
+
+        return write_with(path, write, suffix=".mat")
 
     def to_npz(self, path: str | Path) -> Path:
         """Write all signals as named arrays (plus ``t``); atomic.

@@ -45,7 +45,7 @@ are kept per point unless ``keep=True`` (then the samples of ``x_rod`` and ``i_q
 all simulated periods).
 
 Hybrid (stick-slip) friction needs the model's own stepping with its stick projection:
-those points run :func:`ema_casadi.simulate.simulate` (compiled RK4) period by period,
+those points run :func:`ema_casadi.simulation.simulate` (compiled RK4) period by period,
 on the same worker threads (the compiled rollouts keep one call buffer per thread).
 
 Layout

@@ -1,7 +1,7 @@
 """Per-point numerics of the sine stream (method: :mod:`ema_casadi.sinestream`).
 
 The period maps (CVODES in normalised time for smooth models, the compiled RK4 of
-:func:`ema_casadi.simulate.simulate` for hybrid friction), built once per process and
+:func:`ema_casadi.simulation.simulate` for hybrid friction), built once per process and
 variant; the first-harmonic extraction; the period-by-period settling loop.
 """
 

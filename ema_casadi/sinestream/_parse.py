@@ -5,8 +5,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._checks import describe
 from ..signals import SignalError, parse_list, parse_range
 from ._result import FreqRespError
+
+#: Most points (variants x loads x amplitudes x frequencies) one sine stream may have.
+MAX_SINE_STREAM_POINTS = 100_000
+#: Most periods one sine stream may simulate in the worst case (points x max_periods).
+MAX_SINE_STREAM_PERIODS = 10_000_000
+#: Measured wall time of one simulated period of one point on one core (s): CVODES, 64
+#: samples per period, reference model, 2-core x86-64 machine (hybrid-friction points
+#: through RK4 cost about the same).
+SECONDS_PER_PERIOD = 0.01
+#: Periods a point typically needs to settle (measured over the Fig. 14 grid: 3-6).
+TYPICAL_PERIODS = 4
 
 
 def parse_amplitudes(text: str, stroke: float) -> np.ndarray:
@@ -71,6 +83,11 @@ def parse_freqs(text: str) -> np.ndarray:
             f0, f1, n = rng
             if not (0 < f0 < f1) or n < 2:
                 raise FreqRespError(f"--freqs {text}: expected F0-F1:N with 0 < F0 < F1 and N >= 2")
+            if n > MAX_SINE_STREAM_POINTS:
+                raise FreqRespError(f"--freqs {text}: {n:.3g} frequencies, above the limit of "
+                                    f"{MAX_SINE_STREAM_POINTS} points (MAX_SINE_STREAM_POINTS); about "
+                                    f"{_hours(n * TYPICAL_PERIODS * SECONDS_PER_PERIOD)} on one core at "
+                                    f"{SECONDS_PER_PERIOD * 1e3:g} ms per period")
             return np.geomspace(f0, f1, n)
         vals = parse_list(text, "frequency", "Hz")
     except SignalError as exc:
@@ -80,7 +97,13 @@ def parse_freqs(text: str) -> np.ndarray:
 
 def _as_axis(values, name, unit, positive=True) -> np.ndarray:
     """``values`` as a 1-D float axis, finite and (unless ``positive`` is False) > 0."""
-    a = np.atleast_1d(np.asarray(values, dtype=float))
+    if isinstance(values, (str, bytes)):
+        raise FreqRespError(f"{name}: expected numbers ({unit}), got {describe(values)}; "
+                            "parse_amplitudes/parse_freqs/parse_loads read text")
+    try:
+        a = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        raise FreqRespError(f"{name}: expected one or more numbers ({unit}), got {describe(values)}") from None
     if a.ndim != 1 or a.size == 0:
         raise FreqRespError(f"{name}: expected one or more numbers ({unit})")
     if not np.all(np.isfinite(a)):
@@ -88,3 +111,40 @@ def _as_axis(values, name, unit, positive=True) -> np.ndarray:
     if positive and np.any(a <= 0):
         raise FreqRespError(f"{name}: values must be positive ({unit}), got {a[a <= 0][0]:g}")
     return a
+
+
+def check_grid(counts: dict, max_periods: int, jobs: int = 1, periods_label: str = "max_periods") -> None:
+    """Refuse a sine-stream grid above :data:`MAX_SINE_STREAM_POINTS` points or
+    :data:`MAX_SINE_STREAM_PERIODS` worst-case periods, with the estimate.
+
+    Parameters
+    ----------
+    counts : dict
+        Axis label (the argument or flag to name) -> number of values.
+    max_periods : int
+        Periods after which a point stops (the worst case per point).
+    jobs : int
+        Worker threads (divides the time estimate).
+    periods_label : str
+        The name of ``max_periods`` in the message (the argument or flag).
+    """
+    points = int(np.prod([max(1, int(n)) for n in counts.values()], dtype=float))
+    axes = " x ".join(f"{label} {n}" for label, n in counts.items())
+    names = "/".join(counts)
+    if points > MAX_SINE_STREAM_POINTS:
+        raise FreqRespError(f"{names}: {axes} = {points:.3g} points, above the limit of {MAX_SINE_STREAM_POINTS} "
+                            f"(MAX_SINE_STREAM_POINTS); about {_hours(points * TYPICAL_PERIODS * SECONDS_PER_PERIOD)}"
+                            f" on one core at {SECONDS_PER_PERIOD * 1e3:g} ms per period")
+    worst = points * max_periods
+    if worst > MAX_SINE_STREAM_PERIODS:
+        raise FreqRespError(f"{names} with {periods_label} {max_periods}: up to {worst:.3g} periods, above the "
+                            f"limit of {MAX_SINE_STREAM_PERIODS:.0e} (MAX_SINE_STREAM_PERIODS); up to "
+                            f"{_hours(worst * SECONDS_PER_PERIOD / max(1, jobs))} on {max(1, jobs)} core(s) at "
+                            f"{SECONDS_PER_PERIOD * 1e3:g} ms per period")
+
+
+def _hours(s: float) -> str:
+    for unit, size in (("days", 86400), ("h", 3600), ("min", 60)):
+        if s >= size:
+            return f"{s / size:.3g} {unit}"
+    return f"{s:.3g} s"

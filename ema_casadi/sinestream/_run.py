@@ -10,13 +10,14 @@ import time
 import casadi as ca
 import numpy as np
 
+from .._checks import describe, instance, vector
 from ..assembly import Model
 from ..components import validate_variants
 from ..params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
 from ._kernels import _Settle, _stepper, hybrid_available
-from ._parse import _as_axis
+from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
 
 
@@ -69,11 +70,17 @@ def sine_stream(
     FreqResponse
     """
     t_wall = time.perf_counter()
+    instance(params, Parameters, "params", FreqRespError,
+             " (from load_parameters; sine_stream builds its own models: pass variants=model.variants)")
     amplitudes = _as_axis(amplitudes, "amplitudes", "m")
     freqs = np.unique(_as_axis(freqs, "freqs", "Hz"))
     loads = _as_axis(loads, "loads", "N", positive=False)
     _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs)
+    if scheduler is not None and not (isinstance(scheduler, str) and "://" in scheduler):
+        raise FreqRespError(f"scheduler: expected an address like tcp://host:8786, got {describe(scheduler)}")
     vset = _variant_set(params, variants)
+    check_grid({"variants": len(vset), "loads": len(loads), "amplitudes": len(amplitudes), "freqs": len(freqs)},
+               max_periods, jobs or _cores())
     _check_hybrid(params, vset)
     pv = _param_vector(params, p)
     settle = _Settle(tol_db, tol_deg, max_periods)
@@ -99,8 +106,8 @@ def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt,
     if not (isinstance(max_periods, int) and max_periods >= 3):
         raise FreqRespError(f"max_periods: expected an integer >= 3, got {max_periods!r}")
     for name, v in (("tol_db", tol_db), ("tol_deg", tol_deg), ("rtol", rtol), ("atol", atol), ("hybrid_dt", hybrid_dt)):
-        if not (math.isfinite(v) and v > 0):
-            raise FreqRespError(f"{name}: expected a positive number, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            raise FreqRespError(f"{name}: expected a positive number, got {describe(v)}")
     if jobs is not None and (not isinstance(jobs, int) or jobs < 1):
         raise FreqRespError(f"jobs: expected a positive integer, got {jobs!r}")
 
@@ -116,10 +123,9 @@ def _check_hybrid(params: Parameters, vset: dict) -> None:
 
 def _param_vector(params: Parameters, p) -> np.ndarray:
     """The raw parameter vector: ``p`` if given (checked), else the set's defaults."""
-    pv = params.vector() if p is None else np.asarray(p, float)
-    if pv.shape != (len(Parameters.names()),):
-        raise FreqRespError(f"p must have {len(Parameters.names())} entries, got shape {pv.shape}")
-    return pv
+    if p is None:
+        return params.vector()
+    return vector(p, "p", FreqRespError, len(Parameters.names()), " (the parameter vector)")
 
 
 def _variant_set(params: Parameters, variants) -> dict:
@@ -136,6 +142,8 @@ def _variant_set(params: Parameters, variants) -> dict:
     if isinstance(variants, dict):
         out = {}
         for label, v in variants.items():
+            if v is not None and not isinstance(v, dict):
+                raise FreqRespError(f"variants: '{label}' must map to a dict of variant choices, got {describe(v)}")
             full = dict(params.variants)
             full.update(v or {})
             out[str(label)] = validate_variants(full)

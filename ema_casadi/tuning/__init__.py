@@ -84,6 +84,35 @@ cost may relax it. A feasible request ends with all slacks zero; an infeasible o
 still converges, to the least-violating gains, and the groups left with slack are
 named (:attr:`TuneResult.violations`).
 
+The start is a feasible point of this problem: each slack starts at its group's
+violation at the start gains (zero when the start meets every constraint, as the
+reference gains do), and IPOPT's filter is told to reject every trial point whose
+constraint violation (1-norm) exceeds 0.3 (``theta_max_fact``; IPOPT's default allows
+1e4). Without that bound the one-load reference problem (0 kN) failed from its
+feasible start: with no constraint active the Lagrangian's Hessian is only the effort
+term's 2e-3 I (-log f_b is linear in its variable), so the Newton step is set by the
+linearised constraints and was long; at iteration 12 IPOPT's filter accepted a trial
+point (K_x and K_p_w up by e^1.7 and e^1.4 from the start, K_p_i and K_i_i down by
+e^2.5 and e^2.1) that left the feasible set by 0.57 in the max-norm, 1.5 summed
+(position, velocity and current margins, overshoot and current all violated). There
+and in the next 15 iterations the margin measures of the velocity and current loops
+sat at or near their floor (-0.224, at L = -1.48 inside the disk, where the measure's
+gradient is zero), so the linearised constraints gave no direction that restores them;
+the restoration phase ended on a point with slack and the tune reported "infeasible".
+With three load cases the 30 kN current limit (13.2 A of 24 A held; the step's current
+grows with K_x K_p_w, whatever K_p_i) becomes active at the same stage and the
+iterates stayed within 0.1 of feasibility (max-norm); at 0 kN only the voltage bounds
+K_x K_p_w, and the optimiser meets it by lowering the current-loop gains until the
+current-loop margin, strongly nonlinear in them, stops it.
+
+Safety net (:func:`tune`): from a start that the verification passes, gains worse
+than the start or an "infeasible" answer are never returned. If IPOPT does not
+converge, converges with slack, or to gains that fail the verification or are worse
+than the start (worst-case -3 dB frequency, or ISE), the result is the best of the
+iterates that meet every constraint of the optimiser and pass the verification, no
+worse than the start, or else the start itself (:attr:`TuneResult.fallback`), with a
+message saying so.
+
 Objectives
 ----------
 ``bandwidth``: maximise f_b, a variable with |T(j 2 pi f_b)| >= 1/sqrt(2) in every
@@ -107,7 +136,8 @@ Verification
 directions), the sensitivity peak, the closed-loop eigenvalues and -3 dB bandwidth and
 a python-control step response; :func:`step_metrics` simulates a nonlinear step on the
 full model. A tune succeeds only when IPOPT converged with no slack left and this check
-passes.
+passes (or, from a verified-feasible start, when the safety net's gains pass it and
+are no worse than the start).
 
 Modules
 -------

@@ -87,12 +87,14 @@ def _plot_step(result, model, sets, path):
         key = {"before": "verification_before", "after": "verification_after"}.get(lbl)
         nl = getattr(result, key).get("nonlinear_step") if key else None
         if nl is None:
-            amp = amp or next((getattr(result, k)["nonlinear_step"]["amp_m"] for k in
-                               ("verification_after", "verification_before") if getattr(result, k).get("nonlinear_step")), 1e-3)
+            done = [getattr(result, k)["nonlinear_step"] for k in ("verification_after", "verification_before")
+                    if getattr(result, k).get("nonlinear_step")]
+            amp = amp or (done[0]["amp_m"] if done else 1e-3)
             nl = step_metrics(model, ps, amp)
         amp = nl["amp_m"]
         ax[0].plot(nl["t"], nl["x_rod"] * 1e3, ls,
-                   label=f"{lbl}: overshoot {100 * nl['overshoot']:.1f} %, settles {1e3 * nl['settling_time_s']:.1f} ms")
+                   label=f"{lbl}: overshoot {100 * nl['overshoot']:.1f} %, "
+                         f"settles {1e3 * nl['settling_time_s']:.1f} ms")
         ax[1].plot(nl["t"], nl["i_q"], ls, label=lbl)
     ax[0].set_ylabel("x_rod (mm)")
     ax[1].set_ylabel("i_q (A)")

@@ -76,7 +76,8 @@ class Requirements:
             bad("pm_deg", "between 0 and 90 deg")
         if self.ms is not None and not (math.isfinite(self.ms) and self.ms > 1):
             bad("ms", "a number above 1")
-        if self.bandwidth_min_hz is not None and not (math.isfinite(self.bandwidth_min_hz) and self.bandwidth_min_hz > 0):
+        bw = self.bandwidth_min_hz
+        if bw is not None and not (math.isfinite(bw) and bw > 0):
             bad("bandwidth_min_hz", "a positive frequency (Hz)")
         for name in ("step", "t_step"):
             v = getattr(self, name)

@@ -32,8 +32,13 @@ def test_forces_and_chirp():
 
 
 def test_csv_table(tmp_path):
+    # a table is SI whatever the flag's bare unit (SPEC §6 Files); a header may name one
     path = tmp_path / "cmd.csv"
-    path.write_text("t,value\n0,0\n1,2\n2,2\n")
+    path.write_text("t,value\n0,0\n1,2e-3\n2,2e-3\n")
+    s = parse_signal(str(path), "length", bare="mm")
+    np.testing.assert_allclose(s(np.array([0.5, 1.5, 3.0])), [1e-3, 2e-3, 2e-3])
+    assert s.breakpoints() == [0.0, 1.0, 2.0]
+    path.write_text("time [ms],x_cmd [mm]\n0,0\n1000,2\n2000,2\n")
     s = parse_signal(str(path), "length", bare="mm")
     np.testing.assert_allclose(s(np.array([0.5, 1.5, 3.0])), [1e-3, 2e-3, 2e-3])
     assert s.breakpoints() == [0.0, 1.0, 2.0]

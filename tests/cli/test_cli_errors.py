@@ -83,8 +83,11 @@ def test_missing_model_file_as_a_process(tmp_path):
 def test_simulate_writes_csv_with_named_columns(tmp_path, capsys):
     out = tmp_path / "run.csv"
     assert main(["simulate", str(REFERENCE), "--t-end", "0.02", "--out", str(out), "--json"]) == 0
-    header = out.read_text().splitlines()[0].split(",")
-    assert header[:4] == ["t", "x_cmd", "f_ext", "eta"]
+    lines = out.read_text().splitlines()
+    header, units = lines[0].split(","), lines[1].split(",")
+    # SPEC §6 Files: a time column named 'time', then a 'Unit:' row (MATLAB's SDI layout)
+    assert header[:4] == ["time", "x_cmd", "f_ext", "eta"]
+    assert units[:4] == ["Unit:", "m", "N", "1"] and len(units) == len(header)
     assert "x_rod" in header and "i_q" in header and "P_cu" in header
     assert len(header) == len(set(header))
 
