@@ -12,7 +12,9 @@ that cannot unwind normally can still remove them (:func:`remove_temporaries`).
 
 Inside :func:`transaction` (the CLI runs every command in one) the renames are
 deferred to its end: the outputs of a command appear together, and a failure or an
-interrupt anywhere before that leaves none of them.
+interrupt anywhere before that leaves none of them. Files written into a temporary
+folder of the writer (a folder being assembled, a :func:`scratch_dir`) are private
+and renamed at once.
 
 Before any work, :func:`check_file` and :func:`check_folder` tell whether a target
 can be written at all (a folder that exists and takes a file, no folder where a file
@@ -76,10 +78,17 @@ def _commit(tmp: Path, target: Path, folder: bool) -> None:
         _live.discard(tmp)
 
 
+def _in_temporary(target: Path) -> bool:
+    """True when ``target`` lies in a temporary folder of the writer (a folder being
+    assembled, a scratch folder): private, so its files need not wait."""
+    parents = set(Path(os.path.abspath(target)).parents)
+    return any(p.is_dir() and Path(os.path.abspath(p)) in parents for p in _live)
+
+
 def _finish(tmp: Path, target: Path, folder: bool) -> None:
     """At the end of a successful write: stage the rename in the open transaction, or do it."""
     with _lock:
-        if _staged is not None:
+        if _staged is not None and not _in_temporary(target):
             _staged.append((tmp, target, folder))
             return
     _commit(tmp, target, folder)
@@ -134,26 +143,11 @@ def atomic_dir(path: str | Path):
         _live.add(tmp)
     try:
         tmp.mkdir()
-        # the files inside are written while the folder is still private: their own
-        # renames need not wait for the transaction
-        with _unstaged():
-            yield tmp
+        yield tmp  # the files inside are private until the folder moves: not staged
         _finish(tmp, path, folder=True)
     except BaseException:
         _remove(tmp)
         raise
-
-
-@contextlib.contextmanager
-def _unstaged():
-    global _staged
-    with _lock:
-        saved, _staged = _staged, None
-    try:
-        yield
-    finally:
-        with _lock:
-            _staged = saved
 
 
 @contextlib.contextmanager
@@ -197,10 +191,16 @@ def transaction():
 
 
 @contextlib.contextmanager
-def scratch_dir():
-    """A private working folder (in the system's temporary folder), removed at the end
-    of the block, on failure and on interrupt."""
-    tmp = Path(tempfile.mkdtemp(prefix="ema_casadi-"))
+def scratch_dir(near: str | Path | None = None):
+    """A private working folder, removed at the end of the block, on failure and on
+    interrupt; files written into it are not staged.
+
+    Parameters
+    ----------
+    near : str or Path, optional
+        Folder to create it in (default the system's temporary folder).
+    """
+    tmp = Path(tempfile.mkdtemp(prefix=".ema_casadi-", dir=near))
     with _lock:
         _live.add(tmp)
     try:

@@ -19,14 +19,13 @@ from __future__ import annotations
 import datetime
 import hashlib
 import shutil
-import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import casadi as ca
 
-from .._files import write_text, write_with
+from .._files import scratch_dir, write_text, write_with
 from ..assembly import Model
 from ..export import ExportError
 from ._cbuild import BuildClock, build_all, targets
@@ -215,7 +214,7 @@ def export_fmu_cs(model: Model, path, *, dt_internal: float = DT_DEFAULT, fmi_ve
     variants = ", ".join(f"{k}={v}" for k, v in sorted(model.variants.items()))
     digest = hashlib.sha256((model.f.serialize() + model.project.serialize() + repr(variables)).encode()).hexdigest()
     guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"ema_casadi:{name}:{digest}")) + "}"
-    with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.") as tmp:
+    with scratch_dir(near=path.parent) as tmp:  # removed on an interrupt too
         src = Path(tmp) / "sources"
         src.mkdir()
         write_c_sources(model, src, doc)

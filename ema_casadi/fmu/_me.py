@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import casadi as ca
 
+from .._files import scratch_dir
 from ..assembly import Model
 from ..export import ExportError
 from ._cbuild import BuildClock, build_all, targets
@@ -177,7 +177,7 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
     lay = layout(model)
     dae = _dae(model, lay, name)
     variants = ", ".join(f"{k}={v}" for k, v in sorted(model.variants.items()))
-    with tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.") as tmp:
+    with scratch_dir(near=path.parent) as tmp:  # removed on an interrupt too
         tmp = Path(tmp)
         with _in_folder(tmp):
             files = dae.export_fmu({"no_warning": True})

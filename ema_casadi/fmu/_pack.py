@@ -1,7 +1,7 @@
 """Whole-or-nothing outputs: an FMU archive, an export folder (SPEC §7).
 
 Files go through :mod:`ema_casadi._files`; a folder is assembled in a temporary folder
-beside the target and moved into place with ``os.replace`` at the end. An existing
+beside the target and moved into place at the end (:func:`ema_casadi._files.atomic_dir`). An existing
 target folder is replaced only when an earlier export of this package wrote it (its
 marker file names the format); any other existing path is refused.
 """
@@ -12,12 +12,11 @@ import contextlib
 import json
 import os
 import re
-import shutil
 import tempfile
 import zipfile
 from pathlib import Path
 
-from .._files import write_text, write_with
+from .._files import atomic_dir, write_text, write_with
 from ..export import ExportError
 
 __all__ = ["write_zip", "export_folder", "check_target", "identifier", "MARKER"]
@@ -102,22 +101,6 @@ def export_folder(target, fmt: str, layout_doc: dict):
     layout_doc : dict
         The layout (names, units, functions) stored in the marker file.
     """
-    target = Path(target)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
-    old = None
-    try:
+    with atomic_dir(target) as tmp:  # replaced whole; removed on failure and interrupt
         yield tmp
         write_text(tmp / MARKER, json.dumps({"format": f"ema_casadi.{fmt}/1", **layout_doc}, indent=1))
-        if target.exists():
-            old = target.with_name(f".{target.name}.{os.getpid()}.old")
-            os.replace(target, old)
-        os.replace(tmp, target)
-    except BaseException:
-        if old is not None and not target.exists():
-            os.replace(old, target)
-            old = None
-        raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
