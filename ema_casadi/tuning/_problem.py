@@ -340,8 +340,15 @@ class TuningProblem:
 
     def main_objective(self, gains: dict, f_b: float | None = None) -> float:
         """The main cost (as ``objective`` of :meth:`solve`) at these gains: for
-        ``bandwidth`` -log(f_b / 10 Hz) (``f_b`` default the start's), for ``tracking``
-        the worst-case normalised ISE."""
+        ``bandwidth`` -log(f_b / 10 Hz), for ``tracking`` the worst-case normalised ISE.
+
+        Parameters
+        ----------
+        gains : dict
+            Values of the free gains (SI, by name).
+        f_b : float, optional
+            Bandwidth (Hz) for the ``bandwidth`` objective (default the start's).
+        """
         theta = self._scaling.theta_of(gains)
         fb_log = math.log(f_b / 10.0) if f_b is not None else (self._fb_log0 if self._fb is not None else 0.0)
         return float(self._J_function(theta, fb_log))
