@@ -33,6 +33,7 @@ from .._checks import describe, instance, integer, number, vector
 from ..assembly import Model
 from ..params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
+from ._envelope import RunFailed
 from ._inputs import _input_signals
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -353,7 +354,10 @@ def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress
     head = run(t_full, sig, x0, plan.spacing)
     x_end = np.array([head.states[s][-1] for s in model.states])
     shifted = {name: s.shifted(t_full) for name, s in sig.items()}
-    last = run(tail, shifted, x_end, tail)
+    try:
+        last = run(tail, shifted, x_end, tail)
+    except RunFailed as exc:  # its time from the start of the run; the result up to the tail
+        raise RunFailed(exc.what, t_full + exc.time, head) from None
     t = np.append(head.t, plan.t_end)
     info = dict(head.info)
     for key in ("steps", "integrator_calls", "compute_time", "mode_switches"):
