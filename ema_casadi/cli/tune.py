@@ -10,7 +10,7 @@ nonlinear step simulation) and written as a parameter file (--out). From start g
 that already meet every requirement the result is never worse than the start: should
 IPOPT fail there, the best verified iterate (or the start itself) is returned, and
 the first line of the report says so.
-Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir out
+Example: ema tune --loads 0,15kN,30kN --gm 6 --pm 45 --overshoot 5 --out tuned.toml --plot-dir tune_plots
 """
 
 from __future__ import annotations

@@ -41,7 +41,8 @@ Every run is checked against the model's physical envelope
 (RK4) or integrator segment (CVODES) the kept samples of every bounded state, output
 and input are compared with their bounds, and checked to be finite. A run that leaves
 the envelope, goes non-finite or whose integrator gives up raises :class:`RunFailed`
-with the reason, the time and the result up to the failure. The chunk loops also
+with the reason, the time and the result up to the failure (``info["status"]`` is
+"failed" there, "completed" on a run that finished). The chunk loops also
 honour an interrupt (:mod:`ema_casadi._interrupts`) between chunks.
 """
 

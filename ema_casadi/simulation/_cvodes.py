@@ -78,7 +78,7 @@ def _check(monitor, model, sig, pv, grid, X, Y, i0, i1):
 
 def _partial(model, sig, grid, X, Y, n):
     """The run's first n samples (outputs already computed) as a SimResult."""
-    return _result(model, sig, grid[:n], X[:, :n], Y[:, :n], {"partial": True})
+    return _result(model, sig, grid[:n], X[:, :n], Y[:, :n], {})
 
 
 def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
@@ -113,7 +113,7 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
             done = inside[-1] + 1
         xc = xf[:, -1]
         progress_bar(b / edges[-1], progress)
-    info = {"dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
+    info = {"status": "completed", "dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
             "compiled": False, "compile_time": 0.0, "rtol": rtol, "atol": atol}
     return _result(model, sig, grid, X, Y, info)
 
@@ -268,7 +268,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
                 gi += 1
         _check(monitor, model, sig, pv, grid, X, Y, g_start, gi)
         progress_bar(min(1.0, t / grid[-1]), progress)
-    info = {"dt_out": dt_out, "steps": stats["steps"], "integrator_calls": stats["calls"],
+    info = {"status": "completed", "dt_out": dt_out, "steps": stats["steps"], "integrator_calls": stats["calls"],
             "compute_time": time.perf_counter() - t_compute, "compiled": False, "compile_time": 0.0,
             "rtol": rtol, "atol": atol, "event_tol": event_tol,
             "mode_switches": len(switch_times), "switch_times": np.array(switch_times)}

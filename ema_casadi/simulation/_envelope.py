@@ -39,7 +39,7 @@ class RunFailed(Exception):
         Simulated time of the failure (s).
     result : SimResult, optional
         The run up to the failure (its last sample is the failing one where it could
-        be computed).
+        be computed); its ``info`` gets ``status`` "failed" and the ``reason``.
 
     Attributes
     ----------
@@ -50,6 +50,8 @@ class RunFailed(Exception):
     def __init__(self, what: str, time: float, result=None):
         self.what, self.time, self.result = what, float(time), result
         self.reason = f"{what} at t = {self.time:.6g} s"
+        if result is not None:
+            result.info.update(status="failed", reason=self.reason)
         super().__init__(self.reason)
 
 

@@ -223,7 +223,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
         y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
         Y_all = np.column_stack([y0, Y_out[:, :n]])
-        info = {"dt": dt, "steps": min(n_steps, n * k), "decimate": k,
+        info = {"status": "completed", "dt": dt, "steps": min(n_steps, n * k), "decimate": k,
                 "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
         if model.hybrid:
             # the mode decided inside each step (identical to the rule in f except at

@@ -78,8 +78,16 @@ def test_a_load_the_actuator_cannot_hold_fails_when_the_rod_passes_the_stroke(mo
     assert "left its physical envelope" in exc.reason and "x_rod" in exc.reason, exc.reason
     assert 0.05 < exc.time < 1.0 and f"t = {exc.time:.6g} s" in exc.reason
     part = exc.result
+    assert part.info["status"] == "failed" and part.info["reason"] == exc.reason
     assert part.t[-1] == pytest.approx(exc.time)
     assert abs(part["x_rod"][-1]) > STROKE + 1e-3 >= np.abs(part["x_rod"][:-1]).max()
+
+
+@pytest.mark.parametrize("solver", ["rk4", "cvodes"])
+def test_a_run_inside_the_envelope_is_completed(model_cache, solver):
+    res = ema.simulate(model_cache(), 0.05, 1e-3, 30e3, solver=solver, dt=5e-6 if solver == "rk4" else 1e-3,
+                       dt_out=1e-4 if solver == "rk4" else None)
+    assert res.info["status"] == "completed"
 
 
 def test_an_absurd_load_fails_at_once(model_cache):
