@@ -132,11 +132,14 @@ class Model:
 
     @property
     def units(self) -> dict:
-        """The one table of SI units: time, states, inputs and outputs by name."""
-        out = {"t": "s", "time": "s"}
-        for table in (self.state_info, self.input_info, self.output_info):
-            out.update({n: d.unit for n, d in table.items()})
-        return out
+        """The one table of SI units: time, states, inputs and outputs by name (a copy)."""
+        table = self.cache.get("units")
+        if table is None:
+            table = {"t": "s", "time": "s"}
+            for info in (self.state_info, self.input_info, self.output_info):
+                table.update({n: d.unit for n, d in info.items()})
+            self.cache["units"] = table
+        return dict(table)
 
     @property
     def state_units(self) -> dict:

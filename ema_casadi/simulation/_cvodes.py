@@ -11,7 +11,7 @@ import numpy as np
 
 from .._interrupts import check as check_interrupt
 from ..compiled import BufferCall
-from ._envelope import Monitor, RunFailed, captured_stderr, integrator_failure
+from ._envelope import RunFailed, captured_stderr, integrator_failure, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import _result, progress_bar
 from ._rk4 import outputs_at
@@ -64,16 +64,35 @@ class _GaveUp(Exception):
         self.what, self.time = what, time
 
 
-def _check(monitor, model, sig, pv, grid, X, Y, i0, i1):
-    """Outputs of samples i0..i1-1 into Y; RunFailed with the run up to the failure if
-    one of them leaves the envelope."""
+def _check_inputs(monitor, model, sig, grid, X, Y):
+    """The inputs over the whole output grid against the envelope, before integrating
+    (they are known up front: a load the actuator cannot take fails at its time)."""
+    U = _input_matrix(model, sig, grid)
+    bad = monitor.first(grid, None, None, U)
+    if bad is not None:
+        raise RunFailed(bad.what, bad.time, None)
+    return U
+
+
+def _check(monitor, model, sig, pv, grid, X, Y, U, i0, i1):
+    """States of samples i0..i1-1 against the envelope (cheap: no model call). On a
+    violation the outputs up to it are computed and checked too, so the earliest reason
+    wins, and RunFailed is raised with the run up to the failure."""
     if i1 <= i0:
         return
-    U = _input_matrix(model, sig, grid[i0:i1])
-    Y[:, i0:i1] = outputs_at(model, X[:, i0:i1], U, pv)
-    bad = monitor.first(grid[i0:i1], X[:, i0:i1], Y[:, i0:i1], U)
+    bad = monitor.first(grid[i0:i1], X[:, i0:i1])
     if bad is not None:
+        _outputs(monitor, model, sig, pv, grid, X, Y, U, i0 + bad.index + 1)
         raise RunFailed(bad.what, bad.time, _partial(model, sig, grid, X, Y, i0 + bad.index + 1))
+
+
+def _outputs(monitor, model, sig, pv, grid, X, Y, U, n):
+    """Outputs of the first n samples into Y (one mapped call), checked against the
+    envelope; RunFailed at the first violation."""
+    Y[:, :n] = outputs_at(model, X[:, :n], U[:, :n], pv)
+    bad = monitor.first(grid[:n], None, Y[:, :n])  # the states were checked as they came
+    if bad is not None:
+        raise RunFailed(bad.what, bad.time, _partial(model, sig, grid, X, Y, bad.index + 1))
 
 
 def _partial(model, sig, grid, X, Y, n):
@@ -90,8 +109,9 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
     Y = np.empty((model.ny, len(grid)))
     X[:, 0] = x0
     xc = np.asarray(x0, float)
-    monitor = Monitor(model, pv)
-    _check(monitor, model, sig, pv, grid, X, Y, 0, 1)
+    monitor = monitor_for(model, pv)
+    U = _check_inputs(monitor, model, sig, grid, X, Y)
+    _check(monitor, model, sig, pv, grid, X, Y, U, 0, 1)
     steps, done = 0, 1
     t_compute = time.perf_counter()
     for a, b in zip(edges[:-1], edges[1:], strict=True):
@@ -109,10 +129,11 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
         steps += int(F.stats().get("nsteps", 0))
         X[:, inside] = xf[:, : len(inside)]
         if len(inside):
-            _check(monitor, model, sig, pv, grid, X, Y, done, inside[-1] + 1)
+            _check(monitor, model, sig, pv, grid, X, Y, U, done, inside[-1] + 1)
             done = inside[-1] + 1
         xc = xf[:, -1]
         progress_bar(b / edges[-1], progress)
+    _outputs(monitor, model, sig, pv, grid, X, Y, U, len(grid))
     info = {"status": "completed", "dt_out": dt_out, "steps": steps, "compute_time": time.perf_counter() - t_compute,
             "compiled": False, "compile_time": 0.0, "rtol": rtol, "atol": atol}
     return _result(model, sig, grid, X, Y, info)
@@ -221,8 +242,9 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
     Y = np.empty((model.ny, len(grid)))
     X[:, 0] = x0
     x, t, gi = x0, 0.0, 1  # state, time, index of the next output sample
-    monitor = Monitor(model, pv)
-    _check(monitor, model, sig, pv, grid, X, Y, 0, 1)
+    monitor = monitor_for(model, pv)
+    U = _check_inputs(monitor, model, sig, grid, X, Y)
+    _check(monitor, model, sig, pv, grid, X, Y, U, 0, 1)
     stuck = stuck_at(x, t)
     switch_times = []
     t_compute = time.perf_counter()
@@ -266,8 +288,9 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
             if abs(t - grid[gi]) <= 1e-12 * max(1.0, t):
                 X[:, gi] = x
                 gi += 1
-        _check(monitor, model, sig, pv, grid, X, Y, g_start, gi)
+        _check(monitor, model, sig, pv, grid, X, Y, U, g_start, gi)
         progress_bar(min(1.0, t / grid[-1]), progress)
+    _outputs(monitor, model, sig, pv, grid, X, Y, U, len(grid))
     info = {"status": "completed", "dt_out": dt_out, "steps": stats["steps"], "integrator_calls": stats["calls"],
             "compute_time": time.perf_counter() - t_compute, "compiled": False, "compile_time": 0.0,
             "rtol": rtol, "atol": atol, "event_tol": event_tol,

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RunFailed", "Monitor", "Violation", "captured_stderr", "integrator_failure"]
+__all__ = ["RunFailed", "Monitor", "Violation", "captured_stderr", "integrator_failure", "monitor_for"]
 
 
 class RunFailed(Exception):
@@ -77,6 +77,27 @@ class Violation:
     finite_before: bool
 
 
+def monitor_for(model, p) -> Monitor:
+    """The model's :class:`Monitor` at parameter vector ``p``, built once per vector
+    (cached on the model: a sweep or a sine stream reuses it).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    p : array_like
+        Parameter vector (SI).
+    """
+    cache = model.cache.setdefault("monitors", {})
+    key = np.asarray(p, float).tobytes()
+    mon = cache.get(key)
+    if mon is None:
+        if len(cache) >= 64:
+            cache.pop(next(iter(cache)))
+        mon = cache[key] = Monitor(model, p)
+    return mon
+
+
 class Monitor:
     """Checks samples of a run against the model's envelope at one parameter vector.
 
@@ -106,8 +127,8 @@ class Monitor:
         ----------
         t : array_like
             Sample times (s), one per column.
-        X : ndarray
-            States (nx x n, SI).
+        X : ndarray or None
+            States (nx x n, SI); None checks only the others.
         Y : ndarray, optional
             Outputs (ny x n, SI).
         U : ndarray, optional
@@ -115,7 +136,9 @@ class Monitor:
         """
         data = [None if Z is None else np.asarray(Z, float).reshape(len(g[1]), -1)
                 for Z, g in zip((X, Y, U), self._groups, strict=True)]
-        n = data[0].shape[1]
+        if all(self._inside(Z, g[3], g[4]) for Z, g in zip(data, self._groups, strict=True) if Z is not None):
+            return None  # the common case, decided without a per-sample mask
+        n = next(Z.shape[1] for Z in data if Z is not None)
         bad = np.zeros(n, bool)
         for Z, (_, _, _, rows, b) in zip(data, self._groups, strict=True):
             if Z is not None:
@@ -127,6 +150,12 @@ class Monitor:
             return None
         j = int(np.argmax(bad))
         return Violation(j, float(np.asarray(t, float).ravel()[j]), self._what(data, j), j > 0)
+
+    @staticmethod
+    def _inside(Z, rows, b) -> bool:
+        if not np.isfinite(Z).all():
+            return False
+        return not len(rows) or bool((np.abs(Z[rows]).max(axis=1) <= b).all())
 
     def _what(self, data, j) -> str:
         # a non-finite value first (the plainer reason); inputs first (the cause), then

@@ -13,7 +13,7 @@ import numpy as np
 from .._interrupts import check as check_interrupt
 from ..assembly import Model
 from ..compiled import BufferCall, compile_function, compile_keyed
-from ._envelope import Monitor, RunFailed
+from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import _result, progress_bar
 
@@ -202,7 +202,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
     M = max(1, min(n_out, STEPS_PER_CALL // k))
-    monitor = Monitor(model, pv)
+    monitor = monitor_for(model, pv)
     x0, stick0 = _initial_projection(model, sig, pv, x0)
     bad = monitor.first([0.0], x0, None, _input_matrix(model, sig, [0.0]))
     if bad is not None:  # before the rollout is compiled
