@@ -77,10 +77,21 @@ def _lsoda_period(x, pa):
     return sol.y[:, -1], sol.y[[numpy_model.STATES.index("x_rod"), numpy_model.STATES.index("i_q")], :]
 
 
+class _PeerPeriods:
+    """The peer's period map in the shape of the toolkit's (``model``, ``period``): the
+    same settling loop and start check serve both; LSODA's samples are not monitored."""
+
+    model = None  # the toolkit's model of the same variant (set before the pool forks)
+
+    def period(self, x, pa):
+        x_end, y = _lsoda_period(x, pa)
+        return x_end, y, None
+
+
 def _peer_point(task):
     idx, x0, pa = task
     t0 = time.perf_counter()
-    r = _kernels._settle(_lsoda_period, x0, pa, pa[-3], pa[-2], _kernels._Settle(), False)
+    r = _kernels._settle(_PeerPeriods(), x0, pa, pa[-3], pa[-2], _kernels._Settle(), False)
     return idx, r, time.perf_counter() - t0
 
 
@@ -120,6 +131,7 @@ def main():
 
     # ---- peer: same starting states and criterion
     model, step = _kernels._stepper(params.variants, params, K, RTOL, ATOL, 5e-5)
+    _PeerPeriods.model = model
     pv = params.vector()
     x0s = _run._initial_states(model, step, pv, [0.0], amps, freqs)
     tasks = [((0, ia, jf), x0s[0, ia, jf], np.r_[pv, amps[ia], freqs[jf], 0.0])
