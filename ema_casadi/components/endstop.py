@@ -62,6 +62,7 @@ class Elastic(Part):
     )
     params = ("stroke", "k_stop", "d_stop")
     stored = ("E_stop",)
+    heat = {"P_stop": "screw"}  # the rod's collar and the stop: counted with the rod and screw
     loads = ("F_stop_rod",)
 
     def signals(self):

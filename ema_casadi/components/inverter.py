@@ -11,7 +11,7 @@ import casadi as ca
 
 from ._part import Output, Part
 
-__all__ = ["ideal", "averaged_losses", "Ideal"]
+__all__ = ["ideal", "averaged_losses", "current_amplitude", "Ideal"]
 
 
 def ideal(v):
@@ -52,6 +52,22 @@ def averaged_losses(I_hat, P):
     return P_cond, P_sw
 
 
+def current_amplitude(i_d, i_q):
+    """|i_dq| = sqrt(i_d^2 + i_q^2) (A), written so that its derivative at zero current
+    is 0 rather than NaN (sqrt'(0) times 0): sqrt(s + [s = 0]) - [s = 0], the same value
+    bit for bit. A thermal network integrates the losses, and CVODES then needs a finite
+    Jacobian at rest.
+
+    Parameters
+    ----------
+    i_d, i_q : SX
+        d and q currents (A).
+    """
+    s = i_d**2 + i_q**2
+    zero = s == 0
+    return ca.sqrt(s + zero) - zero
+
+
 class Ideal(Part):
     """Averaged inverter: the controller's voltage reaches the windings; averaged
     conduction and switching losses of the bridge carrying the motor currents."""
@@ -66,10 +82,11 @@ class Ideal(Part):
         Output("P_dc", "W", "power drawn at the DC-link input: winding power + inverter losses", kind="power"),
     )
     params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref")
+    heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
 
     def signals(self):
         def losses(b):
-            return averaged_losses(ca.sqrt(b["i_d"] ** 2 + b["i_q"] ** 2), b.P)
+            return averaged_losses(current_amplitude(b["i_d"], b["i_q"]), b.P)
 
         return {
             "v_d": lambda b: ideal(b["v_d_ref"]),
