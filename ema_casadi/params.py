@@ -56,7 +56,7 @@ TEMP = "temperature"  # degC, above absolute zero
 
 #: Length of a table parameter in the flat vector: a file gives 2..TABLE_MAX points,
 #: padded up to TABLE_MAX (see :func:`_pad`), so the vector's layout never changes.
-TABLE_MAX = 8
+TABLE_MAX = 6
 
 
 def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
@@ -257,7 +257,7 @@ class Parameters:
     @staticmethod
     def names() -> list[str]:
         """Flat parameter names (SPEC symbols), then the loop-closure flags. A table
-        parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_7`` (:data:`TABLE_MAX` entries)."""
+        parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
         out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
 

@@ -22,17 +22,18 @@ from ._part import Hold, Input, Loop, Output, Part, State, der
 __all__ = ["dc", "pmsm", "shaft", "iron_loss", "OMEGA_FE", "Pmsm", "Dc", "CURRENT_LOOP"]
 
 #: Speed (rad/s, ~1 rpm) over which the hysteresis drag, k_h pp psi^2/(2 pi) sign(omega),
-#: is smoothed at standstill (tanh(omega/OMEGA_FE)). RK4 at 1e-4 s sees its slope as an
-#: eigenvalue near -550 1/s (h lambda = 0.05); a linearisation at rest with iron loss on
-#: sees it as ~0.9 N m s/rad of extra shaft damping.
+#: is smoothed at standstill (sign -> omega/sqrt(omega^2 + OMEGA_FE^2)). RK4 at 1e-4 s
+#: sees its slope as an eigenvalue near -550 1/s (h lambda = 0.05); a linearisation at
+#: rest with iron loss on sees it as ~0.9 N m s/rad of extra shaft damping.
 OMEGA_FE = 0.1
 
 
 def iron_loss(omega, psi, P):
     """Iron loss as a drag torque: P_fe = k_h f_e psi^2 + k_e (f_e psi)^2 with the
     electrical frequency f_e = pp |omega|/(2 pi), |omega| smoothed to
-    omega tanh(omega/OMEGA_FE). The torque T_fe is written first and P_fe = T_fe omega
-    (>= 0), so the loss is exactly the drag's power. Returns (T_fe (N m), P_fe (W)).
+    omega^2/sqrt(omega^2 + OMEGA_FE^2) (a square root compiles to one instruction, tanh
+    to a library call). The torque T_fe is written first and P_fe = T_fe omega (>= 0),
+    so the loss is exactly the drag's power. Returns (T_fe (N m), P_fe (W)).
 
     Parameters
     ----------
@@ -44,7 +45,7 @@ def iron_loss(omega, psi, P):
         Parameter symbols by flat name (uses ``pp``, ``k_h``, ``k_e``).
     """
     c = P.pp / (2 * ca.pi)  # f_e per rad/s
-    T_fe = P.k_h * c * psi**2 * ca.tanh(omega / OMEGA_FE) + P.k_e * c**2 * psi**2 * omega
+    T_fe = P.k_h * c * psi**2 * omega / ca.sqrt(omega**2 + OMEGA_FE**2) + P.k_e * c**2 * psi**2 * omega
     return T_fe, T_fe * omega
 
 

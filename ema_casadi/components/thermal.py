@@ -60,9 +60,13 @@ def eta_table(T, P):
     """Screw direct efficiency from the table (T_eta_i, eta_T_i), linear between the
     points and held beyond the first and the last (-).
 
-    Written as eta_0 + sum_i (eta_{i+1} - eta_i) clip((T - T_i)/(T_{i+1} - T_i), 0, 1)
-    over the padded table (:data:`~ema_casadi.params.TABLE_MAX` points; padding adds
-    intervals of zero rise), so the table entries may be symbols.
+    Written as the sum of absolute values that is that piecewise-linear function,
+    eta(T) = (eta_0 + eta_last)/2 + sum_j (s_j - s_{j-1})/2 |T - T_j|, s_j the slope
+    of interval j (0 beyond the ends), over the padded table
+    (:data:`~ema_casadi.params.TABLE_MAX` points; padding adds intervals of zero
+    slope). The table entries may be symbols; the weights depend on the parameters
+    only (a compiled RK4 step computes them once, not per stage), and |.| compiles to
+    one instruction where fmin/fmax are library calls.
 
     Parameters
     ----------
@@ -73,9 +77,10 @@ def eta_table(T, P):
     """
     Ts = [getattr(P, f"T_eta_{i}") for i in range(TABLE_MAX)]
     es = [getattr(P, f"eta_T_{i}") for i in range(TABLE_MAX)]
-    out = es[0]
-    for i in range(TABLE_MAX - 1):
-        out = out + (es[i + 1] - es[i]) * ca.fmin(ca.fmax((T - Ts[i]) / (Ts[i + 1] - Ts[i]), 0), 1)
+    slopes = [0, *((es[i + 1] - es[i]) / (Ts[i + 1] - Ts[i]) for i in range(TABLE_MAX - 1)), 0]
+    out = 0.5 * (es[0] + es[-1])
+    for j in range(TABLE_MAX):
+        out = out + 0.5 * (slopes[j + 1] - slopes[j]) * ca.fabs(T - Ts[j])
     return out
 
 
@@ -96,12 +101,14 @@ def network(T_w, T_h, T_s, T_inv, T_amb, Q_w, Q_h, Q_s, Q_inv, P):
     P : SimpleNamespace
         Parameter symbols by flat name (uses the ``C_th_*`` and ``R_th_*`` of [thermal]).
     """
-    q_ws = (T_w - T_h) / P.R_th_ws
-    q_sh = (T_s - T_h) / P.R_th_sh
-    q_ha = (T_h - T_amb) / P.R_th_ha
-    q_ia = (T_inv - T_amb) / P.R_th_inv
-    return ((Q_w - q_ws) / P.C_th_w, (Q_h + q_ws + q_sh - q_ha) / P.C_th_h, (Q_s - q_sh) / P.C_th_s,
-            (Q_inv - q_ia) / P.C_th_inv, q_ha + q_ia)
+    # conductances and inverse capacities depend on the parameters only: a compiled
+    # RK4 step computes them once instead of dividing in every stage
+    q_ws = (T_w - T_h) * (1 / P.R_th_ws)
+    q_sh = (T_s - T_h) * (1 / P.R_th_sh)
+    q_ha = (T_h - T_amb) * (1 / P.R_th_ha)
+    q_ia = (T_inv - T_amb) * (1 / P.R_th_inv)
+    return ((Q_w - q_ws) * (1 / P.C_th_w), (Q_h + q_ws + q_sh - q_ha) * (1 / P.C_th_h),
+            (Q_s - q_sh) * (1 / P.C_th_s), (Q_inv - q_ia) * (1 / P.C_th_inv), q_ha + q_ia)
 
 
 class Off(Part):
