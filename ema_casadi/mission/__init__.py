@@ -30,7 +30,7 @@ cavity within -100...300 degC (:class:`MissionError`, one line naming file, segm
 key). A run that leaves the envelope (rod beyond the stroke, current beyond the limit,
 non-finite state) ends with :class:`MissionFailed`, never with a result.
 
-:func:`run_mission` simulates the mission in blocks of ~30 s of mission time (each
+:func:`run_mission` simulates the mission in blocks of ~60 s of mission time (each
 continuing from the previous end, so one trajectory), keeping every ``dt_out`` = 10 ms
 sample of the temperatures, losses and heat flows; :class:`MissionResult` integrates
 them per segment (:meth:`~MissionResult.energies`), finds the peaks
@@ -38,6 +38,7 @@ them per segment (:meth:`~MissionResult.energies`), finds the peaks
 CSV (1 s rows, temperatures in degC, mean powers per row), the figure and the summary.
 """
 
+from ._demo import SHORT_MISSION, demo_mission
 from ._profile import (
     MISSION_VARIANTS,
     NODE_LIMITS,
@@ -50,9 +51,10 @@ from ._profile import (
     parse_mission,
 )
 from ._result import MissionResult
-from ._run import MissionFailed, run_mission
+from ._run import FAST_DT, FULL_DT, MissionFailed, run_mission
 
 __all__ = [
     "Mission", "Segment", "Piecewise", "Ramp", "MissionError", "MissionFailed", "MissionResult",
-    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "NODE_LIMITS",
+    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "NODE_LIMITS", "FULL_DT", "FAST_DT",
+    "SHORT_MISSION", "demo_mission",
 ]

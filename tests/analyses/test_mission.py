@@ -168,3 +168,15 @@ def test_a_diverging_run_fails_instead_of_returning(params):
     mission = parse_mission(_piece(4, 2.0), params)
     with pytest.raises(MissionFailed, match="the run failed"):
         run_mission(params, mission, dt=2e-3, dt_out=2e-3)
+
+
+def test_demo_mission(params, tmp_path):
+    """The demo's 3-minute mission writes its figure and CSV and reports its peaks."""
+    from ema_casadi.mission import demo_mission
+
+    written = []
+    r = demo_mission(params, tmp_path, written)
+    assert r["duration_s"] == 180.0 and r["limits_ok"]
+    assert set(r["peaks_degC"]) == {"T_w", "T_h", "T_s", "T_inv"}
+    assert [p.name for p in written] == ["mission_short.png", "mission_short.csv"]
+    assert all(p.stat().st_size > 0 for p in written)
