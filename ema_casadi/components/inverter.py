@@ -25,7 +25,7 @@ def ideal(v):
     return v
 
 
-def averaged_losses(I_hat, P):
+def averaged_losses(I_hat, P, I_sq=None):
     """Averaged losses of a 3-leg two-level bridge (W).
 
     Each leg conducts its phase current through an IGBT or a diode at every instant,
@@ -42,9 +42,11 @@ def averaged_losses(I_hat, P):
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``V_CE0``, ``V_F0``, ``r_CE``, ``r_F``, ``f_sw``,
         ``E_sw``, ``V_dc``, ``V_sw_ref``, ``I_sw_ref``).
+    I_sq : SX, optional
+        I_hat^2 (A^2), when the caller has it (default: I_hat squared).
     """
     i_abs = 2 * I_hat / ca.pi
-    i_sq = I_hat**2 / 2
+    i_sq = (I_hat**2 if I_sq is None else I_sq) / 2
     V0 = 0.5 * (P.V_CE0 + P.V_F0)
     r = 0.5 * (P.r_CE + P.r_F)
     P_cond = 3 * (V0 * i_abs + r * i_sq)
@@ -86,7 +88,9 @@ class Ideal(Part):
 
     def signals(self):
         def losses(b):
-            return averaged_losses(current_amplitude(b["i_d"], b["i_q"]), b.P)
+            # I^2 passed as i_d^2 + i_q^2: what sqrt(.)^2 simplified to before the guard
+            sq = b["i_d"] ** 2 + b["i_q"] ** 2
+            return averaged_losses(current_amplitude(b["i_d"], b["i_q"]), b.P, sq)
 
         return {
             "v_d": lambda b: ideal(b["v_d_ref"]),

@@ -76,7 +76,8 @@ def plot_mission(res, path: str | Path, title: str = "") -> Path:
     ax[2].set_xlabel("mission time (min)")
     for axis in ax:
         axis.grid(True, alpha=0.3)
-        axis.legend(loc="upper left", fontsize=7)
+        if axis.get_legend_handles_labels()[0]:
+            axis.legend(loc="upper left", fontsize=7)
     fig.suptitle(title or res.mission.name)
     fig.tight_layout()
     return save(fig, path)
