@@ -137,18 +137,35 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
         raise MissionError(f"dt_out ({dt_out} s) must be a whole multiple of dt ({dt} s)")
     model = _model(params, mission, variants)
     temps = model.states_with("temperature")
-    x = model.x0()
-    for n in temps:
-        x[model.index(n)] = mission.T_start
-    sig = {name: mission.signal(name) for name in ("x_cmd", "f_ext", "T_amb")}
     losses = model.outputs_of("loss")
     heat = tuple(n for n in model.outputs if n.startswith("P_heat_"))
     x_mech = _rod_travel(model)
     keep = tuple(dict.fromkeys((*temps, *losses, *heat, *KEPT, x_mech)))
+    wall0 = time.perf_counter()
+    t, series, info = _simulate_blocks(model, mission, keep, _blocks(mission.duration, dt, dt_out, block),
+                                       dt=dt, dt_out=dt_out, jit=jit, progress=progress)
+    series["x_mech"] = series[x_mech]
+    info.update(wall_time=time.perf_counter() - wall0, variants=dict(model.variants), model=str(params.source))
+    return MissionResult(
+        mission=mission, t=t, series=series, units={n: model.units.get(n, "") for n in keep}, losses=losses,
+        owners={o: part.family for part in model.parts for o in (d.name for d in part.outputs) if o in losses},
+        nodes={n: NODES[n][0] if n in NODES else n for n in temps},
+        heat_of={n: node for part in model.parts for n, node in part.heat.items() if n in losses},
+        P=model.pdict(), info=info)
+
+
+def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, *, dt: float, dt_out: float,
+                     jit: bool, progress: bool):
+    """The blocks one after the other, each from where the previous one ended; the kept
+    signals concatenated. Returns (t, series, info)."""
+    temps = model.states_with("temperature")
+    x = model.x0()
+    for n in temps:
+        x[model.index(n)] = mission.T_start
+    sig = {name: mission.signal(name) for name in ("x_cmd", "f_ext", "T_amb")}
     chunks = {n: [] for n in keep}
     times, steps, switches, compile_time = [], 0, 0, 0.0
     wall0 = time.perf_counter()
-    blocks = _blocks(mission.duration, dt, dt_out, block)
     seg_names = [s.name for s in mission.segments]
     _progress(progress, 0.0, 0.0, mission, seg_names[0], mission.T_start, 0.0)
     for b, (t0, length) in enumerate(blocks):
@@ -171,14 +188,6 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
         seg = seg_names[min(int(np.searchsorted(mission.starts, t_now, side="right")) - 1, len(seg_names) - 1)]
         _progress(progress, (b + 1) / len(blocks), t_now, mission, seg, float(x[model.index(temps[0])]),
                   time.perf_counter() - wall0)
-    owners = {o: part.family for part in model.parts for o in (d.name for d in part.outputs) if o in losses}
-    heat_of = {n: node for part in model.parts for n, node in part.heat.items() if n in losses}
-    nodes = {n: NODES[n][0] if n in NODES else n for n in temps}
     info = {"dt": dt, "dt_out": dt_out, "steps": steps, "mode_switches": switches, "blocks": len(blocks),
-            "wall_time": time.perf_counter() - wall0, "compile_time": compile_time,
-            "variants": dict(model.variants), "model": str(params.source)}
-    series = {n: np.concatenate(chunks[n]) for n in keep}
-    series["x_mech"] = series[x_mech]
-    units = {n: model.units.get(n, "") for n in keep}
-    return MissionResult(mission=mission, t=np.concatenate(times), series=series, units=units, losses=losses,
-                         owners=owners, nodes=nodes, heat_of=heat_of, P=model.pdict(), info=info)
+            "compile_time": compile_time}
+    return np.concatenate(times), {n: np.concatenate(chunks[n]) for n in keep}, info
