@@ -11,7 +11,10 @@ sweeps, tuning and export.
 
 Summed signals the assembly provides: ``F_load_rod`` (N), the sum of every part's
 ``loads`` (the external force and, with end stops, the stop force); ``E_stored`` (J),
-the sum of every part's ``stored`` energies.
+the sum of every part's ``stored`` energies; ``P_heat_<node>`` (W) for each thermal
+node of :data:`~ema_casadi.components.HEAT_NODES`, the sum of the losses the parts
+route there (their ``heat`` tables). Reading a heat sum while some loss output is
+routed nowhere is an AssemblyError (the heat would vanish from the thermal network).
 
 For sampled (zero-order-hold) control the same wiring is also exposed split in two:
 ``f_held(x, u, p, h)`` (plant with the held controller outputs ``h``, see
@@ -40,7 +43,7 @@ import casadi as ca
 import numpy as np
 
 from ._kwargs import check_keywords
-from .components import AssemblyError, Bus, Output, der, parts_for, validate_variants
+from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
 from .params import ParameterError, Parameters
 
 __all__ = ["Model", "build_model", "AssemblyError"]
@@ -334,7 +337,7 @@ def _default(inp, P) -> float:
 def _declarations(parts):
     """Merge what the parts declare; a name declared twice must agree."""
     states, inputs, outputs, providers = {}, {}, {}, {}
-    loops, holds, stored, loads = {}, [], [], []
+    loops, holds, stored, loads, heat = {}, [], [], [], {}
     for part in parts:
         for s in part.states:
             if s.name in states:
@@ -355,13 +358,26 @@ def _declarations(parts):
         holds += part.holds
         stored += part.stored
         loads += part.loads
+        heat.update(part.heat)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
     providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
+    for node in HEAT_NODES:
+        providers[heat_signal(node)] = (heat_signal(node), lambda b, node=node: _heat(b, node, heat, outputs))
     for o in _SUMS:
         outputs[o.name] = o
     # the model's inputs: signals first, loop-break injections last
     ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
     return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
+
+
+def _heat(bus, node, heat, outputs):
+    """The losses routed to ``node``, summed; every loss output must be routed."""
+    unrouted = [n for n, o in outputs.items() if o.kind == "loss" and n not in heat]
+    wrong = {n: v for n, v in heat.items() if v not in HEAT_NODES}
+    if unrouted or wrong:
+        raise AssemblyError(f"losses {unrouted} heat no thermal node; nodes {wrong} unknown (expected one of "
+                            f"{', '.join(HEAT_NODES)}): declare each loss in its part's heat table")
+    return _sum(bus, [n for n, v in heat.items() if v == node])
 
 
 def _sum(bus, names):

@@ -172,6 +172,10 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
         summary["small_signal"] = fr
         stage("nonlinear frequency-response maps (paper Fig. 14a/b)")
         summary["nonlinear_frequency_response"] = _nonlinear_maps(params, tmp, written, progress)
+        stage("short flight mission through the thermal network")
+        from .mission import demo_mission
+
+        summary["mission"] = demo_mission(params, tmp, written)
         summary["wall_time_s"] = time.perf_counter() - t0
         summary["written"] = [str(out / Path(p).name) for p in written]
         _write_summary(summary, tmp)

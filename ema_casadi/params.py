@@ -52,10 +52,25 @@ POS = "positive"  # > 0
 NONNEG = "non-negative"  # >= 0
 FRAC = "fraction"  # 0 < x <= 1
 INT = "positive integer"
+NONPOS = "non-positive"  # <= 0
+FLAG = "switch"  # 0 or 1 (false or true)
+TEMP = "temperature"  # degC, above absolute zero
+
+#: Length of a table parameter in the flat vector: a file gives 2..TABLE_MAX points,
+#: padded up to TABLE_MAX (see :func:`_pad`), so the vector's layout never changes.
+TABLE_MAX = 6
 
 
-def _p(unit: str, check: str, doc: str):
-    return field(metadata={"unit": unit, "check": check, "doc": doc})
+def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
+    """A parameter field. ``default``: the value taken when a file lacks the key (keys
+    added after files were written: the thermal model's); ``table``: a list of 2 to
+    TABLE_MAX values, each checked with ``check``."""
+    meta = {"unit": unit, "check": check, "doc": doc}
+    if default is not None:
+        meta["default"] = default
+    if table:
+        meta["table"] = True
+    return field(metadata=meta)
 
 
 @dataclass(frozen=True)
@@ -105,6 +120,10 @@ class Motor:
     L_q: float = _p("H", POS, "q-axis inductance (H)")
     J_m: float = _p("kg*m^2", POS, "rotor inertia (kg m^2)")
     I_max: float = _p("A", POS, "current limit, peak (A)")
+    k_h: float = _p("W/(Hz*Wb^2)", NONNEG, "iron loss, hysteresis coefficient: k_h f_e psi^2 (W/(Hz Wb^2))",
+                    default=1.6)
+    k_e: float = _p("W/(Hz*Wb)^2", NONNEG, "iron loss, eddy-current coefficient: k_e (f_e psi)^2 (W/(Hz Wb)^2)",
+                    default=0.016)
 
 
 @dataclass(frozen=True)
@@ -150,6 +169,18 @@ class Thermal:
     R_th_ha: float = _p("K/W", POS, "housing-to-ambient thermal resistance (K/W)")
     C_th_s: float = _p("J/K", POS, "screw heat capacity (J/K)")
     R_th_sh: float = _p("K/W", POS, "screw-to-housing thermal resistance (K/W)")
+    C_th_inv: float = _p("J/K", POS, "inverter heat-sink heat capacity (J/K)", default=400.0)
+    R_th_inv: float = _p("K/W", POS, "inverter heat-sink-to-ambient thermal resistance (K/W)", default=0.25)
+    alpha_psi: float = _p("1/K", NONPOS, "magnet-flux temperature coefficient (1/K), rotor at T_h", default=-1.2e-3)
+    T_ref: float = _p("degC", TEMP, "reference temperature of R and psi (degC)", default=20.0)
+    T_eta: tuple = _p("degC", TEMP, "temperatures of the screw-efficiency table, increasing (degC)",
+                      default=(-55.0, -20.0, 20.0, 80.0), table=True)
+    eta_T: tuple = _p("1", FRAC, "screw direct efficiency at T_eta (-); eta_inv follows shifted by eta_inv - eta",
+                      default=(0.80, 0.86, 0.90, 0.91), table=True)
+    feedback_R: float = _p("1", FLAG, "1: winding resistance R(T_w) (alpha_Cu); 0: R at T_ref", default=1.0)
+    feedback_psi: float = _p("1", FLAG, "1: magnet flux psi(T_h) (alpha_psi); 0: psi at T_ref", default=1.0)
+    feedback_eta: float = _p("1", FLAG, "1: screw efficiency from the table at T_s; 0: the eta input", default=1.0)
+    T_max_w: float = _p("degC", TEMP, "winding insulation limit, e.g. class H 180 degC (degC)", default=180.0)
 
 
 @dataclass(frozen=True)
@@ -227,23 +258,29 @@ class Parameters:
     # -- flat view ---------------------------------------------------------------
     @staticmethod
     def names() -> list[str]:
-        """Flat parameter names (SPEC symbols), then the loop-closure flags."""
-        out = [f.name for cls in GROUPS.values() for f in fields(cls)]
+        """Flat parameter names (SPEC symbols), then the loop-closure flags. A table
+        parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
+        out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
 
     @staticmethod
     def units() -> dict[str, str]:
         """SI unit of every flat parameter."""
-        out = {f.name: f.metadata["unit"] for cls in GROUPS.values() for f in fields(cls)}
+        out = {n: f.metadata["unit"] for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
         out.update({k: "1" for k in LOOP_FLAGS})
         return out
 
     def as_dict(self) -> dict[str, float]:
-        """Flat name -> value (SI), loop flags closed (1.0)."""
+        """Flat name -> value (SI), loop flags closed (1.0); tables padded (:func:`_pad`)."""
         out = {}
         for g in GROUPS:
             grp = getattr(self, g)
-            out.update({f.name: float(getattr(grp, f.name)) for f in fields(grp)})
+            for f in fields(grp):
+                val = getattr(grp, f.name)
+                if f.metadata.get("table"):
+                    out.update(zip(_flat_names(f), _pad(val, f.metadata["check"] == TEMP), strict=True))
+                else:
+                    out[f.name] = float(val)
         out.update({k: 1.0 for k in LOOP_FLAGS})
         return out
 
@@ -294,8 +331,9 @@ class Parameters:
             lines += ["", f"[{g}]"]
             for f in fields(cls):
                 val = getattr(getattr(self, g), f.name)
+                val = f"[{', '.join(repr(float(v)) for v in val)}]" if f.metadata.get("table") else repr(val)
                 lines.append(
-                    f'{f.name} = {{ value = {val!r}, unit = "{f.metadata["unit"]}" }}'
+                    f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
                     f'  # {f.metadata["doc"]}'
                 )
         return write_text(path, "\n".join(lines) + "\n")
@@ -307,8 +345,31 @@ class Parameters:
         return 1.5 * self.motor.pp * self.motor.psi
 
 
-def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool) -> float:
-    where = f"{src}: [{group}] {name}"
+def _flat_names(f) -> list[str]:
+    return [f"{f.name}_{i}" for i in range(TABLE_MAX)] if f.metadata.get("table") else [f.name]
+
+
+def _pad(values, temperature: bool) -> list[float]:
+    """A table padded to TABLE_MAX entries: values hold the last one; temperatures go
+    on in 1 K steps past the last (so every padded interval has width 1 and adds nothing
+    to a piecewise-linear interpolation)."""
+    vals = [float(v) for v in values]
+    last = vals[-1]
+    return vals + [last + (k + 1 if temperature else 0.0) for k in range(TABLE_MAX - len(vals))]
+
+
+def _check_table(where: str, meta: dict, value: Any) -> tuple:
+    if not isinstance(value, (list, tuple)) or not 2 <= len(value) <= TABLE_MAX:
+        raise ParameterError(f"{where}: expected a list of 2 to {TABLE_MAX} numbers, got {value!r}")
+    item = {k: v for k, v in meta.items() if k != "table"}
+    vals = tuple(_check_value(where, "", "", item, v, plain=True, bare=True) for v in value)
+    if meta["check"] == TEMP and any(b <= a for a, b in zip(vals, vals[1:], strict=False)):
+        raise ParameterError(f"{where}: temperatures must increase strictly, got {list(vals)}")
+    return vals
+
+
+def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool, bare: bool = False):
+    where = src if bare else f"{src}: [{group}] {name}"
     unit = meta["unit"]
     if plain:
         value = raw
@@ -323,6 +384,11 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         if raw["unit"] != unit:
             raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
         value = raw["value"]
+    if meta.get("table"):
+        return _check_table(where, meta, value)
+    check = meta["check"]
+    if check == FLAG and isinstance(value, bool):
+        value = float(value)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ParameterError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
     try:
@@ -331,7 +397,6 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: expected a finite number, got an integer of {len(str(value))} digits") from None
     if not math.isfinite(value):
         raise ParameterError(f"{where}: expected a finite number, got {value}")
-    check = meta["check"]
     if check == POS and not value > 0:
         raise ParameterError(f"{where}: must be positive, got {value}")
     if check == NONNEG and value < 0:
@@ -340,6 +405,12 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: must be in (0, 1], got {value}")
     if check == INT and not (value >= 1 and value == int(value)):
         raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    if check == NONPOS and value > 0:
+        raise ParameterError(f"{where}: must be zero or negative, got {value}")
+    if check == FLAG and value not in (0.0, 1.0):
+        raise ParameterError(f"{where}: must be 0 or 1 (false or true), got {value}")
+    if check == TEMP and not value > -273.15:
+        raise ParameterError(f"{where}: must be a temperature in degC above -273.15, got {value}")
     return value
 
 
@@ -360,18 +431,34 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
                 raise ParameterError(f"{src}: [{g}] unknown key '{key}'{_nearest(key, names)}")
         values = {}
         for f in fields(cls):
-            if f.name not in table:
+            if f.name not in table and "default" in f.metadata:
+                values[f.name] = f.metadata["default"]  # a key newer than the file
+            elif f.name not in table:
                 raise ParameterError(
                     f"{src}: [{g}] missing key '{f.name}' ({f.metadata['doc']}, unit {f.metadata['unit']})"
                 )
-            values[f.name] = _check_value(src, g, f.name, dict(f.metadata), table[f.name], plain)
+            else:
+                values[f.name] = _check_value(src, g, f.name, dict(f.metadata), table[f.name], plain)
         groups[g] = cls(**values)
     model = data.get("model", {}) if variants is None else variants
     merged = _variant_table(model, src)
     s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
+    _check_eta_table(src, groups["thermal"], s)
     return Parameters(**groups, variants=merged, source=src)
+
+
+def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
+    """The efficiency table: one efficiency per temperature, and the inverse efficiency
+    it implies (shifted by eta_inv - eta) in (0, 1] at every point."""
+    if len(th.eta_T) != len(th.T_eta):
+        raise ParameterError(f"{src}: [thermal] eta_T has {len(th.eta_T)} values, T_eta {len(th.T_eta)}: "
+                             "expected one efficiency per temperature")
+    inv = [e + s.eta_inv - s.eta for e in th.eta_T]
+    if not all(0 < v <= 1 for v in inv):
+        raise ParameterError(f"{src}: [thermal] eta_T shifted by eta_inv - eta ({s.eta_inv - s.eta:+.3g}) "
+                             f"gives inverse efficiencies {[round(v, 4) for v in inv]}, outside (0, 1]")
 
 
 def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:

@@ -33,7 +33,7 @@ from typing import ClassVar
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Bound", "Part", "Bus", "AssemblyError", "der",
-    "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN",
+    "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
@@ -43,6 +43,21 @@ OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature")
+
+#: Thermal nodes a loss can heat (SPEC §2.6): every ``loss`` output names one in its
+#: part's :attr:`Part.heat`, and the assembly sums them into :func:`heat_signal` per node.
+HEAT_NODES = ("winding", "housing", "screw", "inverter")
+
+
+def heat_signal(node: str) -> str:
+    """Bus name of the summed heat flow (W) into a thermal node (:data:`HEAT_NODES`).
+
+    Parameters
+    ----------
+    node : str
+        The node (``winding``, ``housing``, ``screw``, ``inverter``).
+    """
+    return f"P_heat_{node}"
 
 
 #: Factor between what the actuator can do and its physical envelope (:class:`Bound`):
@@ -103,9 +118,9 @@ class State:
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
         friction contact), ``current``, ``controller_integral``, ``play`` (a memory
-        element without dynamics of its own).
+        element without dynamics of its own), ``temperature`` (a thermal node, degC).
     x0 : float
-        Initial value (SI).
+        Initial value (SI; temperatures in degC).
     scale : callable
         ``scale(P) -> float``: full-scale magnitude (SI) from the numeric parameters,
         used to judge residuals and steps.
@@ -253,6 +268,8 @@ class Part:
     #: named envelope limits, ``name -> fn(P)`` (SI), read by the :class:`Bound` of any
     #: part; where several parts declare one, the widest holds (a part can only widen)
     limits: ClassVar[dict] = {}
+    #: loss signal -> the thermal node its heat reaches (HEAT_NODES); summed per node
+    heat: ClassVar[dict] = {}
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})

@@ -10,7 +10,7 @@ from __future__ import annotations
 import difflib
 
 from ..params import ParameterError
-from . import ballscrew, controller, endstop, friction, inverter, motor
+from . import ballscrew, controller, endstop, friction, inverter, motor, thermal
 from ._part import Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
@@ -33,6 +33,7 @@ REGISTRY: dict[str, dict[str, type]] = {
     "screw": {"elastic": ballscrew.Elastic, "rigid": ballscrew.Rigid},
     "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid},
     "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},
+    "thermal": {"off": thermal.Off, "lumped": thermal.Lumped},
 }
 
 #: Option key -> allowed values (first the default), from the parts that read them.

@@ -32,7 +32,7 @@ def lead_ratio(P):
     return P.p / (2 * ca.pi)
 
 
-def efficiency_factor(F, omega, eta, P):
+def efficiency_factor(F, omega, eta, P, eta_inv=None):
     """Factor g in T_load = (p/2 pi) F g: 1/eta when the motor drives the load
     (F omega > 0), eta_inv when the load back-drives; blended over P_BLEND watts.
 
@@ -45,10 +45,13 @@ def efficiency_factor(F, omega, eta, P):
     eta : SX
         Direct efficiency of the screw-nut (-).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``p``, m, and ``eta_inv``, -).
+        Parameter symbols by flat name (uses ``p``, m, and ``eta_inv``, -, unless given).
+    eta_inv : SX, optional
+        Inverse efficiency of the screw-nut (-); default ``P.eta_inv``.
     """
+    eta_inv = P.eta_inv if eta_inv is None else eta_inv
     w = 0.5 * (1 + ca.tanh(F * omega * lead_ratio(P) / P_BLEND))
-    return w / eta + (1 - w) * P.eta_inv
+    return w / eta + (1 - w) * eta_inv
 
 
 def dead_zone(delta, B):
@@ -122,7 +125,9 @@ def play_rate(x_in, v_in, x_play, B):
 # (velocity at the friction contact), F_drive (force driving the contact: screw or
 # referred motor force minus the rod load, before friction and viscous), x_rod_mech,
 # v_rod_mech (the rod's mechanical motion: what an end stop touches; the rigid screw's
-# x_rod is the position signal after the play), T_load.
+# x_rod is the position signal after the play), T_load. The screw-nut efficiencies are
+# the signals eta_screw and eta_inv_screw of the thermal part (the eta input and the
+# parameter eta_inv with thermal = "off"; functions of the screw temperature with "lumped").
 def held_force(P):
     """Largest rod force the motor holds through the screw at the current limit,
     K_t I_max / ((p/2 pi) eta_inv) (N; 61.7 kN on the reference set).
@@ -153,6 +158,7 @@ _LIMITS = {"overtravel": lambda P: OVERTRAVEL}
 
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE)
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
+# declared by the thermal parts, which pass it on as eta_screw (or replace it by eta(T_s))
 
 
 def _r(P):
@@ -182,7 +188,7 @@ def _outputs(rod_speed: Bound) -> tuple:
     )
 
 
-_PARAMS = ("p", "eta_inv", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
+_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
 
 
 class Elastic(Part):
@@ -197,12 +203,13 @@ class Elastic(Part):
         State("v_rod", "m/s", "rod velocity", roles=("rod_velocity", "contact_velocity"), scale=lambda P: P.v_max,
               bound=_RINGING_ROD),
     )
-    inputs = (F_EXT, ETA)
+    inputs = (F_EXT,)
     outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS
+    heat = {"P_screw_nut": "screw", "P_contact": "screw"}
 
     def signals(self):
         def screw(b):
@@ -220,7 +227,7 @@ class Elastic(Part):
             "x_rod_mech": lambda b: b["x_rod"],
             "v_rod_mech": lambda b: b["v_rod"],
             "F_drive": lambda b: b["F_in"] - b["F_load_rod"],
-            "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta"], b.P),
+            "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"]),
             "T_load": lambda b: _r(b.P) * b["F_in"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
             der("omega"): lambda b: _shaft(b, b.P.J_m + b.P.J_s),
@@ -246,19 +253,20 @@ class Rigid(Part):
         State("x_play", "m", "rod position after the backlash play", roles=("rod_position", "play"),
               scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL),
     )
-    inputs = (F_EXT, ETA)
+    inputs = (F_EXT,)
     outputs = _outputs(_ROD_SPEED)
     params = _PARAMS + ("B",)
     stored = ("E_kin",)
     loads = ("f_ext",)
     limits = _LIMITS
+    heat = {"P_screw_nut": "screw"}
 
     def signals(self):
         def drive(b):
             # the force that holds the shaft (omega-dot = 0): the net motor torque
             # referred to the rod through the screw, minus the load
             T_net = b["T_m"] - b.P.b_m * b["omega"]
-            g_hold = efficiency_factor(T_net / _r(b.P), b["omega"], b["eta"], b.P)
+            g_hold = efficiency_factor(T_net / _r(b.P), b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"])
             return T_net / (_r(b.P) * g_hold) - b["F_load_rod"]
 
         def shaft_rate(b):
@@ -275,7 +283,7 @@ class Rigid(Part):
             "v_rod_mech": lambda b: b["v_in"],
             "F_drive": drive,
             "F_load": lambda b: b["F_load_rod"] + b["F_friction"],
-            "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta"], b.P),
+            "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"]),
             "T_load": lambda b: _r(b.P) * b["F_load"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
             der("omega"): shaft_rate,

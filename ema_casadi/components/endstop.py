@@ -67,6 +67,7 @@ class Elastic(Part):
     )
     params = ("stroke", "k_stop", "d_stop")
     stored = ("E_stop",)
+    heat = {"P_stop": "screw"}  # the rod's collar and the stop: counted with the rod and screw
     loads = ("F_stop_rod",)
     # the rod may pass the stroke by the stops' deflection under a few times the
     # largest force the motor holds (measured: 0.31 mm held, < 1 mm on impact)

@@ -167,6 +167,7 @@ class Smooth(Part):
     doc = "smooth Coulomb law F_r s(v) (+ Stribeck hump) + viscous"
     inputs = (F_EXT,)
     outputs = _OUT
+    heat = {"P_friction": "screw", "P_viscous": "screw"}
     params = _PARAMS + ("v_s", "r_start", "v_st")
     options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
 
@@ -188,6 +189,7 @@ class Hybrid(Part):
     doc = "Karnopp stick-slip: dead band eps, breakaway F_start = r_start F_r"
     inputs = (F_EXT,)
     outputs = _OUT
+    heat = Smooth.heat
     params = _PARAMS + ("eps", "r_start")
 
     def signals(self):

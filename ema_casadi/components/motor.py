@@ -1,15 +1,56 @@
 """Motors (SPEC §2.3): the 1-phase dc equivalent and the 3-phase PMSM in the rotor
-dq frame (amplitude-invariant), and the shaft."""
+dq frame (amplitude-invariant), and the shaft.
+
+The winding resistance and the magnet flux are the signals ``R_w`` and ``psi_m`` of
+the bus: the thermal part provides them (the parameters R and psi with ``thermal =
+"off"``, functions of the winding and housing temperatures with ``"lumped"``). The
+controller keeps the nominal R and psi (the ECU does not know the temperature).
+
+Iron loss (SPEC §2.6, option ``iron_loss = "on"``) is a drag torque on the shaft,
+T_fe = P_fe / omega, folded into the shaft torque ``T_m``, so the energy balance
+closes with P_fe as one more loss; with ``"off"`` (the reference file's default) P_fe
+is 0 and the equations are those without iron loss.
+"""
 
 from __future__ import annotations
+
+import casadi as ca
 
 from . import controller
 from ._part import MARGIN, Bound, Hold, Input, Loop, Output, Part, State, der
 
-__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "Pmsm", "Dc", "CURRENT_LOOP", "CURRENT_BOUND"]
+__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "OMEGA_FE", "Pmsm", "Dc", "CURRENT_LOOP",
+           "CURRENT_BOUND"]
+
+#: Speed (rad/s, ~1 rpm) over which the hysteresis drag, k_h pp psi^2/(2 pi) sign(omega),
+#: is smoothed at standstill (sign -> omega/sqrt(omega^2 + OMEGA_FE^2)). RK4 at 1e-4 s
+#: sees its slope as an eigenvalue near -550 1/s (h lambda = 0.05); a linearisation at
+#: rest with iron loss on sees it as ~0.9 N m s/rad of extra shaft damping.
+OMEGA_FE = 0.1
 
 
-def dc(i, v, omega, P):
+def iron_loss(omega, psi, P):
+    """Iron loss as a drag torque: P_fe = k_h f_e psi^2 + k_e (f_e psi)^2 with the
+    electrical frequency f_e = pp |omega|/(2 pi), |omega| smoothed to
+    omega^2/sqrt(omega^2 + OMEGA_FE^2) (a square root compiles to one instruction, tanh
+    to a library call). The torque T_fe is written first and P_fe = T_fe omega (>= 0),
+    so the loss is exactly the drag's power. Returns (T_fe (N m), P_fe (W)).
+
+    Parameters
+    ----------
+    omega : SX
+        Shaft speed (rad/s).
+    psi : SX
+        Magnet flux linkage (Wb).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``k_h``, ``k_e``).
+    """
+    c = P.pp / (2 * ca.pi)  # f_e per rad/s
+    T_fe = P.k_h * c * psi**2 * omega / ca.sqrt(omega**2 + OMEGA_FE**2) + P.k_e * c**2 * psi**2 * omega
+    return T_fe, T_fe * omega
+
+
+def dc(i, v, omega, P, R=None, psi=None):
     """DC-equivalent motor: L_dc di/dt = v - R_dc i - K_e omega; T = K_t i.
 
     Power-invariant equivalent of the PMSM q axis (i = i_q, v = 1.5 v_q):
@@ -25,15 +66,21 @@ def dc(i, v, omega, P):
     omega : SX
         Motor speed (rad/s).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``pp``, ``psi``, ``R``, ``L_q``).
+        Parameter symbols by flat name (uses ``pp``, ``L_q``, and ``psi``, ``R`` unless given).
+    R : SX, optional
+        Phase resistance (Ohm); default ``P.R``.
+    psi : SX, optional
+        Magnet flux linkage (Wb); default ``P.psi``.
     """
-    K_t = 1.5 * P.pp * P.psi
-    R_dc, L_dc = 1.5 * P.R, 1.5 * P.L_q
+    R = P.R if R is None else R
+    psi = P.psi if psi is None else psi
+    K_t = 1.5 * P.pp * psi
+    R_dc, L_dc = 1.5 * R, 1.5 * P.L_q
     di = (v - R_dc * i - K_t * omega) / L_dc
     return di, K_t * i, v * i, R_dc * i**2, 0.5 * L_dc * i**2
 
 
-def pmsm(i_d, i_q, v_d, v_q, omega, P):
+def pmsm(i_d, i_q, v_d, v_q, omega, P, R=None, psi=None):
     """PMSM in the rotor dq frame (amplitude-invariant).
 
     L_d di_d/dt = v_d - R i_d + omega_e L_q i_q
@@ -50,14 +97,21 @@ def pmsm(i_d, i_q, v_d, v_q, omega, P):
     omega : SX
         Motor (mechanical) speed (rad/s).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``pp``, ``psi``, ``R``, ``L_d``, ``L_q``).
+        Parameter symbols by flat name (uses ``pp``, ``L_d``, ``L_q``, and ``psi``, ``R``
+        unless given).
+    R : SX, optional
+        Phase resistance (Ohm); default ``P.R``.
+    psi : SX, optional
+        Magnet flux linkage (Wb); default ``P.psi``.
     """
+    R = P.R if R is None else R
+    psi = P.psi if psi is None else psi
     omega_e = P.pp * omega
-    di_d = (v_d - P.R * i_d + omega_e * P.L_q * i_q) / P.L_d
-    di_q = (v_q - P.R * i_q - omega_e * (P.L_d * i_d + P.psi)) / P.L_q
-    T = 1.5 * P.pp * (P.psi * i_q + (P.L_d - P.L_q) * i_d * i_q)
+    di_d = (v_d - R * i_d + omega_e * P.L_q * i_q) / P.L_d
+    di_q = (v_q - R * i_q - omega_e * (P.L_d * i_d + psi)) / P.L_q
+    T = 1.5 * P.pp * (psi * i_q + (P.L_d - P.L_q) * i_d * i_q)
     P_elec = 1.5 * (v_d * i_d + v_q * i_q)
-    P_cu = 1.5 * P.R * (i_d**2 + i_q**2)
+    P_cu = 1.5 * R * (i_d**2 + i_q**2)
     E_mag = 0.75 * (P.L_d * i_d**2 + P.L_q * i_q**2)
     return di_d, di_q, T, P_elec, P_cu, E_mag
 
@@ -103,10 +157,13 @@ CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
 _COMMON_OUT = (
     Output("i_d", "A", "d-axis current (0 for the dc motor)", bound=CURRENT_BOUND),
     Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND),
-    Output("T_m", "N*m", "motor torque"),
+    Output("T_m", "N*m", "motor torque on the shaft (electromagnetic, less the iron-loss drag)"),
     Output("P_elec", "W", "electrical power into the windings", kind="power"),
     Output("P_cu", "W", "copper loss", kind="loss"),
+    Output("P_fe", "W", "iron loss, a drag torque on the shaft (0 unless iron_loss = on)", kind="loss"),
 )
+_HEAT = {"P_cu": "winding", "P_fe": "housing"}
+_OPTIONS = {"iron_loss": ("off", "on")}
 _D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
 
 
@@ -118,6 +175,17 @@ def _amps(P):
     return P.I_max
 
 
+def _iron(opt):
+    """Providers of the shaft torque T_m and the iron loss P_fe, from T_em."""
+    if opt.get("iron_loss", "off") == "off":
+        return {"T_m": lambda b: b["T_em"], "P_fe": lambda b: 0}
+
+    def iron(b):
+        return iron_loss(b["omega"], b["psi_m"], b.P)
+
+    return {("T_fe", "P_fe"): iron, "T_m": lambda b: b["T_em"] - b["T_fe"]}
+
+
 class Pmsm(Part):
     """3-phase PMSM in the rotor dq frame with FOC current control (SPEC §2.1, §2.3)."""
 
@@ -125,7 +193,9 @@ class Pmsm(Part):
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "R", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i")
+    params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    options = _OPTIONS
+    heat = _HEAT
     loops = (CURRENT_LOOP,)
     holds = (Hold("v_d_ref", "V", "current"), Hold("v_q_ref", "V", "current"))
     states = (
@@ -144,11 +214,12 @@ class Pmsm(Part):
             )
 
         def plant(b):
-            return pmsm(b["i_d"], b["i_q"], b["v_d"], b["v_q"], b["omega"], b.P)
+            return pmsm(b["i_d"], b["i_q"], b["v_d"], b["v_q"], b["omega"], b.P, b["R_w"], b["psi_m"])
 
         return {
             ("v_d_ref", "v_q_ref", der("z_d"), der("z_q")): current_law,
-            (der("i_d"), der("i_q"), "T_m", "P_elec", "P_cu", "E_mag"): plant,
+            (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag"): plant,
+            **_iron(self.opt),
         }
 
 
@@ -159,7 +230,9 @@ class Dc(Part):
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "R", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i")
+    params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    options = _OPTIONS
+    heat = _HEAT
     loops = (CURRENT_LOOP,)
     holds = Pmsm.holds
     states = (
@@ -174,11 +247,12 @@ class Dc(Part):
             return 0, v / 1.5, z_dot
 
         def plant(b):
-            return dc(b["i"], 1.5 * b["v_q"], b["omega"], b.P)
+            return dc(b["i"], 1.5 * b["v_q"], b["omega"], b.P, b["R_w"], b["psi_m"])
 
         return {
             ("v_d_ref", "v_q_ref", der("z_i")): current_law,
-            (der("i"), "T_m", "P_elec", "P_cu", "E_mag"): plant,
+            (der("i"), "T_em", "P_elec", "P_cu", "E_mag"): plant,
+            **_iron(self.opt),
             "i_d": lambda b: 0,
             "i_q": lambda b: b["i"],
         }

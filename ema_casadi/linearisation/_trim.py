@@ -191,10 +191,12 @@ def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v
 
 
 def _freeze_efficiency(model: Model, u, p, g):
-    """Inputs and parameters that make the efficiency blend the constant g: 1/eta = eta_inv = g."""
+    """Inputs and parameters that make the efficiency blend the constant g: 1/eta = eta_inv = g
+    (and the thermal network's eta(T_s) switched off, so that the eta input drives the screw)."""
     u, p = u.copy(), p.copy()
     u[model.inputs.index("eta")] = 1.0 / g
     p[model.param_names.index("eta_inv")] = g
+    p[model.param_names.index("feedback_eta")] = 0.0
     return u, p
 
 
@@ -339,7 +341,9 @@ def _solve(model: Model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter):
     Returns (x, y, relative residual)."""
     names = list(model.param_names)
     p_trim = p_pol.copy()
-    for k in ("I_max", "v_max", "V_dc"):
+    # the voltage limit is lifted through k_v, not V_dc: V_dc also sets the switching losses
+    # (which heat the inverter node of a thermal network)
+    for k in ("I_max", "v_max", "k_v"):
         p_trim[names.index(k)] *= _LIFT
     size = model.full_scale(p_pol)
     x = _along_travel(model, p_pol, x_cmd)

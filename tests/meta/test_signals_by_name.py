@@ -57,5 +57,5 @@ def test_losses_and_stored_energy_come_from_the_parts(model_cache):
     owners = {n: part.family for part in model.parts for n in (o.name for o in part.outputs)}
     assert owners["P_stop"] == "endstop" and owners["P_contact"] == "screw" and owners["P_cu"] == "motor"
     assert set(model.outputs_of("loss")) == {
-        "P_cu", "P_inv_cond", "P_inv_sw", "P_screw_nut", "P_contact", "P_friction", "P_viscous", "P_stop"}
+        "P_cu", "P_fe", "P_inv_cond", "P_inv_sw", "P_screw_nut", "P_contact", "P_friction", "P_viscous", "P_stop"}
     assert "P_contact" not in model_cache(screw="rigid").outputs
