@@ -114,11 +114,12 @@ def report(r: dict) -> None:
             cells = []
             for a in amps:
                 pt = table[f_ext, a, f]
-                mark = " " if pt["converged"] else "*"
+                mark = " " if pt["converged"] else ("!" if pt.get("status") == "failed" else "*")
                 cells.append(f"{pt['gain_db']:8.2f} /{pt['phase_deg']:7.1f}{mark}")
             print(f"{f:9.3g} " + " ".join(f"{c:>18s}" for c in cells))
-    n = r["not_converged"]
+    bad = r["failed"]
+    n = r["not_converged"] - bad  # failed points are not converged either
     print(f"{len(r['points'])} points, {r['periods_total']} periods ({r['simulated_time']:.1f} s simulated) "
-          f"in {r['wall_time']:.2f} s" + (f"; {n} not settled (*)" if n else ""))
+          f"in {r['wall_time']:.2f} s" + (f"; {n} not settled (*)" if n else "") + (f"; {bad} failed (!)" if bad else ""))
     for w in r["written"]:
         print(f"wrote {w}")
