@@ -9,12 +9,13 @@ value converted (a float, an int, a float array).
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 
 import numpy as np
 
-__all__ = ["describe", "number", "integer", "vector", "instance", "choice"]
+__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "nearest"]
 
 
 def describe(value) -> str:
@@ -87,3 +88,17 @@ def choice(value, name: str, options, error: type) -> str:
     if not isinstance(value, str) or value not in options:
         raise error(f"{name}: expected one of {', '.join(options)}, got {describe(value)}")
     return value
+
+
+def nearest(name: str, options) -> str:
+    """`` (did you mean 'X'?)`` for the option closest to ``name``, or ``""``.
+
+    Parameters
+    ----------
+    name : str
+        What was given.
+    options : iterable of str
+        What is allowed.
+    """
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
+    return f" (did you mean '{match[0]}'?)" if match else ""

@@ -42,10 +42,11 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
-from ._checks import describe, instance, integer, number
+from ._checks import describe, instance, number
+from ._grid import MAX_FREQ_POINTS, _frequencies, check_points, frequency_grid
 from ._kwargs import check_keywords, keywords_of
+from ._margins import _closed_loop_stable, _disk_margin, _gain_crossovers, _phase_crossovers, _root, _unwrap_deg
 from .assembly import Model
 from .linearisation import (
     LOOPS,
@@ -65,73 +66,8 @@ __all__ = [
 
 REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
 
-#: Most frequencies one response may have (0.2 GB for the 9-state reference model; a
-#: point costs about 4.3 us, measured on a 2-core x86-64 machine).
-MAX_FREQ_POINTS = 100_000
-#: Measured cost of one frequency of :func:`freqresp` on the reference model (s).
-SECONDS_PER_FREQ_POINT = 4.3e-6
-
 #: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearisation.operating_point`.
 _OP_KEYWORDS = keywords_of(operating_point)
-
-
-def frequency_grid(f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200) -> np.ndarray:
-    """Log-spaced frequencies (Hz).
-
-    Parameters
-    ----------
-    f_min, f_max : float
-        The ends (Hz), 0 < f_min < f_max.
-    per_decade : int
-        Points per decade.
-    """
-    f_min = number(f_min, "f_min", LinearizationError, unit="Hz", positive=True)
-    f_max = number(f_max, "f_max", LinearizationError, unit="Hz", positive=True)
-    per_decade = integer(per_decade, "per_decade", LinearizationError, minimum=1)
-    if not (0 < f_min < f_max):
-        raise LinearizationError(f"frequency range must satisfy 0 < f_min < f_max, got {f_min}, {f_max}")
-    decades = math.log10(f_max) - math.log10(f_min)
-    if per_decade * decades > MAX_FREQ_POINTS:
-        check_points(per_decade * decades, "f_min/f_max/per_decade")
-    n = max(2, int(math.ceil(per_decade * decades)) + 1)
-    return np.logspace(math.log10(f_min), math.log10(f_max), n)
-
-
-def check_points(n: int, label: str, nx: int = 9, error: type = LinearizationError) -> None:
-    """Refuse a frequency grid above :data:`MAX_FREQ_POINTS` with its estimate.
-
-    Parameters
-    ----------
-    n : int
-        Number of frequencies.
-    label : str
-        The argument or flag named in the message.
-    nx : int
-        States of the system (sizes the estimate).
-    error : type
-        The exception raised.
-    """
-    if n > MAX_FREQ_POINTS:
-        size = 16.0 * n * nx * (nx + 1)
-        raise error(f"{label}: {n:.3g} frequencies, above the limit of {MAX_FREQ_POINTS} (MAX_FREQ_POINTS); "
-                    f"the response of a {nx}-state model would hold {size / 1e9:.3g} GB and take about "
-                    f"{n * SECONDS_PER_FREQ_POINT:.3g} s at {SECONDS_PER_FREQ_POINT * 1e6:g} us per frequency")
-
-
-def _frequencies(f_hz, label: str, nx: int) -> np.ndarray:
-    """``f_hz`` as a 1-D array of positive finite frequencies (Hz), at most
-    :data:`MAX_FREQ_POINTS`."""
-    try:
-        f = np.atleast_1d(np.asarray(f_hz, float))
-    except (TypeError, ValueError):
-        raise LinearizationError(f"{label}: expected frequencies in Hz, got {describe(f_hz)}") from None
-    if f.ndim != 1 or f.size == 0:
-        raise LinearizationError(f"{label}: expected a 1-D sequence of frequencies in Hz, got shape {f.shape}")
-    check_points(f.size, label, nx)
-    if not (np.all(np.isfinite(f)) and np.all(f > 0)):
-        bad = f[~(np.isfinite(f) & (f > 0))][0]
-        raise LinearizationError(f"{label}: frequencies must be positive and finite (Hz), got {bad}")
-    return f
 
 
 def _abcd(sys, name: str = "sys"):
@@ -183,10 +119,6 @@ def _siso(sys, what="the system", name="sys"):
     return A, B, C, D
 
 
-def _unwrap_deg(H: np.ndarray) -> np.ndarray:
-    return np.degrees(np.unwrap(np.angle(H)))
-
-
 def bode(sys, f_hz=None, *, input: str | None = None, output: str | None = None) -> dict:
     """Bode data of a SISO system or of one input/output pair (by name).
 
@@ -226,10 +158,6 @@ def _select(sys, input, output):
 
 
 # ---------------------------------------------------------------------------------
-def _wrap180(deg):
-    return (deg + 180.0) % 360.0 - 180.0
-
-
 @dataclass
 class LoopMargins:
     """Stability margins of one loop (see the module docstring for definitions).
@@ -341,81 +269,6 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
         disk_gm_db=dgm, disk_pm_deg=dpm, f_disk_hz=f_dm, delay_margin_s=delay, stable=stable,
         gain_crossovers=gcs, phase_crossovers=pcs,
     )
-
-
-def _gain_crossovers(H, f, Hg) -> list[dict]:
-    """|L| = 1: log|L| changes sign between grid points; each root refined by Brent."""
-    lf, lm = np.log10(f), np.log10(np.abs(Hg))
-    out = []
-    for i in np.nonzero(lm[:-1] * lm[1:] <= 0)[0]:
-        if lm[i] == 0 and i > 0 and lm[i - 1] * lm[i + 1] > 0:
-            continue  # touches 1 without crossing
-        x = _root(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
-        fc = 10**x
-        out.append({"f_hz": fc, "pm_deg": _wrap180(math.degrees(np.angle(H(fc))) + 180.0)})
-    return _dedupe(out)
-
-
-def _phase_crossovers(H, f, Hg) -> list[dict]:
-    """The unwrapped phase passes -180 + 360 k; each root refined by Brent."""
-    lf, ph = np.log10(f), _unwrap_deg(Hg)
-    k = np.floor((ph + 180.0) / 360.0)
-    out = []
-    for i in np.nonzero(np.diff(k))[0]:
-        level = -180.0 + 360.0 * max(k[i], k[i + 1])
-        H0, p0 = Hg[i], ph[i]
-
-        def g(t, H0=H0, p0=p0, level=level):
-            return p0 + math.degrees(np.angle(H(10**t) / H0)) - level
-
-        x = _root(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
-        fc = 10**x
-        out.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
-    return _dedupe(out)
-
-
-def _root(g, a, b, ga, gb):
-    """Root of g in the bracket [a, b] (g(a) g(b) <= 0), SciPy's Brent method."""
-    if ga == 0:
-        return a
-    if gb == 0:
-        return b
-    return brentq(g, a, b, xtol=1e-13, rtol=4 * np.finfo(float).eps)
-
-
-def _closed_loop_stable(A, B, C, d) -> bool:
-    """Stability of L/(1+L): x' = (A - B C/(1+D)) x."""
-    if abs(1 + d) < 1e-12:
-        return False
-    n = A.shape[0]
-    lam = np.linalg.eigvals(A - B @ C / (1 + d)) if n else np.zeros(0)
-    tol = 1e-9 * max(1.0, float(np.max(np.abs(lam)))) if n else 0.0
-    return bool(np.all(lam.real < tol))
-
-
-def _disk_margin(H, f, Hg) -> tuple[float, float]:
-    """Balanced disk margin alpha = min 2|1 + L|/|1 - L| and its frequency (Hz): the
-    grid minimum refined by a bounded scalar minimisation between its neighbours."""
-    lf = np.log10(f)
-    alpha_g = 2 * np.abs(1 + Hg) / np.abs(1 - Hg)
-    j = int(np.argmin(alpha_g))
-    lo, hi = lf[max(j - 1, 0)], lf[min(j + 1, len(lf) - 1)]
-    res = minimize_scalar(lambda t: _alpha(H(10**t)), bounds=(lo, hi), method="bounded",
-                          options={"xatol": 1e-10})
-    alpha = min(_alpha(H(10**res.x)), float(alpha_g[j]))
-    return alpha, (10**res.x if alpha < alpha_g[j] else f[j])
-
-
-def _alpha(h: complex) -> float:
-    return 2 * abs(1 + h) / abs(1 - h) if h != 1 else math.inf
-
-
-def _dedupe(items):
-    out = []
-    for it in sorted(items, key=lambda c: c["f_hz"]):
-        if not out or abs(it["f_hz"] - out[-1]["f_hz"]) > 1e-9 * it["f_hz"]:
-            out.append(it)
-    return out
 
 
 def loop_margins(

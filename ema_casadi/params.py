@@ -15,7 +15,6 @@ them as an input: changing a value never rebuilds a model.
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -25,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ._checks import describe, number
+from ._checks import nearest as _nearest
 from ._files import write_text
 from .signals import decode_utf8
 
@@ -205,10 +205,6 @@ GROUPS: dict[str, type] = {
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
 #: parameter vector: 1 closes the loop, 0 opens it at the feedback signal.
 LOOP_FLAGS = ("loop_x", "loop_w", "loop_i")
-
-def _nearest(name: str, options) -> str:
-    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
-    return f" (did you mean '{match[0]}'?)" if match else ""
 
 
 def _unknown(func: str, key: str, names) -> str:

@@ -120,6 +120,7 @@ def report(r: dict) -> None:
     bad = r["failed"]
     n = r["not_converged"] - bad  # failed points are not converged either
     print(f"{len(r['points'])} points, {r['periods_total']} periods ({r['simulated_time']:.1f} s simulated) "
-          f"in {r['wall_time']:.2f} s" + (f"; {n} not settled (*)" if n else "") + (f"; {bad} failed (!)" if bad else ""))
+          f"in {r['wall_time']:.2f} s" + (f"; {n} not settled (*)" if n else "")
+          + (f"; {bad} failed (!)" if bad else ""))
     for w in r["written"]:
         print(f"wrote {w}")

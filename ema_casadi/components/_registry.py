@@ -7,8 +7,7 @@ smooth friction's ``friction_shape``) are declared by the parts themselves.
 
 from __future__ import annotations
 
-import difflib
-
+from .._checks import nearest as _nearest
 from ..params import ParameterError
 from . import ballscrew, controller, endstop, friction, inverter, motor, thermal
 from ._part import Part
@@ -45,11 +44,6 @@ for _values in REGISTRY.values():
 #: Allowed values per key (variant keys, then options), first the default.
 VARIANTS: dict[str, tuple[str, ...]] = {k: tuple(v) for k, v in REGISTRY.items()} | OPTIONS
 DEFAULT_VARIANTS = {k: v[0] for k, v in VARIANTS.items()}
-
-
-def _nearest(name: str, options) -> str:
-    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
-    return f" (did you mean '{match[0]}'?)" if match else ""
 
 
 def validate_variants(variants: dict | None, where: str = "variant") -> dict[str, str]:

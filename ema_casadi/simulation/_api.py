@@ -98,8 +98,7 @@ def simulate(
         injections ``d_x``); strings in the unit of the input's quantity kind.
         Undriven inputs take their declared default.
     dt : float
-        RK4 step (s); for ``cvodes`` the default output spacing when ``dt_out`` is not
-        given.
+        RK4 step (s); for ``cvodes`` the default output spacing without ``dt_out``.
     solver : {"rk4", "cvodes"}
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
@@ -124,25 +123,29 @@ def simulate(
     instance(model, Model, "model", SimulationError, " (from build_model)")
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
+    pv, x0 = _values(model, params, p, x0)
+    sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
+    t_wall = time.perf_counter()
+    if solver == "rk4":
+        res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
+    else:
+        res = _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress))
+    res.info.update(wall_time=time.perf_counter() - t_wall, solver=solver, variants=dict(model.variants),
+                    t_end=plan.t_end)
+    return res
+
+
+def _values(model: Model, params, p, x0) -> tuple[np.ndarray, np.ndarray]:
+    """The checked parameter vector and initial state of a run."""
     if params is not None:
         instance(params, Parameters, "params", SimulationError, " (from load_parameters)")
     if p is not None:
         pv = vector(p, "p", SimulationError, len(model.param_names), " (the model's parameter vector)")
     else:
         pv = model.p(params)
-    sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
     if x0 is None:
-        x0 = model.x0()
-    else:
-        x0 = vector(x0, "x0", SimulationError, model.nx, f" (one per state: {', '.join(model.states)})")
-    t_wall = time.perf_counter()
-    if solver == "rk4":
-        res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
-    else:
-        res = _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress))
-    res.info["wall_time"] = time.perf_counter() - t_wall
-    res.info.update(solver=solver, variants=dict(model.variants), t_end=plan.t_end)
-    return res
+        return pv, model.x0()
+    return pv, vector(x0, "x0", SimulationError, model.nx, f" (one per state: {', '.join(model.states)})")
 
 
 class _Plan:
@@ -243,29 +246,7 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         raise error(f"{lab('zoh')} (sampled ECU) needs solver rk4")
     n_signals = model.nu + model.ny + model.nx
     if solver == "rk4":
-        if dt > t_end:
-            raise error(f"{lab('dt')} ({dt:g} s) is longer than {lab('t_end')} ({t_end:g} s)")
-        steps = t_end / dt
-        if steps > MAX_STEPS:
-            raise error(f"{lab('t_end')} {t_end:g} s / {lab('dt')} {dt:g} s = {steps:.3g} RK4 steps, "
-                        f"about {_duration(steps * RK4_SECONDS_PER_STEP)} at {RK4_SECONDS_PER_STEP * 1e6:g} us "
-                        f"per step (measured); the limit is {MAX_STEPS:.0e} steps (MAX_STEPS)")
-        n_steps = _steps_in(t_end, dt)
-        if n_steps is None:
-            raise error(f"{lab('t_end')} {t_end:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
-                        f"({steps:.6g}); choose a dt that divides t_end")
-        if decimate is not None:
-            k = decimate
-        elif dt_out is not None:
-            k = _steps_in(dt_out, dt)
-            if k is None:
-                raise error(f"{lab('dt_out')} {dt_out:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
-                            f"({dt_out / dt:.6g}); the samples fall on steps")
-        else:
-            k = 1
-        k = min(k, n_steps)
-        k_run = _largest_divisor(math.gcd(k, n_steps), STEPS_PER_CALL)
-        plan = _Plan(t_end, dt, k * dt, n_steps, k, k_run)
+        plan = _rk4_plan(t_end, dt, dt_out, decimate, lab, error)
     else:
         spacing = dt_out if dt_out is not None else dt * (decimate or 1)
         spacing_label = lab("dt_out") if dt_out is not None else lab("dt")
@@ -281,6 +262,33 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         note = f" (kept every {plan.k_run} steps so that the samples end at t_end)" if kept > plan.samples else ""
         raise error(_too_big(kept, n_signals, lab("t_end"), t_end, spacing_label, spacing, note))
     return plan
+
+
+def _rk4_plan(t_end, dt, dt_out, decimate, lab, error) -> _Plan:
+    """The fixed-step plan: whole numbers of steps, at most MAX_STEPS."""
+    if dt > t_end:
+        raise error(f"{lab('dt')} ({dt:g} s) is longer than {lab('t_end')} ({t_end:g} s)")
+    steps = t_end / dt
+    if steps > MAX_STEPS:
+        raise error(f"{lab('t_end')} {t_end:g} s / {lab('dt')} {dt:g} s = {steps:.3g} RK4 steps, "
+                    f"about {_duration(steps * RK4_SECONDS_PER_STEP)} at {RK4_SECONDS_PER_STEP * 1e6:g} us "
+                    f"per step (measured); the limit is {MAX_STEPS:.0e} steps (MAX_STEPS)")
+    n_steps = _steps_in(t_end, dt)
+    if n_steps is None:
+        raise error(f"{lab('t_end')} {t_end:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
+                    f"({steps:.6g}); choose a dt that divides t_end")
+    if decimate is not None:
+        k = decimate
+    elif dt_out is not None:
+        k = _steps_in(dt_out, dt)
+        if k is None:
+            raise error(f"{lab('dt_out')} {dt_out:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
+                        f"({dt_out / dt:.6g}); the samples fall on steps")
+    else:
+        k = 1
+    k = min(k, n_steps)
+    k_run = _largest_divisor(math.gcd(k, n_steps), STEPS_PER_CALL)
+    return _Plan(t_end, dt, k * dt, n_steps, k, k_run)
 
 
 def _too_big(samples, n_signals, t_label, t_end, spacing_label, spacing, note="") -> str:

@@ -212,15 +212,21 @@ def _locate_switch(integrate, F1, stuck, t_l, x_l, t_r, x_r, q_r, tol):
     return t_l, x_l, t_r, x_r
 
 
-def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event_tol, progress):
+def _hybrid_grid(sig, t_end, dt_out):
+    """Output grid, samples per integrator call (a power of two, so that partial chunks
+    before a breakpoint or the end are covered by few distinct integrators), the
+    signals' breakpoints."""
     n_out = int(math.ceil(t_end / dt_out - 1e-9))
     grid = np.arange(n_out + 1) * dt_out
-    # outputs per call: a power of two, so that partial chunks (before a breakpoint or
-    # the end) are covered by few distinct integrators
     K = 2 ** int(math.log2(min(_MAX_CHUNK, max(1.0, _CHUNK_SECONDS / dt_out))))
+    cuts = sorted({b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]})
+    return n_out, grid, K, cuts
+
+
+def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event_tol, progress):
+    n_out, grid, K, cuts = _hybrid_grid(sig, t_end, dt_out)
     get_integrator, mode_fn = _hybrid_integrators(model, sig, rtol, atol)
     F1 = get_integrator(1)
-    cuts = sorted({b for s in sig.values() for b in s.breakpoints() if 0 < b < grid[-1]})
     nz = np.zeros((0, 1))
     stats = {"steps": 0, "calls": 0}
 
