@@ -146,13 +146,14 @@ def held_force(P):
 #: widens this ``overtravel`` limit by the stops' own deflection.
 OVERTRAVEL = 1e-3
 _TRAVEL = Bound(lambda E: E.stroke + E.overtravel, "stroke + overtravel")
-_NUT_ANGLE = Bound(lambda E: (E.stroke + E.overtravel) / _r(E), "stroke + overtravel, at the nut")
+_NUT_ANGLE = Bound(lambda E: (E.stroke + E.overtravel) / lead_ratio(E), "stroke + overtravel, at the nut")
 _SPEED = Bound(lambda E: MARGIN * no_load_speed(E), f"{MARGIN:g} x the no-load speed V_dc/K_e")
-_ROD_SPEED = Bound(lambda E: MARGIN * no_load_speed(E) * _r(E), f"{MARGIN:g} x the no-load speed, at the rod")
+_ROD_SPEED = Bound(lambda E: MARGIN * no_load_speed(E) * lead_ratio(E), f"{MARGIN:g} x the no-load speed, at the rod")
 _FORCE = Bound(lambda E: MARGIN * held_force(E), f"{MARGIN:g} x the largest force the motor holds")
 # the elastic rod also rings on the screw spring: a load step F excites F/sqrt(C M)
 # (1.1 m/s at 30 kN on the reference set), so its bound adds that of the largest load
-_RINGING_ROD = Bound(lambda E: MARGIN * no_load_speed(E) * _r(E) + MARGIN * held_force(E) / math.sqrt(E.C * E.M),
+_RINGING_ROD = Bound(lambda E: MARGIN * no_load_speed(E) * lead_ratio(E)
+                     + MARGIN * held_force(E) / math.sqrt(E.C * E.M),
                      f"{MARGIN:g} x the no-load speed at the rod + its ringing under the largest load step")
 _LIMITS = {"overtravel": lambda P: OVERTRAVEL}
 
@@ -161,16 +162,12 @@ ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model 
 # declared by the thermal parts, which pass it on as eta_screw (or replace it by eta(T_s))
 
 
-def _r(P):
-    return P.p / (2 * ca.pi)
-
-
 def _shaft_states(contact: bool):
     return (
-        State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / _r(P), travel=_r,
-              bound=_NUT_ANGLE),
+        State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / lead_ratio(P),
+              travel=lead_ratio, bound=_NUT_ANGLE),
         State("omega", "rad/s", "motor speed", roles=("shaft_speed",) + (("contact_velocity",) if contact else ()),
-              scale=lambda P: P.v_max / _r(P), bound=_SPEED),
+              scale=lambda P: P.v_max / lead_ratio(P), bound=_SPEED),
     )
 
 
@@ -220,15 +217,15 @@ class Elastic(Part):
             return ca.if_else(b["stick"], 0, b["F_net"] / b.P.M)
 
         return {
-            "x_in": lambda b: b["phi"] * _r(b.P),
-            "v_in": lambda b: b["omega"] * _r(b.P),
+            "x_in": lambda b: b["phi"] * lead_ratio(b.P),
+            "v_in": lambda b: b["omega"] * lead_ratio(b.P),
             ("F_in", "E_spring", "P_contact"): screw,
             "v_contact": lambda b: b["v_rod"],
             "x_rod_mech": lambda b: b["x_rod"],
             "v_rod_mech": lambda b: b["v_rod"],
             "F_drive": lambda b: b["F_in"] - b["F_load_rod"],
             "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"]),
-            "T_load": lambda b: _r(b.P) * b["F_in"] * b["g_screw"],
+            "T_load": lambda b: lead_ratio(b.P) * b["F_in"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
             der("omega"): lambda b: _shaft(b, b.P.J_m + b.P.J_s),
             der("x_rod"): lambda b: b["v_rod"],
@@ -266,15 +263,15 @@ class Rigid(Part):
             # the force that holds the shaft (omega-dot = 0): the net motor torque
             # referred to the rod through the screw, minus the load
             T_net = b["T_m"] - b.P.b_m * b["omega"]
-            g_hold = efficiency_factor(T_net / _r(b.P), b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"])
-            return T_net / (_r(b.P) * g_hold) - b["F_load_rod"]
+            g_hold = efficiency_factor(T_net / lead_ratio(b.P), b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"])
+            return T_net / (lead_ratio(b.P) * g_hold) - b["F_load_rod"]
 
         def shaft_rate(b):
             return ca.if_else(b["stick"], 0, _shaft(b, _J_eq(b.P)))
 
         return {
-            "x_in": lambda b: b["phi"] * _r(b.P),
-            "v_in": lambda b: b["omega"] * _r(b.P),
+            "x_in": lambda b: b["phi"] * lead_ratio(b.P),
+            "v_in": lambda b: b["omega"] * lead_ratio(b.P),
             "x_rod": lambda b: b["x_play"],
             "v_rod": lambda b: b["v_in"],
             "v_contact": lambda b: b["v_in"],
@@ -284,11 +281,11 @@ class Rigid(Part):
             "F_drive": drive,
             "F_load": lambda b: b["F_load_rod"] + b["F_friction"],
             "g_screw": lambda b: efficiency_factor(b["F_load"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"]),
-            "T_load": lambda b: _r(b.P) * b["F_load"] * b["g_screw"],
+            "T_load": lambda b: lead_ratio(b.P) * b["F_load"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
             der("omega"): shaft_rate,
             der("x_play"): lambda b: play_rate(b["x_in"], b["v_in"], b["x_play"], b.P.B),
-            "F_in": lambda b: b["F_load"] + b.P.M * _r(b.P) * b[der("omega")],
+            "F_in": lambda b: b["F_load"] + b.P.M * lead_ratio(b.P) * b[der("omega")],
             "P_screw_nut": lambda b: b["T_load"] * b["omega"] - b["F_load"] * b["v_in"],
             "E_kin": lambda b: 0.5 * _J_eq(b.P) * b["omega"] ** 2,
             "P_load": lambda b: b["f_ext"] * b["v_rod"],
@@ -297,4 +294,4 @@ class Rigid(Part):
 
 def _J_eq(P):
     """Inertia referred to the shaft, J_rot + M (p/2pi)^2 (kg m^2)."""
-    return P.J_m + P.J_s + P.M * _r(P) ** 2
+    return P.J_m + P.J_s + P.M * lead_ratio(P) ** 2

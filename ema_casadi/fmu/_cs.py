@@ -64,6 +64,17 @@ def _variables(model: Model, lay: Layout, dt: float) -> list[dict]:
     return out
 
 
+def _common_elements(root, variables):
+    """Unit definitions, log categories and the default experiment (the same in FMI 2.0
+    and 3.0); returns the ModelVariables element."""
+    root.append(unit_definitions(v["unit"] for v in variables))
+    cats = ET.SubElement(root, "LogCategories")
+    for cat in ("logStatusError", "logAll"):
+        ET.SubElement(cats, "Category", name=cat)
+    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="1.0", stepSize="0.001")
+    return ET.SubElement(root, "ModelVariables")
+
+
 def _vars_header(name: str, guid: str, dt: float, variables: list[dict]) -> str:
     """Value reference = position in ``variables``; the time (FMI 3.0's independent
     variable) comes last."""
@@ -100,12 +111,7 @@ def _model_description(name, guid, description, variables, sources) -> str:
     files = ET.SubElement(cs, "SourceFiles")
     for src in sources:
         ET.SubElement(files, "File", name=src)
-    root.append(unit_definitions(v["unit"] for v in variables))
-    cats = ET.SubElement(root, "LogCategories")
-    for cat in ("logStatusError", "logAll"):
-        ET.SubElement(cats, "Category", name=cat)
-    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="1.0", stepSize="0.001")
-    mv = ET.SubElement(root, "ModelVariables")
+    mv = _common_elements(root, variables)
     for vr, v in enumerate(variables):
         attrs = {"name": v["name"], "valueReference": str(vr), "description": v["description"],
                  "causality": v["causality"], "variability": v["variability"]}
@@ -142,12 +148,7 @@ def _model_description_3(name, guid, description, variables) -> str:
         "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
         "providesAdjointDerivatives": "false", "maxOutputDerivativeOrder": "0", "hasEventMode": "false",
         "providesIntermediateUpdate": "false", "mightReturnEarlyFromDoStep": "false"})
-    root.append(unit_definitions(v["unit"] for v in variables))
-    cats = ET.SubElement(root, "LogCategories")
-    for cat in ("logStatusError", "logAll"):
-        ET.SubElement(cats, "Category", name=cat)
-    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="1.0", stepSize="0.001")
-    mv = ET.SubElement(root, "ModelVariables")
+    mv = _common_elements(root, variables)
     ET.SubElement(mv, "Float64", name="time", valueReference=str(len(variables)), causality="independent",
                   variability="continuous", description="simulation time", unit="s")
     for vr, v in enumerate(variables):
