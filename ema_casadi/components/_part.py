@@ -270,6 +270,9 @@ class Part:
     limits: ClassVar[dict] = {}
     #: loss signal -> the thermal node its heat reaches (HEAT_NODES); summed per node
     heat: ClassVar[dict] = {}
+    #: Variant key -> values this part works with (e.g. the PWM bridge needs the
+    #: three-phase motor); :func:`validate_variants` refuses other combinations.
+    requires: ClassVar[dict] = {}
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})

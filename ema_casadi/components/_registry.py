@@ -69,6 +69,12 @@ def validate_variants(variants: dict | None, where: str = "variant") -> dict[str
         if value not in VARIANTS[key]:
             raise VariantError(f"{where}: unknown {key} variant '{value}'; allowed: {', '.join(VARIANTS[key])}")
         out[key] = value
+    for key, values in REGISTRY.items():
+        for other, allowed in values[out[key]].requires.items():
+            if out[other] not in allowed:
+                raise VariantError(
+                    f"{where}: {key}={out[key]} needs {other}={' or '.join(allowed)}, got {other}={out[other]}"
+                )
     return out
 
 

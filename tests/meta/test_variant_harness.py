@@ -1,7 +1,11 @@
 """One harness over every variant combination (PyBaMM's ``StandardModelTest``).
 
-Every combination of the variant keys (the registry's, options at their defaults),
-plus each non-default option value on the default model, is built and put through
+Every combination of the actuator's core variant keys (``CORE``, options at their
+defaults); for every other key (added families such as the supply or the airframe),
+every pair of its non-default values with every value of any other key (all-pairs
+coverage: the full product would multiply the suite); plus each non-default option
+value on the default model. Combinations the registry refuses (``validate_variants``
+raises) are checked for their one-line error instead. Every case is built and put through
 the same steps: the right-hand side at the declared initial state is finite; the model
 trims at rest and under 15 kN; the linearisation there is finite and, for the
 continuous (non-hybrid) models, asymptotically stable.
@@ -19,7 +23,7 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
-from ema_casadi.components import DEFAULT_VARIANTS, OPTIONS, REGISTRY
+from ema_casadi.components import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VariantError, validate_variants
 
 K_I_X = 400.0  # 1/s^2
 LOADS = [pytest.param(0.0, id="rest"), pytest.param(15e3, id="15kN")]
@@ -30,20 +34,65 @@ def _label(variants: dict) -> str:
     return "-".join(changed) or "default"
 
 
+#: The keys crossed in full; every other key is covered pairwise.
+CORE = ("controller", "motor", "inverter", "screw", "friction", "endstop", "thermal")
+
+
+def _accepted(variants: dict) -> bool:
+    try:
+        validate_variants(variants)
+    except VariantError:
+        return False
+    return True
+
+
+def _all_combinations():
+    core = [k for k in REGISTRY if k in CORE]
+    base = {k: DEFAULT_VARIANTS[k] for k in REGISTRY}
+    combos = [base | dict(zip(core, values, strict=True)) for values in itertools.product(*(REGISTRY[k] for k in core))]
+    others = [k for k in REGISTRY if k not in CORE]
+    for k in others:
+        for v in list(REGISTRY[k])[1:]:
+            combos.append(base | {k: v})
+            for k2 in REGISTRY:
+                if k2 == k:
+                    continue
+                for v2 in list(REGISTRY[k2])[1:]:
+                    combos.append(base | {k: v, k2: v2})
+    unique = {tuple(sorted(c.items())): c for c in combos}
+    return list(unique.values())
+
+
 def _cases():
-    combos = [dict(zip(REGISTRY, values, strict=True)) for values in itertools.product(*REGISTRY.values())]
+    combos = [v for v in _all_combinations() if _accepted(v)]
     options = [{key: value} for key, allowed in OPTIONS.items() for value in allowed[1:]]
     return [pytest.param(v, id=_label(v)) for v in combos + options]
 
 
+REFUSED = [pytest.param(v, id=_label(v)) for v in _all_combinations() if not _accepted(v)]
 CASES = _cases()
 
 
 def test_the_harness_covers_every_combination():
-    n_combos = int(np.prod([len(values) for values in REGISTRY.values()]))
+    core = [k for k in REGISTRY if k in CORE]
+    n_core = int(np.prod([len(REGISTRY[k]) for k in core]))
     n_options = sum(len(allowed) - 1 for allowed in OPTIONS.values())
-    assert len(CASES) == n_combos + n_options
+    assert len(CASES) + len(REFUSED) >= n_core + n_options
     assert len({c.id for c in CASES}) == len(CASES)
+    # every pair of values of two keys, one of them outside the core, appears in a case
+    for k in (k for k in REGISTRY if k not in CORE):
+        for v in REGISTRY[k]:
+            for k2 in (x for x in REGISTRY if x != k):
+                for v2 in REGISTRY[k2]:
+                    hit = [c for c in CASES + REFUSED if c.values[0][k] == v and c.values[0][k2] == v2]
+                    assert hit, (k, v, k2, v2)
+
+
+@pytest.mark.parametrize("variants", REFUSED or [pytest.param(None, marks=pytest.mark.skip("none refused"))])
+def test_refused_combinations_say_why_in_one_line(variants):
+    with pytest.raises(VariantError) as err:
+        validate_variants(variants)
+    assert "\n" not in str(err.value) and len(str(err.value)) < 300
 
 
 @pytest.mark.parametrize("variants", CASES)
