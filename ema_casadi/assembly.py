@@ -43,6 +43,7 @@ import casadi as ca
 import numpy as np
 
 from ._kwargs import check_keywords
+from ._switched import switched_split
 from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
 from .params import ParameterError, Parameters
 
@@ -98,6 +99,15 @@ class Model:
     sample: ca.Function
     project: ca.Function
     parts: tuple = ()
+    #: Switched models (a PWM bridge): the switched signals, the carrier-frequency
+    #: parameter, ``f_switched(x, u, p, h, s) -> (xdot, y)`` (``f_held`` with the switched
+    #: signals ``s`` set) and ``schedule(x, u, p, h) -> (D, S)``: the sub-interval lengths
+    #: (n_half x n_sub) and the switched values in each (n_sw x n_half*n_sub) of one carrier
+    #: period from its start. None / () for a continuous model.
+    switched: tuple = ()
+    carrier: str | None = None
+    f_switched: ca.Function | None = None
+    schedule: ca.Function | None = None
     state_info: dict = field(default_factory=dict)
     input_info: dict = field(default_factory=dict)
     output_info: dict = field(default_factory=dict)
@@ -434,7 +444,8 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     integrators = [n for n, s in states.items() if s.loop is not None]
     f_held, sample = _zoh(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators)
     project = _projection(parts, bus, x, u, p)
-    return Model(
+    switching = switched_split(parts, bus, evaluate, x, u, p, holds, integrators)
+    return Model(**switching,
         variants=v, params=params, states=tuple(states), inputs=tuple(inputs), outputs=tuple(outputs),
         param_names=tuple(names), f=f, f_held=f_held, sample=sample, project=project, parts=tuple(parts),
         state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,

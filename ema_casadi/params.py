@@ -141,6 +141,11 @@ class Power:
     V_sw_ref: float = _p("V", POS, "reference voltage of E_sw (V)")
     I_sw_ref: float = _p("A", POS, "reference current of E_sw (A)")
     t_dead: float = _p("s", NONNEG, "dead time (s)")
+    # -- supply line (supply = "line"; issue 11): source V_dc behind R_line, L_line feeding C_dc.
+    # MIL-STD-704F normal range of a 270 V DC bus: 250-280 V (documented operating range of V_dc).
+    R_line: float = _p("Ohm", POS, "supply-line resistance, source to DC link (Ohm)", default=0.1)
+    L_line: float = _p("H", POS, "supply-line inductance, source to DC link (H)", default=20e-6)
+    C_dc: float = _p("F", POS, "DC-link capacitance (F)", default=200e-6)
 
 
 @dataclass(frozen=True)
