@@ -182,6 +182,31 @@ def leg_losses(s, i, P):
     return share_T * (P.V_CE0 * a + P.r_CE * i**2), (1 - share_T) * (P.V_F0 * a + P.r_F * i**2)
 
 
+def averaged_device_losses(i_d, i_q, v_d, v_q, v_dc, P):
+    """Conduction losses of the six IGBTs and of the six diodes (W), averaged over the
+    carrier and over an electrical period of sinusoidal currents of amplitude
+    I = |i_dq| (the classic modulation-dependent formulas of a PWM leg):
+    IGBT V_CE0 I (1/(2 pi) + m/8) + r_CE I^2 (1/8 + m/(3 pi)), diode V_F0 I (1/(2 pi) - m/8)
+    + r_F I^2 (1/8 - m/(3 pi)) per device, m = M cos(phi) = 2 (v . i)/(v_dc |i|)
+    (the SVPWM zero sequence moves the split by well under 1 %; at standstill the
+    currents are DC and this is the documented approximation of the ideal bridge).
+
+    Parameters
+    ----------
+    i_d, i_q, v_d, v_q : SX
+        Currents (A) and voltages (V) in the dq frame.
+    v_dc : SX
+        DC-link voltage (V).
+    P : SimpleNamespace
+        Parameter symbols (uses ``V_CE0``, ``r_CE``, ``V_F0``, ``r_F``).
+    """
+    I = current_amplitude(i_d, i_q)
+    m = 2 * (v_d * i_d + v_q * i_q) / (v_dc * (I + (I == 0)))
+    P_T = 6 * (P.V_CE0 * I * (1 / (2 * ca.pi) + m / 8) + P.r_CE * I**2 * (1 / 8 + m / (3 * ca.pi)))
+    P_D = 6 * (P.V_F0 * I * (1 / (2 * ca.pi) - m / 8) + P.r_F * I**2 * (1 / 8 - m / (3 * ca.pi)))
+    return P_T, P_D
+
+
 def _sort3(a, b, c):
     lo, hi = ca.fmin(a, b), ca.fmax(a, b)
     lo, mid = ca.fmin(lo, c), ca.fmax(lo, c)
@@ -201,7 +226,7 @@ def half_period(edges, rising, T_half):
     states = []
     for j in range(4):
         mid = 0.5 * (bounds[j] + bounds[j + 1])
-        states.append([(mid > t) if rising else (mid < t) for t in e])
+        states.append([*((mid > t) if rising else (mid < t) for t in e), 1])
     return durations, states
 
 
@@ -244,26 +269,51 @@ class Pwm(Part):
     )
     params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp")
     heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
-    switched = tuple(f"s_{k}" for k in LEGS)
+    #: the leg states, and ``sw``: 1 in the switched simulation, 0 in the continuous model
+    switched = (*(f"s_{k}" for k in LEGS), "sw")
     carrier = "f_sw"
 
     def signals(self):
         def theta(b):
             return b.P.pp * b.state("shaft_angle")
 
+        def reference(b):
+            # the held reference within the hexagon's inscribed circle v_dc/sqrt(3) (the FOC
+            # limit k_v <= 1 keeps it there; a lifted trim or a link dip may not), where the
+            # min-max SVPWM is linear and its average leg voltages reproduce it exactly
+            v_d, v_q = b["v_d_ref"], b["v_q_ref"]
+            scale = ca.fmin(1, (b["v_dc"] / SQRT3) / ca.sqrt(v_d**2 + v_q**2 + 1e-12))
+            return scale * v_d, scale * v_q
+
         def duties(b):
-            return svpwm_duties(*inverse_park(b["v_d_ref"], b["v_q_ref"], b["theta_e"]), b["v_dc"])
+            return svpwm_duties(*inverse_park(b["v_d_lin"], b["v_q_lin"], b["theta_e"]), b["v_dc"])
 
         def phase_voltages(b):
             s = [b[f"s_{k}"] for k in LEGS]
             mean = (s[0] + s[1] + s[2]) / 3
             return tuple(b["v_dc"] * (sk - mean) for sk in s)
 
+        def winding_voltages(b):
+            # Park of the phase voltages, written as the reference plus the Park of the
+            # switching error v_dc ((s - d) - mean): the same value (the duties reproduce
+            # the reference), and exactly the reference, independent of the shaft angle,
+            # in the continuous model where s = d (trim and linearisation see no round-off)
+            e = [b["sw"] * (b[f"s_{k}"] - b[f"d_{k}"]) for k in LEGS]
+            mean = (e[0] + e[1] + e[2]) / 3
+            e_d, e_q = park(*(b["v_dc"] * (ek - mean) for ek in e), b["theta_e"])
+            return b["v_d_lin"] + e_d, b["v_q_lin"] + e_q
+
         def losses(b):
+            # switched (sw = 1): each device's instantaneous conduction loss; continuous
+            # (sw = 0): the electrical-period average of its carrier-period average
+            # (averaged_device_losses), independent of the rotor angle like the ideal bridge's
             parts = [leg_losses(b[f"s_{k}"], b[f"i_{k}"], b.P) for k in LEGS]
-            P_T = parts[0][0] + parts[1][0] + parts[2][0]
-            P_D = parts[0][1] + parts[1][1] + parts[2][1]
+            sw = b["sw"]
+            P_T0, P_D0 = averaged_device_losses(b["i_d"], b["i_q"], b["v_d_lin"], b["v_q_lin"], b["v_dc"], b.P)
+            P_T = sw * (parts[0][0] + parts[1][0] + parts[2][0]) + (1 - sw) * P_T0
+            P_D = sw * (parts[0][1] + parts[1][1] + parts[2][1]) + (1 - sw) * P_D0
             i_abs = ca.fabs(b["i_a"]) + ca.fabs(b["i_b"]) + ca.fabs(b["i_c"])
+            i_abs = sw * i_abs + (1 - sw) * 6 / ca.pi * current_amplitude(b["i_d"], b["i_q"])
             P_sw = b.P.f_sw * b.P.E_sw * (b["v_dc"] / b.P.V_sw_ref) * (i_abs / b.P.I_sw_ref)
             return P_T, P_D, P_T + P_D, P_sw
 
@@ -273,12 +323,17 @@ class Pwm(Part):
             **{f"s_{k}": (lambda b, k=k: b[f"d_{k}"]) for k in LEGS},
             ("i_a", "i_b", "i_c"): lambda b: inverse_park(b["i_d"], b["i_q"], b["theta_e"]),
             ("v_an", "v_bn", "v_cn"): phase_voltages,
-            ("v_d", "v_q"): lambda b: park(b["v_an"], b["v_bn"], b["v_cn"], b["theta_e"]),
+            ("v_d_lin", "v_q_lin"): reference,
+            ("v_d", "v_q"): winding_voltages,
             "v_ab": lambda b: b["v_an"] - b["v_bn"],
             "v_bc": lambda b: b["v_bn"] - b["v_cn"],
             "i_dc": lambda b: b["s_a"] * b["i_a"] + b["s_b"] * b["i_b"] + b["s_c"] * b["i_c"],
             ("P_cond_T", "P_cond_D", "P_inv_cond", "P_inv_sw"): losses,
-            "P_bridge": lambda b: b["v_dc"] * b["i_dc"] + b["P_inv_cond"] + b["P_inv_sw"],
+            "sw": lambda b: 0,
+            # the continuous model draws the winding power itself (v_dc i_dc equals it but
+            # for round-off that would depend on the rotor angle)
+            "P_bridge": lambda b: (b["sw"] * b["v_dc"] * b["i_dc"] + (1 - b["sw"]) * b["P_elec"] + b["P_inv_cond"]
+                                   + b["P_inv_sw"]),
         }
 
     def schedule(self, b):

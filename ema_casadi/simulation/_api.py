@@ -364,7 +364,8 @@ def _run_rk4(model, plan: _Plan, sig, pv, x0, zoh, jit, progress) -> SimResult:
 def _thin(res: SimResult, keep: np.ndarray) -> SimResult:
     return SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
                      outputs={k: v[keep] for k, v in res.outputs.items()},
-                     states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table)
+                     states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table,
+                     kinds=res.kinds)
 
 
 def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress) -> SimResult:
@@ -402,6 +403,6 @@ def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress
         t=t, inputs={name: s(t) for name, s in sig.items()},
         outputs={k: np.append(v, last.outputs[k][-1]) for k, v in head.outputs.items()},
         states={k: np.append(v, last.states[k][-1]) for k, v in head.states.items()},
-        info=info, unit_table=head.unit_table,
+        info=info, unit_table=head.unit_table, kinds=head.kinds,
     )
 
