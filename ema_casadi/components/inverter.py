@@ -254,6 +254,8 @@ class Pwm(Part):
     outputs = (
         Output("v_d", "V", "d-axis winding voltage (Park of the phase voltages)"),
         Output("v_q", "V", "q-axis winding voltage"),
+        Output("v_d_avg", "V", "d-axis voltage of the averaged bridge: the held reference within v_dc/sqrt(3)"),
+        Output("v_q_avg", "V", "q-axis voltage of the averaged bridge"),
         Output("P_inv_cond", "W", "inverter conduction loss (IGBTs and diodes)", kind="loss"),
         Output("P_inv_sw", "W", "inverter switching loss (carrier-period average)", kind="loss"),
         _P_BRIDGE,
@@ -286,7 +288,7 @@ class Pwm(Part):
             return scale * v_d, scale * v_q
 
         def duties(b):
-            return svpwm_duties(*inverse_park(b["v_d_lin"], b["v_q_lin"], b["theta_e"]), b["v_dc"])
+            return svpwm_duties(*inverse_park(b["v_d_avg"], b["v_q_avg"], b["theta_e"]), b["v_dc"])
 
         def phase_voltages(b):
             s = [b[f"s_{k}"] for k in LEGS]
@@ -301,7 +303,7 @@ class Pwm(Part):
             e = [b["sw"] * (b[f"s_{k}"] - b[f"d_{k}"]) for k in LEGS]
             mean = (e[0] + e[1] + e[2]) / 3
             e_d, e_q = park(*(b["v_dc"] * (ek - mean) for ek in e), b["theta_e"])
-            return b["v_d_lin"] + e_d, b["v_q_lin"] + e_q
+            return b["v_d_avg"] + e_d, b["v_q_avg"] + e_q
 
         def losses(b):
             # switched (sw = 1): each device's instantaneous conduction loss; continuous
@@ -309,7 +311,7 @@ class Pwm(Part):
             # (averaged_device_losses), independent of the rotor angle like the ideal bridge's
             parts = [leg_losses(b[f"s_{k}"], b[f"i_{k}"], b.P) for k in LEGS]
             sw = b["sw"]
-            P_T0, P_D0 = averaged_device_losses(b["i_d"], b["i_q"], b["v_d_lin"], b["v_q_lin"], b["v_dc"], b.P)
+            P_T0, P_D0 = averaged_device_losses(b["i_d"], b["i_q"], b["v_d_avg"], b["v_q_avg"], b["v_dc"], b.P)
             P_T = sw * (parts[0][0] + parts[1][0] + parts[2][0]) + (1 - sw) * P_T0
             P_D = sw * (parts[0][1] + parts[1][1] + parts[2][1]) + (1 - sw) * P_D0
             i_abs = ca.fabs(b["i_a"]) + ca.fabs(b["i_b"]) + ca.fabs(b["i_c"])
@@ -323,7 +325,7 @@ class Pwm(Part):
             **{f"s_{k}": (lambda b, k=k: b[f"d_{k}"]) for k in LEGS},
             ("i_a", "i_b", "i_c"): lambda b: inverse_park(b["i_d"], b["i_q"], b["theta_e"]),
             ("v_an", "v_bn", "v_cn"): phase_voltages,
-            ("v_d_lin", "v_q_lin"): reference,
+            ("v_d_avg", "v_q_avg"): reference,
             ("v_d", "v_q"): winding_voltages,
             "v_ab": lambda b: b["v_an"] - b["v_bn"],
             "v_bc": lambda b: b["v_bn"] - b["v_cn"],

@@ -285,11 +285,14 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
     info = {"status": "completed", "carrier_periods": g.periods, "rk4_per_subinterval": g.n,
             "update": "double" if g.double else "single", "compute_time": time.perf_counter() - t_comp,
             "energies": dict(zip(names_q, map(float, Q_end), strict=True)), "switched": True,
+            # the running integrals at the kept samples (window energies: differences)
+            "energy_series": {n: Xa[nx + nh + i].copy() for i, n in enumerate(names_q)},
             "dt_out": None if g.resolve else g.k_req * g.T, "zoh": True, **cinfo}
     res = _result(model, sig, t, X, Y, info)
     if not g.resolve and g.k_req != g.k:
         keep = np.nonzero((np.arange(len(t)) * g.k) % g.k_req == 0)[0]
         keep = np.union1d(keep, [len(t) - 1])
+        info["energy_series"] = {n: v[keep] for n, v in info["energy_series"].items()}
         res = SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
                         outputs={k: v[keep] for k, v in res.outputs.items()},
                         states={k: v[keep] for k, v in res.states.items()}, info=info, unit_table=res.unit_table,
