@@ -207,7 +207,7 @@ def test_energy_balance_at_the_input(model_cache, supply, scenario):
     # integrates its powers as quadratures in its own steps; the averaged one by trapezoid
     # at 5 us. Measured |residual| / int |P_dc|: averaged <= 7.6e-5, switched <= 3.2e-5 (both
     # RK4 on the load step at t = 0; 5e-10 on the reference scenario); asserted 0.5 % (the
-    # issue's bound). The scale int |P_dc| (3.2 J, 189 J) from the averaged run.
+    # issue's bound). The scale int |P_dc| (12.3 J, ~190 J) from the averaged run.
     t_end, x_cmd, load = SCENARIOS[scenario]
     av_model = model_cache(supply=supply)
     sw_model = model_cache(inverter="pwm", supply=supply)
@@ -216,7 +216,7 @@ def test_energy_balance_at_the_input(model_cache, supply, scenario):
     sw = ema.simulate(sw_model, t_end, x_cmd, load, dt=5e-6, dt_out=1e-3)
     for model, r in ((av_model, av), (sw_model, sw)):
         E_in, residual = _balance(model, r, r.energies())
-        assert E_in > 0.9 * scale
+        assert E_in > 0.2 * scale  # a net draw (the rest is regenerated and drawn again)
         assert abs(residual) < 5e-3 * scale
 
 
