@@ -38,7 +38,7 @@ from ._inputs import _initial_projection, _input_matrix
 from ._result import SimResult, SimulationError, _result, progress_bar
 from ._rk4 import _flags, _rk4
 
-__all__ = ["PERIODS_PER_CALL", "energy_outputs", "pwm_period_function"]
+__all__ = ["PERIODS_PER_CALL", "energy_outputs", "pwm_period_function", "check_switched", "simulate_pwm"]
 
 #: Carrier periods per compiled call (bounds the input buffers of a chunk).
 PERIODS_PER_CALL = 4000
@@ -186,6 +186,30 @@ def _build(model, n, double, k, M, resolve, name):
     return ca.Function(name, [x0, U, F, p], out, ["x0", "U", "F", "p"], names)
 
 
+def check_switched(model: Model, pv, t_end: float, error: type = SimulationError, label: str = "t_end") -> None:
+    """Refuse (``error``, one line) a switched run whose ``t_end`` is not a whole number
+    of carrier periods or whose current loop is not synchronous with the carrier.
+
+    Parameters
+    ----------
+    model : Model
+        A switched model.
+    pv : array_like
+        Its parameter vector.
+    t_end : float
+        End time (s).
+    error : type
+        The exception raised.
+    label : str
+        The name of ``t_end`` in the message (``--t-end``).
+    """
+    try:
+        _Grid(model, pv, t_end, 1e-5, None)
+    except SimulationError as exc:
+        text = str(exc)
+        raise error(label + text[len("t_end"):] if text.startswith("t_end") else text) from None
+
+
 class _Grid:
     """The carrier grid of a run: periods, periods per kept sample, RK4 steps per
     sub-interval, update mode."""
@@ -267,6 +291,30 @@ def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) ->
     return _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit)
 
 
+_CHUNK = 1024
+
+
+def _outputs(model, X, U, pv, H, S, jit):
+    """The outputs of ``f_switched`` at many samples: a compiled map over chunks."""
+    key = ("pwm_outputs", jit)
+    if key not in model.cache:
+        f = model.f_switched
+        args = [ca.MX.sym(f.name_in(i), f.size1_in(i), _CHUNK if i != 2 else 1) for i in range(f.n_in())]
+        F = ca.Function("pwm_outputs", args, [f.map(_CHUNK)(*args)[1]])
+        parts = [_SOURCE, "pwm_outputs", f.serialize()]
+        model.cache[key] = BufferCall(compile_keyed("pwm_outputs", parts, lambda: F, jit)[0])
+    call = model.cache[key]
+    n = X.shape[1]
+    Y = np.empty((model.ny, n))
+    for c in range(0, n, _CHUNK):
+        m = min(_CHUNK, n - c)
+        pad = [np.zeros((A.shape[0], _CHUNK)) for A in (X, U, H, S)]
+        for P_, A in zip(pad, (X, U, H, S), strict=True):
+            P_[:, :m] = A[:, c : c + m]
+        Y[:, c : c + m] = call(pad[0], pad[1], pv, pad[2], pad[3])[0][:, :m]
+    return Y
+
+
 def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
     """Outputs at the kept samples (``f_switched`` with the leg states of the sub-interval
     that starts there; at a period end without ``resolve``, of the one that ends there),
@@ -278,8 +326,7 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
         D, Sp = model.schedule(X[:, 0], U[:, 0], pv, H[:, 0])
         s_end = np.asarray(Sp)[:, -1]
         S = np.repeat(s_end[:, None], len(t), 1)
-    fy = model.f_switched.map(len(t))
-    Y = np.asarray(fy(X, U, pv, H, S)[1])
+    Y = _outputs(model, X, U, pv, H, S, jit)
     if not g.resolve:  # at t = 0 the ECU has not sampled yet: the continuous law
         Y[:, 0] = np.asarray(model.f(X[:, 0], U[:, 0], pv)[1]).ravel()
     info = {"status": "completed", "carrier_periods": g.periods, "rk4_per_subinterval": g.n,

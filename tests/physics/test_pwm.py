@@ -263,3 +263,18 @@ def test_line_at_250V_still_reaches_80mm_s(model_cache):
     r = ema.simulate(model, 0.15, Signal.step(10e-3, 0.005), 0.0, dt=5e-6, dt_out=62.5e-6, p=model.p(V_dc=250.0))
     slew = (r.t > 0.05) & (r.t < 0.1)
     assert r["v_rod"][slew].mean() > 0.99 * 0.08
+
+
+def test_cli_simulates_and_plots_the_switched_bridge(tmp_path, capsys):
+    # `ema simulate --variant inverter=pwm` picks the carrier-synchronous stepper by itself
+    from conftest import REFERENCE
+    from ema_casadi.cli import main
+
+    png, csv = tmp_path / "pwm.png", tmp_path / "pwm.csv"
+    rc = main(["simulate", str(REFERENCE), "--variant", "inverter=pwm", "--variant", "supply=line", "--t-end", "0.01",
+               "--plot", str(png), "--out", str(csv)])
+    assert rc in (0, None)
+    assert png.stat().st_size > 10_000 and csv.stat().st_size > 0
+    head = csv.read_text().splitlines()[0].split(",")
+    assert {"i_a", "s_a", "v_an", "v_ab", "i_dc", "v_dc", "P_dc"} <= set(head)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pwm.csv", "pwm.png"]
