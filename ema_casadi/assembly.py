@@ -81,6 +81,13 @@ class Model:
         Loop name -> :class:`~ema_casadi.components.Loop`, outer to inner.
     holds : tuple
         The controller outputs held between ECU samples (``h`` of ``f_held``).
+    switched, carrier : tuple of str, str or None
+        A switched part's switched signals (PWM leg states, flag ``sw``) and its
+        carrier-frequency parameter; () and None for a continuous model.
+    f_switched, schedule : casadi.Function or None
+        ``f_switched(x, u, p, h, s) -> (xdot, y)``, :attr:`f_held` with the switched
+        signals ``s``; ``schedule(x, u, p, h) -> (D, S)``: sub-interval lengths of a
+        carrier period's halves (2 x 4) and the switched values in each (n_sw x 8).
     ignored : tuple of str
         Option keys of the variant dict that no chosen part reads (e.g.
         ``friction_shape`` with hybrid friction): accepted and ignored.
@@ -99,11 +106,6 @@ class Model:
     sample: ca.Function
     project: ca.Function
     parts: tuple = ()
-    #: Switched models (a PWM bridge): the switched signals, the carrier-frequency
-    #: parameter, ``f_switched(x, u, p, h, s) -> (xdot, y)`` (``f_held`` with the switched
-    #: signals ``s`` set) and ``schedule(x, u, p, h) -> (D, S)``: the sub-interval lengths
-    #: (n_half x n_sub) and the switched values in each (n_sw x n_half*n_sub) of one carrier
-    #: period from its start. None / () for a continuous model.
     switched: tuple = ()
     carrier: str | None = None
     f_switched: ca.Function | None = None

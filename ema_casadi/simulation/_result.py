@@ -34,6 +34,8 @@ class SimResult:
         Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
     unit_table : dict
         Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
+    kinds : dict
+        Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
     """
 
     t: np.ndarray
@@ -42,7 +44,6 @@ class SimResult:
     states: dict
     info: dict = field(default_factory=dict)
     unit_table: dict = field(default_factory=dict)
-    #: output name -> its kind (``loss``, ``power``, ...; the model's declarations)
     kinds: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
