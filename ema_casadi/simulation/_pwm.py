@@ -4,12 +4,13 @@ One compiled step advances one carrier period T = 1/f_sw: the ECU samples at its
 (and at the valley T/2 for double update: the current loop at 2 f_sw), the model's
 ``schedule`` gives the sub-intervals of each half period in closed form from the duty
 cycles (four per half: the three legs' edges sorted), and each sub-interval, whose leg
-states are constant, is integrated with ``n`` RK4 steps of its own length ``D/n`` of
-the smooth dynamics ``f_switched``. The integrator thus steps exactly to every
-switching instant: the result does not depend on the step size beyond the smooth
-dynamics' RK4 error, and the power and loss outputs are integrated as quadratures in
-the same steps (:meth:`~ema_casadi.simulation.SimResult.energies` is exact where a
-trapezoid over samples of switched powers is not).
+states are constant, is integrated with k = ceil(D/dt) equal RK4 steps of the smooth
+dynamics ``f_switched`` (D its length, k chosen at run time by a ``conditional``).
+The integrator thus steps exactly to every switching instant: the result does not
+depend on the step size beyond the smooth dynamics' RK4 error, and the power and loss
+outputs are integrated as quadratures in the same steps
+(:meth:`~ema_casadi.simulation.SimResult.energies` is exact where a trapezoid over
+samples of switched powers is not).
 
 The step is rolled out like the RK4 rollout (:mod:`._rk4`): ``fold`` over ``k`` periods
 per kept sample, ``mapaccum`` over the samples of a chunk, compiled and cached with
@@ -98,14 +99,33 @@ def _substep(model: Model, qi) -> ca.Function:
                        ["z", "U2", "tau", "h", "T", "hold", "s", "p"], ["z_next"], opts)
 
 
+def _steps(sub: ca.Function, n: int) -> ca.Function:
+    """``(z, U2, tau0, D, T, hold, s, p) -> z_next``: a sub-interval of length D in k
+    equal RK4 steps, k = ceil(D / hmax) chosen at run time among 0..n (a ``conditional``:
+    only the chosen case runs), so short sub-intervals cost few steps."""
+    z = ca.MX.sym("z", sub.size1_in(0))
+    U2 = ca.MX.sym("U2", *sub.size_in(1))
+    tau0, D, T = ca.MX.sym("tau0"), ca.MX.sym("D"), ca.MX.sym("T")
+    hold, s, p = (ca.MX.sym(sub.name_in(i), sub.size1_in(i)) for i in (5, 6, 7))
+    args = [z, U2, tau0, D, T, hold, s, p]
+    cases = [ca.Function("pwm_steps0", args, [z])]
+    for k in range(1, n + 1):
+        h = D / k
+        fk = sub.fold(k) if k > 1 else sub
+        cases.append(ca.Function(f"pwm_steps{k}", args,
+                                 [fk(z, U2, tau0 + h * ca.DM(np.arange(k)).T, h, T, hold, s, p)]))
+    return ca.Function.conditional("pwm_steps", cases[:-1], cases[-1])
+
+
 def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = False) -> ca.Function:
-    """One carrier period ``(xa, U2, F2, p) -> xa_next`` (with ``resolve`` also the
+    """One carrier period ``(xa, U2, F2, p, hmax) -> xa_next`` (with ``resolve`` also the
     augmented state at the start of each sub-interval, their lengths and switched values).
 
     ``xa`` = [x, held controller outputs, quadratures of :func:`energy_outputs`];
     ``U2`` the inputs at the period's start and end (interpolated linearly in between);
-    ``F2`` the loop flags at its start and at T/2 (used with ``double``). The RK4 step
-    is one Function called (``fold`` over ``n``) for every sub-interval, so the
+    ``F2`` the loop flags at its start and at T/2 (used with ``double``); ``hmax`` the
+    longest RK4 step. Each sub-interval of length D takes ceil(D / hmax) equal steps (at
+    most ``n``). The RK4 step is one Function called for every sub-interval, so the
     generated code holds it once.
 
     Parameters
@@ -113,7 +133,7 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
     model : Model
         A switched model (``model.schedule`` not None).
     n : int
-        RK4 steps per sub-interval.
+        Most RK4 steps of a sub-interval (the longest, T/2, needs ceil(T/2 / hmax)).
     double : bool
         Double update: the ECU samples at T/2 too and the second half follows its
         new references.
@@ -122,15 +142,14 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
     """
     nx, nh = model.nx, len(model.holds)
     qi = [model.yindex(n_) for n_ in energy_outputs(model)]
-    sub = _substep(model, qi)
-    sub_n = sub.fold(n) if n > 1 else sub
+    steps_of = _steps(_substep(model, qi), n)
     xa = ca.MX.sym("x", nx + nh + len(qi))
+    hmax = ca.MX.sym("hmax")
     U2 = ca.MX.sym("U2", model.nu, 2)
     F2 = ca.MX.sym("F2", len(model.loops), 2)
     p = ca.MX.sym("p", len(model.param_names))
     T = 1 / p[model.param_names.index(model.carrier)]
     x, hold, q = xa[:nx], xa[nx : nx + nh], xa[nx + nh :]
-    steps = ca.DM(np.arange(n)).T
     starts, lengths, values = [], [], []
     tau = 0
     D = S = None
@@ -146,8 +165,8 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
             d = D[half, j]
             lengths.append(d)
             values.append(s)
-            h = d / n
-            z = sub_n(ca.vertcat(x, q), U2, tau + h * steps, h, T, hold, s, p)
+            k = ca.fmin(n, ca.ceil(d / hmax - 1e-9))
+            z = steps_of(k, ca.vertcat(x, q), U2, tau, d, T, hold, s, p)
             x, q = z[:nx], z[nx:]
             tau = tau + d
     out = [ca.vertcat(x, hold, q)]
@@ -155,7 +174,7 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
     if resolve:
         out += [ca.horzcat(*starts), ca.horzcat(*lengths), ca.horzcat(*values)]
         names += ["X_sub", "D_sub", "S_sub"]
-    return ca.Function("pwm_period", [xa, U2, F2, p], out, ["x", "U2", "F2", "p"], names)
+    return ca.Function("pwm_period", [xa, U2, F2, p, hmax], out, ["x", "U2", "F2", "p", "hmax"], names)
 
 
 def _rollout(model: Model, n: int, double: bool, k: int, M: int, resolve: bool, jit: bool):
@@ -180,10 +199,11 @@ def _build(model, n, double, k, M, resolve, name):
     U = ca.MX.sym("U", model.nu, 2 * k * M)
     F = ca.MX.sym("F", len(model.loops), 2 * k * M)
     p = ca.MX.sym("p", len(model.param_names))
-    out = roll(x0, U, F, p)
+    hmax = ca.MX.sym("hmax")
+    out = roll(x0, U, F, p, hmax)
     out = list(out) if isinstance(out, (list, tuple)) else [out]
     names = ["X", "X_sub", "D_sub", "S_sub"][: len(out)]
-    return ca.Function(name, [x0, U, F, p], out, ["x0", "U", "F", "p"], names)
+    return ca.Function(name, [x0, U, F, p, hmax], out, ["x0", "U", "F", "p", "hmax"], names)
 
 
 def check_switched(model: Model, pv, t_end: float, error: type = SimulationError, label: str = "t_end") -> None:
@@ -227,12 +247,13 @@ class _Grid:
         self.k = math.gcd(min(k, self.periods), self.periods)
         self.k_req = min(k, self.periods)
         self.n = max(1, math.ceil(0.5 * self.T / dt - 1e-9))
+        self.hmax = dt
         self.double = _update(model, pv)
 
 
 def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) -> SimResult:
     """The carrier-synchronous run (see the module docstring); ``dt`` bounds the RK4
-    step of the longest possible sub-interval T/2 (``n = ceil(T/2 / dt)`` steps each),
+    step in every sub-interval (a sub-interval of length D takes ceil(D/dt) steps),
     ``dt_out`` is rounded to whole carrier periods (None: every sub-interval kept)."""
     g = _Grid(model, pv, t_end, dt, dt_out)
     nx, nh = model.nx, len(model.holds)
@@ -259,7 +280,7 @@ def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) ->
         Fl = np.empty((len(rates), 2 * len(t0)))
         Fl[:, 0::2] = _flags(t0, half, rates)
         Fl[:, 1::2] = _flags(t0 + g.T / 2, g.T / 2, rates) if g.double else 0.0
-        out = F(xa, U, Fl, pv)
+        out = F(xa, U, Fl, pv, g.hmax)
         m = min(M, n_out - c0)
         if g.resolve:
             Xs, Ds, Ss = out[1], out[2], out[3]
@@ -329,7 +350,7 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
     Y = _outputs(model, X, U, pv, H, S, jit)
     if not g.resolve:  # at t = 0 the ECU has not sampled yet: the continuous law
         Y[:, 0] = np.asarray(model.f(X[:, 0], U[:, 0], pv)[1]).ravel()
-    info = {"status": "completed", "carrier_periods": g.periods, "rk4_per_subinterval": g.n,
+    info = {"status": "completed", "carrier_periods": g.periods, "rk4_max_per_subinterval": g.n,
             "update": "double" if g.double else "single", "compute_time": time.perf_counter() - t_comp,
             "energies": dict(zip(names_q, map(float, Q_end), strict=True)), "switched": True,
             # the running integrals at the kept samples (window energies: differences)
