@@ -43,6 +43,7 @@ import casadi as ca
 import numpy as np
 
 from ._kwargs import check_keywords
+from ._switched import switched_split
 from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
 from .params import ParameterError, Parameters
 
@@ -80,6 +81,13 @@ class Model:
         Loop name -> :class:`~ema_casadi.components.Loop`, outer to inner.
     holds : tuple
         The controller outputs held between ECU samples (``h`` of ``f_held``).
+    switched, carrier : tuple of str, str or None
+        A switched part's switched signals (PWM leg states, flag ``sw``) and its
+        carrier-frequency parameter; () and None for a continuous model.
+    f_switched, schedule : casadi.Function or None
+        ``f_switched(x, u, p, h, s) -> (xdot, y)``, :attr:`f_held` with the switched
+        signals ``s``; ``schedule(x, u, p, h) -> (D, S)``: sub-interval lengths of a
+        carrier period's halves (2 x 4) and the switched values in each (n_sw x 8).
     ignored : tuple of str
         Option keys of the variant dict that no chosen part reads (e.g.
         ``friction_shape`` with hybrid friction): accepted and ignored.
@@ -98,6 +106,10 @@ class Model:
     sample: ca.Function
     project: ca.Function
     parts: tuple = ()
+    switched: tuple = ()
+    carrier: str | None = None
+    f_switched: ca.Function | None = None
+    schedule: ca.Function | None = None
     state_info: dict = field(default_factory=dict)
     input_info: dict = field(default_factory=dict)
     output_info: dict = field(default_factory=dict)
@@ -434,7 +446,8 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     integrators = [n for n, s in states.items() if s.loop is not None]
     f_held, sample = _zoh(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators)
     project = _projection(parts, bus, x, u, p)
-    return Model(
+    switching = switched_split(parts, bus, evaluate, x, u, p, holds, integrators)
+    return Model(**switching,
         variants=v, params=params, states=tuple(states), inputs=tuple(inputs), outputs=tuple(outputs),
         param_names=tuple(names), f=f, f_held=f_held, sample=sample, project=project, parts=tuple(parts),
         state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,

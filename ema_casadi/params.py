@@ -56,15 +56,13 @@ NONPOS = "non-positive"  # <= 0
 FLAG = "switch"  # 0 or 1 (false or true)
 TEMP = "temperature"  # degC, above absolute zero
 
-#: Length of a table parameter in the flat vector: a file gives 2..TABLE_MAX points,
-#: padded up to TABLE_MAX (see :func:`_pad`), so the vector's layout never changes.
+#: Length of a table parameter in the flat vector (2..TABLE_MAX points, padded: :func:`_pad`).
 TABLE_MAX = 6
 
 
 def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
-    """A parameter field. ``default``: the value taken when a file lacks the key (keys
-    added after files were written: the thermal model's); ``table``: a list of 2 to
-    TABLE_MAX values, each checked with ``check``."""
+    """A parameter field. ``default``: the value taken when a file lacks the key (keys added
+    after files were written); ``table``: a list of 2 to TABLE_MAX values, each checked."""
     meta = {"unit": unit, "check": check, "doc": doc}
     if default is not None:
         meta["default"] = default
@@ -130,7 +128,7 @@ class Motor:
 class Power:
     """Inverter and supply (SPEC §2.2)."""
 
-    V_dc: float = _p("V", POS, "DC-link voltage (V)")
+    V_dc: float = _p("V", POS, "DC-link (supply) voltage (V); MIL-STD-704F normal range 250-280 V")
     k_v: float = _p("1", FRAC, "voltage-limit factor on V_dc/sqrt(3) (-)")
     f_sw: float = _p("Hz", POS, "switching frequency (Hz)")
     V_CE0: float = _p("V", NONNEG, "IGBT threshold voltage (V)")
@@ -141,6 +139,9 @@ class Power:
     V_sw_ref: float = _p("V", POS, "reference voltage of E_sw (V)")
     I_sw_ref: float = _p("A", POS, "reference current of E_sw (A)")
     t_dead: float = _p("s", NONNEG, "dead time (s)")
+    R_line: float = _p("Ohm", POS, "supply = line: resistance, source to DC link (Ohm)", default=0.1)
+    L_line: float = _p("H", POS, "supply-line inductance, source to DC link (H)", default=20e-6)
+    C_dc: float = _p("F", POS, "DC-link capacitance (F)", default=200e-6)
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,9 @@ signal, then Unit: and each unit; MATLAB's Simulation Data Inspector reads it).
 Samples: every --dt-out and at --t-end itself (the last interval shorter when --dt-out
 does not divide --t-end); with rk4, --t-end and --dt-out must be whole numbers of --dt.
 Runs above 1e9 RK4 steps or a 1 GiB result are refused with the estimate.
+With --variant inverter=pwm the model switches: rk4 steps to every switching instant
+(--dt bounds its step inside a sub-interval), --t-end must be whole carrier periods
+and --dt-out is rounded to whole periods.
 Example: ema simulate --x-cmd "step:1mm@0.01+sine:0.375mm@1@0.5" --t-end 1 --out run.csv
 """
 
@@ -23,6 +26,7 @@ import time
 from ..signals import parse_signal
 from ..simulation import SOLVERS, simulate
 from ..simulation._api import check_run
+from ..simulation._pwm import check_switched
 from . import UserError, check_output_path, load
 
 COMMAND = "simulate"
@@ -52,7 +56,8 @@ def add_arguments(p):
                    help="write the time series: .csv (column time, then one per signal, a Unit: row, SI, 17 "
                         "digits), .mat (struct ema_sim: time, one field per signal, units) or .npz")
     p.add_argument("--plot", default=None, metavar="FILE.png",
-                   help="plot command, position, velocity, current, voltage")
+                   help="plot command, position, velocity, current, voltage (a switched inverter=pwm model: phase "
+                        "currents, leg states, phase and line voltages over the last carrier periods, DC link)")
     p.add_argument("--event-tol", type=float, default=1e-7,
                    help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); "
                         "default 1e-7")
@@ -78,8 +83,16 @@ def run(args) -> dict:
     else:
         dt_out = max(args.dt, 1e-4)
     params, model = load(args)
-    check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
-              event_tol=args.event_tol, labels=FLAGS, error=UserError)
+    if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
+        if args.solver != "rk4":
+            raise UserError(f"--solver {args.solver}: the model switches (inverter={model.variants['inverter']}); "
+                            f"use --solver rk4, which steps to every switching instant")
+        check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver="cvodes", event_tol=args.event_tol,
+                  labels=FLAGS, error=UserError)
+        check_switched(model, model.p(), args.t_end, UserError, "--t-end")
+    else:
+        check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
+                  event_tol=args.event_tol, labels=FLAGS, error=UserError)
     stroke = params.actuator.stroke
     try:
         x_cmd = parse_signal(args.x_cmd, "length", bare="mm", stroke=stroke, duration=args.t_end)
@@ -97,7 +110,12 @@ def run(args) -> dict:
     if out is not None:
         writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
         written.append(str(writer(out)))
-    if plot is not None:
+    if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
+        from ..plot_pwm import plot_switched
+
+        full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=None, **others)
+        written.append(str(plot_switched(full, plot)))
+    elif plot is not None:
         from ..plotting import plot_simulation
 
         written.append(str(plot_simulation(res, plot)))

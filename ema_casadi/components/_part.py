@@ -273,6 +273,12 @@ class Part:
     #: Variant key -> values this part works with (e.g. the PWM bridge needs the
     #: three-phase motor); :func:`validate_variants` refuses other combinations.
     requires: ClassVar[dict] = {}
+    #: Switched signals (the PWM bridge's leg states): in the continuous model they take
+    #: their providers' (averaged) values; a carrier-synchronous integrator sets them per
+    #: sub-interval of :meth:`schedule` (``Model.f_switched``, ``Model.schedule``).
+    switched: ClassVar[tuple] = ()
+    #: The parameter giving the carrier frequency (Hz) of :meth:`schedule`.
+    carrier: ClassVar[str | None] = None
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})
@@ -291,6 +297,19 @@ class Part:
             The signals at the start of the step.
         now : Bus
             The signals at its end.
+        """
+        return None
+
+    def schedule(self, bus: Bus):
+        """Switched parts: one carrier period from the signals at its start (the held
+        references in ``bus``), as a list of halves ``(durations, values)``: the
+        sub-interval lengths (s) of each half and, per sub-interval, the values of
+        :attr:`switched` in it. None for other parts.
+
+        Parameters
+        ----------
+        bus : Bus
+            The signals at the sample instant (controller outputs held).
         """
         return None
 

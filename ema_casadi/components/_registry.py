@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .._checks import nearest as _nearest
 from ..params import ParameterError
-from . import ballscrew, controller, endstop, friction, inverter, motor, thermal
+from . import ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
 from ._part import Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
@@ -28,7 +28,8 @@ def _off(key: str) -> type:
 REGISTRY: dict[str, dict[str, type]] = {
     "controller": {"P": controller.PositionP, "PI": controller.PositionPI},
     "motor": {"pmsm": motor.Pmsm, "dc": motor.Dc},
-    "inverter": {"ideal": inverter.Ideal},
+    "inverter": {"ideal": inverter.Ideal, "pwm": inverter.Pwm},
+    "supply": {"ideal": supply.Ideal, "line": supply.Line},
     "screw": {"elastic": ballscrew.Elastic, "rigid": ballscrew.Rigid},
     "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid},
     "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},

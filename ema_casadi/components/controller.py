@@ -115,7 +115,7 @@ def velocity_law(omega_cmd, omega_fb, z_w, P):
     return i_cmd, z_dot
 
 
-def current_law_simple(i_cmd, i_fb, omega, z_i, P):
+def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None):
     """Current PI of the 1-phase (dc-equivalent) motor -> winding voltage (V).
 
     Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
@@ -134,14 +134,16 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P):
         Integral part (V).
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``pp``, ``psi``, ``K_p_i``, ``K_i_i``, ``k_v``, ``V_dc``).
+    v_dc : SX, optional
+        Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
     """
     K_e = 1.5 * P.pp * P.psi
-    v_lim = 1.5 * P.k_v * P.V_dc / SQRT3
+    v_lim = 1.5 * P.k_v * (P.V_dc if v_dc is None else v_dc) / SQRT3
     v, _, z_dot = pi_law(i_cmd - i_fb, z_i, 1.5 * P.K_p_i, 1.5 * P.K_i_i, v_lim, u_ff=K_e * omega)
     return v, z_dot
 
 
-def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P):
+def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=None):
     """Field-oriented current control in the rotor dq frame -> (v_d, v_q) (V).
 
     i_d* = 0; PI on i_d and i_q with back-EMF / cross-coupling decoupling
@@ -164,13 +166,15 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P):
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``pp``, ``psi``, ``L_d``, ``L_q``, ``K_p_i``,
         ``K_i_i``, ``k_v``, ``V_dc``).
+    v_dc : SX, optional
+        Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
     """
     omega_e = P.pp * omega
     e_d = 0 - i_d_fb
     e_q = i_q_cmd - i_q_fb
     v_d_u = P.K_p_i * e_d + z_d - omega_e * P.L_q * i_q
     v_q_u = P.K_p_i * e_q + z_q + omega_e * (P.L_d * i_d + P.psi)
-    v_lim = P.k_v * P.V_dc / SQRT3
+    v_lim = P.k_v * (P.V_dc if v_dc is None else v_dc) / SQRT3
     mag = ca.sqrt(v_d_u**2 + v_q_u**2 + 1e-12)
     scale = ca.fmin(1, v_lim / mag)
     v_d, v_q = scale * v_d_u, scale * v_q_u

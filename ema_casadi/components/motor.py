@@ -210,7 +210,7 @@ class Pmsm(Part):
         def current_law(b):
             i_d, i_q = b["i_d"], b["i_q"]
             return controller.current_law_foc(
-                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P
+                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P, b["v_dc"]
             )
 
         def plant(b):
@@ -243,7 +243,8 @@ class Dc(Part):
 
     def signals(self):
         def current_law(b):
-            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P)
+            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P,
+                                                     b["v_dc"])
             return 0, v / 1.5, z_dot
 
         def plant(b):

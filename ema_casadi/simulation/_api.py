@@ -35,6 +35,7 @@ from ..params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import _input_signals
+from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 
@@ -121,18 +122,41 @@ def simulate(
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
+    if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
+        return _run_switched(model, t_end, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, dt, solver,
+                             params, p, x0, dt_out, decimate, bool(jit), bool(progress))
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
+    return _timed(model, solver, plan.t_end, lambda: _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
+                  if solver == "rk4" else _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress)))
+
+
+def _timed(model, solver, t_end, run, **info) -> SimResult:
+    """``run()`` with its wall time and the run's facts in ``info``."""
     t_wall = time.perf_counter()
-    if solver == "rk4":
-        res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
-    else:
-        res = _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress))
+    res = run()
     res.info.update(wall_time=time.perf_counter() - t_wall, solver=solver, variants=dict(model.variants),
-                    t_end=plan.t_end)
+                    t_end=t_end, **info)
     return res
+
+
+def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress) -> SimResult:
+    """A switched model runs carrier period by period (``simulation/_pwm.py``): solver
+    rk4 only (its ``dt`` bounds the RK4 step inside a sub-interval), the ECU always
+    sampled, ``dt_out`` rounded to whole carrier periods (None: every sub-interval)."""
+    if solver != "rk4":
+        raise SimulationError(f"solver '{solver}': the model switches ({', '.join(model.switched)}); it runs with "
+                              f"solver rk4, which steps to every switching instant")
+    if decimate is not None:
+        raise SimulationError("decimate: a switched model keeps samples by dt_out (whole carrier periods)")
+    check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
+    pv, x0 = _values(model, params, p, x0)
+    sig = _input_signals(model, given, pv)
+    out = None if dt_out is None else float(dt_out)
+    return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
+                                                                    jit, progress), dt=float(dt))
 
 
 def _values(model: Model, params, p, x0) -> tuple[np.ndarray, np.ndarray]:
@@ -340,7 +364,8 @@ def _run_rk4(model, plan: _Plan, sig, pv, x0, zoh, jit, progress) -> SimResult:
 def _thin(res: SimResult, keep: np.ndarray) -> SimResult:
     return SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
                      outputs={k: v[keep] for k, v in res.outputs.items()},
-                     states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table)
+                     states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table,
+                     kinds=res.kinds)
 
 
 def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress) -> SimResult:
@@ -378,6 +403,6 @@ def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress
         t=t, inputs={name: s(t) for name, s in sig.items()},
         outputs={k: np.append(v, last.outputs[k][-1]) for k, v in head.outputs.items()},
         states={k: np.append(v, last.states[k][-1]) for k, v in head.states.items()},
-        info=info, unit_table=head.unit_table,
+        info=info, unit_table=head.unit_table, kinds=head.kinds,
     )
 

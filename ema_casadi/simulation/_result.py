@@ -34,6 +34,8 @@ class SimResult:
         Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
     unit_table : dict
         Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
+    kinds : dict
+        Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
     """
 
     t: np.ndarray
@@ -42,6 +44,7 @@ class SimResult:
     states: dict
     info: dict = field(default_factory=dict)
     unit_table: dict = field(default_factory=dict)
+    kinds: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name in ("t", "time"):
@@ -56,6 +59,18 @@ class SimResult:
         inputs, outputs, states not already outputs."""
         extra = [n for n in self.states if n not in self.outputs]
         return ["t", *self.inputs, *self.outputs, *extra]
+
+    def energies(self) -> dict:
+        """Energy (J) of every power and loss output over the run: ``{name: integral}``.
+
+        A switched (PWM) run integrates them as quadratures in its own steps, exact at
+        every switching instant (``info["energies"]``); other runs by the trapezoid rule
+        over the kept samples (keep them dense enough: ``dt_out``).
+        """
+        if "energies" in self.info:
+            return dict(self.info["energies"])
+        names = [n for n, k in self.kinds.items() if k in ("loss", "power")]
+        return {n: float(np.trapezoid(self.outputs[n], self.t)) for n in names}
 
     def final(self) -> dict:
         """Last value of every output."""
@@ -195,4 +210,5 @@ def _result(model, sig, t, X, Y, info):
     inputs = {n: s(t) for n, s in sig.items()}
     outputs = {n: Y[i] for i, n in enumerate(model.outputs)}
     states = {n: X[i] for i, n in enumerate(model.states)}
-    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units)
+    kinds = {n: o.kind for n, o in model.output_info.items()}
+    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units, kinds=kinds)

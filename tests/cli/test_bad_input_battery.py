@@ -265,6 +265,16 @@ OUTPUTS = {
 }
 for case_id, (args, message) in OUTPUTS.items():
     add(f"simulate-{case_id}", Case("simulate", args, message))
+# the switched bridge (issue 11): rk4 only, whole carrier periods (62.5 us at 16 kHz)
+PWM = {
+    "pwm-cvodes": (["--variant", "inverter=pwm", "--solver", "cvodes"], ["--solver cvodes", "switches"]),
+    "pwm-not-whole-periods": (["--variant", "inverter=pwm", "--t-end", "0.00101", "--dt", "1e-6"],
+                              ["--t-end 0.00101 s", "carrier periods"]),
+    "pwm-dc-motor": (["--variant", "inverter=pwm", "--variant", "motor=dc"], "inverter=pwm needs motor=pmsm"),
+    "supply-unknown": (["--variant", "supply=battery"], "unknown supply variant 'battery'"),
+}
+for case_id, (args, message) in PWM.items():
+    add(f"simulate-{case_id}", Case("simulate", args, message))
 
 # -- linearize, margins, bode, export: operating point and their own flags ---------------
 OP_FLAGS = {

@@ -84,7 +84,8 @@ def test_the_harness_covers_every_combination():
         for v in REGISTRY[k]:
             for k2 in (x for x in REGISTRY if x != k):
                 for v2 in REGISTRY[k2]:
-                    hit = [c for c in CASES + REFUSED if c.values[0][k] == v and c.values[0][k2] == v2]
+                    hit = [c for c in CASES + REFUSED if c.values[0].get(k, DEFAULT_VARIANTS[k]) == v
+                           and c.values[0].get(k2, DEFAULT_VARIANTS[k2]) == v2]
                     assert hit, (k, v, k2, v2)
 
 
@@ -107,8 +108,12 @@ def test_rhs_is_finite_at_the_initial_state(model_cache, variants):
 def _asymptotic_modes(model, A):
     """Eigenvalues of A without the states nothing depends on (a zero column of A: the
     rigid screw's shaft angle, kept for its output, gives an exact eigenvalue 0 since
-    det(sI - A) = s det(minor)); those states are returned too."""
-    dropped = [j for j in range(model.nx) if not A[:, j].any()]
+    det(sI - A) = s det(minor)); those states are returned too. A column at round-off
+    (below 1e-14 of the largest entry of A) counts as zero: the PWM bridge's averaged
+    voltage is Park(inverse Park(v_dq, theta), theta), independent of the shaft angle
+    but for rounding (measured 4.7e-12 against max |A| = 1.6e8, rigid screw at 15 kN)."""
+    floor = 1e-14 * np.abs(A).max()
+    dropped = [j for j in range(model.nx) if np.abs(A[:, j]).max() <= floor]
     keep = [j for j in range(model.nx) if j not in dropped]
     return np.linalg.eigvals(A[np.ix_(keep, keep)]), [model.states[j] for j in dropped]
 
