@@ -26,6 +26,7 @@ __all__ = ["run_demo", "DEMO_FILES"]
 DEMO_FILES = (
     "step_1mm.png", "step_20mm.png", "sine_30kN.png", "bode_closed_loop.png", "dynamic_stiffness.png", "margins.png",
     "fig14a.png", "fig14a.csv", "fig14b.png", "fig14b.csv", "summary.json", "summary.md", "pwm_vs_averaged.png",
+    "mission_short.png", "mission_short.csv",
 )
 
 
