@@ -55,10 +55,13 @@ def run(args) -> dict:
         raise UserError("--scheduler runs on the cluster's workers: give it or --jobs/--threads, not both")
     if args.resume and out is None:
         raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
-    params = load_parameters(args.model)
+    from ..components import validate_variants
+
+    params = load_parameters(args.model, dict(args.variant))  # the sweep file's [variants] go on top
+    validate_variants(params.variants, "--variant")
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     try:
-        spec = load_sweep(args.spec, params, dict(args.variant))
+        spec = load_sweep(args.spec, params)
         res = sweep(spec, out, jobs=args.jobs, backend="threads" if args.threads else "processes",
                     scheduler=args.scheduler, resume=args.resume, progress=progress)
     except SweepError as exc:

@@ -265,6 +265,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
+        _quiet_resource_tracker()
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_process_init)
     try:
@@ -280,6 +281,24 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
             p.terminate()
         raise
     pool.shutdown(wait=True)
+
+
+def _quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker without its warnings: after an interrupt
+    the ``ema`` process ends at once (SPEC §7) and the tracker would otherwise print
+    "leaked semaphore objects" on the terminal after the one line."""
+    import os
+    from multiprocessing import resource_tracker
+
+    old = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [old, "ignore::UserWarning"]))
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        if old is None:
+            del os.environ["PYTHONWARNINGS"]
+        else:
+            os.environ["PYTHONWARNINGS"] = old
 
 
 def _progress(enabled, before, fresh, total, clock) -> None:
