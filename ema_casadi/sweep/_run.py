@@ -164,7 +164,8 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     rows = [done.get(r.index) or fresh[r.index] for r in spec.runs]
     info = {"runs": len(rows), "resumed": len(spec.runs) - len(todo), "computed": len(todo),
             "failed": sum(r["status"] != "ok" for r in rows), "wall_time": time.perf_counter() - t0,
-            "jobs": None if scheduler else n_jobs, "backend": "dask" if scheduler else backend,
+            "jobs": None if scheduler else n_jobs,
+            "backend": "dask" if scheduler else (backend if n_jobs > 1 else "serial"),
             "scheduler": scheduler, "fingerprint": spec.fingerprint()}
     result = SweepResult(spec=spec, rows=rows, columns=columns, info=info)
     if out is not None:

@@ -8,6 +8,8 @@ so that the pools' and the cluster's start-up dominates."""
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -156,3 +158,23 @@ def test_the_table_written_reads_back_and_resume_takes_it(params, tmp_path):
         sweep(spec, out, jobs=1)
     with pytest.raises(SweepError, match="another sweep"):
         sweep(spec, out, jobs=1, resume=True)
+
+
+def test_the_slurm_example_builds_its_cluster_and_job_script(capsys):
+    """studies/sweep_slurm.py (README): dask-jobqueue builds the SLURMCluster here
+    without SLURM, and its batch script asks for what the flags say and starts a Dask
+    worker of this Python on the cluster's scheduler."""
+    pytest.importorskip("dask_jobqueue")
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "studies" / "sweep_slurm.py"
+    mod_spec = importlib.util.spec_from_file_location("sweep_slurm", path)
+    mod = importlib.util.module_from_spec(mod_spec)
+    mod_spec.loader.exec_module(mod)
+    assert mod.main(["--print-script", "--cores", "8", "--memory", "16GB", "--walltime", "01:30:00",
+                     "--queue", "short", "--account", "ema"]) == 0
+    script = capsys.readouterr().out
+    for line in ("#SBATCH -p short", "#SBATCH -A ema", "#SBATCH --cpus-per-task=8", "#SBATCH --mem=15G",
+                 "#SBATCH -t 01:30:00"):
+        assert line in script, line
+    assert f"{sys.executable} -m distributed.cli.dask_worker tcp://" in script and "--nthreads 8" in script
