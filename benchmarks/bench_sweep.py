@@ -13,7 +13,7 @@ C +-30 % drawn uniformly, on 2 cores:
 
 The peak rod positions of both are compared (a check that the same runs were made).
 
-Usage: python benchmarks/bench_sweep.py [--runs 1000] [--no-dask] [--no-lsoda]
+Usage: python benchmarks/bench_sweep.py [--runs 1000] [--quick] [--no-dask] [--no-lsoda]
 """
 
 from __future__ import annotations
@@ -70,7 +70,10 @@ def main():
     ap.add_argument("--jobs", type=int, default=2, help="workers of every method (default 2)")
     ap.add_argument("--no-dask", action="store_true", help="skip the Dask LocalCluster")
     ap.add_argument("--no-lsoda", action="store_true", help="skip the LSODA peer")
+    ap.add_argument("--quick", action="store_true", help="100 runs (run_all.py --quick)")
     args = ap.parse_args()
+    if args.quick:
+        args.runs = min(args.runs, 100)
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
     spec = parse_sweep(description(args.runs), params, "bench_sweep")
     sweep(parse_sweep(description(2), params), jobs=1)  # the compiled output map in the disk cache

@@ -67,6 +67,8 @@ def plot_backlash(table, path):
         a.fill_between(B, q[:, 0], q[:, 2], alpha=0.3, label="5-95 % of the draws")
         a.plot(B, q[:, 1], "o-", label="median")
         a.set_xscale("log")
+        a.set_xticks(B[::3], [f"{b:.3g}" for b in B[::3]])
+        a.minorticks_off()
         a.set_xlabel("backlash B (mm)")
         a.set_ylabel(label)
         a.grid(True, alpha=0.3)

@@ -124,7 +124,8 @@ class SweepResult:
 
     def plot(self, path: str | Path, max_panels: int = 6) -> Path:
         """Histograms of the metrics (top row) and each metric against each swept
-        parameter, with the rank correlation (below); failed runs left out.
+        parameter that varies, with the rank correlation (below); failed runs and
+        values that do not exist (inf, NaN) left out.
 
         Parameters
         ----------
@@ -135,8 +136,9 @@ class SweepResult:
         """
         from ..plotting import plt, save
 
-        metrics, params = self.metrics[:max_panels], self.parameters[:max_panels]
         ok = np.array([r["status"] == "ok" for r in self.rows])
+        varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids
+        metrics, params = self.metrics[:max_panels], varied[:max_panels]
         ncol = max(len(metrics), len(params), 1)
         nrow = 1 + (len(metrics) if params else 0)
         fig, axes = plt.subplots(nrow, ncol, figsize=(3.0 * ncol, 2.4 * nrow), squeeze=False)
