@@ -2,7 +2,7 @@
 0.375 mm 1 Hz sine from 0.5 s; pmsm + elastic + smooth + ideal) with F_seal +-50 % and
 C +-30 % drawn uniformly, on 2 cores:
 
-- ``ema_casadi.sweep`` on 2 local processes (the simulate path and setting of
+- ``ema_casadi.sweeps`` on 2 local processes (the simulate path and setting of
   ``bench_sim.py``: CVODES rtol 3e-4, 1 ms samples; metrics: step overshoot and peak
   i_q), wall time from the call to the table (pool start included) and per run;
 - the same runs with scipy ``solve_ivp`` LSODA on the peers' NumPy right-hand side
@@ -31,7 +31,7 @@ import numpy_model  # noqa: E402
 
 import ema_casadi as ema  # noqa: E402
 from ema_casadi import Signal  # noqa: E402
-from ema_casadi.sweep import parse_sweep, sweep  # noqa: E402
+from ema_casadi.sweeps import parse_sweep, sweep  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 X_CMD = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)

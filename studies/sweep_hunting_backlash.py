@@ -32,7 +32,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi._files import write_text
 from ema_casadi.plotting import plt, save
-from ema_casadi.sweep import SweepError, parse_sweep, sweep
+from ema_casadi.sweeps import SweepError, parse_sweep, sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 SPEC = ROOT / "models" / "sweep_hunting_backlash.toml"

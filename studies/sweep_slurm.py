@@ -76,7 +76,7 @@ def main(argv=None) -> int:
             print(cluster.job_script())
             return 0
         import ema_casadi as ema
-        from ema_casadi.sweep import load_sweep, sweep
+        from ema_casadi.sweeps import load_sweep, sweep
 
         spec = load_sweep(args.spec, ema.load_parameters(args.model))
         cluster.scale(jobs=args.jobs)

@@ -43,7 +43,7 @@ def add_arguments(p):
 
 def run(args) -> dict:
     from ..params import load_parameters
-    from ..sweep import SweepError, load_sweep, sweep
+    from ..sweeps import SweepError, load_sweep, sweep
 
     out = check_output_path(args.out, (".csv",), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")

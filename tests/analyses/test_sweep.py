@@ -17,7 +17,7 @@ from scipy.integrate import trapezoid
 
 import ema_casadi as ema
 from ema_casadi.cli import main
-from ema_casadi.sweep import METRICS, SweepError, parse_sweep, sweep
+from ema_casadi.sweeps import METRICS, SweepError, parse_sweep, sweep
 
 SCENARIO = {"duration": 0.2, "x_cmd": "step:1mm@0.01", "solver": "rk4", "dt": 1e-4, "dt_out": 1e-3}
 HYBRID = {"friction": "hybrid", "controller": "PI"}

@@ -14,7 +14,7 @@ import time
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi.sweep import load_sweep, sweep
+from ema_casadi.sweeps import load_sweep, sweep
 
 SPEC = """[sweep]
 seed = 5

@@ -4,7 +4,7 @@ one row per run, resumable after an interruption or a crash.
 
 Usage::
 
-    from ema_casadi.sweep import load_sweep, sweep
+    from ema_casadi.sweeps import load_sweep, sweep
     spec = load_sweep("models/sweep_hunting_backlash.toml", params)
     result = sweep(spec, "results.csv", jobs=2)         # or scheduler="tcp://host:8786"
     result.summary(); result.plot("sweep.png")

@@ -125,10 +125,10 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     Parameters
     ----------
     spec : SweepSpec
-        From :func:`~ema_casadi.sweep.load_sweep` (or ``parse_sweep``).
+        From :func:`~ema_casadi.sweeps.load_sweep` (or ``parse_sweep``).
     out : str or Path, optional
         The CSV table (written atomically at the end); while the sweep runs, finished
-        rows go to its journal beside it (:mod:`~ema_casadi.sweep._journal`).
+        rows go to its journal beside it (:mod:`~ema_casadi.sweeps._journal`).
     jobs : int, optional
         Local workers (default: the cores); 1 runs in this thread.
     backend : {"processes", "threads"}

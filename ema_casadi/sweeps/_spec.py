@@ -109,7 +109,7 @@ class SweepSpec:
     scenario : dict
         The simulation: ``duration``, ``signals`` (input -> Signal), solver options.
     metrics : dict
-        Metric name -> its options (:data:`~ema_casadi.sweep.METRICS`).
+        Metric name -> its options (:data:`~ema_casadi.sweeps.METRICS`).
     seed : int or None
         The Monte Carlo seed.
     samples : int
