@@ -12,6 +12,9 @@ C +-30 % drawn uniformly, on 2 cores:
   overhead per run against the local processes (cluster start reported apart).
 
 The peak rod positions of both are compared (a check that the same runs were made).
+On a shared machine the wall times move with the other sessions' load, so the CPU time
+per run of both (serial, in this process, the first ``--cpu-runs`` runs, alternating
+blocks of 5) is reported too: the ratio that load does not move.
 
 Usage: python benchmarks/bench_sweep.py [--runs 1000] [--quick] [--no-dask] [--no-lsoda]
 """
@@ -64,6 +67,26 @@ def lsoda_run(P):
     return peak
 
 
+def cpu_ratio(spec, params, n):
+    """CPU time per run of the sweep's own worker and of LSODA, serial, alternating."""
+    from ema_casadi.sweeps._run import _run_one, _worker_for
+
+    worker, base = _worker_for(spec), params.as_dict()
+    _run_one(worker, spec.runs[0])
+    t_ours = t_peer = 0.0
+    runs = spec.runs[:n]
+    for i in range(0, len(runs), 5):
+        c0 = time.process_time()
+        for r in runs[i : i + 5]:
+            _run_one(worker, r)
+        c1 = time.process_time()
+        for r in runs[i : i + 5]:
+            lsoda_run({**base, **r.values})
+        t_ours, t_peer = t_ours + c1 - c0, t_peer + time.process_time() - c1
+    print(f"CPU time per run, serial, {len(runs)} runs: ema_casadi {t_ours / len(runs) * 1e3:.2f} ms, "
+          f"LSODA {t_peer / len(runs) * 1e3:.1f} ms: ratio {t_peer / t_ours:.1f}x", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=1000, help="Monte Carlo runs (default 1000)")
@@ -71,6 +94,7 @@ def main():
     ap.add_argument("--no-dask", action="store_true", help="skip the Dask LocalCluster")
     ap.add_argument("--no-lsoda", action="store_true", help="skip the LSODA peer")
     ap.add_argument("--quick", action="store_true", help="100 runs (run_all.py --quick)")
+    ap.add_argument("--cpu-runs", type=int, default=40, help="runs timed in CPU time, each method (default 40)")
     args = ap.parse_args()
     if args.quick:
         args.runs = min(args.runs, 100)
@@ -98,6 +122,8 @@ def main():
         print(f"scipy LSODA (NumPy RHS), same runs on {args.jobs} processes: {t_peer:.2f} s "
               f"({t_peer / args.runs * 1e3:.1f} ms per run); ratio {t_peer / t_ours:.1f}x "
               f"(peak x_rod agrees within {diff * 1e6:.3f} um)", flush=True)
+    if not args.no_lsoda and args.cpu_runs > 0:
+        cpu_ratio(spec, params, args.cpu_runs)
     if not args.no_dask:
         from dask.distributed import LocalCluster
 

@@ -85,6 +85,9 @@ def _run_one(worker: _Worker, run) -> dict:
 
 
 _STATE = threading.local()
+#: Set when a sweep on the thread pool is abandoned (an interrupt, an error): its
+#: threads stop at their next run (in the API a KeyboardInterrupt sets no signal flag).
+_STOP = threading.Event()
 
 
 def _worker_for(spec: SweepSpec) -> _Worker:
@@ -106,6 +109,8 @@ def _run_batch(spec: SweepSpec, runs: list) -> list:
     out = []
     for r in runs:
         _interrupts.check()
+        if _STOP.is_set():
+            raise RuntimeError("sweep abandoned")
         out.append(_run_one(worker, r))
     return out
 
@@ -261,6 +266,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
     """Batches on a local pool; on an interrupt (or any error) nothing more is started,
     the pending batches are cancelled and a process pool's workers are ended."""
     if backend == "threads":
+        _STOP.clear()
         pool = ThreadPoolExecutor(max_workers=jobs)
     else:
         import multiprocessing
@@ -276,6 +282,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
             for fut in ready:
                 finished(fut.result())
     except BaseException:
+        _STOP.set()
         procs = list(getattr(pool, "_processes", {}).values()) if backend == "processes" else []
         pool.shutdown(wait=False, cancel_futures=True)
         for p in procs:
