@@ -18,6 +18,7 @@ apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine
 """
 
 from importlib import import_module
+from importlib.util import find_spec
 
 # Names are imported on first use (PEP 562): ``import ema_casadi.cli`` stays light, so
 # the ``ema`` command installs its SIGINT/SIGTERM handlers before CasADi, SciPy and
@@ -44,6 +45,8 @@ def __getattr__(name):
         value = getattr(import_module(_WHERE[name], __name__), name)
         globals()[name] = value
         return value
+    if not name.startswith("_") and find_spec(f"{__name__}.{name}") is not None:
+        return import_module(f".{name}", __name__)  # a subpackage: ema.tuning, ema.mission, ...
     raise AttributeError(f"module 'ema_casadi' has no attribute '{name}'")
 
 

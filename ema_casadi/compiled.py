@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -24,7 +25,14 @@ import numpy as np
 
 from ._files import scratch_dir, write_with
 
-__all__ = ["compile_function", "compile_keyed", "cache_dir", "compiler", "BufferCall"]
+__all__ = ["compile_function", "compile_keyed", "compile_source", "cache_dir", "compiler", "BufferCall", "CFLAGS"]
+
+#: Optimisation flags of the models' native code, tried in order (the next one where a
+#: compiler refuses one). ``-march=native`` uses this CPU's instruction set (about 6 %
+#: faster on the mission rollout); ``-ffp-contract=off`` keeps the arithmetic exactly
+#: as without it (no fused multiply-adds), so results are the same to the bit as with
+#: plain ``-O2``. The flags and the CPU are part of the cache key.
+CFLAGS = (("-O2", "-march=native", "-ffp-contract=off"), ("-O2",))
 
 _lock = threading.Lock()
 _loaded: dict[str, ca.Function] = {}
@@ -44,6 +52,26 @@ def compiler() -> str | None:
         if name and shutil.which(name):
             return shutil.which(name)
     return None
+
+
+def _machine() -> str:
+    """What the native code depends on besides its source: the flags and this CPU
+    (a library built with ``-march=native`` must not be loaded on another CPU sharing
+    the cache folder)."""
+    global _MACHINE
+    if _MACHINE is None:
+        cpu = platform.machine()
+        try:
+            with open("/proc/cpuinfo") as fh:
+                info = fh.read(20000)
+            cpu += "|".join(line for line in info.splitlines() if line.startswith(("model name", "flags")))[:4000]
+        except OSError:
+            cpu += platform.processor()
+        _MACHINE = repr(CFLAGS) + hashlib.sha256(cpu.encode()).hexdigest()[:16]
+    return _MACHINE
+
+
+_MACHINE: str | None = None
 
 
 def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dict]:
@@ -81,32 +109,83 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     gen.add(f)
     src = gen.dump()
-    key = hashlib.sha256((src + ca.__version__ + sys.platform).encode()).hexdigest()[:20]
+    key = hashlib.sha256((src + ca.__version__ + sys.platform + _machine()).encode()).hexdigest()[:20]
     so = cache_dir() / f"{name}_{key}.so"
     with _lock:
         if str(so) in _loaded:
             info.update(compiled=True, cached=True)
             return _loaded[str(so)], info
-        if not so.exists():
-            with scratch_dir() as tmp:  # removed on an interrupt too
-                c_file = Path(tmp) / f"{name}.c"
-                c_file.write_text(src)
-                tmp_so = Path(tmp) / so.name
-                cmd = [cc, "-O2", "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
-                proc = subprocess.run(cmd, capture_output=True, text=True)
-                if proc.returncode != 0:
-                    warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=3)
-                    return f, info
-                # atomic: other processes see the whole library or none
-                # loaded at once: not deferred to the end of the command's outputs
-                write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
-        else:
+        if so.exists():
             info["cached"] = True
+        elif not _build(cc, name, src, so):
+            return f, info
         g = ca.external(name, str(so))
         _loaded[str(so)] = g
     info["compiled"] = True
     info["compile_time"] = time.perf_counter() - t0
     return g, info
+
+
+def _build(cc: str, name: str, src: str, so: Path) -> bool:
+    """Compile C source ``src`` into the shared library ``so`` (atomically: other
+    processes see the whole library or none). False, with a warning, on failure."""
+    with scratch_dir() as tmp:  # removed on an interrupt too
+        c_file = Path(tmp) / f"{name}.c"
+        c_file.write_text(src)
+        tmp_so = Path(tmp) / so.name
+        for flags in CFLAGS:
+            cmd = [cc, *flags, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode == 0:
+                break
+        if proc.returncode != 0:
+            warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=4)
+            return False
+        # loaded at once: not deferred to the end of the command's outputs
+        write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
+    return True
+
+
+def compile_source(name: str, key_parts, make_source) -> tuple[Path | None, dict]:
+    """A shared library built from C source that the caller generates (e.g. CasADi's
+    code of a step function plus a hand-written driver loop), cached on disk under a
+    key the caller computes cheaply; ``make_source()`` is only called on a miss.
+
+    Parameters
+    ----------
+    name : str
+        File-name stem of the cached library.
+    key_parts : iterable of str or bytes
+        What determines the source; hashed into the cache key.
+    make_source : callable
+        ``make_source() -> str``, the C source.
+
+    Returns
+    -------
+    path : Path or None
+        The library, or None without a C compiler or when compilation fails.
+    info : dict
+        ``compiled``, ``cached`` and ``compile_time`` (s), as :func:`compile_function`.
+    """
+    import time
+
+    info = {"compiled": False, "cached": False, "compile_time": 0.0}
+    cc = compiler()
+    if cc is None:
+        return None, info
+    t0 = time.perf_counter()
+    h = hashlib.sha256()
+    for part in (*key_parts, ca.__version__, sys.platform, _machine()):
+        h.update(part if isinstance(part, bytes) else str(part).encode())
+    so = cache_dir() / f"{name}_s{h.hexdigest()[:20]}.so"
+    with _lock:
+        if so.exists():
+            info.update(compiled=True, cached=True)
+            return so, info
+        if not _build(cc, name, make_source(), so):
+            return None, info
+    info.update(compiled=True, compile_time=time.perf_counter() - t0)
+    return so, info
 
 
 def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Function, dict]:
@@ -134,7 +213,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     if not jit or compiler() is None:
         return compile_function(build(), jit)
     h = hashlib.sha256()
-    for part in (*key_parts, ca.__version__, sys.platform):
+    for part in (*key_parts, ca.__version__, sys.platform, _machine()):
         h.update(part if isinstance(part, bytes) else str(part).encode())
     so = cache_dir() / f"{name}_k{h.hexdigest()[:20]}.so"
     with _lock:

@@ -47,7 +47,7 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
 
 def _input_matrix(model, sig, t):
     """Inputs (nu x len(t)) from the signals; injections zero."""
-    U = np.zeros((model.nu, len(t)))
+    U = np.zeros((model.nu, len(t)), order="F")  # column-major, as the compiled code reads it
     for name, s in sig.items():
         U[model.inputs.index(name)] = s(t)
     return U

@@ -15,6 +15,7 @@ from ..assembly import Model
 from ..compiled import BufferCall, compile_function, compile_keyed
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
+from ._native import native_rollout
 from ._result import _result, progress_bar
 
 STEPS_PER_CALL = 20000
@@ -114,8 +115,14 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
         name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
         functions = (model.f, model.f_held, model.sample, model.project)
         parts = [_SOURCE, name, *(g.serialize() for g in functions if g is not None)]
-        Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
-        model.cache[key] = (BufferCall(Fc), info)
+        native, info = (None, {})
+        if jit:  # the C loop around the generated step (same numbers, no per-step copies)
+            step = rk4_step_function(model, zoh, count)
+            native, info = native_rollout(model, step, _outputs_only(model.f_held if zoh else model.f), k, M, parts)
+        if native is None:
+            Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
+            native = BufferCall(Fc)
+        model.cache[key] = (native, info)
     return model.cache[key]
 
 
