@@ -65,7 +65,8 @@ def _run_one(worker: _Worker, run) -> dict:
     pv = model.p()
     for k, v in run.values.items():
         pv[model.param_names.index(k)] = v
-    row = {"run": run.index, **{k: v for k, v in run.variant if k in spec.swept_variants}, **run.values}
+    swept = spec.swept_variants
+    row = {"run": run.index, **{k: v for k, v in run.variant if k in swept}, **run.values}
     row.update({c: None for c, _ in metric_columns(spec.metrics)})
     status, reason = "ok", ""
     try:

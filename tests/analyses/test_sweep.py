@@ -178,3 +178,19 @@ def test_the_slurm_example_builds_its_cluster_and_job_script(capsys):
                  "#SBATCH -t 01:30:00"):
         assert line in script, line
     assert f"{sys.executable} -m distributed.cli.dask_worker tcp://" in script and "--nthreads 8" in script
+
+
+def test_a_variant_list_is_a_grid_axis_and_a_column(params):
+    """screw = ["elastic", "rigid"] crossed with two backlash values: four runs, the
+    variant in its own column, each run on its own model (the rigid screw's rod moves
+    like the elastic one's within the backlash and compliance: 1 mm step, 0.1 s, the
+    peaks within 2 %)."""
+    spec = parse_sweep({"variants": {"screw": ["elastic", "rigid"]}, "parameters": {"B": {"values": [2e-5, 1e-4]}},
+                        "scenario": {**SCENARIO, "duration": 0.1, "solver": "cvodes", "dt": 1e-3},
+                        "metrics": {"peak": {}}}, params)
+    res = sweep(spec, jobs=1)
+    assert res.columns[:3] == ["run", "screw", "B"]
+    assert [(r["screw"], r["B"]) for r in res.rows] == [("elastic", 2e-5), ("elastic", 1e-4), ("rigid", 2e-5),
+                                                        ("rigid", 1e-4)]
+    peaks = res.column("peak_x_rod")
+    assert res.info["failed"] == 0 and np.all(np.abs(peaks / peaks[0] - 1) < 0.02), peaks
