@@ -184,7 +184,7 @@ def test_a_variant_list_is_a_grid_axis_and_a_column(params):
     """screw = ["elastic", "rigid"] crossed with two backlash values: four runs, the
     variant in its own column, each run on its own model (the rigid screw's rod moves
     like the elastic one's within the backlash and compliance: 1 mm step, 0.1 s, the
-    peaks within 2 %)."""
+    peaks within 1e-3 relative; measured 2.2e-4, from the 0.08 mm larger gap)."""
     spec = parse_sweep({"variants": {"screw": ["elastic", "rigid"]}, "parameters": {"B": {"values": [2e-5, 1e-4]}},
                         "scenario": {**SCENARIO, "duration": 0.1, "solver": "cvodes", "dt": 1e-3},
                         "metrics": {"peak": {}}}, params)
@@ -193,4 +193,4 @@ def test_a_variant_list_is_a_grid_axis_and_a_column(params):
     assert [(r["screw"], r["B"]) for r in res.rows] == [("elastic", 2e-5), ("elastic", 1e-4), ("rigid", 2e-5),
                                                         ("rigid", 1e-4)]
     peaks = res.column("peak_x_rod")
-    assert res.info["failed"] == 0 and np.all(np.abs(peaks / peaks[0] - 1) < 0.02), peaks
+    assert res.info["failed"] == 0 and np.all(np.abs(peaks / peaks[0] - 1) < 1e-3), peaks
