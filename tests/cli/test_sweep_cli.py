@@ -1,6 +1,6 @@
-"""``ema sweep`` as a real process: interrupted by SIGINT after some rows and resumed,
-the table equals the uninterrupted sweep's byte for byte, and only the missing rows
-were run again; a pool of processes ends promptly on SIGINT too."""
+"""``ema sweep`` as a real process: interrupted by SIGINT (or killed, a crash) after
+some rows and resumed, the table equals the uninterrupted sweep's byte for byte, and
+only the missing rows were run again; a pool of processes ends promptly on SIGINT too."""
 
 from __future__ import annotations
 
@@ -75,6 +75,30 @@ def test_interrupted_and_resumed_equals_the_uninterrupted_sweep(params, tmp_path
     assert result["resumed"] == kept and result["runs"] == 12
     assert (tmp_path / "r.csv").read_bytes() == (tmp_path / "full.csv").read_bytes()
     assert not journal.exists()
+
+
+def test_killed_and_resumed_equals_the_uninterrupted_sweep(params, tmp_path):
+    """SIGKILL (a crash: no cleanup at all) with a row cut short on disk: the journal's
+    whole rows are kept, the cut one is run again."""
+    (tmp_path / "s.toml").write_text(SPEC)
+    sweep(load_sweep(tmp_path / "s.toml", params), tmp_path / "full.csv", jobs=1)
+    journal = tmp_path / ".r.csv.journal"
+    proc = _start(tmp_path, "--jobs", "1")
+    t0 = time.perf_counter()
+    while proc.poll() is None and not (journal.exists() and len(journal.read_text().splitlines()) > 3):
+        assert time.perf_counter() - t0 < 120
+        time.sleep(0.05)
+    proc.kill()
+    proc.communicate(timeout=30)
+    kept = len(journal.read_text().splitlines()) - 1
+    with journal.open("a") as fh:
+        fh.write('{"run": 11, "B": 0.0003, "F_se')  # the crash came mid-line
+    done = subprocess.run([sys.executable, "-m", "ema_casadi.cli", "sweep", str(REFERENCE), "s.toml", "--out",
+                           "r.csv", "--jobs", "1", "--resume", "--json"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["resumed"] == kept
+    assert (tmp_path / "r.csv").read_bytes() == (tmp_path / "full.csv").read_bytes()
 
 
 def test_a_process_pool_ends_promptly_on_sigint(tmp_path):
