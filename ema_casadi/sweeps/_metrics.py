@@ -17,6 +17,7 @@ sine_stream        sine_<f>Hz_gain_db, sine_<f>Hz_phase_deg        ``sinestream.
 peak_temperature   peak_<T>_degC per temperature state             max of the state (thermal=lumped)
 energy             energy_in_J, energy_loss_J                      trapezoid of P_dc and of the sum
                                                                    of the losses over the kept samples
+                                                                   (at most ENERGY_SPACING apart)
 peak               peak_<signal> (its unit)                        max |signal| over the scenario
 =================  ==============================================  ================================
 """
@@ -132,8 +133,19 @@ def _temperature(spec, o, where, error, models):
     return {"nodes": nodes}, [(f"peak_{n}_degC", "degC") for n in nodes]
 
 
+#: Longest sample spacing the energy metric integrates over (s). The power spikes of a
+#: step are short: on the 1 mm step of the hybrid PI loop, 1 ms samples miss 32 % of
+#: the electrical energy, 0.1 ms samples close the energy balance within 0.15 %.
+ENERGY_SPACING = 1e-4
+
+
 def _energy(spec, o, where, error, models):
     _opts(where, o, (), error)
+    sc = spec.scenario
+    spacing = sc.get("dt_out") or sc["dt"]
+    if spacing > ENERGY_SPACING * (1 + 1e-9):
+        raise error(f"{where}: integrates the kept samples, which are {spacing:g} s apart; keep one at least every "
+                    f"{ENERGY_SPACING:g} s ([scenario] dt_out; at 1 ms a step's current spike is missed)")
     return {}, [("energy_in_J", "J"), ("energy_loss_J", "J")]
 
 
