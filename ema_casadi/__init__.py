@@ -13,7 +13,8 @@ Quick start::
     ema.loop_margins(model)                     # GM/PM/disk margins per loop
 
 Packages (``ema.simulation``, ``ema.linearisation``, ``ema.sinestream``, ...) are named
-apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine_stream``).
+apart from their main functions (``ema.simulate``, ``ema.linearize``, ``ema.sine_stream``,
+``ema.sweeps`` / ``ema.sweep``).
 """
 
 from importlib import import_module
@@ -34,6 +35,7 @@ _EXPORTS = {
     ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate"),
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
+    ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -64,4 +66,5 @@ __all__ = [
     "ExportError", "export_function", "load_linear", "save_linear",
     "FreqResponse", "FreqRespError", "sine_stream",
     "Requirements", "TuneError", "TuneResult", "tune",
+    "SweepError", "SweepResult", "load_sweep", "sweep",
 ]

@@ -32,7 +32,7 @@ from pathlib import Path
 
 __all__ = [
     "atomic_path", "atomic_dir", "write_text", "write_with", "transaction", "scratch_dir", "remove_temporaries",
-    "check_file", "check_folder", "OutputPathError",
+    "check_file", "check_folder", "OutputPathError", "after_commit",
 ]
 
 
@@ -45,6 +45,8 @@ _lock = threading.RLock()
 _live: set[Path] = set()
 #: staged renames of the open transaction, in order: (temporary, target, is_folder)
 _staged: list | None = None
+#: callables of the open transaction to run once its renames are done
+_after: list = []
 
 
 def _temp_name(path: Path, suffix: str = "") -> Path:
@@ -173,6 +175,7 @@ def transaction():
     except BaseException:
         with _lock:
             staged, _staged = _staged, None
+            _after.clear()
         for tmp, _, _ in staged:
             _remove(tmp)
         raise
@@ -187,7 +190,30 @@ def transaction():
         except BaseException:
             for tmp, _, _ in staged:
                 _remove(tmp)
+            _after.clear()
             raise
+        todo = list(_after)
+        _after.clear()
+    for fn in todo:
+        fn()
+
+
+def after_commit(fn) -> None:
+    """Call ``fn()`` once the open :func:`transaction` has renamed its outputs into
+    place (not at all if it fails); at once outside a transaction. For what must
+    outlive a failed command and go with a successful one: the journal of a sweep is
+    removed only once its table is in place.
+
+    Parameters
+    ----------
+    fn : callable
+        Called without arguments.
+    """
+    with _lock:
+        if _staged is not None:
+            _after.append(fn)
+            return
+    fn()
 
 
 @contextlib.contextmanager

@@ -46,12 +46,11 @@ import statistics
 import sys
 from pathlib import Path
 
-import numpy as np
-
 import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi._files import write_text
 from ema_casadi.plotting import plt, save
+from ema_casadi.simulation import hunting_metrics
 
 ROOT = Path(__file__).resolve().parent.parent
 STEP = Signal.step(1e-3, 0.01)
@@ -59,20 +58,8 @@ STEP = Signal.step(1e-3, 0.01)
 
 def hunting(res, t_from: float) -> dict:
     """Limit-cycle amplitude (m, half peak-to-peak of x_rod - x_cmd) and frequency (Hz)
-    over t >= t_from. Frequency is None when fewer than two full cycles are seen."""
-    sel = res.t >= t_from
-    t, e = res.t[sel], (res["x_rod"] - res["x_cmd"])[sel]
-    amp = 0.5 * float(np.ptp(e))
-    mid, band = 0.5 * (e.max() + e.min()), 0.5 * amp
-    ups, low = [], False  # upward passes through mid + band/2 after being below mid - band/2
-    for ti, ei in zip(t, e, strict=True):
-        if ei < mid - 0.5 * band:
-            low = True
-        elif low and ei > mid + 0.5 * band:
-            ups.append(ti)
-            low = False
-    freq = (len(ups) - 1) / (ups[-1] - ups[0]) if len(ups) >= 3 and amp > 0 else None
-    return {"amplitude": amp, "frequency": freq, "mean_error": float(e.mean())}
+    over t >= t_from (:func:`ema_casadi.simulation.hunting_metrics`)."""
+    return hunting_metrics(res.t, res["x_rod"] - res["x_cmd"], t_from)
 
 
 def run_case(model, p, t_end, dt, solver, repeats, dt_out):

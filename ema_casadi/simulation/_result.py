@@ -11,7 +11,7 @@ import numpy as np
 
 from .._files import write_with
 
-__all__ = ["SimulationError", "SimResult", "step_response_metrics", "progress_bar"]
+__all__ = ["SimulationError", "SimResult", "step_response_metrics", "hunting_metrics", "progress_bar"]
 
 
 class SimulationError(ValueError):
@@ -182,10 +182,44 @@ def step_response_metrics(t: np.ndarray, y: np.ndarray, band: float = 0.02) -> d
     }
 
 
+def hunting_metrics(t: np.ndarray, e: np.ndarray, t_from: float = 0.0) -> dict:
+    """Limit cycle ("hunting") of an error signal e(t) over t >= t_from.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times (s).
+    e : ndarray
+        The error, e.g. x_rod - x_cmd (m).
+    t_from : float
+        Start of the window (s): the cycle should be established by then.
+
+    Returns
+    -------
+    dict
+        ``amplitude`` (half the peak-to-peak of e, in e's unit), ``frequency`` (Hz:
+        upward passes through the middle counted with a hysteresis of half the
+        amplitude; None with fewer than two full cycles) and ``mean_error``.
+    """
+    sel = t >= t_from
+    t, e = t[sel], e[sel]
+    amp = 0.5 * float(np.ptp(e))
+    mid, band = 0.5 * (e.max() + e.min()), 0.5 * amp
+    ups, low = [], False  # upward passes through mid + band/2 after being below mid - band/2
+    for ti, ei in zip(t, e, strict=True):
+        if ei < mid - 0.5 * band:
+            low = True
+        elif low and ei > mid + 0.5 * band:
+            ups.append(ti)
+            low = False
+    freq = (len(ups) - 1) / (ups[-1] - ups[0]) if len(ups) >= 3 and amp > 0 else None
+    return {"amplitude": amp, "frequency": freq, "mean_error": float(e.mean())}
+
+
 # ---------------------------------------------------------------------------------
 
 
-def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
+def progress_bar(frac: float, enabled: bool, label: str = "simulate", note: str = ""):
     """Draw a one-line progress bar on stderr (a newline at 1).
 
     Parameters
@@ -196,11 +230,13 @@ def progress_bar(frac: float, enabled: bool, label: str = "simulate"):
         Draw at all (callers pass their ``progress`` flag).
     label : str
         Text before the bar.
+    note : str
+        Text after the percentage (counts, an ETA).
     """
     if not enabled:
         return
     n = int(30 * frac)
-    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%")
+    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%{' ' + note.ljust(48) if note else ''}")
     if frac >= 1:
         sys.stderr.write("\n")
     sys.stderr.flush()

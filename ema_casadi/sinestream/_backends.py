@@ -6,34 +6,25 @@ Interrupts (SPEC §7): on Ctrl-C/SIGTERM (or any exception in the waiting thread
 pool stops submitting, cancels the pending points and does not wait for the batch:
 running points see the stop flag at their next period. Dask futures are cancelled.
 
-A remote scheduler that does not answer is not waited for forever: the connection
-(handshake included) is bounded by :data:`SCHEDULER_TIMEOUT` and the wait for a first
-worker by :data:`WORKERS_TIMEOUT` (seconds; environment variables
-``EMA_CASADI_SCHEDULER_TIMEOUT`` and ``EMA_CASADI_WORKERS_TIMEOUT`` override them).
+A remote scheduler that does not answer is not waited for forever: the connection and
+the wait for a first worker are bounded (:mod:`ema_casadi._parallel`, shared with the
+sweeps).
 """
 
 from __future__ import annotations
 
+import functools
 import math
-import os
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
+from .._parallel import cores as _cores
+from .._parallel import dask_map
 from ..simulation import progress_bar
 from ._kernels import _settle, _stepper
 from ._result import FreqRespError
 
-#: Seconds to connect to a Dask scheduler, handshake included.
-SCHEDULER_TIMEOUT = 10.0
-#: Seconds to wait for the scheduler's first worker.
-WORKERS_TIMEOUT = 30.0
-
-
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return os.cpu_count() or 1
+__all__ = ["_cores", "_run_local", "_run_dask"]
 
 
 def _run_local(tasks, params, build, settle, keep, progress, jobs) -> dict:
@@ -84,72 +75,22 @@ def _dask_chunk(params, build, settle, keep, chunk) -> list:
     return list(_run_local(chunk, params, build, settle, keep, False, 1).items())
 
 
-def _timeout(name: str, default: float) -> float:
-    try:
-        return float(os.environ.get(name, default))
-    except ValueError:
-        raise FreqRespError(f"{name}={os.environ[name]!r}: expected a number of seconds") from None
-
-
-def _connect(address: str, timeout: float):
-    """A Dask Client for ``address``, or FreqRespError after ``timeout`` seconds.
-
-    ``Client(address, timeout=...)`` does not bound the handshake with a server that
-    accepts the connection and never answers, so the connection is made on a helper
-    thread and abandoned (daemon) when it does not finish in time."""
-    from dask.distributed import Client
-
-    box = {}
-
-    def connect():
-        try:
-            box["client"] = Client(address, timeout=f"{timeout}s")
-        except Exception as exc:  # noqa: BLE001 - any connection problem is the user's address
-            box["error"] = exc
-
-    helper = threading.Thread(target=connect, name="ema-dask-connect", daemon=True)
-    helper.start()
-    helper.join(timeout + 1.0)
-    if helper.is_alive():
-        raise FreqRespError(f"scheduler {address}: no answer within {timeout:g} s (is it a Dask scheduler?)")
-    if "error" in box:
-        exc = box["error"]
-        first = str(exc).splitlines()[0] if str(exc) else ""
-        raise FreqRespError(f"scheduler {address}: cannot connect ({type(exc).__name__}: {first})")
-    return box["client"]
-
-
 def _run_dask(address, tasks, params, build, settle, keep, progress) -> dict:
     """Points in chunks on the Dask scheduler at ``address``; -> index -> point dict."""
-    try:
-        from dask.distributed import as_completed as dask_completed
-    except ImportError:
-        raise FreqRespError("--scheduler needs Dask: pip install 'ema_casadi[dask]' (dask[distributed])") from None
-    client = _connect(address, _timeout("EMA_CASADI_SCHEDULER_TIMEOUT", SCHEDULER_TIMEOUT))
-    futures = []
-    try:
-        wait_workers = _timeout("EMA_CASADI_WORKERS_TIMEOUT", WORKERS_TIMEOUT)
-        try:
-            client.wait_for_workers(1, timeout=wait_workers)
-        except TimeoutError:
-            raise FreqRespError(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
-        n_workers = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
+    results = {}
+
+    def chunks_of(n_workers):
         # a few chunks per worker thread: balance without per-point scheduling overhead
         size = max(1, math.ceil(len(tasks) / (4 * n_workers)))
         order = sorted(tasks, key=lambda t: -t[3][-2])
-        chunks = [order[i::math.ceil(len(tasks) / size)] for i in range(math.ceil(len(tasks) / size))]
-        futures = [client.submit(_dask_chunk, params, build, settle, keep, c, pure=False) for c in chunks]
-        results, done = {}, 0
+        n = math.ceil(len(tasks) / size)
         progress_bar(0.0, progress, "freqresp")
-        for fut in dask_completed(futures):
-            for idx, r in fut.result():
-                results[tuple(idx)] = r
-                done += 1
-            progress_bar(done / len(tasks), progress, "freqresp")
-        return results
-    except BaseException:
-        if futures:
-            client.cancel(futures)
-        raise
-    finally:
-        client.close(timeout=2)
+        return [order[i::n] for i in range(n)]
+
+    def each(chunk_results):
+        for idx, r in chunk_results:
+            results[tuple(idx)] = r
+        progress_bar(len(results) / len(tasks), progress, "freqresp")
+
+    dask_map(address, functools.partial(_dask_chunk, params, build, settle, keep), chunks_of, each, FreqRespError)
+    return results

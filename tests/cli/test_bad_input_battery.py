@@ -37,6 +37,7 @@ BASE = {
     "export": ["export", "{model}", "--format", "json", "--out", "{tmp}/lin.json"],
     "tune": ["tune", "{model}", "--out", "{tmp}/tuned.toml", "--max-iter", "1"],
     "demo": ["demo", "{model}", "--out", "{tmp}/out", "--quiet"],
+    "sweep": ["sweep", "{model}", "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"],
 }
 COMMANDS = list(BASE)
 
@@ -381,6 +382,45 @@ for cmd, cases in OWN.items():
     for case_id, (args, message) in cases.items():
         files = {"afile": "x"} if case_id == "out-is-a-file" else {}  # a flag given twice: the last wins
         add(f"{cmd}-{case_id}", Case(cmd, args, message, files))
+# -- ema sweep: the description file ------------------------------------------------------
+SWEEP_OK = """[parameters]
+B = { values = [2e-5, 1e-4] }
+[scenario]
+duration = 0.01
+x_cmd = "step:1mm@0.001"
+solver = "rk4"
+dt = 1e-4
+[metrics]
+peak = {}
+"""
+SWEEP = {
+    "not-toml": (SWEEP_OK.replace("[metrics]", "[metrics"), ["s.toml", "not valid TOML"]),
+    "unknown-table": (SWEEP_OK + "[plots]\n", ["s.toml", "unknown table 'plots'"]),
+    "unknown-parameter": (SWEEP_OK.replace("B = {", "Bx = {"), ["[parameters] Bx", "no parameter 'Bx'"]),
+    "invalid-value": (SWEEP_OK.replace("2e-5", "-2e-5"), ["run 0", "B"]),
+    "distribution": (SWEEP_OK.replace("values = [2e-5, 1e-4]", 'distribution = "gauss", low = 0, high = 1e-4'),
+                     ["[parameters] B distribution", "'gauss' unknown"]),
+    "no-seed": (SWEEP_OK.replace("values = [2e-5, 1e-4]", 'distribution = "uniform", low = 0, high = 1e-4'),
+                ["[sweep] seed", "needed"]),
+    "metric": (SWEEP_OK.replace("peak = {}", "overshoot = {}"), ["[metrics]", "unknown metric 'overshoot'"]),
+    "metric-option": (SWEEP_OK.replace("peak = {}", "peak = { signal = 'i_q' }"), ["[metrics] peak", "'signal'"]),
+    "dt-not-whole": (SWEEP_OK.replace("dt = 1e-4", "dt = 3e-4"), ["[scenario] duration", "whole number"]),
+    "signal": (SWEEP_OK.replace("step:1mm@0.001", "stepp:1mm"), ["[scenario] x_cmd", "stepp"]),
+    "variant": (SWEEP_OK + '[variants]\nfriction = "sticky"\n', ["[variants] friction", "'sticky'"]),
+    "samples-without-draws": ("[sweep]\nsamples = 3\n" + SWEEP_OK, ["[sweep] samples", "no parameter is drawn"]),
+    "jobs-zero": (SWEEP_OK, "--jobs must be a positive integer", ["--jobs", "0"]),
+    "out-suffix": (SWEEP_OK, "--out", ["--out", "{tmp}/s.txt"]),
+    "scheduler-address": (SWEEP_OK, "--scheduler localhost", ["--scheduler", "localhost"]),
+    "journal-exists": (SWEEP_OK, ["s.csv.journal", "--resume"], [], {".s.csv.journal": "{}\n"}),
+}
+for case_id, (text, message, *more) in SWEEP.items():
+    extra = more[0] if more else []
+    files = {"s.toml": text, **(more[1] if len(more) > 1 else {})}
+    add(f"sweep-{case_id}", Case("sweep", extra, message, files))
+add("sweep-spec-missing", Case("sweep", [], ["none.toml", "no such sweep file"],
+                               raw=["sweep", REF, "none.toml", "--jobs", "1"]))
+add("sweep-resume-without-out", Case("sweep", [], "--resume needs --out", {"s.toml": SWEEP_OK},
+                                     raw=["sweep", REF, "s.toml", "--resume"]))
 add("top-unknown-command", Case("simulate", [], "invalid choice: 'simulat'", raw=["simulat", REF]))
 add("top-no-command", Case("simulate", [], "required: COMMAND", raw=[]))
 

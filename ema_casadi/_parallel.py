@@ -1,0 +1,130 @@
+"""Where independent work runs, shared by the sine stream and the sweeps: the cores of
+this machine, and a Dask distributed cluster (optional dependency).
+
+A remote scheduler that does not answer is not waited for forever: the connection
+(handshake included) is bounded by :data:`SCHEDULER_TIMEOUT` and the wait for a first
+worker by :data:`WORKERS_TIMEOUT` (seconds; environment variables
+``EMA_CASADI_SCHEDULER_TIMEOUT`` and ``EMA_CASADI_WORKERS_TIMEOUT`` override them).
+On any exception in the waiting thread (an interrupt included) the submitted futures
+are cancelled.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map"]
+
+#: Seconds to connect to a Dask scheduler, handshake included.
+SCHEDULER_TIMEOUT = 10.0
+#: Seconds to wait for the scheduler's first worker.
+WORKERS_TIMEOUT = 30.0
+
+
+def cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def timeout(name: str, default: float, error: type) -> float:
+    """Seconds from the environment variable ``name`` (default ``default``); ``error``
+    when it is not a number.
+
+    Parameters
+    ----------
+    name : str
+        The environment variable.
+    default : float
+        Its default (s).
+    error : type
+        The exception raised.
+    """
+    try:
+        return float(os.environ.get(name, default))
+    except ValueError:
+        raise error(f"{name}={os.environ[name]!r}: expected a number of seconds") from None
+
+
+def connect(address: str, error: type, wait: float | None = None):
+    """A Dask Client for ``address``, or ``error`` after ``wait`` seconds (default
+    :data:`SCHEDULER_TIMEOUT` or its environment variable).
+
+    ``Client(address, timeout=...)`` does not bound the handshake with a server that
+    accepts the connection and never answers, so the connection is made on a helper
+    thread and abandoned (daemon) when it does not finish in time.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://host:port``.
+    error : type
+        The exception raised (one line naming the address).
+    wait : float, optional
+        Seconds allowed.
+    """
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise error("a Dask scheduler needs Dask: pip install 'ema_casadi[dask]' (dask[distributed])") from None
+    wait = timeout("EMA_CASADI_SCHEDULER_TIMEOUT", SCHEDULER_TIMEOUT, error) if wait is None else wait
+    box = {}
+
+    def run():
+        try:
+            box["client"] = Client(address, timeout=f"{wait}s")
+        except Exception as exc:  # noqa: BLE001 - any connection problem is the user's address
+            box["error"] = exc
+
+    helper = threading.Thread(target=run, name="ema-dask-connect", daemon=True)
+    helper.start()
+    helper.join(wait + 1.0)
+    if helper.is_alive():
+        raise error(f"scheduler {address}: no answer within {wait:g} s (is it a Dask scheduler?)")
+    if "error" in box:
+        exc = box["error"]
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        raise error(f"scheduler {address}: cannot connect ({type(exc).__name__}: {first})")
+    return box["client"]
+
+
+def dask_map(address: str, function, chunks_of, each, error: type) -> None:
+    """Run ``function(*args, chunk)`` for every chunk on the Dask scheduler at ``address``.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://host:port`` of the scheduler.
+    function : callable
+        Picklable, importable on the workers: ``function(chunk) -> result``.
+    chunks_of : callable
+        ``chunks_of(worker_threads) -> list of chunks`` (the caller sizes them once the
+        cluster's size is known).
+    each : callable
+        ``each(result)``, called in this thread as each chunk finishes.
+    error : type
+        The exception for a scheduler that does not answer or has no worker.
+    """
+    from dask.distributed import as_completed
+
+    client = connect(address, error)
+    futures = []
+    try:
+        wait_workers = timeout("EMA_CASADI_WORKERS_TIMEOUT", WORKERS_TIMEOUT, error)
+        try:
+            client.wait_for_workers(1, timeout=wait_workers)
+        except TimeoutError:
+            raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
+        threads = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
+        futures = [client.submit(function, c, pure=False) for c in chunks_of(threads)]
+        for fut in as_completed(futures):
+            each(fut.result())
+    except BaseException:
+        if futures:
+            client.cancel(futures)
+        raise
+    finally:
+        client.close(timeout=2)

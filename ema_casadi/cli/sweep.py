@@ -1,0 +1,101 @@
+"""Sweeps and Monte Carlo (SPEC §4.11): parameters on a grid or drawn from distributions,
+metrics of the registry per run, one row per run.
+
+SPEC.toml describes the sweep ([sweep] seed and samples, [variants], [parameters],
+[scenario], [metrics]); the format is in the README ("Sweeps and Monte Carlo") and in
+models/sweep_hunting_backlash.toml. The runs go to --jobs local workers (processes, or
+threads with --threads) or to a Dask scheduler (--scheduler); the rows are the same bit
+for bit whichever runs them. --out writes the table (run, swept variants and
+parameters, metrics, status, reason), atomically at the end; meanwhile every finished
+row is kept in the journal .OUT.journal beside it, so that after Ctrl-C or a crash
+--resume runs only what is missing. --plot draws histograms and each metric against
+each parameter. Failed runs (left the physical envelope, integrator gave up, no
+operating point) are rows with status failed and the reason; any makes the command
+exit with status 3 after writing the whole table.
+Example: ema sweep models/sweep_hunting_backlash.toml --out results.csv --plot sweep.png --jobs 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import UserError, check_output_path
+
+COMMAND = "sweep"
+ORDER = 10
+HELP = "sweep / Monte Carlo: parameters on a grid or from distributions, metrics per run"
+
+
+def add_arguments(p):
+    p.add_argument("spec", metavar="SPEC.toml", help="sweep description (parameters, scenario, metrics)")
+    p.add_argument("--out", default=None, metavar="FILE.csv", help="the table, one row per run (and its journal)")
+    p.add_argument("--plot", default=None, metavar="FILE.png", help="histograms and sensitivities")
+    p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers; default: all cores")
+    p.add_argument("--threads", action="store_true", help="local workers are threads (default: processes)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run on a Dask distributed scheduler (needs ema_casadi[dask] here and on the workers)")
+    p.add_argument("--resume", action="store_true",
+                   help="take the rows already in --out's journal (or in a finished --out) instead of rerunning them")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress and ETA on stderr (--no-progress to hide); default: when stderr is a terminal")
+
+
+def run(args) -> dict:
+    from ..params import load_parameters
+    from ..sweeps import SweepError, load_sweep, sweep
+
+    out = check_output_path(args.out, (".csv",), "--out")
+    plot = check_output_path(args.plot, (".png",), "--plot")
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be a positive integer, got {args.jobs}")
+    if args.scheduler is not None and "://" not in args.scheduler:
+        raise UserError(f"--scheduler {args.scheduler}: expected an address like tcp://host:8786")
+    if args.scheduler is not None and (args.jobs is not None or args.threads):
+        raise UserError("--scheduler runs on the cluster's workers: give it or --jobs/--threads, not both")
+    if args.resume and out is None:
+        raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
+    from ..components import validate_variants
+
+    params = load_parameters(args.model, dict(args.variant))  # the sweep file's [variants] go on top
+    validate_variants(params.variants, "--variant")
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    try:
+        spec = load_sweep(args.spec, params)
+        res = sweep(spec, out, jobs=args.jobs, backend="threads" if args.threads else "processes",
+                    scheduler=args.scheduler, resume=args.resume, progress=progress)
+    except SweepError as exc:
+        raise UserError(str(exc)) from None
+    written = [str(out)] if out is not None else []
+    if plot is not None:
+        written.append(str(res.plot(plot)))
+    failed = res.failed()
+    return {
+        "sweep": spec.name, "spec": args.spec, "model": args.model,
+        "runs": res.info["runs"], "resumed": res.info["resumed"], "failed": res.info["failed"],
+        "wall_time": res.info["wall_time"], "jobs": res.info["jobs"], "backend": res.info["backend"],
+        "scheduler": res.info["scheduler"], "units": res.units(), "summary": res.summary(),
+        "rows": None if out is not None else res.rows,
+        "failure": (f"{len(failed)} of {len(res)} runs failed (first: run {failed[0]['run']}: {failed[0]['reason']})"
+                    if failed else None),
+        "written": written,
+    }
+
+
+def report(r: dict) -> None:
+    print(f"sweep {r['sweep']}: {r['runs']} runs ({r['resumed']} resumed) in {r['wall_time']:.1f} s on "
+          f"{r['backend'] if r['scheduler'] is None else r['scheduler']}"
+          + (f" x {r['jobs']}" if r['jobs'] else "") + f"; {r['failed']} failed")
+    stats = r["summary"]["statistics"]
+    sens = r["summary"]["sensitivity_spearman"]
+    params = list(next(iter(sens.values()), {}))
+    print(f"{'metric':34s} {'n':>5s} {'mean':>11s} {'p05':>11s} {'median':>11s} {'p95':>11s} "
+          + " ".join(f"{'rho ' + p:>10s}" for p in params))
+    for m, s in stats.items():
+        if s["n"]:
+            print(f"{m:34s} {s['n']:5d} {s['mean']:11.4g} {s['p05']:11.4g} {s['median']:11.4g} {s['p95']:11.4g} "
+                  + " ".join(f"{sens[m][p]:10.2f}" for p in params))
+        else:
+            print(f"{m:34s} {0:5d}")
+    for w in r["written"]:
+        print(f"wrote {w}")
