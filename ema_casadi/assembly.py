@@ -10,7 +10,9 @@ parameters as an input vector, so one compiled model serves simulation, linearis
 sweeps, tuning and export.
 
 Summed signals the assembly provides: ``F_load_rod`` (N), the sum of every part's
-``loads`` (the external force and, with end stops, the stop force); ``E_stored`` (J),
+``loads`` (the external force and, with end stops, the stop force); ``M_load_rod`` (kg),
+the masses moving with the rod (every part's ``masses``: a surface referred through its
+horn); ``E_stored`` (J),
 the sum of every part's ``stored`` energies; ``P_heat_<node>`` (W) for each thermal
 node of :data:`~ema_casadi.components.HEAT_NODES`, the sum of the losses the parts
 route there (their ``heat`` tables). Reading a heat sum while some loss output is
@@ -337,7 +339,7 @@ def _default(inp, P) -> float:
 def _declarations(parts):
     """Merge what the parts declare; a name declared twice must agree."""
     states, inputs, outputs, providers = {}, {}, {}, {}
-    loops, holds, stored, loads, heat = {}, [], [], [], {}
+    loops, holds, stored, loads, heat, masses = {}, [], [], [], {}, []
     for part in parts:
         for s in part.states:
             if s.name in states:
@@ -358,14 +360,18 @@ def _declarations(parts):
         holds += part.holds
         stored += part.stored
         loads += part.loads
+        masses += part.masses
         heat.update(part.heat)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
     providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
+    providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
     for node in HEAT_NODES:
         providers[heat_signal(node)] = (heat_signal(node), lambda b, node=node: _heat(b, node, heat, outputs))
     for o in _SUMS:
         outputs[o.name] = o
-    # the model's inputs: signals first, loop-break injections last
+    # an input that a part provides as a signal is internal (the airframe's flight-control
+    # law provides the actuator's x_cmd); the model's inputs: signals first, injections last
+    inputs = {n: i for n, i in inputs.items() if n not in providers}
     ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
     return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .._checks import nearest as _nearest
 from ..params import ParameterError
-from . import ballscrew, controller, endstop, friction, inverter, motor, thermal
+from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, thermal
 from ._part import Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
@@ -26,6 +26,8 @@ def _off(key: str) -> type:
 
 #: Variant key -> value -> part class, in assembly order (outer controller to rod).
 REGISTRY: dict[str, dict[str, type]] = {
+    # issue 13: the outer loop first (its loop is the outermost)
+    "airframe": {"none": _off("airframe"), "transport": airframe.Transport, "b747": airframe.B747},
     "controller": {"P": controller.PositionP, "PI": controller.PositionPI},
     "motor": {"pmsm": motor.Pmsm, "dc": motor.Dc},
     "inverter": {"ideal": inverter.Ideal},

@@ -124,7 +124,10 @@ def simulate(
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
+    given = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}
+    if "x_cmd" not in model.inputs and isinstance(x_cmd, float) and x_cmd == 0.0:
+        del given["x_cmd"]  # an airframe's flight-control law provides x_cmd (SPEC §2.8)
+    sig = _input_signals(model, given, pv)
     t_wall = time.perf_counter()
     if solver == "rk4":
         res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
