@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from ._checks import describe, number
-from ._params_airframe import Airframe
 from ._checks import nearest as _nearest
 from ._files import write_text
+from ._params_airframe import Airframe
 from .signals import decode_utf8
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]

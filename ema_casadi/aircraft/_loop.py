@@ -76,7 +76,7 @@ def ideal_loop(model: Model, op: OperatingPoint) -> LinearModel:
     A = lin.A[np.ix_(ia, ia)]
     b = lin.A[np.ix_(ia, ie)] @ t
     c = lin.C[0, ia]
-    d = float(lin.C[0, ie] @ t + lin.D[0, 0] * 0.0)
+    d = float(lin.C[0, ie] @ t)
     return LinearModel(A=A, B=b[:, None], C=-c[None, :], D=np.array([[-d]]),
                        states=tuple(model.states[i] for i in ia), inputs=("x_rod",), outputs=("-x_cmd_fcs",),
                        op=op, name="L_aircraft_ideal", open_loops=("aircraft",))
@@ -103,7 +103,8 @@ def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100) -
     phi = np.unwrap(np.angle(T))
     tau = float(-(w @ phi) / (w @ w))
     gain_db = 20 * np.log10(np.abs(T))
-    out = {"tau_s": tau, "band_rad_s": list(band), "max_fit_error_deg": float(np.degrees(np.max(np.abs(phi + w * tau)))),
+    fit_err = float(np.degrees(np.max(np.abs(phi + w * tau))))
+    out = {"tau_s": tau, "band_rad_s": list(band), "max_fit_error_deg": fit_err,
            "gain_db_min": float(gain_db.min()), "gain_db_max": float(gain_db.max())}
     m = margins(L_ideal, f_min=F_WINDOW[0], f_max=F_WINDOW[1])
     if m.f_gc_hz is not None:
