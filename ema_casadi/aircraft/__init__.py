@@ -12,8 +12,10 @@ from ._loop import (
     equivalent_delay,
     ideal_loop,
 )
+from ._responses import RESPONSE_SIGNALS, gust_response, one_minus_cosine, pitch_step
 
 __all__ = [
     "CONDITIONS", "condition_overrides", "DELAY_BAND_RAD_S", "AircraftMargins", "aircraft_margins",
     "aircraft_point", "ema_loop", "equivalent_delay", "ideal_loop",
+    "RESPONSE_SIGNALS", "gust_response", "one_minus_cosine", "pitch_step",
 ]

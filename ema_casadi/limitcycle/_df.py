@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..assembly import Model
-from ..signals import Signal
+from ..signals import Signal, constant
 from ..simulation import simulate
 from ..sinestream import harmonics
 
@@ -44,7 +44,7 @@ def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: floa
         T = 1.0 / f
         m = max(1, math.ceil(T / SAMPLES / dt))
         h = T / SAMPLES / m
-        inj = Signal.sine(A, f, -T / 4) + Signal.table([0.0, 1.0], [meas0, meas0])
+        inj = Signal.sine(A, f, -T / 4) + constant(meas0)
         res = simulate(model, periods * SAMPLES * m * h, dt=h, dt_out=m * h, p=p_open, x0=x0,
                        **{**inputs, lp.injection: inj})
         y = np.asarray(res[lp.measured])[1:]
@@ -133,6 +133,8 @@ def describing_function(model: Model, loop: str, amplitudes, freqs, *, p, x0, in
 
 def _crossing(F, Lrow):
     """(f, gain dB) where the phase of L crosses -180 deg (first from low frequency)."""
+    ok = np.isfinite(Lrow) & (np.abs(Lrow) > 0)  # a rod held by stiction answers nothing
+    F, Lrow = np.asarray(F)[ok], np.asarray(Lrow)[ok]
     ph = np.degrees(np.unwrap(np.angle(Lrow)))
     s = ph + 180.0
     s = (s + 180.0) % 360.0 - 180.0  # distance from -180, wrapped
