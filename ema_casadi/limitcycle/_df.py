@@ -212,7 +212,8 @@ def refine(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None, meas0: f
 
 def cycle_of(t, y, t_from: float) -> dict:
     """Amplitude (first harmonic over whole cycles, and half peak-to-peak) and frequency
-    of a sustained oscillation of y over t >= t_from; amplitude 0 when none.
+    of a sustained oscillation of y over t >= t_from, its linear trend removed; amplitude
+    0 when fewer than three upward zero crossings are seen.
 
     Parameters
     ----------
@@ -221,9 +222,9 @@ def cycle_of(t, y, t_from: float) -> dict:
     t_from : float
         Start of the measured window (s).
     """
-    sel = t >= t_from
+    sel = np.asarray(t) >= t_from
     t, y = np.asarray(t)[sel], np.asarray(y)[sel]
-    y = y - y.mean()
+    y = y - np.polyval(np.polyfit(t, y, 1), t)  # mean and slow drift (a phugoid) removed
     half = 0.5 * float(np.ptp(y))
     ups = t[1:][(y[:-1] < 0) & (y[1:] >= 0)]
     if len(ups) < 3 or half == 0:

@@ -51,42 +51,73 @@ def _newton(model, x, u, p, free, fix, size, tol, max_iter):
     ix = [model.index(n) for n in fix]
     vals = np.array(list(fix.values()))
 
-    def residual(x, u):
-        xdot, _y, A, B, _C, _D = _eval(model, x, u, p)
-        r = np.concatenate([xdot.ravel(), x[ix] - vals])
-        scale = np.concatenate([_row_scale(A, B, x, u, 0.0, size), np.abs(vals) + size[ix]])
-        return r, r / np.where(scale > 0, scale, 1.0), A, B
+    ip = [model.index(n) for n in model.states_with("play")]
+    k_in = model.yindex("x_in") if ip else None
 
-    r, rs, A, B = residual(x, u)
+    def residual(x, u):
+        # a play without backlash rests anywhere (its rate is zero at rest): held at the nut
+        xdot, y, A, B, C, D = _eval(model, x, u, p)
+        r = np.concatenate([xdot.ravel(), x[ix] - vals, x[ip] - (y.ravel()[k_in] if ip else 0.0)])
+        scale = np.concatenate([_row_scale(A, B, x, u, 0.0, size), np.abs(vals) + size[ix], size[ip]])
+        Jp = np.zeros((len(ip), model.nx + len(iu)))
+        for row, j in enumerate(ip):
+            Jp[row, : model.nx] = -C[k_in]
+            Jp[row, j] += 1.0
+            Jp[row, model.nx:] = -D[k_in, iu]
+        return r, r / np.where(scale > 0, scale, 1.0), A, B, Jp
+
+    r, rs, A, B, Jp = residual(x, u)
     for _ in range(max_iter):
         rel = float(np.max(np.abs(rs)))
         if rel < tol:
             return x, u, rel
-        J = np.zeros((len(r), model.nx + len(iu)))
+        J = np.zeros((len(r), model.nx + len(iu)))  # rows: f, fixed states, plays
         J[: model.nx, : model.nx] = A
         J[: model.nx, model.nx:] = B[:, iu]
         J[model.nx + np.arange(len(ix)), ix] = 1.0
+        J[model.nx + len(ix):] = Jp
         step = np.linalg.lstsq(J, -r, rcond=1e-13)[0]
         if not np.all(np.isfinite(step)):
             break
         for lam in (1.0, 0.5, 0.25, 0.125, 0.0625):
             x_n, u_n = x + lam * step[: model.nx], u.copy()
             u_n[iu] += lam * step[model.nx:]
-            r_n, rs_n, A_n, B_n = residual(x_n, u_n)
+            r_n, rs_n, A_n, B_n, Jp_n = residual(x_n, u_n)
             if np.all(np.isfinite(rs_n)) and np.max(np.abs(rs_n)) < max(rel, 1e-300) * (1 - 1e-4 * lam) or lam < 0.1:
                 break
-        x, u, r, rs, A, B = x_n, u_n, r_n, rs_n, A_n, B_n
-    raise OperatingPointError(f"the flight trim did not converge (relative residual {float(np.max(np.abs(rs))):.2g})")
+        x, u, r, rs, A, B, Jp = x_n, u_n, r_n, rs_n, A_n, B_n, Jp_n
+    rows = [*(f"d{n}/dt" for n in model.states), *fix, *(model.states_with("play"))]
+    worst = rows[int(np.argmax(np.abs(rs)))]
+    raise OperatingPointError(f"the flight trim did not converge (relative residual {float(np.max(np.abs(rs))):.2g}"
+                              f" in {worst})")
 
 
-def flight_point(model: Model, *, params: Parameters | None = None, p: np.ndarray | None = None,
-                 tol: float = 1e-12, max_iter: int = 60) -> OperatingPoint:
+def _frozen_trim(model, x, u, p_trim, free, fix, size, tol, max_iter):
+    """Newton with the efficiency blend frozen at g, g updated until consistent (as
+    operating_point). Returns (x, u, g, relative residual)."""
+    iu = [model.inputs.index(n) for n in free]
+    g = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
+    for _ in range(10):
+        u_f, p_f = _freeze_efficiency(model, u, p_trim, g)
+        x, u_f, rel = _newton(model, x, u_f, p_f, free, fix, size, tol, max_iter)
+        u[iu] = u_f[iu]
+        g_new = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
+        if abs(g_new - g) <= 1e-13 * abs(g):
+            break
+        g = g_new
+    return x, u, g, rel
+
+
+def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None = None,
+                 p: np.ndarray | None = None, tol: float = 1e-12, max_iter: int = 60) -> OperatingPoint:
     """Trim the aircraft loop at the flight condition of the parameters (``V_0``, ``h_0``).
 
     Parameters
     ----------
     model : Model
         A model with an airframe (``airframe = "transport"`` or ``"b747"``).
+    f_ext : float
+        External rod force (N) on top of the surface's, positive pushes the rod in.
     params, p : Parameters or ndarray, optional
         Parameter values (default the model's); ``p`` the raw vector. Loops are closed.
     tol : float
@@ -115,15 +146,13 @@ def flight_point(model: Model, *, params: Parameters | None = None, p: np.ndarra
         x[model.index(n)] = v
     u = model.u(pv)
     u[[model.inputs.index(n) for n in free]] = 0.1  # a starting guess: some throttle, nose up
-    g = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
-    for _ in range(10):
-        u_f, p_f = _freeze_efficiency(model, u, p_trim, g)
-        x, u_f, rel = _newton(model, x, u_f, p_f, free, fix, size, tol, max_iter)
-        u[[model.inputs.index(n) for n in free]] = u_f[[model.inputs.index(n) for n in free]]
-        g_new = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
-        if abs(g_new - g) <= 1e-13 * abs(g):
-            break
-        g = g_new
+    for load in np.linspace(0.0, float(f_ext), 4) if f_ext else (0.0,):  # an extra load by continuation
+        u[model.inputs.index("f_ext")] = load
+        x, u, g, rel = _frozen_trim(model, x, u, p_trim, free, fix, size, tol, max_iter)
+    for play in model.states_with("play"):
+        # the play without backlash exactly at the nut, where both edges act (AD slope 1),
+        # as operating_point does; the airframe fixes the shaft angle through the surface
+        x[model.index(play)] = _eval(model, x, u, p_trim)[1].ravel()[model.yindex("x_in")]
     y = _eval(model, x, u, p_pol)[1].ravel()
     _check_limits(model, y, p_pol, float(y[model.yindex("F_load_rod")]) if "F_load_rod" in model.outputs else 0.0,
                   0.0)
