@@ -82,7 +82,8 @@ def ideal_loop(model: Model, op: OperatingPoint) -> LinearModel:
                        op=op, name="L_aircraft_ideal", open_loops=("aircraft",))
 
 
-def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100) -> dict:
+def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100,
+                     f_crossover: float | None = None) -> dict:
     """The time delay the actuator adds, phase-matched (MIL-STD-1797A equivalent system).
 
     The actuator's effect is T(jw) = L_ema/L_ideal; its phase is fitted by -w tau in the
@@ -97,6 +98,8 @@ def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100) -
         Fit band (rad/s).
     points : int
         Log-spaced frequencies in the band.
+    f_crossover : float, optional
+        The ideal loop's gain crossover (Hz), when already known (default: from its margins).
     """
     w = np.geomspace(band[0], band[1], points)
     T = freqresp(L_ema, w / (2 * math.pi))[0, 0] / freqresp(L_ideal, w / (2 * math.pi))[0, 0]
@@ -106,11 +109,10 @@ def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100) -
     fit_err = float(np.degrees(np.max(np.abs(phi + w * tau))))
     out = {"tau_s": tau, "band_rad_s": list(band), "max_fit_error_deg": fit_err,
            "gain_db_min": float(gain_db.min()), "gain_db_max": float(gain_db.max())}
-    m = margins(L_ideal, f_min=F_WINDOW[0], f_max=F_WINDOW[1])
-    if m.f_gc_hz is not None:
-        wc = 2 * math.pi * m.f_gc_hz
-        Tc = freqresp(L_ema, [m.f_gc_hz])[0, 0, 0] / freqresp(L_ideal, [m.f_gc_hz])[0, 0, 0]
-        out.update(tau_at_crossover_s=float(-np.angle(Tc) / wc), f_crossover_hz=m.f_gc_hz)
+    fc = margins(L_ideal, f_min=F_WINDOW[0], f_max=F_WINDOW[1]).f_gc_hz if f_crossover is None else f_crossover
+    if fc is not None:
+        Tc = freqresp(L_ema, [fc])[0, 0, 0] / freqresp(L_ideal, [fc])[0, 0, 0]
+        out.update(tau_at_crossover_s=float(-np.angle(Tc) / (2 * math.pi * fc)), f_crossover_hz=fc)
     return out
 
 
@@ -150,4 +152,4 @@ def aircraft_margins(model: Model, condition: str = "cruise_sl", op: OperatingPo
     me = margins(Le, f_min=F_WINDOW[0], f_max=F_WINDOW[1], loop="aircraft (EMA)")
     trim = {**op.policy.get("trim_free", {}), "delta_e_deg": math.degrees(op.output("delta_e")),
             "x_cmd_m": op.x_cmd, "F_surf_rod_N": op.output("F_surf_rod")}
-    return AircraftMargins(condition, mi, me, equivalent_delay(Li, Le), trim)
+    return AircraftMargins(condition, mi, me, equivalent_delay(Li, Le, f_crossover=mi.f_gc_hz), trim)

@@ -29,12 +29,14 @@ from ..signals import Signal, constant
 from ..simulation import simulate
 from ..sinestream import harmonics
 
-__all__ = ["break_response", "describing_function", "predict", "refine", "DescribingFunction", "cycle_of"]
+__all__ = ["answered", "NO_ANSWER", "break_response", "describing_function", "predict", "refine",
+           "DescribingFunction", "cycle_of"]
 
 SAMPLES = 64  # kept samples per period
 
 
-def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int, settle: int):
+def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int, settle: int,
+            extra: tuple = ()):
     lp = model.loops[loop]
     names = list(model.param_names)
     p_open = np.array(p, float).copy()
@@ -47,24 +49,23 @@ def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: floa
         inj = Signal.sine(A, f, -T / 4) + constant(meas0)
         res = simulate(model, periods * SAMPLES * m * h, dt=h, dt_out=m * h, p=p_open, x0=x0,
                        **{**inputs, lp.injection: inj})
-        y = np.asarray(res[lp.measured])[1:]
-        d = np.asarray(res[lp.injection])[1:] if lp.injection in res.inputs else None
         t = np.asarray(res.t)[1:]
         keep = slice(settle * SAMPLES, periods * SAMPLES)
-        y, t = y[keep], t[keep]
-        y = y - np.polyval(np.polyfit(t, y, 1), t)
-        c_y = harmonics(y.reshape(-1, SAMPLES))[0].mean()
-        if d is not None:
-            c_d = harmonics((d[keep] - meas0).reshape(-1, SAMPLES))[0].mean()
-        else:
-            c_d = A  # A cos(2 pi tau): first-harmonic coefficient A
-        return complex(-c_y / c_d)
+
+        def first(name, detrend=True):
+            y = np.asarray(res[name])[1:][keep]
+            if detrend:
+                y = y - np.polyval(np.polyfit(t[keep], y, 1), t[keep])
+            return harmonics(y.reshape(-1, SAMPLES))[0].mean()
+
+        L = complex(-first(lp.measured) / first(lp.injection))
+        return (L, {n: float(abs(first(n))) for n in extra}) if extra else L
 
     return run
 
 
 def break_response(model: Model, loop: str, A: float, f: float, *, p, x0, inputs=None, meas0: float = 0.0,
-                   dt: float = 1e-4, periods: int = 16, settle: int = 8) -> complex:
+                   dt: float = 1e-4, periods: int = 16, settle: int = 8, signals: tuple = ()):
     """L_N(A, f) of ``loop`` at one amplitude (the measurement's unit, m) and frequency (Hz).
 
     Parameters
@@ -85,8 +86,12 @@ def break_response(model: Model, loop: str, A: float, f: float, *, p, x0, inputs
         Largest RK4 step (s).
     periods, settle : int
         Periods simulated, and dropped as transient.
+    signals : tuple of str
+        Also return the first-harmonic amplitudes of these signals (by name): then the
+        result is ``(L_N, {name: amplitude})`` (e.g. the surface and the attitude in a
+        predicted cycle).
     """
-    return _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle)(A, f)
+    return _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle, tuple(signals))(A, f)
 
 
 @dataclass
@@ -100,9 +105,14 @@ class DescribingFunction:
     cycles: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
+        """JSON-ready: gain (dB) and phase (deg) on the grid, None where there was no answer."""
+        ok = answered(self.L)
+        gain = np.where(ok, 20 * np.log10(np.where(ok, np.abs(self.L), 1.0)), np.nan)
+        phase = np.where(ok, np.degrees(np.angle(self.L)), np.nan)
         return {"loop": self.loop, "amplitudes": self.amplitudes.tolist(), "freqs_hz": self.freqs.tolist(),
-                "gain_db": (20 * np.log10(np.abs(self.L))).tolist(),
-                "phase_deg": np.degrees(np.angle(self.L)).tolist(), "cycles": self.cycles}
+                "gain_db": [[None if np.isnan(v) else float(v) for v in row] for row in gain],
+                "phase_deg": [[None if np.isnan(v) else float(v) for v in row] for row in phase],
+                "cycles": self.cycles}
 
 
 def describing_function(model: Model, loop: str, amplitudes, freqs, *, p, x0, inputs=None, meas0: float = 0.0,
@@ -131,9 +141,25 @@ def describing_function(model: Model, loop: str, amplitudes, freqs, *, p, x0, in
     return df
 
 
+#: Below this |L_N| the open loop has not answered (a rod held by stiction moves by round-off).
+NO_ANSWER = 1e-8
+
+
+def answered(L):
+    """Where L_N is a response, not round-off: finite and above :data:`NO_ANSWER`.
+
+    Parameters
+    ----------
+    L : ndarray of complex
+        L_N values.
+    """
+    L = np.asarray(L)
+    return np.isfinite(L) & (np.abs(L) > NO_ANSWER)
+
+
 def _crossing(F, Lrow):
     """(f, gain dB) where the phase of L crosses -180 deg (first from low frequency)."""
-    ok = np.isfinite(Lrow) & (np.abs(Lrow) > 0)  # a rod held by stiction answers nothing
+    ok = answered(Lrow)
     F, Lrow = np.asarray(F)[ok], np.asarray(Lrow)[ok]
     ph = np.degrees(np.unwrap(np.angle(Lrow)))
     s = ph + 180.0
@@ -193,21 +219,30 @@ def refine(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None, meas0: f
         return np.log(v / -1 + 0j)  # log L_N - log(-1): zero at the root (gain dB and phase together)
 
     r = F(z)
+    best = (abs(r), z)
     for _ in range(iterations):
         if abs(r) < tol:
             break
-        h = 0.02
+        h = 0.05
         J = np.empty((2, 2))
         for j in range(2):
             dz = np.zeros(2)
             dz[j] = h
             rj = F(z + dz)
             J[:, j] = [(rj - r).real / h, (rj - r).imag / h]
-        step = np.linalg.solve(J, -np.array([r.real, r.imag]))
-        z = z + np.clip(step, -0.5, 0.5)
+        try:
+            step = np.linalg.solve(J, -np.array([r.real, r.imag]))
+        except np.linalg.LinAlgError:
+            break
+        z = z + np.clip(step, -0.3, 0.3)
         r = F(z)
+        if abs(r) < best[0]:
+            best = (abs(r), z)
+    # a stick-slip open loop answers with some scatter: keep the best point met; a residual
+    # above 0.1 (|log L_N + j pi|: ~0.9 dB or ~6 deg) says the grid estimate was kept
+    res, z = best
     return {**cycle, "amplitude": float(math.exp(z[0])), "freq_hz": float(math.exp(z[1])),
-            "residual": float(abs(r)), "refined": True}
+            "residual": float(res), "refined": res < 0.1}
 
 
 def cycle_of(t, y, t_from: float) -> dict:

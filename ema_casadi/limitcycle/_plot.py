@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..plotting import plt, save
+from ._df import answered
 
 __all__ = ["plot_nichols"]
 
@@ -30,7 +31,7 @@ def plot_nichols(df, path: str | Path, *, unit_scale: float = 1e6, unit: str = "
     cmap = plt.get_cmap("viridis")
     for i, A in enumerate(df.amplitudes):
         L = df.L[i]
-        ok = np.isfinite(L) & (np.abs(L) > 0)
+        ok = answered(L)
         ph = np.degrees(np.unwrap(np.angle(L[ok])))
         ph = ph - 360 * np.round((ph.mean() + 180) / 360) if ok.any() else ph
         ax.plot(ph, 20 * np.log10(np.abs(L[ok])), "-o", ms=3, color=cmap(i / max(1, len(df.amplitudes) - 1)),
