@@ -385,7 +385,8 @@ OWN["limit-cycle"] = {
 }
 for cmd, cases in OWN.items():
     for case_id, (args, message) in cases.items():
-        files = {"afile": "x"} if case_id in ("out-is-a-file", "plot-dir-is-a-file") else {}  # a flag given twice: the last wins
+        # a flag given twice: the last wins
+        files = {"afile": "x"} if case_id in ("out-is-a-file", "plot-dir-is-a-file") else {}
         add(f"{cmd}-{case_id}", Case(cmd, args, message, files))
 add("top-unknown-command", Case("simulate", [], "invalid choice: 'simulat'", raw=["simulat", REF]))
 add("top-no-command", Case("simulate", [], "required: COMMAND", raw=[]))
