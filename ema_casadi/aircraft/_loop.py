@@ -118,7 +118,19 @@ def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100,
 
 @dataclass
 class AircraftMargins:
-    """Margins at the actuator-command break, ideal actuator and linearised EMA."""
+    """Margins at the actuator-command break, ideal actuator and linearised EMA.
+
+    Parameters
+    ----------
+    condition : str
+        The flight condition.
+    ideal, ema : LoopMargins
+        Margins with an ideal actuator and with the linearised EMA.
+    delay : dict
+        The EMA's equivalent delay (:func:`equivalent_delay`).
+    trim : dict
+        Trim values: the free inputs, delta_e (deg), x_cmd (m), the surface load on the rod (N).
+    """
 
     condition: str
     ideal: object

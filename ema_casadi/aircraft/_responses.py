@@ -39,10 +39,13 @@ def one_minus_cosine(amplitude: float, duration: float, t0: float = 1.0, points:
     return Signal.table(t0 + t, v)  # held at 0 before and after
 
 
-def _run(model: Model, op: OperatingPoint, condition: str, t_end: float, dt: float, dt_out: float, zoh: bool,
-         overrides: dict, **signals):
+def _params(model: Model, condition: str, overrides: dict):
+    """The run's parameters: the condition's, then the overrides (an unknown name is a TypeError)."""
+    return model.p(**{**condition_overrides(condition), **overrides})
+
+
+def _run(model: Model, op: OperatingPoint, p, t_end: float, dt: float, dt_out: float, zoh: bool, **signals):
     """The nonlinear run from the trim (real friction and backlash, loops closed)."""
-    p = model.p(**{**condition_overrides(condition), **overrides})
     fixed = {n: float(op.u[model.inputs.index(n)]) for n in op.policy.get("trim_free", {})}
     fixed.update(signals)
     res = simulate(model, t_end, dt=dt, dt_out=dt_out, p=p, x0=op.x, zoh=zoh, **fixed)
@@ -71,9 +74,9 @@ def pitch_step(model: Model, op: OperatingPoint, condition: str = "cruise_sl", s
     **overrides : float
         Flat parameter values (SI), e.g. ``B`` or ``K_i_x``.
     """
+    p = _params(model, condition, overrides)
     th0 = float(op.u[model.inputs.index("theta_cmd")])
-    out = _run(model, op, condition, t_end, dt, dt_out, zoh, overrides,
-               theta_cmd=Signal.step(step, t_step) + constant(th0))
+    out = _run(model, op, p, t_end, dt, dt_out, zoh, theta_cmd=Signal.step(step, t_step) + constant(th0))
     on = out["t"] >= t_step
     out["metrics"] = None
     if on.sum() > 1:
@@ -103,9 +106,9 @@ def gust_response(model: Model, op: OperatingPoint, condition: str = "cruise_sl"
     **overrides : float
         Flat parameter values (SI).
     """
+    p = _params(model, condition, overrides)
     th0 = float(op.u[model.inputs.index("theta_cmd")])
-    out = _run(model, op, condition, t_end, dt, dt_out, zoh, overrides,
-               w_g=one_minus_cosine(amplitude, duration, t0), theta_cmd=th0)
+    out = _run(model, op, p, t_end, dt, dt_out, zoh, w_g=one_minus_cosine(amplitude, duration, t0), theta_cmd=th0)
     out["peaks"] = {"theta_dev_rad": float(np.max(np.abs(out["theta"] - op.state("theta")))),
                     "n_z_dev": float(np.max(np.abs(out["n_z"] - op.output("n_z")))),
                     "F_surf_rod_max_N": float(np.max(np.abs(out["F_surf_rod"])))}

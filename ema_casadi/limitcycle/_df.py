@@ -96,7 +96,19 @@ def break_response(model: Model, loop: str, A: float, f: float, *, p, x0, inputs
 
 @dataclass
 class DescribingFunction:
-    """L_N on a grid: ``L[i, k]`` at ``amplitudes[i]``, ``freqs[k]`` (Hz)."""
+    """L_N on a grid: ``L[i, k]`` at ``amplitudes[i]``, ``freqs[k]`` (Hz).
+
+    Parameters
+    ----------
+    loop : str
+        The loop break.
+    amplitudes, freqs : ndarray
+        Grid axes (the break signal's unit; Hz).
+    L : ndarray of complex
+        L_N on the grid.
+    cycles : list of dict
+        Predicted limit cycles (``amplitude``, ``freq_hz``, ``stable``; refined ones more).
+    """
 
     loop: str
     amplitudes: np.ndarray

@@ -71,6 +71,14 @@ def setup(model: Model, loop: str, p=None, condition: str = "cruise_sl") -> dict
 
 
 def confirm_cycle(s: dict, t_end: float, dt: float) -> dict:
-    """The confirming closed-loop run, measured over its second half."""
+    """The confirming closed-loop run, measured over its second half (:func:`cycle_of`).
+
+    Parameters
+    ----------
+    s : dict
+        From :func:`setup`.
+    t_end, dt : float
+        Run length and RK4 step (s).
+    """
     t, y = s["confirm"](t_end, dt)
     return cycle_of(t, y, t_end / 2)
