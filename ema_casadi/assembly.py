@@ -10,7 +10,9 @@ parameters as an input vector, so one compiled model serves simulation, linearis
 sweeps, tuning and export.
 
 Summed signals the assembly provides: ``F_load_rod`` (N), the sum of every part's
-``loads`` (the external force and, with end stops, the stop force); ``E_stored`` (J),
+``loads`` (the external force and, with end stops, the stop force); ``M_load_rod`` (kg),
+the masses moving with the rod (every part's ``masses``: a surface referred through its
+horn); ``E_stored`` (J),
 the sum of every part's ``stored`` energies; ``P_heat_<node>`` (W) for each thermal
 node of :data:`~ema_casadi.components.HEAT_NODES`, the sum of the losses the parts
 route there (their ``heat`` tables). Reading a heat sum while some loss output is
@@ -42,6 +44,8 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
+from ._derived import projection as _projection
+from ._derived import zoh_split as _zoh
 from ._kwargs import check_keywords
 from ._switched import switched_split
 from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
@@ -349,7 +353,7 @@ def _default(inp, P) -> float:
 def _declarations(parts):
     """Merge what the parts declare; a name declared twice must agree."""
     states, inputs, outputs, providers = {}, {}, {}, {}
-    loops, holds, stored, loads, heat = {}, [], [], [], {}
+    loops, holds, stored, loads, heat, masses = {}, [], [], [], {}, []
     for part in parts:
         for s in part.states:
             if s.name in states:
@@ -370,14 +374,18 @@ def _declarations(parts):
         holds += part.holds
         stored += part.stored
         loads += part.loads
+        masses += part.masses
         heat.update(part.heat)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
     providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
+    providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
     for node in HEAT_NODES:
         providers[heat_signal(node)] = (heat_signal(node), lambda b, node=node: _heat(b, node, heat, outputs))
     for o in _SUMS:
         outputs[o.name] = o
-    # the model's inputs: signals first, loop-break injections last
+    # an input that a part provides as a signal is internal (the airframe's flight-control
+    # law provides the actuator's x_cmd); the model's inputs: signals first, injections last
+    inputs = {n: i for n, i in inputs.items() if n not in providers}
     ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
     return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
 
@@ -453,47 +461,3 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,
         ignored=tuple(ignored),
     )
-
-
-def _zoh(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
-    """The sampled-ECU split: ``f_held`` (plant with the controller outputs held and
-    the controller integrators frozen) and ``sample`` (one ECU update: each flagged
-    loop recomputes its held outputs and integrates its state by forward Euler over its
-    own sample period; loops run outer to inner, each seeing the outer loop's new value)."""
-    h = ca.SX.sym("h", len(holds))
-    held = {hd.name: h[i] for i, hd in enumerate(holds)}
-    frozen = {der(n): 0 for n in integrators}
-    dots_h, y_h = evaluate(bus(overrides={**held, **frozen}))
-    f_held = ca.Function("f_held", [x, u, p, h], [dots_h, y_h], ["x", "u", "p", "h"], ["xdot", "y"])
-
-    flags = ca.SX.sym("flags", len(loops))
-    flag = {name: flags[k] for k, name in enumerate(loops)}
-    wrap = {hd.name: (lambda b, val, hd=hd: ca.if_else(flag[hd.loop], val, held[hd.name])) for hd in holds}
-    bs = bus(wrap=wrap)
-    x_new = {n: X[n] for n in states}
-    for n in integrators:
-        loop = loops[states[n].loop]
-        x_new[n] = X[n] + flag[loop.name] * (1 / getattr(P, loop.rate)) * bs[der(n)]
-    sample = ca.Function(
-        "sample", [x, u, p, h, flags],
-        [ca.vertcat(*x_new.values()), ca.vertcat(*[bs[hd.name] for hd in holds])],
-        ["x", "u", "p", "h", "flags"], ["x_next", "h_next"],
-    )
-    return f_held, sample
-
-
-def _projection(parts, bus, x, u, p):
-    """``project(x_prev, x, u, p) -> (x_next, stick)`` from the hybrid parts' maps; the
-    stick test uses the continuous model's signals at ``x_prev`` and ``x``."""
-    X_prev = {n: ca.SX.sym(n + "_prev") for n in bus().x}
-    x_prev = ca.vertcat(*X_prev.values())
-    now, prev = bus(), bus(X_prev)
-    resets, sticks = {}, []
-    for part in parts:
-        mapped = part.project(prev, now)
-        if mapped is not None:
-            resets.update(mapped[0])
-            sticks.append(mapped[1])
-    stick = sticks[0] if len(sticks) == 1 else (ca.SX(0) if not sticks else ca.logic_or(*sticks))
-    x_next = ca.vertcat(*[resets.get(n, sym) for n, sym in now.x.items()])
-    return ca.Function("project", [x_prev, x, u, p], [x_next, stick], ["x_prev", "x", "u", "p"], ["x_next", "stick"])

@@ -26,15 +26,10 @@ import numpy as np
 from ._checks import describe, number
 from ._checks import nearest as _nearest
 from ._files import write_text
+from ._params_airframe import Airframe
 from .signals import decode_utf8
 
-__all__ = [
-    "ParameterError",
-    "UnknownParameterError",
-    "Parameters",
-    "load_parameters",
-    "GROUPS",
-]
+__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
 
 class ParameterError(ValueError):
@@ -201,11 +196,12 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
+    "airframe": Airframe,  # issue 13: optional table, every key defaulted
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
 #: parameter vector: 1 closes the loop, 0 opens it at the feedback signal.
-LOOP_FLAGS = ("loop_x", "loop_w", "loop_i")
+LOOP_FLAGS = ("loop_x", "loop_w", "loop_i", "loop_a")
 
 
 def _unknown(func: str, key: str, names) -> str:
@@ -232,7 +228,7 @@ class Parameters:
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, airframe : dataclass
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -249,6 +245,7 @@ class Parameters:
     control: Control
     thermal: Thermal
     endstop: EndStop
+    airframe: Airframe = Airframe()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
 
@@ -417,7 +414,7 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
     groups = {}
     for g, cls in GROUPS.items():
-        table = data.get(g)
+        table = data.get(g, {} if all("default" in f.metadata for f in fields(cls)) else None)
         if table is None:
             raise ParameterError(f"{src}: missing table [{g}]")
         if not isinstance(table, dict):

@@ -59,10 +59,12 @@ _UNITS = {
     "length": _LENGTH, "force": _FORCE, "rate": _RATE, "frequency": {"Hz": 1.0}, "time": {"s": 1.0, "ms": 1e-3},
     "dimensionless": {"1": 1.0}, "angular_velocity": {"rad/s": 1.0, "rpm": 2 * math.pi / 60}, "current": {"A": 1.0},
     "temperature": {"degC": 1.0, "°C": 1.0},  # degC throughout (steps and amplitudes are then in K)
+    "angle": {"rad": 1.0, "deg": math.pi / 180},
 }
 #: SI unit of each quantity kind: the unit of a bare number unless the caller says otherwise.
 SI_UNIT = {"length": "m", "force": "N", "rate": "m/s", "frequency": "Hz", "time": "s",
-           "dimensionless": "1", "angular_velocity": "rad/s", "current": "A", "temperature": "degC"}
+           "dimensionless": "1", "angular_velocity": "rad/s", "current": "A", "temperature": "degC",
+           "angle": "rad"}
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 

@@ -57,7 +57,9 @@ def run(args) -> dict:
         raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
     from ..components import validate_variants
 
-    params = load_parameters(args.model, dict(args.variant))  # the sweep file's [variants] go on top
+    given = dict(args.variant)
+    params = load_parameters(args.model, given)  # the sweep file's [variants] go on top
+    validate_variants({k: v for k, v in params.variants.items() if k not in given}, str(args.model))
     validate_variants(params.variants, "--variant")
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     try:

@@ -42,7 +42,7 @@ __all__ = [
 OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
-INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature")
+INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
 
 #: Thermal nodes a loss can heat (SPEC §2.6): every ``loss`` output names one in its
 #: part's :attr:`Part.heat`, and the assembly sums them into :func:`heat_signal` per node.
@@ -265,6 +265,13 @@ class Part:
     stored: ClassVar[tuple] = ()
     #: signals that load the rod (N, positive pushes the rod in); summed into F_load_rod
     loads: ClassVar[tuple] = ()
+    #: signals that are masses moving with the rod (kg, e.g. a surface's inertia referred
+    #: through its horn); summed into M_load_rod, which the screw adds to its rod mass
+    masses: ClassVar[tuple] = ()
+    #: trim of an outer loop (the airframe): the inputs the trim solves for and the states
+    #: it fixes (state -> the parameter giving its value, or a number)
+    trim_free: ClassVar[tuple] = ()
+    trim_fix: ClassVar[dict] = {}
     #: named envelope limits, ``name -> fn(P)`` (SI), read by the :class:`Bound` of any
     #: part; where several parts declare one, the widest holds (a part can only widen)
     limits: ClassVar[dict] = {}

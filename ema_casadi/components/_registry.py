@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .._checks import nearest as _nearest
 from ..params import ParameterError
-from . import ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
+from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
 from ._part import Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
@@ -19,13 +19,15 @@ class VariantError(ParameterError):
     """An unknown variant key or value; the one-line message lists the allowed ones."""
 
 
-def _off(key: str) -> type:
+def _off(key: str, value: str = "off") -> type:
     """The part of a family that is switched off: it brings nothing."""
-    return type(f"{key.title()}Off", (Part,), {"family": key, "value": "off", "doc": f"no {key}"})
+    return type(f"{key.title()}Off", (Part,), {"family": key, "value": value, "doc": f"no {key}"})
 
 
 #: Variant key -> value -> part class, in assembly order (outer controller to rod).
 REGISTRY: dict[str, dict[str, type]] = {
+    # the airframe first: its loop is the outermost
+    "airframe": {"none": _off("airframe", "none"), "transport": airframe.Transport, "b747": airframe.B747},
     "controller": {"P": controller.PositionP, "PI": controller.PositionPI},
     "motor": {"pmsm": motor.Pmsm, "dc": motor.Dc},
     "inverter": {"ideal": inverter.Ideal, "pwm": inverter.Pwm},

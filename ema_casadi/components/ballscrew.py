@@ -214,7 +214,7 @@ class Elastic(Part):
             return F_in, E_spring, P_contact
 
         def rod(b):
-            return ca.if_else(b["stick"], 0, b["F_net"] / b.P.M)
+            return ca.if_else(b["stick"], 0, b["F_net"] / (b.P.M + b["M_load_rod"]))
 
         return {
             "x_in": lambda b: b["phi"] * lead_ratio(b.P),
@@ -267,7 +267,7 @@ class Rigid(Part):
             return T_net / (lead_ratio(b.P) * g_hold) - b["F_load_rod"]
 
         def shaft_rate(b):
-            return ca.if_else(b["stick"], 0, _shaft(b, _J_eq(b.P)))
+            return ca.if_else(b["stick"], 0, _shaft(b, _J_eq(b.P, b["M_load_rod"])))
 
         return {
             "x_in": lambda b: b["phi"] * lead_ratio(b.P),
@@ -285,13 +285,14 @@ class Rigid(Part):
             der("phi"): lambda b: b["omega"],
             der("omega"): shaft_rate,
             der("x_play"): lambda b: play_rate(b["x_in"], b["v_in"], b["x_play"], b.P.B),
-            "F_in": lambda b: b["F_load"] + b.P.M * lead_ratio(b.P) * b[der("omega")],
+            "F_in": lambda b: b["F_load"] + (b.P.M + b["M_load_rod"]) * lead_ratio(b.P) * b[der("omega")],
             "P_screw_nut": lambda b: b["T_load"] * b["omega"] - b["F_load"] * b["v_in"],
             "E_kin": lambda b: 0.5 * _J_eq(b.P) * b["omega"] ** 2,
             "P_load": lambda b: b["f_ext"] * b["v_rod"],
         }
 
 
-def _J_eq(P):
-    """Inertia referred to the shaft, J_rot + M (p/2pi)^2 (kg m^2)."""
-    return P.J_m + P.J_s + P.M * lead_ratio(P) ** 2
+def _J_eq(P, M_load=0):
+    """Inertia referred to the shaft, J_rot + (M + M_load) (p/2pi)^2 (kg m^2); M_load the
+    masses moving with the rod (a surface through its horn)."""
+    return P.J_m + P.J_s + (P.M + M_load) * lead_ratio(P) ** 2

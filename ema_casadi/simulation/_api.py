@@ -122,13 +122,16 @@ def simulate(
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
+    given = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}
+    if "x_cmd" not in model.inputs and isinstance(x_cmd, float) and x_cmd == 0.0:
+        del given["x_cmd"]  # an airframe's flight-control law provides x_cmd (SPEC §2.8)
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
-        return _run_switched(model, t_end, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, dt, solver,
+        return _run_switched(model, t_end, given, dt, solver,
                              params, p, x0, dt_out, decimate, bool(jit), bool(progress))
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
+    sig = _input_signals(model, given, pv)
     return _timed(model, solver, plan.t_end, lambda: _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
                   if solver == "rk4" else _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress)))
 

@@ -13,7 +13,7 @@ from ._kernels import _reachable
 from ._requirements import TuneError
 from ._scaling import _GainScaling
 
-_LOOP_ORDER = tuple(LOOPS)  # position, velocity, current: the cascade the problem is built for
+_LOOP_ORDER = tuple(n for n in LOOPS if n in ("position", "velocity", "current"))  # the cascade it is built for
 
 
 def _io(model: Model) -> tuple[list[int], list[int]]:

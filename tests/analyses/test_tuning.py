@@ -105,7 +105,7 @@ def test_optimiser_loop_transfers_equal_fresh_linearisation(params, model_cache,
     for case, op in enumerate(prob.cases):
         sensitivities = prob.loop_sensitivities(case)  # at the start gains, on the grid f
         fresh = lz.operating_point(model, f_ext=op.f_ext, p=params.vector(**start))
-        for loop in lz.LOOPS:
+        for loop in model.loops:  # the actuator cascade (the aircraft loop needs an airframe)
             S = sensitivities[loop]
             L = fr.freqresp(lz.loop_model(model, loop, fresh), f)[0, 0]
             assert np.max(np.abs(S - 1 / (1 + L))) < 1e-7, (loop, op.f_ext)
@@ -182,7 +182,7 @@ def test_tuned_margins_verified_independently(params, tuned):
     p = res.params.vector()
     for F in LOADS:
         op = lz.operating_point(model, f_ext=F, p=p)
-        for loop in lz.LOOPS:
+        for loop in model.loops:  # the actuator cascade (the aircraft loop needs an airframe)
             gm_db, pm = _margins(lz.loop_transfer(model, loop, op))
             assert pm.size and np.min(pm) >= 45 - 1e-6, (F, loop, pm)
             assert np.all(np.abs(gm_db) >= 6 - 1e-6), (F, loop, gm_db)
@@ -292,7 +292,7 @@ def _independent_failures(model, params, loads, req, start_bandwidth=None):
     rates = {"position": pv["f_s_x"], "velocity": pv["f_s_w"], "current": pv["f_s_i"]}
     for F in loads:
         op = lz.operating_point(model, f_ext=F, p=p)
-        for loop in lz.LOOPS:
+        for loop in model.loops:  # the actuator cascade (the aircraft loop needs an airframe)
             L = lz.loop_transfer(model, loop, op)
             gm_db, pm = _margins(L)
             if not (pm.size and np.min(pm) >= req.pm_deg - 1e-6):

@@ -38,6 +38,9 @@ BASE = {
     "tune": ["tune", "{model}", "--out", "{tmp}/tuned.toml", "--max-iter", "1"],
     "demo": ["demo", "{model}", "--out", "{tmp}/out", "--quiet"],
     "sweep": ["sweep", "{model}", "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"],
+    "aircraft": ["aircraft", "{model}", "--no-responses", "--condition", "cruise_sl"],
+    "limit-cycle": ["limit-cycle", "{model}", "--amplitudes", "1um,2um", "--freqs", "5,6", "--t-end", "0",
+                    "--periods", "4"],
 }
 COMMANDS = list(BASE)
 
@@ -378,9 +381,23 @@ OWN = {
         "out-is-a-file": (["--out", "{tmp}/afile"], "--out"),
     },
 }
+OWN["aircraft"] = {  # issue 13
+    "condition-unknown": (["--condition", "cruise"], "--condition"),
+    "t-end-negative": (["--t-end", "-1"], "--t-end"),
+    "gust-time-zero": (["--gust-time", "0"], "--gust-time"),
+    "plot-dir-is-a-file": (["--plot-dir", "{tmp}/afile"], "--plot-dir"),
+}
+OWN["limit-cycle"] = {
+    "loop-unknown": (["--loop", "speed"], "--loop"),
+    "freqs-bad-range": (["--freqs", "5-1:3"], "--freqs"),
+    "amplitudes-unit": (["--amplitudes", "1furlong,2mm"], "furlong"),
+    "plot-suffix": (["--plot", "{tmp}/lc.txt"], "--plot"),
+    "dt-too-large": (["--dt", "0.1"], "--dt"),
+}
 for cmd, cases in OWN.items():
     for case_id, (args, message) in cases.items():
-        files = {"afile": "x"} if case_id == "out-is-a-file" else {}  # a flag given twice: the last wins
+        # a flag given twice: the last wins
+        files = {"afile": "x"} if case_id in ("out-is-a-file", "plot-dir-is-a-file") else {}
         add(f"{cmd}-{case_id}", Case(cmd, args, message, files))
 # -- ema sweep: the description file ------------------------------------------------------
 SWEEP_OK = """[parameters]

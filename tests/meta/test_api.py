@@ -118,6 +118,11 @@ for _name in ("loop_model", "loop_transfer"):
     CALLS[_name] = {"op": lambda c: ((c["model"], "position", c["op"]), {}),
                     "no-op": lambda c: ((c["model"], "position"), {})}
 
+for _name in ("aircraft_point", "aircraft_margins"):  # **overrides: flat parameter names
+    CALLS[_name] = {"": lambda c: ((c["model"],), {})}
+for _name in ("pitch_step", "gust_response"):
+    CALLS[_name] = {"": lambda c: ((c["model"], c["op"]), {})}
+
 KWARGS_FUNCTIONS = {q: f for q, f in FUNCTIONS.items() if _takes_kwargs(f)}
 
 

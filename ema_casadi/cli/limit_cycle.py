@@ -1,0 +1,101 @@
+"""Limit cycles by describing function at a loop break (SPEC §4.9), then the confirming
+long simulation. The nonlinear open loop (loop opened with its break flag) is driven at
+the break by a sine of each amplitude and frequency; L_N(A, f) is its first-harmonic
+response; a limit cycle is a root of L_N = -1 (stable when the loop gain falls through
+1 as A grows), refined by Newton, and checked by a closed-loop run (position: a 1 mm
+step held; aircraft: a 0.5 deg attitude step held) measured over its second half.
+Example: ema limit-cycle --variant controller=PI --variant friction=hybrid --k-i-x 3000 --plot lc.png
+"""
+
+from __future__ import annotations
+
+import time
+
+from . import UserError, check_output_path, load
+
+COMMAND = "limit-cycle"
+ORDER = 12
+HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
+DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("0.01mm-1mm:6", "0.01-1:8", 600.0)}
+
+
+def add_arguments(p):
+    p.add_argument("--loop", choices=("position", "aircraft"), default="position", help="loop break; default position")
+    p.add_argument("--airframe", choices=("b747", "transport"), default="b747",
+                   help="airframe of the aircraft loop (ignored for position); default b747")
+    p.add_argument("--condition", default="cruise_sl", help="flight condition of the aircraft loop")
+    p.add_argument("--amplitudes", default=None,
+                   help="amplitudes at the break: A0-A1:N (log-spaced) or a list (bare numbers mm); "
+                        "default 1um-30um:7 (position), 0.01mm-1mm:6 (aircraft)")
+    p.add_argument("--freqs", default=None, help="frequencies F0-F1:N or a list (Hz); default 1.5-15:10 (position), "
+                                                 "0.01-1:8 (aircraft)")
+    p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
+    p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
+    p.add_argument("--dt", type=float, default=1e-4, help="RK4 step (s); default 1e-4")
+    p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
+    p.add_argument("--t-end", type=float, default=None, help="confirming run (s); default 6 / 600; 0 skips it")
+    p.add_argument("--no-refine", action="store_true", help="grid prediction only")
+    p.add_argument("--plot", default=None, metavar="FILE.png", help="Nichols chart with amplitude contours")
+
+
+def _axes(args):
+    import numpy as np
+
+    from ..signals import SignalError, parse_range
+    from ..sinestream import parse_amplitudes, parse_freqs
+
+    a_txt, f_txt, t_end = DEFAULTS[args.loop]
+    try:
+        rng = parse_range(args.amplitudes or a_txt, "length", "mm")
+        amps = np.geomspace(rng[0], rng[1], rng[2]) if rng else parse_amplitudes(args.amplitudes, 0.075)
+        freqs = parse_freqs(args.freqs or f_txt)
+    except (SignalError, ValueError) as exc:
+        raise UserError(str(exc)) from None
+    if len(amps) < 2 or len(freqs) < 2 or np.any(amps <= 0) or len(amps) * len(freqs) > 400:
+        raise UserError("--amplitudes/--freqs: need 2 to 400 grid points in all, positive amplitudes")
+    return amps, freqs, (t_end if args.t_end is None else args.t_end)
+
+
+def run(args) -> dict:
+    from ..limitcycle import confirm_cycle, describing_function, plot_nichols, refine, setup
+
+    plot = check_output_path(args.plot, (".png",), "--plot")
+    amps, freqs, t_end = _axes(args)
+    if not (0 < args.dt <= 1e-3 and 4 <= args.periods <= 200 and 0 <= t_end <= 7200):
+        raise UserError("--dt in (0, 1e-3] s, --periods 4..200, --t-end 0..7200 s")
+    t0 = time.perf_counter()
+    if args.loop == "aircraft":
+        args.variant = [*args.variant, ("airframe", args.airframe)]
+    params, model = load(args)
+    over = {}
+    if args.k_i_x is not None:
+        over["K_i_x"] = args.k_i_x
+    if args.backlash is not None:
+        over["B"] = args.backlash * 1e-3
+    s = setup(model, args.loop, model.p(**over), args.condition)
+    kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
+              settle=args.periods // 2)
+    df = describing_function(model, args.loop, amps, freqs, **kw)
+    cycles = df.cycles if args.no_refine else [refine(model, args.loop, c, **kw) for c in df.cycles]
+    df.cycles = cycles
+    sim = confirm_cycle(s, t_end, args.dt) if t_end > 0 else None
+    written = [str(plot_nichols(df, plot))] if plot is not None else []
+    return {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
+            "describing_function": df.as_dict(), "predicted": cycles, "simulation": sim,
+            "t_end_s": t_end, "wall_time_s": time.perf_counter() - t0, "written": written}
+
+
+def report(r: dict) -> None:
+    print(f"describing function at the {r['loop']} loop break")
+    if not r["predicted"]:
+        print("  no limit cycle predicted (no root of L_N = -1 on the grid)")
+    for c in r["predicted"]:
+        print(f"  predicted {'stable' if c['stable'] else 'unstable'} cycle: amplitude {c['amplitude'] * 1e6:.3g} um "
+              f"at {c['freq_hz']:.4g} Hz")
+    s = r["simulation"]
+    if s is not None:
+        f = "-" if s["freq_hz"] is None else f"{s['freq_hz']:.4g} Hz"
+        print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {s['amplitude'] * 1e6:.3g} um "
+              f"(half peak-to-peak {s['half_pp'] * 1e6:.3g} um), frequency {f}")
+    for w in r["written"]:
+        print(f"wrote {w}")

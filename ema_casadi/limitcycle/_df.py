@@ -1,0 +1,283 @@
+"""Describing function of a nonlinear open loop at a break, and its limit cycles (SPEC §4.9).
+
+L_N(A, w): the loop is opened with its break flag (``loop_x``, ``loop_a``, ...), the
+injection is the operating-point value of the measurement plus A cos(w t) (a cosine,
+so that the integrators the open loop contains see a zero-mean error and do not ramp),
+the nonlinear model is simulated (the compiled RK4 of :func:`ema_casadi.simulate`,
+hybrid friction included) for ``periods`` periods, the first ``settle`` dropped, the
+linear drift of the rest removed, and the first harmonics of injection and
+measurement over each remaining whole period taken with the sine stream's
+:func:`~ema_casadi.sinestream.harmonics` and averaged: L_N = -Y_1 / D_1 (the
+negative-feedback convention of :func:`~ema_casadi.linearisation.loop_model`).
+
+A limit cycle is a root of L_N(A, w) = -1: on the grid, for each amplitude the phase
+crossing -180 deg is interpolated in log w, then the gain there (dB) in log A; a root
+is *stable* when the gain falls through 0 dB as A grows (a larger cycle is damped, a
+smaller one grows: the crossing rule). :func:`refine` polishes a root by Newton on the
+two real equations with finite-difference slopes (each evaluation one simulation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..assembly import Model
+from ..signals import Signal, constant
+from ..simulation import simulate
+from ..sinestream import harmonics
+
+__all__ = ["answered", "NO_ANSWER", "break_response", "describing_function", "predict", "refine",
+           "DescribingFunction", "cycle_of"]
+
+SAMPLES = 64  # kept samples per period
+
+
+def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int, settle: int,
+            extra: tuple = ()):
+    lp = model.loops[loop]
+    names = list(model.param_names)
+    p_open = np.array(p, float).copy()
+    p_open[names.index(lp.flag)] = 0.0
+
+    def run(A: float, f: float) -> complex:
+        T = 1.0 / f
+        m = max(1, math.ceil(T / SAMPLES / dt))
+        h = T / SAMPLES / m
+        inj = Signal.sine(A, f, -T / 4) + constant(meas0)
+        res = simulate(model, periods * SAMPLES * m * h, dt=h, dt_out=m * h, p=p_open, x0=x0,
+                       **{**inputs, lp.injection: inj})
+        t = np.asarray(res.t)[1:]
+        keep = slice(settle * SAMPLES, periods * SAMPLES)
+
+        def first(name, detrend=True):
+            y = np.asarray(res[name])[1:][keep]
+            if detrend:
+                y = y - np.polyval(np.polyfit(t[keep], y, 1), t[keep])
+            return harmonics(y.reshape(-1, SAMPLES))[0].mean()
+
+        L = complex(-first(lp.measured) / first(lp.injection))
+        return (L, {n: float(abs(first(n))) for n in extra}) if extra else L
+
+    return run
+
+
+def break_response(model: Model, loop: str, A: float, f: float, *, p, x0, inputs=None, meas0: float = 0.0,
+                   dt: float = 1e-4, periods: int = 16, settle: int = 8, signals: tuple = ()):
+    """L_N(A, f) of ``loop`` at one amplitude (the measurement's unit, m) and frequency (Hz).
+
+    Parameters
+    ----------
+    model : Model
+    loop : str
+        A loop of ``model.loops`` (``position``, ``aircraft``, ...).
+    A, f : float
+        Injection amplitude and frequency.
+    p, x0 : ndarray
+        Parameter vector (loops closed; this one is opened here) and initial state (the
+        operating point).
+    inputs : dict, optional
+        Other inputs by name (SI), e.g. the trimmed throttle.
+    meas0 : float
+        The measurement at the operating point (added to the injection).
+    dt : float
+        Largest RK4 step (s).
+    periods, settle : int
+        Periods simulated, and dropped as transient.
+    signals : tuple of str
+        Also return the first-harmonic amplitudes of these signals (by name): then the
+        result is ``(L_N, {name: amplitude})`` (e.g. the surface and the attitude in a
+        predicted cycle).
+    """
+    return _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle, tuple(signals))(A, f)
+
+
+@dataclass
+class DescribingFunction:
+    """L_N on a grid: ``L[i, k]`` at ``amplitudes[i]``, ``freqs[k]`` (Hz).
+
+    Parameters
+    ----------
+    loop : str
+        The loop break.
+    amplitudes, freqs : ndarray
+        Grid axes (the break signal's unit; Hz).
+    L : ndarray of complex
+        L_N on the grid.
+    cycles : list of dict
+        Predicted limit cycles (``amplitude``, ``freq_hz``, ``stable``; refined ones more).
+    """
+
+    loop: str
+    amplitudes: np.ndarray
+    freqs: np.ndarray
+    L: np.ndarray
+    cycles: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        """JSON-ready: gain (dB) and phase (deg) on the grid, None where there was no answer."""
+        ok = answered(self.L)
+        gain = np.where(ok, 20 * np.log10(np.where(ok, np.abs(self.L), 1.0)), np.nan)
+        phase = np.where(ok, np.degrees(np.angle(self.L)), np.nan)
+        return {"loop": self.loop, "amplitudes": self.amplitudes.tolist(), "freqs_hz": self.freqs.tolist(),
+                "gain_db": [[None if np.isnan(v) else float(v) for v in row] for row in gain],
+                "phase_deg": [[None if np.isnan(v) else float(v) for v in row] for row in phase],
+                "cycles": self.cycles}
+
+
+def describing_function(model: Model, loop: str, amplitudes, freqs, *, p, x0, inputs=None, meas0: float = 0.0,
+                        dt: float = 1e-4, periods: int = 16, settle: int = 8, stop=None) -> DescribingFunction:
+    """L_N on the grid amplitudes x freqs, and the limit cycles it predicts (:func:`predict`).
+
+    Parameters
+    ----------
+    model, loop, p, x0, inputs, meas0, dt, periods, settle
+        As in :func:`break_response`.
+    amplitudes, freqs : array_like
+        The grid (measurement unit; Hz), increasing.
+    stop : callable, optional
+        Called before each point (raises to interrupt).
+    """
+    run = _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle)
+    A, F = np.asarray(amplitudes, float), np.asarray(freqs, float)
+    L = np.empty((len(A), len(F)), complex)
+    for i, a in enumerate(A):
+        for k, f in enumerate(F):
+            if stop is not None:
+                stop()
+            L[i, k] = run(a, f)
+    df = DescribingFunction(loop, A, F, L)
+    df.cycles = predict(A, F, L)
+    return df
+
+
+#: Below this |L_N| the open loop has not answered (a rod held by stiction moves by round-off).
+NO_ANSWER = 1e-8
+
+
+def answered(L):
+    """Where L_N is a response, not round-off: finite and above :data:`NO_ANSWER`.
+
+    Parameters
+    ----------
+    L : ndarray of complex
+        L_N values.
+    """
+    L = np.asarray(L)
+    return np.isfinite(L) & (np.abs(L) > NO_ANSWER)
+
+
+def _crossing(F, Lrow):
+    """(f, gain dB) where the phase of L crosses -180 deg (first from low frequency)."""
+    ok = answered(Lrow)
+    F, Lrow = np.asarray(F)[ok], np.asarray(Lrow)[ok]
+    ph = np.degrees(np.unwrap(np.angle(Lrow)))
+    s = ph + 180.0
+    s = (s + 180.0) % 360.0 - 180.0  # distance from -180, wrapped
+    for k in range(len(F) - 1):
+        if s[k] == 0 or (s[k] * s[k + 1] < 0 and abs(s[k] - s[k + 1]) < 180):
+            w = s[k] / (s[k] - s[k + 1]) if s[k] != s[k + 1] else 0.0
+            lf = math.log(F[k]) + w * (math.log(F[k + 1]) - math.log(F[k]))
+            g = 20 * math.log10(abs(Lrow[k])) * (1 - w) + 20 * math.log10(abs(Lrow[k + 1])) * w
+            return math.exp(lf), g
+    return None
+
+
+def predict(amplitudes, freqs, L) -> list[dict]:
+    """Limit cycles L_N(A, w) = -1 from a grid, with their stability (crossing rule).
+
+    Parameters
+    ----------
+    amplitudes, freqs : ndarray
+        Grid axes (increasing).
+    L : ndarray of complex
+        L_N on the grid, shape (amplitudes, freqs).
+    """
+    rows = [_crossing(freqs, L[i]) for i in range(len(amplitudes))]
+    out = []
+    for i in range(len(amplitudes) - 1):
+        a, b = rows[i], rows[i + 1]
+        if a is None or b is None or a[1] * b[1] > 0 or a[1] == b[1]:
+            continue
+        w = a[1] / (a[1] - b[1])
+        la = math.log(amplitudes[i]) + w * (math.log(amplitudes[i + 1]) - math.log(amplitudes[i]))
+        lf = math.log(a[0]) + w * (math.log(b[0]) - math.log(a[0]))
+        out.append({"amplitude": math.exp(la), "freq_hz": math.exp(lf), "stable": bool(b[1] < a[1])})
+    return out
+
+
+def refine(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None, meas0: float = 0.0, dt: float = 1e-4,
+           periods: int = 16, settle: int = 8, iterations: int = 6, tol: float = 1e-3) -> dict:
+    """Newton on L_N(A, f) + 1 = 0 in (log A, log f) from a grid prediction.
+
+    Parameters
+    ----------
+    model, loop, p, x0, inputs, meas0, dt, periods, settle
+        As in :func:`break_response`.
+    cycle : dict
+        A root from :func:`predict` (``amplitude``, ``freq_hz``).
+    iterations : int
+        Newton steps at most.
+    tol : float
+        Stop when |L_N + 1| is below this.
+    """
+    run = _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle)
+    z = np.log([cycle["amplitude"], cycle["freq_hz"]])
+
+    def F(z):
+        v = run(math.exp(z[0]), math.exp(z[1]))
+        return np.log(v / -1 + 0j)  # log L_N - log(-1): zero at the root (gain dB and phase together)
+
+    r = F(z)
+    best = (abs(r), z)
+    for _ in range(iterations):
+        if abs(r) < tol:
+            break
+        h = 0.05
+        J = np.empty((2, 2))
+        for j in range(2):
+            dz = np.zeros(2)
+            dz[j] = h
+            rj = F(z + dz)
+            J[:, j] = [(rj - r).real / h, (rj - r).imag / h]
+        try:
+            step = np.linalg.solve(J, -np.array([r.real, r.imag]))
+        except np.linalg.LinAlgError:
+            break
+        z = z + np.clip(step, -0.3, 0.3)
+        r = F(z)
+        if abs(r) < best[0]:
+            best = (abs(r), z)
+    # a stick-slip open loop answers with some scatter: keep the best point met; a residual
+    # above 0.1 (|log L_N + j pi|: ~0.9 dB or ~6 deg) says the grid estimate was kept
+    res, z = best
+    return {**cycle, "amplitude": float(math.exp(z[0])), "freq_hz": float(math.exp(z[1])),
+            "residual": float(res), "refined": res < 0.1}
+
+
+def cycle_of(t, y, t_from: float) -> dict:
+    """Amplitude (first harmonic over whole cycles, and half peak-to-peak) and frequency
+    of a sustained oscillation of y over t >= t_from, its linear trend removed; amplitude
+    0 when fewer than three upward zero crossings are seen.
+
+    Parameters
+    ----------
+    t, y : ndarray
+        Time (s) and the signal.
+    t_from : float
+        Start of the measured window (s).
+    """
+    sel = np.asarray(t) >= t_from
+    t, y = np.asarray(t)[sel], np.asarray(y)[sel]
+    y = y - np.polyval(np.polyfit(t, y, 1), t)  # mean and slow drift (a phugoid) removed
+    half = 0.5 * float(np.ptp(y))
+    ups = t[1:][(y[:-1] < 0) & (y[1:] >= 0)]
+    if len(ups) < 3 or half == 0:
+        return {"amplitude": 0.0, "half_pp": half, "freq_hz": None}
+    t0, t1 = ups[0], ups[-1]
+    w = (t >= t0) & (t < t1)
+    f = (len(ups) - 1) / (t1 - t0)
+    c = 2 * np.mean(y[w] * np.exp(-2j * np.pi * f * t[w]))
+    return {"amplitude": float(abs(c)), "half_pp": half, "freq_hz": float(f)}

@@ -1,0 +1,84 @@
+"""Where a describing-function analysis starts, per loop break, and its confirming run.
+
+``position``: the actuator at rest (the model's initial state), the break signal x_rod;
+confirmed by a 1 mm command step held (the hunting study's scenario). ``aircraft``: the
+whole loop trimmed at a flight condition (:func:`~ema_casadi.aircraft.aircraft_point`),
+the break at the actuator command; confirmed by a 0.5 deg attitude step held.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..assembly import Model
+from ..signals import Signal
+from ..simulation import simulate
+from ._df import cycle_of
+
+__all__ = ["LOOP_SETUPS", "setup", "confirm_cycle"]
+
+LOOP_SETUPS = ("position", "aircraft")
+
+
+def _position(model: Model, p, condition):
+    def confirm(t_end, dt):
+        res = simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=max(dt, 1e-4), p=p)
+        return res.t, np.asarray(res["x_rod"])
+
+    return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm}
+
+
+def _aircraft(model: Model, p, condition):
+    from ..aircraft import aircraft_point, condition_overrides
+
+    names = list(model.param_names)
+    base = model.p(**condition_overrides(condition))
+    given = {n: float(v) for n, v, b in zip(names, p, model.p(), strict=True) if v != b}
+    pv = base.copy()
+    for n, v in given.items():
+        pv[names.index(n)] = v
+    op = aircraft_point(model, condition, **given)
+    inputs = {n: float(op.u[model.inputs.index(n)]) for n in op.policy["trim_free"]}
+    meas0 = op.output("x_cmd_fcs")
+
+    def confirm(t_end, dt):
+        th0 = inputs["theta_cmd"]
+        res = simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x,
+                       **{**inputs, "theta_cmd": Signal.step(math.radians(0.5), 1.0) + Signal.step(th0, 0.0)})
+        return res.t, np.asarray(res["x_cmd"])
+
+    return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "op": op}
+
+
+def setup(model: Model, loop: str, p=None, condition: str = "cruise_sl") -> dict:
+    """Parameter vector, initial state, fixed inputs, the break signal's operating value
+    and ``confirm(t_end, dt) -> (t, break signal)`` for a loop.
+
+    Parameters
+    ----------
+    model : Model
+    loop : {"position", "aircraft"}
+    p : ndarray, optional
+        Parameter vector (default the model's); for ``aircraft`` its values differing
+        from the model's are applied on top of the flight condition.
+    condition : str
+        Flight condition (``aircraft``).
+    """
+    fn = {"position": _position, "aircraft": _aircraft}[loop]
+    return fn(model, model.p() if p is None else np.asarray(p, float), condition)
+
+
+def confirm_cycle(s: dict, t_end: float, dt: float) -> dict:
+    """The confirming closed-loop run, measured over its second half (:func:`cycle_of`).
+
+    Parameters
+    ----------
+    s : dict
+        From :func:`setup`.
+    t_end, dt : float
+        Run length and RK4 step (s).
+    """
+    t, y = s["confirm"](t_end, dt)
+    return cycle_of(t, y, t_end / 2)
