@@ -94,10 +94,10 @@ def _hunting(spec, o, where, error, models):
 
 
 def _margins(spec, o, where, error, models):
-    from ..linearisation import LOOPS
-
+    # the loops every swept model closes (the aircraft loop only with an airframe)
+    common = [lp for lp in models[0].loops if all(lp in m.loops for m in models)]
     o = _opts(where, o, ("loops", "f_ext", "outer"), error)
-    loops = _names(where, o, "loops", list(LOOPS), error, list(LOOPS))
+    loops = _names(where, o, "loops", common, error, common)
     outer = _names(where, o, "outer", ["closed", "open"], error, "closed")[0]
     f_ext = _number(where, o, "f_ext", error, 0.0)
     cols = [(f"margins_{lp}_{k}", u) for lp in loops for k, u in _LOOP_FIELDS]
