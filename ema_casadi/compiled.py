@@ -24,7 +24,10 @@ import numpy as np
 
 from ._files import scratch_dir, write_with
 
-__all__ = ["compile_function", "compile_keyed", "cache_dir", "compiler", "BufferCall"]
+__all__ = ["compile_function", "compile_keyed", "compile_source", "cache_dir", "compiler", "BufferCall", "CFLAGS"]
+
+#: Compiler flags of every compiled library (part of the cache keys of compile_source).
+CFLAGS = ("-O2",)
 
 _lock = threading.Lock()
 _loaded: dict[str, ca.Function] = {}
@@ -88,18 +91,10 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
             info.update(compiled=True, cached=True)
             return _loaded[str(so)], info
         if not so.exists():
-            with scratch_dir() as tmp:  # removed on an interrupt too
-                c_file = Path(tmp) / f"{name}.c"
-                c_file.write_text(src)
-                tmp_so = Path(tmp) / so.name
-                cmd = [cc, "-O2", "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
-                proc = subprocess.run(cmd, capture_output=True, text=True)
-                if proc.returncode != 0:
-                    warnings.warn(f"C compilation failed, using CasADi's VM: {proc.stderr.strip()[:200]}", stacklevel=3)
-                    return f, info
-                # atomic: other processes see the whole library or none
-                # loaded at once: not deferred to the end of the command's outputs
-                write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
+            failed = _build_library(cc, src, name, so)
+            if failed:
+                warnings.warn(f"C compilation failed, using CasADi's VM: {failed}", stacklevel=3)
+                return f, info
         else:
             info["cached"] = True
         g = ca.external(name, str(so))
@@ -153,6 +148,67 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
         write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so", stage=False)
     info["compile_time"] = time.perf_counter() - t0
     return g, info
+
+
+def _build_library(cc: str, src: str, name: str, so: Path) -> str | None:
+    """Compile C source ``src`` into the shared library ``so`` (atomically: other
+    processes see the whole library or none); the compiler's complaint, or None."""
+    with scratch_dir() as tmp:  # removed on an interrupt too
+        c_file = Path(tmp) / f"{name}.c"
+        c_file.write_text(src)
+        tmp_so = Path(tmp) / so.name
+        cmd = [cc, *CFLAGS, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            return proc.stderr.strip()[:200] or f"{cc} exit status {proc.returncode}"
+        # loaded at once: not deferred to the end of the command's outputs
+        write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
+    return None
+
+
+def compile_source(name: str, key_parts, build) -> tuple[Path | None, dict]:
+    """A shared library built from C source of the caller's (e.g. a hand-written driver
+    appended to CasADi-generated code, loaded with :mod:`ctypes`), cached on disk under
+    a key the caller computes cheaply, like :func:`compile_keyed`.
+
+    Parameters
+    ----------
+    name : str
+        File-name stem of the cached library.
+    key_parts : iterable of str or bytes
+        What determines the source; hashed into the cache key.
+    build : callable
+        ``build() -> str``, the C source; only called on a cache miss.
+
+    Returns
+    -------
+    path : pathlib.Path or None
+        The library, or None without a C compiler or when compilation failed (a
+        warning says why).
+    info : dict
+        ``compiled``, ``cached`` and ``compile_time`` (s), as :func:`compile_function`.
+    """
+    import time
+
+    info = {"compiled": False, "cached": False, "compile_time": 0.0}
+    cc = compiler()
+    if cc is None:
+        return None, info
+    h = hashlib.sha256()
+    for part in (*key_parts, ca.__version__, sys.platform, " ".join(CFLAGS)):
+        h.update(part if isinstance(part, bytes) else str(part).encode())
+    so = cache_dir() / f"{name}_s{h.hexdigest()[:20]}.so"
+    t0 = time.perf_counter()
+    with _lock:
+        if so.exists():
+            info.update(compiled=True, cached=True)
+            return so, info
+        failed = _build_library(cc, build(), name, so)
+    if failed:
+        warnings.warn(f"C compilation of {name} failed: {failed}", stacklevel=3)
+        return None, info
+    info.update(compiled=True, compile_time=time.perf_counter() - t0)
+    return so, info
 
 
 def _loaded_path(g: ca.Function) -> str:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -37,8 +38,9 @@ from ._envelope import RunFailed
 from ._inputs import _input_signals
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
+from ._rosenbrock import _simulate_rosenbrock, library
 
-SOLVERS = ("rk4", "cvodes")
+SOLVERS = ("rk4", "cvodes", "rosenbrock")
 
 #: Most RK4 steps one run may take (about 12 min at :data:`RK4_SECONDS_PER_STEP`).
 MAX_STEPS = 10**9
@@ -126,11 +128,18 @@ def simulate(
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}, pv)
     t_wall = time.perf_counter()
-    if solver == "rk4":
+    used = solver
+    if solver == "rosenbrock" and library(model)[0] is None:
+        warnings.warn("solver rosenbrock needs a C compiler: running cvodes instead", stacklevel=2)
+        used = "cvodes"
+    if used == "rk4":
         res = _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
+    elif used == "rosenbrock":
+        res = _simulate_rosenbrock(model, plan.t_end, plan.spacing, plan._tail() > 0, sig, pv, x0, rtol, atol,
+                                   bool(progress))
     else:
         res = _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress))
-    res.info.update(wall_time=time.perf_counter() - t_wall, solver=solver, variants=dict(model.variants),
+    res.info.update(wall_time=time.perf_counter() - t_wall, solver=used, variants=dict(model.variants),
                     t_end=plan.t_end)
     return res
 
@@ -244,6 +253,9 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         number(val, lab(name), error, positive=True)
     if zoh and solver != "rk4":
         raise error(f"{lab('zoh')} (sampled ECU) needs solver rk4")
+    if solver == "rosenbrock" and model.hybrid:
+        raise error(f"{lab('solver')} rosenbrock does not handle hybrid (stick-slip) friction, a hybrid system "
+                    "with mode switches: use cvodes (switching instants located) or rk4")
     n_signals = model.nu + model.ny + model.nx
     if solver == "rk4":
         plan = _rk4_plan(t_end, dt, dt_out, decimate, lab, error)
@@ -255,7 +267,7 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         plan = _Plan(t_end, dt, min(spacing, t_end))
     kept = plan.kept
     if kept * n_signals * 8 > MAX_RESULT_BYTES:
-        if dt_out is not None or solver == "cvodes":
+        if dt_out is not None or solver != "rk4":
             spacing_label, spacing = lab("dt_out") if dt_out is not None else lab("dt"), plan.spacing
         else:
             spacing_label, spacing = lab("dt"), dt

@@ -1,0 +1,147 @@
+"""Variable-step RODAS4 (L-stable Rosenbrock) runs in compiled C (see the package
+docstring and ``_c/rosenbrock.c``).
+
+The model's f, its Jacobian df/dx and df/du u' are generated as C by CasADi with the
+parameters as an input, the hand-written driver (step, error norm, step-size
+controller, dense output, breakpoints, input signals) is appended, and the library is
+built once per model and cached on disk like the RK4 rollout. The input signals are
+passed as data (every SPEC §6 signal: constants, steps, ramps, sines, chirps, tables),
+so one library serves every scenario, parameter value and tolerance. Python calls it
+through :mod:`ctypes` (the GIL is released during the call) in chunks of at most
+:data:`ATTEMPTS_PER_CALL` steps, checking the envelope and interrupts in between.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from .._interrupts import check as check_interrupt
+from ..compiled import compile_source
+from ._cvodes import _check, _check_inputs, _outputs, _partial
+from ._envelope import RunFailed, monitor_for
+from ._result import _result, progress_bar
+
+#: Step attempts per call of the compiled driver (about 20 ms on the reference model):
+#: the envelope, interrupts and the progress bar are served between calls.
+ATTEMPTS_PER_CALL = 20000
+#: First step size tried (s); the controller grows it by up to 6x per step.
+H0 = 1e-6
+
+_DRIVER = Path(__file__).with_name("_c") / "rosenbrock.c"
+_KINDS = {"const": 0, "step": 1, "ramp": 2, "sine": 3, "chirp": 4, "table": 5}
+_STATE_HEAD = 6  # t, h, h_acc, err_acc, n_acc, reject (then x), as in the driver
+_STATS = ("steps", "rejected_steps", "f_evals", "jacobian_evals", "lu_decompositions")
+_dbl = ctypes.POINTER(ctypes.c_double)
+
+
+def _source(model) -> str:
+    """CasADi C of ros_f and ros_fj for ``model``, then the driver."""
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    ud = ca.SX.sym("ud", model.nu)
+    p = ca.SX.sym("p", len(model.param_names))
+    xdot = model.f(x, u, p)[0]
+    fj = ca.Function("ros_fj", [x, u, ud, p], [xdot, ca.densify(ca.jacobian(xdot, x)), ca.jtimes(xdot, u, ud)],
+                     {"cse": True})
+    gen = ca.CodeGenerator("ros_model.c", {"with_header": False, "casadi_int": "int"})
+    gen.add(ca.Function("ros_f", [x, u, p], [xdot]))
+    gen.add(fj)
+    return (f"{gen.dump()}\n#define EMA_NX {model.nx}\n#define EMA_NU {model.nu}\n"
+            f"#line 1 \"rosenbrock.c\"\n{_DRIVER.read_text()}")
+
+
+def library(model):
+    """The compiled driver of ``model`` (cached with the model and on disk), with its
+    build info; (None, info) without a C compiler."""
+    if "rosenbrock" not in model.cache:
+        parts = [_DRIVER.read_bytes(), Path(__file__).read_bytes(), model.f.serialize()]
+        path, info = compile_source(f"rosenbrock_{model.nx}", parts, lambda: _source(model))
+        fn = None
+        if path is not None:
+            fn = ctypes.CDLL(str(path)).ema_ros_run
+            fn.restype = ctypes.c_int
+            fn.argtypes = [_dbl, _dbl, ctypes.c_int, _dbl, _dbl, ctypes.c_int, _dbl, ctypes.c_int, _dbl, _dbl,
+                           _dbl, ctypes.c_long, _dbl, ctypes.POINTER(ctypes.c_int)]
+        model.cache["rosenbrock"] = (fn, info)
+    return model.cache["rosenbrock"]
+
+
+def _encode(model, sig) -> tuple[np.ndarray, np.ndarray]:
+    """The input signals as the driver's term table (9 numbers per term) and the
+    concatenated (t, value) columns of the tables."""
+    rows, tab = [], []
+    for name, s in sig.items():
+        i = model.inputs.index(name)
+        for term in s.terms:
+            off = length = 0
+            if term.kind == "table":
+                tt, vv = term.table
+                off, length = sum(len(c) for c in tab), len(tt)
+                tab += [tt, vv]
+            rows.append((i, _KINDS[term.kind], term.a, term.f0, term.f1, term.t0, term.T, off, length))
+    terms = np.array(rows, float).reshape(-1, 9)
+    return terms, np.concatenate([np.asarray(c, float) for c in tab]) if tab else np.zeros(1)
+
+
+def _grid(t_end: float, spacing: float, tail: bool) -> np.ndarray:
+    n = int(math.floor(t_end / spacing * (1 + 1e-9)))
+    grid = np.arange(n + 1) * spacing
+    return np.append(grid, t_end) if tail else np.append(grid[:-1], t_end)
+
+
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(_dbl)
+
+
+def _simulate_rosenbrock(model, t_end, spacing, tail, sig, pv, x0, rtol, atol, progress):
+    """Samples at 0, spacing, 2 spacing, ... and t_end (``tail``: after the whole
+    intervals), by the compiled driver; RunFailed when the run leaves the envelope or
+    the driver gives up."""
+    run, cinfo = library(model)
+    grid = _grid(t_end, spacing, tail)
+    cuts = {b for s in sig.values() for b in s.breakpoints() if 0 < b < t_end}
+    edges = np.array(sorted({0.0, t_end, *cuts}), float)
+    terms, tab = _encode(model, sig)
+    Xt = np.empty((len(grid), model.nx))  # row per sample: the driver's column-major nx x n
+    X = Xt.T
+    Y = np.empty((model.ny, len(grid)))
+    X[:, 0] = x0
+    monitor = monitor_for(model, pv)
+    U = _check_inputs(monitor, model, sig, grid, X, Y)
+    _check(monitor, model, sig, pv, grid, X, Y, U, 0, 1)
+    state = np.concatenate([[0.0, min(H0, t_end), 0.0, 0.0, 0.0, 0.0], x0]).astype(float)
+    stats = np.zeros(len(_STATS))
+    opt = np.array([rtol, atol, t_end])
+    pv = np.ascontiguousarray(pv, float)
+    n_done = ctypes.c_int(0)
+    done = 1
+    t_compute = time.perf_counter()
+    while done < len(grid):
+        check_interrupt()
+        status = run(_ptr(pv), _ptr(terms), len(terms), _ptr(tab), _ptr(edges), len(edges), _ptr(grid[done:]),
+                     len(grid) - done, _ptr(state), _ptr(Xt[done:]), _ptr(opt), ATTEMPTS_PER_CALL, _ptr(stats),
+                     ctypes.byref(n_done))
+        _check(monitor, model, sig, pv, grid, X, Y, U, done, done + n_done.value)
+        done += n_done.value
+        if status < 0:
+            raise RunFailed(_failure(status, state[1], rtol, atol), state[0], _partial(model, sig, grid, X, Y, done))
+        progress_bar(state[0] / t_end, progress)
+    _outputs(monitor, model, sig, pv, grid, X, Y, U, len(grid))
+    info = {"status": "completed", "dt_out": spacing, "compute_time": time.perf_counter() - t_compute,
+            "rtol": rtol, "atol": atol, "method": "rodas4", **dict(zip(_STATS, stats.astype(int).tolist())), **cinfo}
+    return _result(model, sig, grid, np.ascontiguousarray(X), Y, info)
+
+
+def _failure(status: int, h: float, rtol: float, atol: float) -> str:
+    if status == -1:
+        return (f"rosenbrock gave up: the step size fell to {h:.3g} s (round-off) without meeting "
+                f"rtol {rtol:g} / atol {atol:g}")
+    if status == -2:
+        return "rosenbrock gave up: non-finite model values that no smaller step removed"
+    return "rosenbrock gave up: a model evaluation failed"
