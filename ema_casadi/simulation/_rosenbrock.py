@@ -134,7 +134,8 @@ def _simulate_rosenbrock(model, t_end, spacing, tail, sig, pv, x0, rtol, atol, p
         progress_bar(state[0] / t_end, progress)
     _outputs(monitor, model, sig, pv, grid, X, Y, U, len(grid))
     info = {"status": "completed", "dt_out": spacing, "compute_time": time.perf_counter() - t_compute,
-            "rtol": rtol, "atol": atol, "method": "rodas4", **dict(zip(_STATS, stats.astype(int).tolist())), **cinfo}
+            "rtol": rtol, "atol": atol, "method": "rodas4",
+            **dict(zip(_STATS, stats.astype(int).tolist(), strict=True)), **cinfo}
     return _result(model, sig, grid, np.ascontiguousarray(X), Y, info)
 
 
