@@ -9,7 +9,8 @@ must be a whole number of steps dt and dt_out a whole number of steps (refused
 otherwise, with the numbers). The rollout is run at a decimation that divides both the
 sample spacing and the number of steps, at most :data:`~ema_casadi.simulation.STEPS_PER_CALL`
 steps per kept sample, and thinned to the requested grid: a large dt_out/dt costs
-nothing extra. ``cvodes`` integrates the whole intervals and then the last, shorter one.
+nothing extra. ``cvodes`` integrates the whole intervals and then the last, shorter one;
+``rosenbrock`` interpolates every sample, the shorter last one included.
 
 Limits (module constants, checked before anything is built):
 
@@ -100,8 +101,11 @@ def simulate(
         injections ``d_x``); strings in the unit of the input's quantity kind.
         Undriven inputs take their declared default.
     dt : float
-        RK4 step (s); for ``cvodes`` the default output spacing without ``dt_out``.
-    solver : {"rk4", "cvodes"}
+        RK4 step (s); for ``cvodes`` and ``rosenbrock`` the default output spacing
+        without ``dt_out``.
+    solver : {"rk4", "cvodes", "rosenbrock"}
+        ``rosenbrock``: variable-step RODAS4 in compiled C (not for hybrid friction;
+        without a C compiler it runs ``cvodes``, with a warning).
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
     x0 : array, optional
@@ -113,7 +117,7 @@ def simulate(
         ``rk4`` a whole number of steps); default every step for rk4, every ``dt`` for
         cvodes.
     rtol, atol : float
-        CVODES tolerances.
+        Tolerances of the variable-step solvers (the same error weighting for both).
     event_tol : float
         cvodes with hybrid friction: the stick/slip switching instants are located to
         within this time (s) before the integrator is restarted.
