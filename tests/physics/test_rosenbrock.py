@@ -138,3 +138,17 @@ def test_without_a_compiler_cvodes_runs_with_a_warning(model_cache, monkeypatch)
         assert res.info["solver"] == "cvodes"
     finally:
         model.cache.pop("rosenbrock", None)
+
+
+def test_ema_simulate_solver_rosenbrock(tmp_path, capsys):
+    import json
+
+    from conftest import REFERENCE
+    from ema_casadi.cli import main
+
+    out = tmp_path / "run.csv"
+    assert main(["simulate", str(REFERENCE), "--solver", "rosenbrock", "--t-end", "0.05", "--out", str(out),
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["solver"] == "rosenbrock" and summary["samples"] == 501  # dt_out 1e-4 s over 0.05 s
+    assert summary["steps"] > 0 and out.exists()
