@@ -150,14 +150,15 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     return g, info
 
 
-def _build_library(cc: str, src: str, name: str, so: Path) -> str | None:
+def _build_library(cc: str, src: str, name: str, so: Path, flags=()) -> str | None:
     """Compile C source ``src`` into the shared library ``so`` (atomically: other
-    processes see the whole library or none); the compiler's complaint, or None."""
+    processes see the whole library or none), with :data:`CFLAGS` and ``flags``; the
+    compiler's complaint, or None."""
     with scratch_dir() as tmp:  # removed on an interrupt too
         c_file = Path(tmp) / f"{name}.c"
         c_file.write_text(src)
         tmp_so = Path(tmp) / so.name
-        cmd = [cc, *CFLAGS, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
+        cmd = [cc, *CFLAGS, *flags, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             return proc.stderr.strip()[:200] or f"{cc} exit status {proc.returncode}"
@@ -166,7 +167,7 @@ def _build_library(cc: str, src: str, name: str, so: Path) -> str | None:
     return None
 
 
-def compile_source(name: str, key_parts, build) -> tuple[Path | None, dict]:
+def compile_source(name: str, key_parts, build, flags=()) -> tuple[Path | None, dict]:
     """A shared library built from C source of the caller's (e.g. a hand-written driver
     appended to CasADi-generated code, loaded with :mod:`ctypes`), cached on disk under
     a key the caller computes cheaply, like :func:`compile_keyed`.
@@ -179,6 +180,8 @@ def compile_source(name: str, key_parts, build) -> tuple[Path | None, dict]:
         What determines the source; hashed into the cache key.
     build : callable
         ``build() -> str``, the C source; only called on a cache miss.
+    flags : tuple of str
+        Compiler flags after :data:`CFLAGS` (none that changes floating-point results).
 
     Returns
     -------
@@ -195,7 +198,7 @@ def compile_source(name: str, key_parts, build) -> tuple[Path | None, dict]:
     if cc is None:
         return None, info
     h = hashlib.sha256()
-    for part in (*key_parts, ca.__version__, sys.platform, " ".join(CFLAGS)):
+    for part in (*key_parts, ca.__version__, sys.platform, " ".join((*CFLAGS, *flags))):
         h.update(part if isinstance(part, bytes) else str(part).encode())
     so = cache_dir() / f"{name}_s{h.hexdigest()[:20]}.so"
     t0 = time.perf_counter()
@@ -203,7 +206,7 @@ def compile_source(name: str, key_parts, build) -> tuple[Path | None, dict]:
         if so.exists():
             info.update(compiled=True, cached=True)
             return so, info
-        failed = _build_library(cc, build(), name, so)
+        failed = _build_library(cc, build(), name, so, flags)
     if failed:
         warnings.warn(f"C compilation of {name} failed: {failed}", stacklevel=3)
         return None, info

@@ -209,10 +209,11 @@ static double ros_step(ros_ctx* c, double t, double seg, double h, const double*
         for (i = 0; i < NX; ++i) y[i] += a[j] * K[j][i];
       if (ros_rhs(c, t + ros_alpha[s] * h, seg, y, fi)) ok = 0;
     }
-    for (i = 0; i < NX; ++i) {
-      e = fi[i] + h * ros_gamma[s] * ft[i];
-      for (j = 0; j < s; ++j) e += cc[j] / h * K[j][i];
-      K[s][i] = e;
+    e = h * ros_gamma[s];
+    for (i = 0; i < NX; ++i) K[s][i] = fi[i] + e * ft[i];
+    for (j = 0; j < s; ++j) {
+      e = cc[j] / h;
+      for (i = 0; i < NX; ++i) K[s][i] += e * K[j][i];
     }
     ros_solve(G, piv, K[s]);
   }
