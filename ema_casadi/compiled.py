@@ -83,7 +83,7 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
     name = f.name()
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     gen.add(f)
-    src = gen.dump()
+    src = inline_min_max(gen.dump())
     key = hashlib.sha256((src + ca.__version__ + sys.platform).encode()).hexdigest()[:20]
     so = cache_dir() / f"{name}_{key}.so"
     with _lock:
@@ -129,7 +129,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     if not jit or compiler() is None:
         return compile_function(build(), jit)
     h = hashlib.sha256()
-    for part in (*key_parts, ca.__version__, sys.platform):
+    for part in (*key_parts, ca.__version__, sys.platform, CODEGEN_REVISION):
         h.update(part if isinstance(part, bytes) else str(part).encode())
     so = cache_dir() / f"{name}_k{h.hexdigest()[:20]}.so"
     with _lock:
@@ -148,6 +148,27 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
         write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so", stage=False)
     info["compile_time"] = time.perf_counter() - t0
     return g, info
+
+
+#: CasADi's generated helpers for fmax/fmin call libm (C99); each call spills every live
+#: floating-point register (all are caller-saved) in the long straight-line code of a
+#: step. The replacements are C99's fmax/fmin inline: the larger (smaller) of the two,
+#: the other argument where one is NaN, and the second one where they compare equal
+#: (+0 and -0), which is what glibc's x86-64 fmax/fmin (maxsd/minsd) return: the same
+#: bits, checked by tests/regression. 13 % fewer cycles per RK4 step of the thermal
+#: model (0.23 -> 0.20 s for 4e5 steps, best of 8, user time).
+_MIN_MAX = (("return fmax(x, y);", "return (x > y || y != y) ? x : y;"),
+            ("return fmin(x, y);", "return (x < y || y != y) ? x : y;"))
+#: Changes with the post-processing of generated code: part of every cache key.
+CODEGEN_REVISION = "inline-min-max-1"
+
+
+def inline_min_max(src: str) -> str:
+    """CasADi-generated C with its fmax/fmin helpers inline (see :data:`_MIN_MAX`);
+    unchanged where a CasADi version emits them otherwise."""
+    for old, new in _MIN_MAX:
+        src = src.replace(old, new)
+    return src
 
 
 def _build_library(cc: str, src: str, name: str, so: Path, flags=()) -> str | None:
@@ -198,7 +219,7 @@ def compile_source(name: str, key_parts, build, flags=()) -> tuple[Path | None, 
     if cc is None:
         return None, info
     h = hashlib.sha256()
-    for part in (*key_parts, ca.__version__, sys.platform, " ".join((*CFLAGS, *flags))):
+    for part in (*key_parts, ca.__version__, sys.platform, CODEGEN_REVISION, " ".join((*CFLAGS, *flags))):
         h.update(part if isinstance(part, bytes) else str(part).encode())
     so = cache_dir() / f"{name}_s{h.hexdigest()[:20]}.so"
     t0 = time.perf_counter()

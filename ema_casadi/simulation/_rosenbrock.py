@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from .._interrupts import check as check_interrupt
-from ..compiled import compile_source
+from ..compiled import compile_source, inline_min_max
 from ._cvodes import _check, _check_inputs, _outputs, _partial
 from ._envelope import RunFailed, monitor_for
 from ._result import _result, progress_bar
@@ -51,7 +51,7 @@ def _source(model) -> str:
     gen = ca.CodeGenerator("ros_model.c", {"with_header": False, "casadi_int": "int"})
     gen.add(ca.Function("ros_f", [x, u, p], [xdot]))
     gen.add(fj)
-    return (f"{gen.dump()}\n#define EMA_NX {model.nx}\n#define EMA_NU {model.nu}\n"
+    return (f"{inline_min_max(gen.dump())}\n#define EMA_NX {model.nx}\n#define EMA_NU {model.nu}\n"
             f"#line 1 \"rosenbrock.c\"\n{_DRIVER.read_text()}")
 
 
