@@ -263,7 +263,8 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
         return np.asfortranarray(_input_matrix(model, sig, t3)), Fl
 
-    for c0, (U, Fl) in _prefetched(inputs, range(0, n_out, M)):
+    chunks = _prefetched(inputs, range(0, n_out, M))
+    for c0, (U, Fl) in chunks:
         check_interrupt()
         Xc, Yc = F(xa, U, Fl, pv, dt)
         m = min(M, n_out - c0)
@@ -277,6 +278,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
             if what.startswith("non-finite") and (bad.finite_before or c0 > 0):
                 # from inside the envelope to non-finite within one kept sample: RK4 unstable
                 what += f" right after a sample inside the envelope (RK4 step dt = {dt:g} s: too long?)"
+            chunks.close()  # the helper thread ends now, not when the traceback is dropped
             raise RunFailed(what, bad.time, result(c0 + bad.index + 1))
         xa = Xc[:, -1]
         progress_bar(min(1.0, (c0 + m) / n_out), progress)
