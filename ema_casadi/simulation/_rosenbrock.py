@@ -32,11 +32,19 @@ from ._result import _result, progress_bar
 ATTEMPTS_PER_CALL = 20000
 #: First step size tried (s); the controller grows it by up to 6x per step.
 H0 = 1e-6
+#: Steps this short (s) are accepted even when their error test fails: only a jump of f
+#: (a contact engaging with damping, an exact sign switch such as the screw efficiency's
+#: 1/eta vs eta_inv at omega = 0) gets them there. Five decades below the fastest time
+#: constant of the model (~1e-7 s, the current loop).
+H_FLOOR = 1e-12
+#: Forced steps after which a run gives up: the model is on a sliding mode (f flipping
+#: on both sides of a switching surface), which a one-step method can only crawl along.
+MAX_FORCED = 100000
 
 _DRIVER = Path(__file__).with_name("_c") / "rosenbrock.c"
 _KINDS = {"const": 0, "step": 1, "ramp": 2, "sine": 3, "chirp": 4, "table": 5}
 _STATE_HEAD = 6  # t, h, h_acc, err_acc, n_acc, reject (then x), as in the driver
-_STATS = ("steps", "rejected_steps", "f_evals", "jacobian_evals", "lu_decompositions")
+_STATS = ("steps", "rejected_steps", "f_evals", "jacobian_evals", "lu_decompositions", "forced_steps")
 
 
 def _source(model) -> str:
@@ -121,7 +129,7 @@ def _simulate_rosenbrock(model, t_end, spacing, tail, sig, pv, x0, rtol, atol, p
     _check(monitor, model, sig, pv, grid, X, Y, U, 0, 1)
     state = np.concatenate([[0.0, min(H0, t_end), 0.0, 0.0, 0.0, 0.0], x0]).astype(float)
     stats = np.zeros(len(_STATS))
-    opt = np.array([rtol, atol, t_end])
+    opt = np.array([rtol, atol, t_end, H_FLOOR, MAX_FORCED])
     pv = np.ascontiguousarray(pv, float)
     n_done = ctypes.c_int(0)
     done = 1
@@ -149,4 +157,7 @@ def _failure(status: int, h: float, rtol: float, atol: float) -> str:
                 f"rtol {rtol:g} / atol {atol:g}")
     if status == -2:
         return "rosenbrock gave up: non-finite model values that no smaller step removed"
+    if status == -4:
+        return (f"rosenbrock gave up after {MAX_FORCED} steps of {H_FLOOR:g} s across jumps of the model's "
+                "right-hand side (a sliding mode on a switch: use cvodes)")
     return "rosenbrock gave up: a model evaluation failed"

@@ -60,7 +60,7 @@ enum { K_CONST, K_STEP, K_RAMP, K_SINE, K_CHIRP, K_TABLE };
 /* state layout (in/out between calls) */
 enum { S_T, S_H, S_HACC, S_ERRACC, S_NACC, S_REJECT, S_X };
 /* statistics (accumulated) */
-enum { N_STEPS, N_REJECTED, N_F, N_JAC, N_LU, N_STATS };
+enum { N_STEPS, N_REJECTED, N_F, N_JAC, N_LU, N_FORCED, N_STATS };
 
 typedef struct {
   const double* p;
@@ -148,8 +148,10 @@ static int ros_jac(ros_ctx* c, double t, double seg, const double* x, double* f,
   return ros_fj(c->arg, c->res, c->iw, c->w, 0);
 }
 
-/* LU with partial pivoting of the column-major NX x NX matrix G, in place; 1 if singular. */
-static int ros_lu(double* G, int* piv) {
+/* LU with partial pivoting of the column-major NX x NX matrix G, in place, with the
+   reciprocals of the pivots in dinv (the solves multiply: no division on their critical
+   path); 1 if singular. */
+static int ros_lu(double* G, int* piv, double* dinv) {
   int i, j, k, r;
   double m, s;
   for (k = 0; k < NX; ++k) {
@@ -161,7 +163,7 @@ static int ros_lu(double* G, int* piv) {
     if (!(m > 0.0)) return 1;
     if (r != k)
       for (j = 0; j < NX; ++j) { s = G[k + j * NX]; G[k + j * NX] = G[r + j * NX]; G[r + j * NX] = s; }
-    s = 1.0 / G[k + k * NX];
+    s = dinv[k] = 1.0 / G[k + k * NX];
     for (i = k + 1; i < NX; ++i) G[i + k * NX] *= s;
     for (j = k + 1; j < NX; ++j) {
       s = G[k + j * NX];
@@ -172,7 +174,7 @@ static int ros_lu(double* G, int* piv) {
   return 0;
 }
 
-static void ros_solve(const double* G, const int* piv, double* b) {
+static void ros_solve(const double* G, const int* piv, const double* dinv, double* b) {
   int i, j;
   double s;
   for (i = 0; i < NX; ++i) {
@@ -181,7 +183,7 @@ static void ros_solve(const double* G, const int* piv, double* b) {
   for (j = 0; j < NX; ++j)
     for (i = j + 1; i < NX; ++i) b[i] -= G[i + j * NX] * b[j];
   for (j = NX - 1; j >= 0; --j) {
-    b[j] /= G[j + j * NX];
+    b[j] *= dinv[j];
     for (i = 0; i < j; ++i) b[i] -= G[i + j * NX] * b[j];
   }
 }
@@ -191,13 +193,13 @@ static void ros_solve(const double* G, const int* piv, double* b) {
    is not finite). */
 static double ros_step(ros_ctx* c, double t, double seg, double h, const double* x, const double* f0,
                        const double* J, const double* ft, double rtol, double atol, double* xn) {
-  double G[NX * NX], K[ROS_S][NX], y[NX], fi[NX], err = 0.0, sc, e;
+  double G[NX * NX], dinv[NX], K[ROS_S][NX], y[NX], fi[NX], err = 0.0, sc, e;
   int piv[NX], i, j, s, ok = 1;
   double d = 1.0 / (h * ros_gamma[0]);
   for (j = 0; j < NX * NX; ++j) G[j] = -J[j];
   for (i = 0; i < NX; ++i) G[i + i * NX] += d;
   c->stats[N_LU] += 1;
-  if (ros_lu(G, piv)) return INFINITY;
+  if (ros_lu(G, piv, dinv)) return INFINITY;
   for (s = 0; s < ROS_S; ++s) {
     const double* a = ros_a + s * (s - 1) / 2;
     const double* cc = ros_c + s * (s - 1) / 2;
@@ -215,7 +217,7 @@ static double ros_step(ros_ctx* c, double t, double seg, double h, const double*
       e = cc[j] / h;
       for (i = 0; i < NX; ++i) K[s][i] += e * K[j][i];
     }
-    ros_solve(G, piv, K[s]);
+    ros_solve(G, piv, dinv, K[s]);
   }
   for (i = 0; i < NX; ++i) {
     double xi = x[i], er = 0.0;
@@ -240,12 +242,16 @@ static void ros_hermite(double th, double h, const double* x0, const double* f0,
   for (i = 0; i < NX; ++i) out[i] = h00 * x0[i] + h10 * h * f0[i] + h01 * x1[i] + h11 * h * f1[i];
 }
 
-/* Segment [*seg, *end) of the edges that contains t (edges ascending). */
+/* Segment [*seg, *end) of the edges that contains t (edges ascending, at least two; the
+   last segment also holds its end): bisection, so a table of many rows costs log(rows). */
 static void ros_segment(const double* edges, int n_edges, double t, double* seg, double* end) {
-  int k = 0;
-  while (k + 1 < n_edges - 1 && edges[k + 1] <= t) ++k;
-  *seg = edges[k];
-  *end = edges[k + 1];
+  int lo = 0, hi = n_edges - 1, mid; /* edges[lo] <= t < edges[hi], or the last segment */
+  while (hi - lo > 1) {
+    mid = (lo + hi) / 2;
+    if (edges[mid] <= t) lo = mid; else hi = mid;
+  }
+  *seg = edges[lo];
+  *end = edges[lo + 1];
 }
 
 /* Integrate from state[S_T] towards the output times tout[0 .. n_out-1] (ascending,
@@ -253,15 +259,19 @@ static void ros_segment(const double* edges, int n_edges, double t, double* seg,
    Fills X (NX x n_out, column-major) with the samples reached and *n_done with their
    number. At most max_attempts steps are attempted in one call; the state (time,
    step size, controller memory, x) is kept in `state` for the next call.
-   opt: rtol, atol, hmax. Returns 0 when every sample is filled, 1 when the budget of
-   attempts ran out first, -1 when the step size fell below round-off (the model
-   stiffer than the method can follow, or a discontinuity it cannot pass), -2 when
-   the model gave non-finite values that no smaller step removed, -3 when a model
-   evaluation failed. */
+   opt: rtol, atol, hmax, h_floor, max_forced. A step of h_floor (s) or shorter is
+   accepted even when its error test fails ("forced"): that happens only where f jumps
+   (a contact that engages, a switch of an exact sign function) and the error of a step
+   across the jump cannot be made small; on a sliding mode (f flipping on both sides of a
+   switching surface) the run crawls at h_floor and gives up after max_forced such
+   steps. Returns 0 when every sample is filled, 1 when the budget of attempts ran out
+   first, -1 when the step size fell below round-off, -2 when the model gave non-finite
+   values that no smaller step removed, -3 when a model evaluation failed, -4 after
+   max_forced forced steps. */
 int ema_ros_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
                 int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
                 long max_attempts, double* stats, int* n_done) {
-  double rtol = opt[0], atol = opt[1], hmax = opt[2];
+  double rtol = opt[0], atol = opt[1], hmax = opt[2], h_floor = opt[3], max_forced = opt[4];
   double t = state[S_T], h = state[S_H], hacc = state[S_HACC], erracc = state[S_ERRACC];
   double nacc = state[S_NACC];
   int reject = (int)state[S_REJECT], nonfinite = 0, status = 1, filled = 0, i;
@@ -298,6 +308,11 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
     nonfinite = !isfinite(err);
     fac = nonfinite ? 5.0 : fmax(1.0 / 6.0, fmin(5.0, pow(err, 1.0 / ROS_ORDER) / 0.9));
     hnew = hh / fac;
+    if (err > 1.0 && !nonfinite && hh <= h_floor) { /* across a jump of f: accept (see above) */
+      if (++stats[N_FORCED] > max_forced) { status = -4; goto done; }
+      err = 1.0;
+      hnew = h_floor;
+    }
     if (err <= 1.0) {
       if (nacc > 0) { /* Gustafsson's predictive controller */
         facgus = (hacc / hh) * pow(err * err / erracc, 1.0 / ROS_ORDER) / 0.9;
@@ -340,6 +355,7 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
       reject = 1;
       stats[N_REJECTED] += 1;
       if (nacc == 0) hnew = hh * 0.1; /* the first step: cut hard */
+      if (!nonfinite) hnew = fmax(hnew, h_floor);
     }
     h = hnew;
   }
