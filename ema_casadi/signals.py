@@ -238,6 +238,13 @@ class Signal:
     def breakpoints(self) -> list[float]:
         return sorted({b for term in self.terms for b in term.breakpoints()})
 
+    def windows(self) -> list[tuple]:
+        """The signal as ``(lo, hi, shift, term)``: each term counts for t in [lo, hi)
+        and is evaluated at t - shift (how a compiled solver evaluates it; subclasses
+        that are not a plain sum of terms say how they are one). Here every term always,
+        unshifted."""
+        return [(-math.inf, math.inf, 0.0, term) for term in self.terms]
+
     def shifted(self, t0: float) -> Signal:
         """The same signal seen from ``t0`` on: ``s.shifted(t0)(t) == s(t + t0)``.
 

@@ -83,19 +83,21 @@ def library(model):
 
 
 def _encode(model, sig) -> tuple[np.ndarray, np.ndarray]:
-    """The input signals as the driver's term table (9 numbers per term) and the
-    concatenated (t, value) columns of the tables."""
+    """The input signals as the driver's term table (12 numbers per term: the term, its
+    table's place, the window it counts in and its time shift, see ``Signal.windows``)
+    and the concatenated (t, value) columns of the tables."""
     rows, tab = [], []
     for name, s in sig.items():
         i = model.inputs.index(name)
-        for term in s.terms:
+        for lo, hi, shift, term in s.windows():
             off = length = 0
             if term.kind == "table":
                 tt, vv = term.table
                 off, length = sum(len(c) for c in tab), len(tt)
                 tab += [tt, vv]
-            rows.append((i, _KINDS[term.kind], term.a, term.f0, term.f1, term.t0, term.T, off, length))
-    terms = np.array(rows, float).reshape(-1, 9)
+            rows.append((i, _KINDS[term.kind], term.a, term.f0, term.f1, term.t0, term.T, off, length, lo, hi,
+                         shift))
+    terms = np.array(rows, float).reshape(-1, 12)
     return terms, np.concatenate([np.asarray(c, float) for c in tab]) if tab else np.zeros(1)
 
 

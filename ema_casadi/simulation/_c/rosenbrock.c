@@ -53,8 +53,9 @@ static const double ros_e[ROS_S] = {0.0, 0.0, 0.0, 0.0, 0.0, 1.0};
 #define NX EMA_NX
 #define NU EMA_NU
 
-/* term layout: 9 doubles per term */
-enum { T_INPUT, T_KIND, T_A, T_F0, T_F1, T_T0, T_DUR, T_OFF, T_LEN, T_SIZE };
+/* term layout: 12 doubles per term; a term counts in the segments that start in
+   [T_LO, T_HI) and is evaluated at t - T_SHIFT (pieces of a piecewise signal) */
+enum { T_INPUT, T_KIND, T_A, T_F0, T_F1, T_T0, T_DUR, T_OFF, T_LEN, T_LO, T_HI, T_SHIFT, T_SIZE };
 enum { K_CONST, K_STEP, K_RAMP, K_SINE, K_CHIRP, K_TABLE };
 
 /* state layout (in/out between calls) */
@@ -74,16 +75,18 @@ typedef struct {
   double* stats;
 } ros_ctx;
 
-/* Inputs u and their time derivatives ud at t, in the segment that starts at seg. */
-static void ros_inputs(const ros_ctx* c, double t, double seg, double* u, double* ud) {
+/* Inputs u and their time derivatives ud at t, in the segment that starts at seg_g. */
+static void ros_inputs(const ros_ctx* c, double t_g, double seg_g, double* u, double* ud) {
   int k;
   memset(u, 0, sizeof(double) * NU);
   memset(ud, 0, sizeof(double) * NU);
   for (k = 0; k < c->n_terms; ++k) {
     const double* q = c->terms + T_SIZE * k;
     int i = (int)q[T_INPUT], kind = (int)q[T_KIND];
+    double t = t_g - q[T_SHIFT], seg = seg_g - q[T_SHIFT];
     double a = q[T_A], t0 = q[T_T0], tau = t - t0, w, ph, k2;
     int on = seg >= t0;
+    if (!(seg_g >= q[T_LO] && seg_g < q[T_HI])) continue;
     if (kind == K_CONST) {
       u[i] += a;
     } else if (kind == K_TABLE) {
