@@ -166,19 +166,7 @@ class _Term:
         t = np.asarray(t, dtype=float)
         if self.kind == "table":
             return np.interp(t, *self.table)
-        if self.kind == "sine" and t.ndim == 1:
-            return self._sine(t)
         return self._formula(t, np.sin, lambda c: np.where(c, 1.0, 0.0))
-
-    def _sine(self, t):
-        """The sine of :meth:`_formula` computed in place (the same operations in the
-        same order, so the same values; fewer temporary arrays on long grids)."""
-        out = t - self.t0
-        out *= 2 * np.pi * self.f0
-        np.sin(out, out=out)
-        out *= self.a
-        out *= np.where(t >= self.t0, 1.0, 0.0)
-        return out
 
     def sym(self, t):
         """CasADi expression of the symbol t (the same formula)."""
@@ -251,6 +239,13 @@ class Signal:
 
     def breakpoints(self) -> list[float]:
         return sorted({b for term in self.terms for b in term.breakpoints()})
+
+    def windows(self) -> list[tuple]:
+        """The signal as ``(lo, hi, shift, term)``: each term counts for t in [lo, hi)
+        and is evaluated at t - shift (how a compiled solver evaluates it; subclasses
+        that are not a plain sum of terms say how they are one). Here every term always,
+        unshifted."""
+        return [(-math.inf, math.inf, 0.0, term) for term in self.terms]
 
     def shifted(self, t0: float) -> Signal:
         """The same signal seen from ``t0`` on: ``s.shifted(t0)(t) == s(t + t0)``.

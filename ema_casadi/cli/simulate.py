@@ -50,7 +50,8 @@ def add_arguments(p):
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
     p.add_argument("--solver", choices=SOLVERS, default="rk4",
-                   help="rk4 (fixed step, compiled) or cvodes (variable step)")
+                   help="rk4 (fixed step, compiled), cvodes (variable-step BDF) or rosenbrock (variable-step "
+                        "RODAS4, compiled; smooth friction only)")
     p.add_argument("--zoh", action="store_true", help="sampled ECU at its rates (rk4 only)")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="write the time series: .csv (column time, then one per signal, a Unit: row, SI, 17 "

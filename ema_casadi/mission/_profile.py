@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from ..params import Parameters
-from ..signals import Signal, SignalError, parse_quantity, parse_signal
+from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
 __all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "NODE_LIMITS",
            "MISSION_VARIANTS"]
@@ -201,6 +201,15 @@ class Piecewise(Signal):
             pts.update(start + b for b in piece.breakpoints())
         return sorted(pts)
 
+    def windows(self) -> list[tuple]:
+        out = []
+        for k, (start, piece) in enumerate(zip(self.starts, self.pieces, strict=True)):
+            lo = start if k > 0 else -math.inf  # piece 0 also before the first start
+            hi = self.starts[k + 1] if k + 1 < len(self.starts) else math.inf
+            for a, b, shift, term in piece.windows():
+                out.append((max(lo, a + start), min(hi, b + start), start + shift, term))
+        return out
+
     def __add__(self, other):
         raise TypeError("a Piecewise signal cannot be added to; add the segments' signals")
 
@@ -237,6 +246,11 @@ class Ramp(Signal):
 
     def breakpoints(self) -> list[float]:
         return [] if self.a == self.b else [0.0, self.T]
+
+    def windows(self) -> list[tuple]:
+        if self.a == self.b:
+            return constant(self.a).windows()
+        return Signal.table([0.0, self.T], [self.a, self.b]).windows()  # np.interp, held outside
 
     def __add__(self, other):
         raise TypeError("a Ramp signal cannot be added to")

@@ -1,6 +1,6 @@
 """Time simulation of an assembled model (SPEC §4.1).
 
-Two solvers share the model's one CasADi Function:
+Three solvers share the model's one CasADi Function:
 
 ``rk4``
     Fixed-step classical Runge-Kutta, rolled out inside one compiled call per chunk
@@ -14,6 +14,13 @@ Two solvers share the model's one CasADi Function:
     Variable-step BDF (SUNDIALS CVODES through ``casadi.integrator``) on the
     continuous model with the signals as CasADi expressions of t; the run is split
     at the signals' breakpoints (steps, starts) and the integrator restarted there.
+``rosenbrock``
+    Variable-step RODAS4 (order 4, L-stable, embedded error estimate) with its whole
+    step-size loop in C (``_c/rosenbrock.c``) around CasADi-generated f, df/dx and
+    df/du u', built once per model and cached on disk; the signals are evaluated in
+    C, steps land on their breakpoints, samples come from Hermite interpolation.
+    About 3x fewer steps than CVODES at equal accuracy and ~2.5 us per step instead
+    of ~5 us. Continuous models only (hybrid friction is refused).
 
 Memory stays bounded by output decimation: only every ``decimate``-th step (or
 every ``dt_out``) is kept, and the inputs are generated chunk by chunk.

@@ -9,7 +9,8 @@ must be a whole number of steps dt and dt_out a whole number of steps (refused
 otherwise, with the numbers). The rollout is run at a decimation that divides both the
 sample spacing and the number of steps, at most :data:`~ema_casadi.simulation.STEPS_PER_CALL`
 steps per kept sample, and thinned to the requested grid: a large dt_out/dt costs
-nothing extra. ``cvodes`` integrates the whole intervals and then the last, shorter one.
+nothing extra. ``cvodes`` integrates the whole intervals and then the last, shorter one;
+``rosenbrock`` interpolates every sample, the shorter last one included.
 
 Limits (module constants, checked before anything is built):
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -38,8 +40,9 @@ from ._inputs import _input_signals
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
+from ._rosenbrock import _simulate_rosenbrock, library
 
-SOLVERS = ("rk4", "cvodes")
+SOLVERS = ("rk4", "cvodes", "rosenbrock")
 
 #: Most RK4 steps one run may take (about 12 min at :data:`RK4_SECONDS_PER_STEP`).
 MAX_STEPS = 10**9
@@ -99,8 +102,11 @@ def simulate(
         injections ``d_x``); strings in the unit of the input's quantity kind.
         Undriven inputs take their declared default.
     dt : float
-        RK4 step (s); for ``cvodes`` the default output spacing without ``dt_out``.
-    solver : {"rk4", "cvodes"}
+        RK4 step (s); for ``cvodes`` and ``rosenbrock`` the default output spacing
+        without ``dt_out``.
+    solver : {"rk4", "cvodes", "rosenbrock"}
+        ``rosenbrock``: variable-step RODAS4 in compiled C (not for hybrid friction;
+        without a C compiler it runs ``cvodes``, with a warning).
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
     x0 : array, optional
@@ -112,7 +118,7 @@ def simulate(
         ``rk4`` a whole number of steps); default every step for rk4, every ``dt`` for
         cvodes.
     rtol, atol : float
-        CVODES tolerances.
+        Tolerances of the variable-step solvers (the same error weighting for both).
     event_tol : float
         cvodes with hybrid friction: the stick/slip switching instants are located to
         within this time (s) before the integrator is restarted.
@@ -122,26 +128,48 @@ def simulate(
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
-    given = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}
-    if "x_cmd" not in model.inputs and isinstance(x_cmd, float) and x_cmd == 0.0:
-        del given["x_cmd"]  # an airframe's flight-control law provides x_cmd (SPEC §2.8)
+    given = _given(model, x_cmd, f_ext, eta, signals)
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
-        return _run_switched(model, t_end, given, dt, solver,
-                             params, p, x0, dt_out, decimate, bool(jit), bool(progress))
+        return _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress)
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, given, pv)
-    return _timed(model, solver, plan.t_end, lambda: _run_rk4(model, plan, sig, pv, x0, zoh, bool(jit), bool(progress))
-                  if solver == "rk4" else _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, bool(progress)))
+    run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
+    return _timed(model, solver, plan.t_end, run, used=used)
+
+
+def _given(model, x_cmd, f_ext, eta, signals) -> dict:
+    """The driven inputs by name; the default x_cmd dropped where a part provides it."""
+    given = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}
+    if "x_cmd" not in model.inputs and isinstance(x_cmd, float) and x_cmd == 0.0:
+        del given["x_cmd"]  # an airframe's flight-control law provides x_cmd (SPEC §2.8)
+    return given
+
+
+def _runner(model, solver, plan, sig, pv, x0, zoh, jit, progress, rtol, atol, event_tol):
+    """(the run of the solver as a function of no arguments, the solver that runs)."""
+    if solver == "rosenbrock" and library(model)[0] is None:
+        warnings.warn("solver rosenbrock needs a C compiler: running cvodes instead", stacklevel=4)
+        solver = "cvodes"
+    return _run_of(model, solver, plan, sig, pv, x0, zoh, jit, progress, rtol, atol, event_tol), solver
+
+
+def _run_of(model, solver, plan, sig, pv, x0, zoh, jit, progress, rtol, atol, event_tol):
+    if solver == "rk4":
+        return lambda: _run_rk4(model, plan, sig, pv, x0, zoh, jit, progress)
+    if solver == "rosenbrock":
+        return lambda: _simulate_rosenbrock(model, plan.t_end, plan.spacing, plan._tail() > 0, sig, pv, x0, rtol,
+                                            atol, progress)
+    return lambda: _run_cvodes(model, plan, sig, pv, x0, rtol, atol, event_tol, progress)
 
 
 def _timed(model, solver, t_end, run, **info) -> SimResult:
     """``run()`` with its wall time and the run's facts in ``info``."""
     t_wall = time.perf_counter()
     res = run()
-    res.info.update(wall_time=time.perf_counter() - t_wall, solver=solver, variants=dict(model.variants),
-                    t_end=t_end, **info)
+    res.info.update(wall_time=time.perf_counter() - t_wall, solver=info.pop("used", solver),
+                    variants=dict(model.variants), t_end=t_end, **info)
     return res
 
 
@@ -159,7 +187,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     sig = _input_signals(model, given, pv)
     out = None if dt_out is None else float(dt_out)
     return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
-                                                                    jit, progress), dt=float(dt))
+                                                                    bool(jit), bool(progress)), dt=float(dt))
 
 
 def _values(model: Model, params, p, x0) -> tuple[np.ndarray, np.ndarray]:
@@ -271,6 +299,9 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         number(val, lab(name), error, positive=True)
     if zoh and solver != "rk4":
         raise error(f"{lab('zoh')} (sampled ECU) needs solver rk4")
+    if solver == "rosenbrock" and model.hybrid:
+        raise error(f"{lab('solver')} rosenbrock does not handle hybrid (stick-slip) friction, a hybrid system "
+                    "with mode switches: use cvodes (switching instants located) or rk4")
     n_signals = model.nu + model.ny + model.nx
     if solver == "rk4":
         plan = _rk4_plan(t_end, dt, dt_out, decimate, lab, error)
@@ -282,7 +313,7 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
         plan = _Plan(t_end, dt, min(spacing, t_end))
     kept = plan.kept
     if kept * n_signals * 8 > MAX_RESULT_BYTES:
-        if dt_out is not None or solver == "cvodes":
+        if dt_out is not None or solver != "rk4":
             spacing_label, spacing = lab("dt_out") if dt_out is not None else lab("dt"), plan.spacing
         else:
             spacing_label, spacing = lab("dt"), dt

@@ -17,7 +17,7 @@ import ctypes
 import casadi as ca
 import numpy as np
 
-from ..compiled import compile_source
+from ..compiled import compile_source, inline_min_max
 
 __all__ = ["NativeRollout", "native_rollout"]
 
@@ -135,7 +135,7 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
         gen = ca.CodeGenerator("ema_rollout.c", {"with_header": False})
         gen.add(step)
         gen.add(out)
-        return gen.dump() + _DRIVER.format(nxa=nxa, nx=model.nx, nh=nh, nu=nu, nl=nl, ny=model.ny,
+        return inline_min_max(gen.dump()) + _DRIVER.format(nxa=nxa, nx=model.nx, nh=nh, nu=nu, nl=nl, ny=model.ny,
                                            step=step.name(), y=out.name())
 
     path, info = compile_source(f"rollout_c_{k}x{M}", [*key_parts, _DRIVER], source)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
@@ -205,6 +206,28 @@ def _flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
     return out
 
 
+def _prefetched(make, keys):
+    """``(key, make(key))`` for each key, the next one made in a helper thread while the
+    caller works on the current one. The compiled rollout releases the GIL, so on a
+    long run the NumPy input sampling (about a fifth of the time of a 20000-step chunk)
+    runs on the second core; the values are the same as made in line."""
+    keys = list(keys)
+    if len(keys) < 3:
+        for key in keys:
+            yield key, make(key)
+        return
+    pool = ThreadPoolExecutor(1, thread_name_prefix="ema-inputs")
+    try:
+        nxt = pool.submit(make, keys[0])
+        for i, key in enumerate(keys):
+            value = nxt.result()
+            if i + 1 < len(keys):
+                nxt = pool.submit(make, keys[i + 1])
+            yield key, value
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
 def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
@@ -239,13 +262,17 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
             info["mode_switches"] = int(round(X_out[model.nx + nh + 1, n - 1])) if n else 0
         return _result(model, sig, t_out, X_all, Y_all, info)
 
-    for c0 in range(0, n_out, M):
-        check_interrupt()
-        steps = np.arange(c0 * k, (c0 + M) * k)
-        t = steps * dt
+    def inputs(c0):
+        """The chunk's inputs at t, t + h/2, t + h of each step (column-major, as the
+        compiled call reads them) and the sampling flags."""
+        t = np.arange(c0 * k, (c0 + M) * k) * dt
         t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
-        U = _input_matrix(model, sig, t3)
         Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
+        return np.asfortranarray(_input_matrix(model, sig, t3)), Fl
+
+    chunks = _prefetched(inputs, range(0, n_out, M))
+    for c0, (U, Fl) in chunks:
+        check_interrupt()
         Xc, Yc = F(xa, U, Fl, pv, dt)
         m = min(M, n_out - c0)
         X_out[:, c0 : c0 + m] = Xc[:, :m]
@@ -258,6 +285,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
             if what.startswith("non-finite") and (bad.finite_before or c0 > 0):
                 # from inside the envelope to non-finite within one kept sample: RK4 unstable
                 what += f" right after a sample inside the envelope (RK4 step dt = {dt:g} s: too long?)"
+            chunks.close()  # the helper thread ends now, not when the traceback is dropped
             raise RunFailed(what, bad.time, result(c0 + bad.index + 1))
         xa = Xc[:, -1]
         progress_bar(min(1.0, (c0 + m) / n_out), progress)

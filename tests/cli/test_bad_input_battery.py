@@ -256,6 +256,9 @@ TIME_FLAGS = {
     "cvodes-result-too-big": (["--solver", "cvodes", "--t-end", "1e9"], ["--t-end 1e+09 s", "MAX_RESULT_BYTES"]),
     "dt-longer-than-t-end": (["--dt", "0.01"], "--dt (0.01 s) is longer than --t-end"),
     "zoh-with-cvodes": (["--zoh", "--solver", "cvodes"], "--zoh (sampled ECU) needs solver rk4"),
+    "zoh-with-rosenbrock": (["--zoh", "--solver", "rosenbrock"], "--zoh (sampled ECU) needs solver rk4"),
+    "rosenbrock-hybrid": (["--solver", "rosenbrock", "--variant", "friction=hybrid"],
+                          "--solver rosenbrock does not handle hybrid (stick-slip) friction"),
     "solver-unknown": (["--solver", "euler"], "--solver"),
 }
 for case_id, (args, message) in TIME_FLAGS.items():
@@ -568,6 +571,8 @@ API_CASES = {
     "simulate-solver": (lambda c: E.simulate(c["model"], 0.01, solver="euler"), E.SimulationError, "solver"),
     "simulate-zoh-cvodes": (lambda c: E.simulate(c["model"], 0.01, zoh=True, solver="cvodes"), E.SimulationError,
                             "zoh"),
+    "simulate-rosenbrock-rtol": (lambda c: E.simulate(c["model"], 0.01, solver="rosenbrock", rtol=-1),
+                                 E.SimulationError, "rtol"),
     "simulate-params-type": (lambda c: E.simulate(c["model"], 0.01, params="ref"), E.SimulationError, "params"),
     "simulate-p-short": (lambda c: E.simulate(c["model"], 0.01, p=[1.0, 2.0]), E.SimulationError, "p"),
     "simulate-steps-limit": (lambda c: E.simulate(c["model"], 1e9), E.SimulationError, "MAX_STEPS"),
