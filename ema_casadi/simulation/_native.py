@@ -13,6 +13,8 @@ The call goes through ctypes, which releases the GIL while the loop runs.
 from __future__ import annotations
 
 import ctypes
+import platform
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -70,6 +72,27 @@ CASADI_SYMBOL_EXPORT int ema_rollout(const double* x0, const double* U, const do
   return rc;
 }}
 """
+
+
+#: This CPU's instruction set for the loop (about 6 % faster on the mission); no fused
+#: multiply-adds, so the arithmetic and the results stay those of plain -O2.
+_FLAGS = ("-march=native", "-ffp-contract=off")
+
+
+def _cpu() -> str:
+    """This CPU's model and feature flags (a library built for them must not be loaded
+    on another CPU that shares the cache folder)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            lines = fh.read(20000).splitlines()
+    except OSError:
+        return platform.machine() + platform.processor()
+    return platform.machine() + "|".join(ln for ln in lines if ln.startswith(("model name", "flags")))[:4000]
+
+
+#: This module's code determines the generated library (driver, min/max inlining):
+#: part of its cache key.
+_THIS = Path(__file__).read_bytes()
 
 
 class NativeRollout:
@@ -138,7 +161,7 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
         return inline_min_max(gen.dump()) + _DRIVER.format(nxa=nxa, nx=model.nx, nh=nh, nu=nu, nl=nl, ny=model.ny,
                                            step=step.name(), y=out.name())
 
-    path, info = compile_source(f"rollout_c_{k}x{M}", [*key_parts, _DRIVER], source)
+    path, info = compile_source(f"rollout_c_{k}x{M}", [*key_parts, _THIS, _cpu()], source, _FLAGS)
     if path is None:
         return None, info
     return NativeRollout(path, nxa, nu, nl, model.ny, k, M), info
