@@ -84,13 +84,22 @@ def _variant(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
+def positionals(model: str, second: str | None, default: str) -> tuple[str, str]:
+    """(model, file) of a command taking ``[MODEL] FILE``: a single file named is the
+    FILE (the model stays the default), none gives ``default``."""
+    if second is None:
+        return (DEFAULT_MODEL, model) if model != DEFAULT_MODEL else (DEFAULT_MODEL, default)
+    return model, second
+
+
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
                    help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help="variant choice, repeatable: motor=pmsm|dc, screw=elastic|rigid, "
-                        "friction=smooth|hybrid, friction_shape=tanh|fermi, stribeck=off|on, "
-                        "inverter=ideal, controller=P|PI")
+                   help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
+                        "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
+                        "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
+                        "stribeck=off|on, iron_loss=off|on")
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 

@@ -20,15 +20,19 @@ import sys
 from pathlib import Path
 
 from ..mission import FAST_DT
-from . import UserError, _jsonable
+from . import UserError, _jsonable, positionals
 
 COMMAND = "mission"
+#: The mission run without a MISSION.toml: ~20 minutes of a regional-jet flight.
+DEFAULT_MISSION = "models/mission_regional.toml"
 ORDER = 9
 HELP = "flight mission: temperatures, losses, energy per part and segment, peaks vs limits"
 
 
 def add_arguments(p):
-    p.add_argument("mission", metavar="MISSION.toml", help="mission file (segments, limits)")
+    p.add_argument("mission", metavar="MISSION.toml", nargs="?", default=None,
+                   help=f"mission file (segments, limits); default {DEFAULT_MISSION} (a single file named "
+                        "is the mission)")
     p.add_argument("--out", default="out", metavar="DIR",
                    help="folder for <mission>.csv, <mission>.png and <mission>_summary.json (created); default out/")
     p.add_argument("--dt", type=float, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
@@ -63,6 +67,7 @@ def run(args) -> dict:
     from ..params import load_parameters
 
     out = _check(args)
+    args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)

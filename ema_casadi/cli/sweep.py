@@ -20,15 +20,19 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import UserError, check_output_path
+from . import UserError, check_output_path, positionals
 
 COMMAND = "sweep"
+#: The sweep run without a SPEC.toml.
+DEFAULT_SPEC = "models/sweep_reference.toml"
 ORDER = 10
 HELP = "sweep / Monte Carlo: parameters on a grid or from distributions, metrics per run"
 
 
 def add_arguments(p):
-    p.add_argument("spec", metavar="SPEC.toml", help="sweep description (parameters, scenario, metrics)")
+    p.add_argument("spec", metavar="SPEC.toml", nargs="?", default=None,
+                   help=f"sweep description (parameters, scenario, metrics); default {DEFAULT_SPEC} (40 runs "
+                        "over tolerances; a single file named is the sweep)")
     p.add_argument("--out", default=None, metavar="FILE.csv", help="the table, one row per run (and its journal)")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="histograms and sensitivities")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers; default: all cores")
@@ -45,6 +49,7 @@ def run(args) -> dict:
     from ..params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep
 
+    args.model, args.spec = positionals(args.model, args.spec, DEFAULT_SPEC)
     out = check_output_path(args.out, (".csv",), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")
     if args.jobs is not None and args.jobs < 1:
