@@ -102,3 +102,75 @@ def nearest(name: str, options) -> str:
     """
     match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
     return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def decode_utf8(data: bytes, path, error: type) -> str:
+    """``data`` decoded as UTF-8 with an optional byte-order mark, or ``error`` naming
+    ``path``, the offending byte and its offset.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content.
+    path : str or Path
+        The file, named in the message.
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise error(f"{path}: UTF-16 text; save the file as UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                    "save the file as UTF-8") from None
+
+
+def read_text_file(path, what: str, error: type) -> str:
+    """The text of an input file (UTF-8, a byte-order mark accepted), or ``error`` with
+    one line naming the file: missing, a folder, unreadable, not UTF-8.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the messages (``"parameter file"``).
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a folder, not a {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return decode_utf8(data, path, error)
+
+
+def read_toml(path, what: str, error: type) -> dict:
+    """An input TOML file as a dict, or ``error`` with one line naming the file (as
+    :func:`read_text_file`, or not valid TOML).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the messages (``"mission file"``).
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    import tomllib
+
+    text = read_text_file(path, what, error)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML ({exc})") from None

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._checks import read_text_file
 from .signals import _NUM, _UNITS, SI_UNIT, Signal, SignalError
 
 #: Names the time column of a table may have (SPEC §6: ``time``; ``t`` accepted).
@@ -35,39 +36,7 @@ def read_text(path: str | Path, what: str = "file") -> str:
     what : str
         What the file is, for the messages (``"signal table"``).
     """
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise SignalError(f"{path}: no such {what}") from None
-    except IsADirectoryError:
-        raise SignalError(f"{path}: is a folder, not a {what}") from None
-    except OSError as exc:
-        raise SignalError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    return decode_utf8(data, path, SignalError)
-
-
-def decode_utf8(data: bytes, path, error: type) -> str:
-    """``data`` decoded as UTF-8 with an optional byte-order mark, or ``error`` naming
-    ``path``, the offending byte and its offset.
-
-    Parameters
-    ----------
-    data : bytes
-        The file's content.
-    path : str or Path
-        The file, named in the message.
-    error : type
-        Exception raised (the caller's toolkit type).
-    """
-    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        raise error(f"{path}: UTF-16 text; save the file as UTF-8")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
-                    "save the file as UTF-8") from None
+    return read_text_file(path, what, SignalError)
 
 
 def _unit_scale(unit: str, kind: str, where: str, stroke: float | None) -> float:

@@ -16,18 +16,16 @@ them as an input: changing a value never rebuilds a model.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ._checks import describe, number
+from ._checks import describe, number, read_toml
 from ._checks import nearest as _nearest
 from ._files import write_text
 from ._params_airframe import Airframe
-from .signals import decode_utf8
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -477,21 +475,8 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
         raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
     if variants is not None and not isinstance(variants, dict):
         raise ParameterError(f"variants: expected a dict of variant names, got {describe(variants)}")
-    path = Path(path)
     src = str(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise ParameterError(f"{src}: no such parameter file") from None
-    except IsADirectoryError:
-        raise ParameterError(f"{src}: is a folder, not a parameter file") from None
-    except OSError as exc:
-        raise ParameterError(f"{src}: cannot read ({exc.strerror or exc})") from None
-    text = decode_utf8(data, src, ParameterError)  # a UTF-8 byte-order mark is accepted
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{src}: not valid TOML ({exc})") from None
+    data = read_toml(path, "parameter file", ParameterError)
     merged = _variant_table(data.get("model", {}), src)
     merged.update(_variant_table(variants or {}, "variant"))
     return _build(data, merged, src)

@@ -486,10 +486,10 @@ def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | N
 
 
 # the table reader lives in its own module; it needs Signal and SignalError from here
+from ._checks import decode_utf8  # noqa: E402
 from ._tables import (  # noqa: E402
     TIME_NAMES,
     _read_table,
     _table_reference,
-    decode_utf8,
     read_text,
 )

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import difflib
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from .._checks import read_toml
 from ..params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
@@ -424,16 +424,6 @@ def load_mission(path: str | Path, params: Parameters) -> Mission:
     MissionError
         One line naming the file, segment and key.
     """
-    path = Path(path)
     src = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise MissionError(f"{src}: no such mission file") from None
-    except OSError as exc:
-        raise MissionError(f"{src}: cannot read ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MissionError(f"{src}: not valid TOML ({exc})") from None
+    data = read_toml(path, "mission file", MissionError)
     return parse_mission(data, params, src)

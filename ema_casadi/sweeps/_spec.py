@@ -42,13 +42,12 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
-from .._checks import nearest
+from .._checks import nearest, read_toml
 from ..components import VARIANTS, validate_variants
 from ..params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
@@ -162,18 +161,7 @@ def load_sweep(path: str | Path, params: Parameters, variants: dict | None = Non
         Variant choices under the file's ``[variants]`` (the command line's ``--variant``).
     """
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
-    except FileNotFoundError:
-        raise SweepError(f"{path}: no such sweep file") from None
-    except IsADirectoryError:
-        raise SweepError(f"{path}: is a folder, not a sweep file") from None
-    except OSError as exc:
-        raise SweepError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError:
-        raise SweepError(f"{path}: not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(f"{path}: not valid TOML ({exc})") from None
+    data = read_toml(path, "sweep file", SweepError)
     return parse_sweep(data, params, str(path), variants, name=path.stem)
 
 
