@@ -60,8 +60,8 @@ _WHOLE = 1e-9
 def simulate(
     model: Model,
     t_end: float,
-    x_cmd=0.0,
-    f_ext=0.0,
+    x_cmd=None,
+    f_ext=None,
     eta=None,
     *,
     dt: float = 1e-5,
@@ -95,8 +95,8 @@ def simulate(
     t_end : float
         End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str
-        Commanded rod position (m), external force (N, positive pushes the rod in),
-        screw efficiency (-, default the parameter set's eta).
+        Rod command (m), external force (N, + pushes the rod in), screw efficiency (-);
+        None: the input's default (0 m, 0 N, the set's eta; no x_cmd behind an airframe).
     **signals : Signal, float or str
         Any other model input by name (``model.inputs``, e.g. the loop-break
         injections ``d_x``); strings in the unit of the input's quantity kind.
@@ -128,23 +128,22 @@ def simulate(
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
-    given = _given(model, x_cmd, f_ext, eta, signals)
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
-        return _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress)
+        return _run_switched(model, t_end, _given(x_cmd, f_ext, eta, signals), dt, solver, params, p, x0, dt_out,
+                             decimate, jit, progress)
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, given, pv)
+    sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _timed(model, solver, plan.t_end, run, used=used)
 
 
-def _given(model, x_cmd, f_ext, eta, signals) -> dict:
-    """The driven inputs by name; the default x_cmd dropped where a part provides it."""
-    given = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta, **signals}
-    if "x_cmd" not in model.inputs and isinstance(x_cmd, float) and x_cmd == 0.0:
-        del given["x_cmd"]  # an airframe's flight-control law provides x_cmd (SPEC §2.8)
-    return given
+def _given(x_cmd, f_ext, eta, signals) -> dict:
+    """The inputs given, by name (those not given take their declared defaults; any
+    other keyword is checked against the model's inputs)."""
+    named = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta}
+    return {**{name: value for name, value in named.items() if value is not None}, **signals}
 
 
 def _runner(model, solver, plan, sig, pv, x0, zoh, jit, progress, rtol, atol, event_tol):
