@@ -10,7 +10,8 @@ with the speed loop open the stick-slip open loop answers with no usable first h
 gain rising with frequency; not kept.)
 
 For each: L_N(A, f) on a grid (``--amplitudes``/``--freqs`` per break below), the roots
-of L_N = -1 with their stability, Newton refinement, the simulation (RK4 at 1e-4 s, the
+of L_N = -1 with their stability, Newton refinement, the harmonic balance with the 3rd,
+5th and 7th harmonics from that root (``--harmonics``), the simulation (RK4 at 1e-4 s, the
 hybrid model's converged step), and the relative errors of amplitude (first harmonic of
 the break signal) and frequency.
 
@@ -35,7 +36,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi._files import write_text
-from ema_casadi.limitcycle import cycle_of, describing_function, plot_nichols, refine
+from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, plot_nichols, refine
 
 ROOT = Path(__file__).resolve().parent.parent
 #: case -> (variants, loop, break signal, amplitudes, freqs (Hz), display scale, unit)
@@ -47,14 +48,15 @@ CASES = {
 }
 
 
-def run_case(params, name, k_i_x, t_end, dt, out):
+def run_case(params, name, k_i_x, t_end, dt, out, orders=(3, 5, 7)):
     variants, loop, signal, amps, freqs, scale, unit = CASES[name]
     model = ema.build_model(params, {"controller": "PI", "friction": "hybrid", **variants})
     p = model.p(K_i_x=k_i_x)
     t0 = time.perf_counter()
     kw = dict(p=p, x0=model.x0(), dt=dt)
     df = describing_function(model, loop, amps, freqs, **kw)
-    cycles = [refine(model, loop, c, **kw) for c in df.cycles]
+    cycles = [harmonic_balance(model, loop, refine(model, loop, c, **kw), harmonics=orders, **kw)
+              for c in df.cycles]
     df.cycles = cycles
     t_df = time.perf_counter() - t0
     res = ema.simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=dt, p=p)
@@ -66,8 +68,11 @@ def run_case(params, name, k_i_x, t_end, dt, out):
     stable = [c for c in cycles if c["stable"]]
     if stable and sim["freq_hz"]:
         c = stable[0]
-        row["amplitude_error"] = c["amplitude"] / sim["amplitude"] - 1
-        row["frequency_error"] = c["freq_hz"] / sim["freq_hz"] - 1
+        row["df_amplitude_error"] = c["df_amplitude"] / sim["amplitude"] - 1
+        row["df_frequency_error"] = c["df_freq_hz"] / sim["freq_hz"] - 1
+        if c["converged"]:
+            row["amplitude_error"] = c["amplitude"] / sim["amplitude"] - 1
+            row["frequency_error"] = c["freq_hz"] / sim["freq_hz"] - 1
     return row
 
 
@@ -78,22 +83,29 @@ def main(argv=None) -> int:
     ap.add_argument("--k-i-x", type=float, default=3000.0, help="position-loop integral gain (1/s^2)")
     ap.add_argument("--t-end", type=float, default=6.0, help="confirming run (s); default 6")
     ap.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
+    ap.add_argument("--harmonics", default="3,5,7", help="higher harmonics balanced (comma-separated); default 3,5,7")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     params = ema.load_parameters(args.model)
-    rows = [run_case(params, c, args.k_i_x, args.t_end, 1e-4, out) for c in args.cases.split(",")]
+    orders = tuple(int(k) for k in args.harmonics.split(","))
+    rows = [run_case(params, c, args.k_i_x, args.t_end, 1e-4, out, orders) for c in args.cases.split(",")]
     write_text(out / "hunting_df.json", json.dumps(rows, indent=1, default=float))
-    print("| case | predicted amplitude | predicted f (Hz) | simulated amplitude (1st harm.) | simulated f (Hz) "
-          "| amplitude error | frequency error |")
-    print("|---|---|---|---|---|---|---|")
+    print("| case | describing function | harmonic balance (1, " + args.harmonics + ") | simulated (1st harmonic) "
+          "| DF error: amplitude, frequency | HB error: amplitude, frequency |")
+    print("|---|---|---|---|---|---|")
     for r in rows:
-        sc = CASES[r["case"]][5]
-        for c in r["predicted"] or [{"amplitude": float("nan"), "freq_hz": float("nan"), "stable": False}]:
-            s = r["simulation"]
-            print(f"| {r['case']} | {c['amplitude'] * sc:.3g} {r['unit']} ({'stable' if c['stable'] else 'unstable'})"
-                  f" | {c['freq_hz']:.3g} | {s['amplitude'] * sc:.3g} {r['unit']} | {s['freq_hz'] or float('nan'):.3g}"
-                  f" | {r.get('amplitude_error', float('nan')):+.0%} | {r.get('frequency_error', float('nan')):+.0%} |")
+        sc, u, s = CASES[r["case"]][5], r["unit"], r["simulation"]
+        sim = f"{s['amplitude'] * sc:.3g} {u}, {s['freq_hz'] or float('nan'):.3g} Hz"
+        if not r["predicted"]:
+            print(f"| {r['case']} | none | none | {sim} | | |")
+        for c in r["predicted"]:
+            hb = f"{c['amplitude'] * sc:.3g} {u}, {c['freq_hz']:.3g} Hz" + ("" if c["converged"] else " (not converged)")
+            err = [r.get(k, float("nan")) for k in ("df_amplitude_error", "df_frequency_error", "amplitude_error",
+                                                     "frequency_error")]
+            print(f"| {r['case']} | {c['df_amplitude'] * sc:.3g} {u}, {c['df_freq_hz']:.3g} Hz "
+                  f"({'stable' if c['stable'] else 'unstable'}) | {hb} | {sim} "
+                  f"| {err[0]:+.1%}, {err[1]:+.1%} | {err[2]:+.1%}, {err[3]:+.1%} |")
     return 0
 
 

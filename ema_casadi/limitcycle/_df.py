@@ -27,7 +27,7 @@ import numpy as np
 from ..assembly import Model
 from ..signals import Signal, constant
 from ..simulation import simulate
-from ..sinestream import harmonics
+from ..sinestream import coefficients
 
 __all__ = ["answered", "NO_ANSWER", "break_response", "describing_function", "predict", "refine",
            "DescribingFunction", "cycle_of"]
@@ -35,31 +35,57 @@ __all__ = ["answered", "NO_ANSWER", "break_response", "describing_function", "pr
 SAMPLES = 64  # kept samples per period
 
 
-def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int, settle: int,
-            extra: tuple = ()):
+def _injection(meas0: float, f: float, coeffs: dict):
+    """meas0 + Re sum_k c_k exp(j k 2 pi f t) as a Signal (c_1 real: a cosine)."""
+    inj = constant(meas0)
+    for k, c in coeffs.items():
+        if abs(c) > 0:
+            w = 2 * math.pi * k * f
+            # |c| cos(k w t + arg c) = |c| sin(k w (t - t0)) with t0 <= 0: on from the start
+            inj = inj + Signal.sine(abs(c), k * f, -((np.angle(c) + math.pi / 2) % (2 * math.pi)) / w)
+    return inj
+
+
+def _periodic_runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int,
+                     settle: int, extra: tuple = ()):
+    """``run(f, coeffs) -> (Y, D, amplitudes)``: the open loop driven at the break by a
+    periodic injection (harmonic k of frequency f with complex amplitude coeffs[k]);
+    Y and D the harmonic coefficients 0..SAMPLES/2 of the measurement and the injection
+    over the kept whole periods (detrended: Y[0] = 0), ``amplitudes`` the first-harmonic
+    amplitudes of the ``extra`` signals."""
     lp = model.loops[loop]
     names = list(model.param_names)
     p_open = np.array(p, float).copy()
     p_open[names.index(lp.flag)] = 0.0
 
-    def run(A: float, f: float) -> complex:
+    def run(f: float, coeffs: dict):
         T = 1.0 / f
         m = max(1, math.ceil(T / SAMPLES / dt))
         h = T / SAMPLES / m
-        inj = Signal.sine(A, f, -T / 4) + constant(meas0)
         res = simulate(model, periods * SAMPLES * m * h, dt=h, dt_out=m * h, p=p_open, x0=x0,
-                       **{**inputs, lp.injection: inj})
+                       **{**inputs, lp.injection: _injection(meas0, f, coeffs)})
         t = np.asarray(res.t)[1:]
         keep = slice(settle * SAMPLES, periods * SAMPLES)
 
-        def first(name, detrend=True):
+        def of(name):
             y = np.asarray(res[name])[1:][keep]
-            if detrend:
-                y = y - np.polyval(np.polyfit(t[keep], y, 1), t[keep])
-            return harmonics(y.reshape(-1, SAMPLES))[0].mean()
+            y = y - np.polyval(np.polyfit(t[keep], y, 1), t[keep])
+            return coefficients(y.reshape(-1, SAMPLES)).mean(axis=0)
 
-        L = complex(-first(lp.measured) / first(lp.injection))
-        return (L, {n: float(abs(first(n))) for n in extra}) if extra else L
+        return of(lp.measured), of(lp.injection), {n: float(abs(of(n)[1])) for n in extra}
+
+    return run
+
+
+def _runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int, settle: int,
+            extra: tuple = ()):
+    """``run(A, f) -> L_N`` (and the ``extra`` amplitudes): the cosine injection."""
+    periodic = _periodic_runner(model, loop, p, x0, inputs, meas0, dt, periods, settle, extra)
+
+    def run(A: float, f: float) -> complex:
+        Y, D, amp = periodic(f, {1: A})
+        L = complex(-Y[1] / D[1])
+        return (L, amp) if extra else L
 
     return run
 
@@ -254,7 +280,7 @@ def refine(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None, meas0: f
     # above 0.1 (|log L_N + j pi|: ~0.9 dB or ~6 deg) says the grid estimate was kept
     res, z = best
     return {**cycle, "amplitude": float(math.exp(z[0])), "freq_hz": float(math.exp(z[1])),
-            "residual": float(res), "refined": res < 0.1}
+            "residual": float(res), "refined": bool(res < 0.1)}
 
 
 def cycle_of(t, y, t_from: float) -> dict:

@@ -143,6 +143,20 @@ class _HybridPeriods:
         return x1, y, None
 
 
+def coefficients(y: np.ndarray) -> np.ndarray:
+    """Fourier coefficients c_0..c_(K/2) of sampled periodic signals, c_n = (2/K) sum_k
+    y_k exp(-2 pi j n k/K), so that y = Re sum_n c_n exp(2 pi j n tau) (c_0 is twice the
+    mean); the one discrete Fourier transform of the sine stream and the limit cycles.
+
+    Parameters
+    ----------
+    y : ndarray, shape (..., K)
+        Samples at tau = k/K, k = 1..K, over one whole period (each row in its own unit).
+    """
+    y = np.roll(y, 1, axis=-1)  # sample K (tau = 1) is tau = 0 of a periodic signal
+    return np.fft.rfft(y, axis=-1) * (2.0 / y.shape[-1])
+
+
 def harmonics(y: np.ndarray):
     """First harmonic, distortion and mean of sampled periodic signals.
 
@@ -166,9 +180,8 @@ def harmonics(y: np.ndarray):
     mean : ndarray
         Mean over the period (unit of y).
     """
-    y = np.roll(y, 1, axis=-1)  # sample K (tau = 1) is tau = 0 of a periodic signal
     K = y.shape[-1]
-    c = np.fft.rfft(y, axis=-1) * (2.0 / K)
+    c = coefficients(y)
     c1 = c[..., 1]
     higher = np.sqrt(np.sum(np.abs(c[..., 2 : K // 2]) ** 2, axis=-1))
     with np.errstate(divide="ignore", invalid="ignore"):

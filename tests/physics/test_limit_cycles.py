@@ -7,7 +7,7 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi import Signal
-from ema_casadi.limitcycle import cycle_of, describing_function, refine
+from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, refine
 
 
 @pytest.fixture(scope="module")
@@ -30,23 +30,56 @@ def test_no_cycle_predicted_and_the_simulation_decays(params):
     assert cycle_of(res.t, res["x_rod"], 1.5)["amplitude"] == 0.0
 
 
-@pytest.mark.slow
-def test_pi_hunting_rigid_screw_prediction_vs_simulation(params):
-    # PI position loop K_i_x = 3000 1/s^2, rigid screw, hybrid friction (studies/hunting_df.py).
-    # Measured: predicted 8.03 um at 6.93 Hz, simulated (first harmonic of x_rod over 3-6 s)
-    # 6.51 um at 6.23 Hz: +23 % and +11 %. Asserted: the issue's 25 % on the amplitude; 15 %
-    # on the frequency (the issue asks 10 %: not met by the describing function here, whose
-    # single-harmonic balance misses the stick-slip cycle's harmonics; see the README)
-    model = ema.build_model(params, {"controller": "PI", "friction": "hybrid", "screw": "rigid"})
+def _hunting(params, screw):
+    model = ema.build_model(params, {"controller": "PI", "friction": "hybrid", "screw": screw})
     p = model.p(K_i_x=3000.0)
-    kw = dict(p=p, x0=model.x0(), dt=1e-4)
+    res = ema.simulate(model, 6.0, x_cmd=Signal.step(1e-3, 0.01), dt=1e-4, dt_out=1e-4, p=p)
+    return model, dict(p=p, x0=model.x0(), dt=1e-4), cycle_of(res.t, res["x_rod"], 3.0)
+
+
+def test_harmonic_balance_finds_the_simulated_hunting_cycle(params):
+    # PI position loop K_i_x = 3000 1/s^2, rigid screw, hybrid friction, started where the
+    # describing function's first-harmonic balance puts the root (8.0 um, 6.9 Hz, measured by
+    # the slow test below), 23 % / 11 % from the simulated cycle. With the 3rd, 5th and 7th
+    # harmonics balanced too, measured: 6.513 um, 6.226 Hz against the 6 s run's 6.512 um,
+    # 6.231 Hz (+0.04 %, -0.06 %); adding the 9th moves the answer by 0.4 %, the truncation
+    # error. Asserted at 2 % (5 x that) and a converged residual
+    model, kw, sim = _hunting(params, "rigid")
+    hb = harmonic_balance(model, "position", {"amplitude": 8.0e-6, "freq_hz": 6.9, "stable": True}, **kw)
+    assert hb["converged"] and hb["residual"] < 1e-2
+    assert hb["amplitude"] == pytest.approx(sim["amplitude"], rel=0.02)
+    assert hb["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.02)
+    assert 0.2 < hb["harmonics"][3] < 0.4  # a stick-slip cycle: far from a sine (measured 0.29)
+
+
+def test_harmonic_balance_rejects_bad_orders(params):
+    model = ema.build_model(params, {"controller": "PI"})
+    for bad in [(1, 3), (3, 3), (32,)]:
+        with pytest.raises(ValueError, match="harmonics"):
+            harmonic_balance(model, "position", {"amplitude": 1e-5, "freq_hz": 5.0}, p=model.p(), x0=model.x0(),
+                             harmonics=bad)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("screw, df_err", [("rigid", (0.23, 0.11)), ("elastic", (0.50, 0.26))])
+def test_pi_hunting_prediction_vs_simulation(params, screw, df_err):
+    # PI position loop K_i_x = 3000 1/s^2, hybrid friction (studies/hunting_df.py), the
+    # whole chain: the grid, its stable root, Newton, the harmonic balance (1, 3, 5, 7).
+    # Measured against the 6 s runs (first harmonic of x_rod over 3-6 s):
+    #   rigid:   DF 8.03 um, 6.93 Hz (+23 %, +11 %); balanced 6.51 um, 6.23 Hz (-0.0 %, -0.1 %)
+    #   elastic: DF 6.24 um, 6.02 Hz (+50 %, +26 %); balanced 4.20 um, 4.81 Hz (+1.0 %, +0.8 %)
+    # Asserted: the balanced cycle within 3 % (3 x the largest error measured; the issue asks
+    # 25 % / 10 %), and the first-harmonic root as far off as measured (within 5 points): the
+    # single-harmonic balance is what the higher harmonics correct
+    model, kw, sim = _hunting(params, screw)
     df = describing_function(model, "position", np.geomspace(1e-6, 3e-5, 7), np.geomspace(1.5, 15, 10), **kw)
     (c,) = [c for c in df.cycles if c["stable"]]
-    c = refine(model, "position", c, **kw)
-    res = ema.simulate(model, 6.0, x_cmd=Signal.step(1e-3, 0.01), dt=1e-4, dt_out=1e-4, p=p)
-    sim = cycle_of(res.t, res["x_rod"], 3.0)
-    assert c["amplitude"] == pytest.approx(sim["amplitude"], rel=0.25)
-    assert c["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.15)
+    hb = harmonic_balance(model, "position", refine(model, "position", c, **kw), **kw)
+    assert hb["converged"]
+    assert hb["amplitude"] == pytest.approx(sim["amplitude"], rel=0.03)
+    assert hb["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.03)
+    assert hb["df_amplitude"] / sim["amplitude"] - 1 == pytest.approx(df_err[0], abs=0.05)
+    assert hb["df_freq_hz"] / sim["freq_hz"] - 1 == pytest.approx(df_err[1], abs=0.05)
 
 
 @pytest.mark.slow
