@@ -100,7 +100,8 @@ def main(argv=None) -> int:
         if not r["predicted"]:
             print(f"| {r['case']} | none | none | {sim} | | |")
         for c in r["predicted"]:
-            hb = f"{c['amplitude'] * sc:.3g} {u}, {c['freq_hz']:.3g} Hz" + ("" if c["converged"] else " (not converged)")
+            hb = f"{c['amplitude'] * sc:.3g} {u}, {c['freq_hz']:.3g} Hz"
+            hb += "" if c["converged"] else " (not converged)"
             err = [r.get(k, float("nan")) for k in ("df_amplitude_error", "df_frequency_error", "amplitude_error",
                                                      "frequency_error")]
             print(f"| {r['case']} | {c['df_amplitude'] * sc:.3g} {u}, {c['df_freq_hz']:.3g} Hz "
