@@ -3,7 +3,9 @@
 ``position``: the actuator at rest (the model's initial state), the break signal x_rod;
 confirmed by a 1 mm command step held (the hunting study's scenario). ``aircraft``: the
 whole loop trimmed at a flight condition (:func:`~ema_casadi.aircraft.aircraft_point`),
-the break at the actuator command; confirmed by a 0.5 deg attitude step held.
+the break at the actuator command; confirmed by a return-to-trim attitude pulse (+0.5 deg
+from 1 s to 3 s, then the trim command again), so that the run settles into its cycle
+about the operating point the describing function is computed at.
 """
 
 from __future__ import annotations
@@ -44,9 +46,9 @@ def _aircraft(model: Model, p, condition):
     meas0 = op.output("x_cmd_fcs")
 
     def confirm(t_end, dt):
-        th0 = inputs["theta_cmd"]
-        res = simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x,
-                       **{**inputs, "theta_cmd": Signal.step(math.radians(0.5), 1.0) + Signal.step(th0, 0.0)})
+        th0, kick = inputs["theta_cmd"], math.radians(0.5)
+        pulse = Signal.step(th0, 0.0) + Signal.step(kick, 1.0) + Signal.step(-kick, 3.0)
+        res = simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, "theta_cmd": pulse})
         return res.t, np.asarray(res["x_cmd"])
 
     return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "op": op}
