@@ -14,8 +14,8 @@ B = 0.5 mm - measured, 120 s runs.) B from 0.02 to 0.5 mm.
 For each B: L_N(A, f) of the open aircraft loop on a grid, the roots of L_N = -1 with
 their stability (crossing rule), Newton refinement, the first harmonics of the surface
 angle, attitude and load factor in the predicted cycle; the closed loop from the trim
-with a 0.5 deg attitude step held for --t-end (default 300 s), measured over its second
-half.
+kicked by a return-to-trim attitude pulse (+0.5 deg from 1 s to 3 s; the confirming run of
+``limitcycle.setup``), --t-end long (default 300 s), measured over its second half.
 
 Usage::
 
@@ -37,11 +37,11 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi._files import write_text
-from ema_casadi.limitcycle import break_response, cycle_of, describing_function, refine, setup
+from ema_casadi.limitcycle import break_response, cycle_of, describing_function, harmonic_balance, refine, setup
 from ema_casadi.plotting import plt, save
 
 ROOT = Path(__file__).resolve().parent.parent
-AMPS = np.geomspace(3e-6, 3e-4, 7)  # at the actuator command (m)
+AMPS = np.geomspace(0.01, 1.0, 7)  # at the actuator command, times B (the cycle scales with the gap)
 FREQS = np.geomspace(0.3, 5.0, 8)  # Hz
 SHOWN = ("delta_e", "theta", "n_z")
 G_CRITERION = 0.02
@@ -51,24 +51,17 @@ def run_b(model, B, t_end, dt):
     s = setup(model, "aircraft", model.p(B=B))
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=dt)
     t0 = time.perf_counter()
-    df = describing_function(model, "aircraft", AMPS, FREQS, **kw)
+    df = describing_function(model, "aircraft", AMPS * B, FREQS, **kw)
     cycles = []
     for c in df.cycles:
         c = refine(model, "aircraft", c, **kw)
         _, amp = break_response(model, "aircraft", c["amplitude"], c["freq_hz"], signals=SHOWN, **kw)
-        cycles.append({**c, **{f"{n}_amplitude": v for n, v in amp.items()}})
+        hb = harmonic_balance(model, "aircraft", c, iterations=6, **kw)["harmonic_balance"]  # see the README
+        cycles.append({**c, **{f"{n}_amplitude": v for n, v in amp.items()}, "harmonic_balance": hb})
     t_df = time.perf_counter() - t0
-    res = _confirm(model, s, t_end, dt)
+    res = s["confirm"](t_end, dt)
     sim = {n: cycle_of(res.t, res[n], t_end / 2) for n in ("x_cmd", *SHOWN)}
     return {"B_m": B, "predicted": cycles, "simulation": sim, "df_wall_time_s": t_df}
-
-
-def _confirm(model, s, t_end, dt):
-    from ema_casadi import Signal
-
-    th0 = s["inputs"]["theta_cmd"]
-    return ema.simulate(model, t_end, dt=dt, dt_out=1e-2, p=s["p"], x0=s["x0"],
-                        **{**s["inputs"], "theta_cmd": Signal.step(math.radians(0.5), 1.0) + Signal.step(th0, 0.0)})
 
 
 def plot(rows, path):
@@ -106,8 +99,8 @@ def main(argv=None) -> int:
     write_text(out / "aircraft_backlash.json", json.dumps(rows, indent=1, default=float))
     plot(rows, out / "aircraft_backlash.png")
     print("| B (mm) | predicted x_cmd (um), f (Hz) | simulated x_cmd (um), f (Hz) | surface (deg) pred/sim "
-          "| theta (deg) pred/sim | n_z (g) pred/sim | within 0.02 g |")
-    print("|---|---|---|---|---|---|---|")
+          "| theta (deg) pred/sim | n_z (g) pred/sim | within 0.02 g | harmonic balance |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
         s = r["simulation"]
         st = [c for c in r["predicted"] if c["stable"]]
@@ -118,7 +111,10 @@ def main(argv=None) -> int:
         for n, sc in (("delta_e", 180 / math.pi), ("theta", 180 / math.pi), ("n_z", 1.0)):
             cells.append(f"{(c[f'{n}_amplitude'] * sc if c else 0):.3g} / {s[n]['amplitude'] * sc:.3g}")
         ok = max(c["n_z_amplitude"] if c else 0, s["n_z"]["amplitude"]) <= G_CRITERION
-        print(f"| {r['B_m'] * 1e3:g} | {pred} | {simx} | {' | '.join(cells)} | {'yes' if ok else 'NO'} |")
+        h = c["harmonic_balance"] if c else None
+        hb = "-" if h is None else (f"{h['amplitude'] * 1e6:.3g}, {h['freq_hz']:.3g}"
+                                    + ("" if h["converged"] else f" (not converged, residual {h['residual']:.2g})"))
+        print(f"| {r['B_m'] * 1e3:g} | {pred} | {simx} | {' | '.join(cells)} | {'yes' if ok else 'NO'} | {hb} |")
     return 0
 
 

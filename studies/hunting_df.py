@@ -70,7 +70,7 @@ def run_case(params, name, k_i_x, t_end, dt, out, orders=(3, 5, 7)):
         c = stable[0]
         row["df_amplitude_error"] = c["df_amplitude"] / sim["amplitude"] - 1
         row["df_frequency_error"] = c["df_freq_hz"] / sim["freq_hz"] - 1
-        if c["converged"]:
+        if c["harmonic_balance"]["converged"]:
             row["amplitude_error"] = c["amplitude"] / sim["amplitude"] - 1
             row["frequency_error"] = c["freq_hz"] / sim["freq_hz"] - 1
     return row
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
             print(f"| {r['case']} | none | none | {sim} | | |")
         for c in r["predicted"]:
             hb = f"{c['amplitude'] * sc:.3g} {u}, {c['freq_hz']:.3g} Hz"
-            hb += "" if c["converged"] else " (not converged)"
+            hb += "" if c["harmonic_balance"]["converged"] else " (not converged)"
             err = [r.get(k, float("nan")) for k in ("df_amplitude_error", "df_frequency_error", "amplitude_error",
                                                      "frequency_error")]
             print(f"| {r['case']} | {c['df_amplitude'] * sc:.3g} {u}, {c['df_freq_hz']:.3g} Hz "

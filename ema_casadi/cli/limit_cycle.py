@@ -4,8 +4,8 @@ the break by a sine of each amplitude and frequency; L_N(A, f) is its first-harm
 response; a limit cycle is a root of L_N = -1 (stable when the loop gain falls through
 1 as A grows), refined by Newton, then balanced with the higher harmonics of the
 break signal (--harmonics; the stick-slip cycle is far from a sine), and checked by a
-closed-loop run (position: a 1 mm
-step held; aircraft: a 0.5 deg attitude step held) measured over its second half.
+closed-loop run (position: a 1 mm step held; aircraft: a 0.5 deg attitude pulse, back to
+the trim) measured over its second half.
 Example: ema limit-cycle --variant controller=PI --variant friction=hybrid --k-i-x 3000 --plot lc.png
 """
 
@@ -18,7 +18,7 @@ from . import UserError, check_output_path, load
 COMMAND = "limit-cycle"
 ORDER = 12
 HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
-DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("0.01mm-1mm:6", "0.01-1:8", 600.0)}
+DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
 
 
 def add_arguments(p):
@@ -28,14 +28,14 @@ def add_arguments(p):
     p.add_argument("--condition", default="cruise_sl", help="flight condition of the aircraft loop")
     p.add_argument("--amplitudes", default=None,
                    help="amplitudes at the break: A0-A1:N (log-spaced) or a list (bare numbers mm); "
-                        "default 1um-30um:7 (position), 0.01mm-1mm:6 (aircraft)")
+                        "default 1um-30um:7 (position), 3um-300um:7 (aircraft)")
     p.add_argument("--freqs", default=None, help="frequencies F0-F1:N or a list (Hz); default 1.5-15:10 (position), "
-                                                 "0.01-1:8 (aircraft)")
+                                                 "0.3-5:8 (aircraft)")
     p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
     p.add_argument("--dt", type=float, default=1e-4, help="RK4 step (s); default 1e-4")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
-    p.add_argument("--t-end", type=float, default=None, help="confirming run (s); default 6 / 600; 0 skips it")
+    p.add_argument("--t-end", type=float, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
                    help="higher harmonics balanced after the describing function's root (orders 2..31, "
                         "comma-separated; 'none': first harmonic only); default 3,5,7")
@@ -113,12 +113,14 @@ def report(r: dict) -> None:
         print("  no limit cycle predicted (no root of L_N = -1 on the grid)")
     for c in r["predicted"]:
         kind = "stable" if c["stable"] else "unstable"
-        if "converged" in c:
-            hb = "" if c["converged"] else f" (NOT converged, residual {c['residual']:.2g}: not a cycle)"
+        if "harmonic_balance" in c:
+            h = c["harmonic_balance"]
+            bad = "" if h["converged"] else f" - NOT converged (residual {h['residual']:.2g}): not a cycle"
             print(f"  describing function: {kind} cycle, amplitude {c['df_amplitude'] * 1e6:.3g} um at "
                   f"{c['df_freq_hz']:.4g} Hz")
-            print(f"  harmonic balance (1, {', '.join(map(str, r['harmonics']))}): amplitude {c['amplitude'] * 1e6:.3g}"
-                  f" um at {c['freq_hz']:.4g} Hz{hb}")
+            print(f"  harmonic balance (1, {', '.join(map(str, r['harmonics']))}): amplitude {h['amplitude'] * 1e6:.3g}"
+                  f" um at {h['freq_hz']:.4g} Hz{bad}")
+            print(f"  prediction ({c['method']}): amplitude {c['amplitude'] * 1e6:.3g} um at {c['freq_hz']:.4g} Hz")
         else:
             print(f"  predicted {kind} cycle: amplitude {c['amplitude'] * 1e6:.3g} um at {c['freq_hz']:.4g} Hz")
     s = r["simulation"]

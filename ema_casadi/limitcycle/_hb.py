@@ -73,10 +73,11 @@ def harmonic_balance(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None
     Returns
     -------
     dict
-        ``cycle`` with ``amplitude`` and ``freq_hz`` replaced by the balanced values
-        (first harmonic of the break signal; Hz), ``harmonics`` (order -> amplitude
-        relative to the first), ``residual``, ``converged`` and ``df_amplitude`` /
-        ``df_freq_hz`` (the starting root).
+        ``cycle`` with ``harmonic_balance``: ``amplitude`` (first harmonic of the break
+        signal), ``freq_hz``, ``harmonics`` (order -> amplitude relative to the first),
+        ``residual`` and ``converged``; ``amplitude`` and ``freq_hz`` become the balanced
+        values when it converged and stay the describing function's otherwise
+        (``method`` says which), ``df_amplitude`` / ``df_freq_hz`` keep the starting root.
     """
     H = tuple(int(k) for k in harmonics)
     if any(k < 2 or k >= 32 for k in H) or len(set(H)) != len(H):
@@ -96,9 +97,12 @@ def harmonic_balance(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None
             break
     res = float(np.linalg.norm(r))
     A, f, c = _unpack(z, H)
-    return {**cycle, "amplitude": A, "freq_hz": f, "harmonics": {k: float(abs(c[k]) / A) for k in H},
-            "residual": res, "converged": res < converged, "df_amplitude": cycle["amplitude"],
-            "df_freq_hz": cycle["freq_hz"]}
+    hb = {"amplitude": A, "freq_hz": f, "harmonics": {k: float(abs(c[k]) / A) for k in H}, "residual": res,
+          "converged": bool(res < converged)}
+    best = {"amplitude": A, "freq_hz": f, "method": "harmonic balance"} if hb["converged"] else \
+        {"method": "describing function"}
+    return {**cycle, **best, "df_amplitude": cycle["amplitude"], "df_freq_hz": cycle["freq_hz"],
+            "harmonic_balance": hb}
 
 
 def _newton_step(run, z, r, H, h: float = 0.03):

@@ -26,10 +26,9 @@ LOOP_SETUPS = ("position", "aircraft")
 
 def _position(model: Model, p, condition):
     def confirm(t_end, dt):
-        res = simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=max(dt, 1e-4), p=p)
-        return res.t, np.asarray(res["x_rod"])
+        return simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=max(dt, 1e-4), p=p)
 
-    return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm}
+    return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm, "signal": "x_rod"}
 
 
 def _aircraft(model: Model, p, condition):
@@ -48,15 +47,15 @@ def _aircraft(model: Model, p, condition):
     def confirm(t_end, dt):
         th0, kick = inputs["theta_cmd"], math.radians(0.5)
         pulse = Signal.step(th0, 0.0) + Signal.step(kick, 1.0) + Signal.step(-kick, 3.0)
-        res = simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, "theta_cmd": pulse})
-        return res.t, np.asarray(res["x_cmd"])
+        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, "theta_cmd": pulse})
 
-    return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "op": op}
+    return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "signal": "x_cmd", "op": op}
 
 
 def setup(model: Model, loop: str, p=None, condition: str = "cruise_sl") -> dict:
-    """Parameter vector, initial state, fixed inputs, the break signal's operating value
-    and ``confirm(t_end, dt) -> (t, break signal)`` for a loop.
+    """Parameter vector, initial state, fixed inputs, the break signal's operating value,
+    ``confirm(t_end, dt) -> SimResult`` (the closed-loop run) and ``signal`` (the name of
+    the break signal in it) for a loop.
 
     Parameters
     ----------
@@ -82,5 +81,5 @@ def confirm_cycle(s: dict, t_end: float, dt: float) -> dict:
     t_end, dt : float
         Run length and RK4 step (s).
     """
-    t, y = s["confirm"](t_end, dt)
-    return cycle_of(t, y, t_end / 2)
+    res = s["confirm"](t_end, dt)
+    return cycle_of(res.t, np.asarray(res[s["signal"]]), t_end / 2)

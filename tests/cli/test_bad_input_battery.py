@@ -396,6 +396,9 @@ OWN["limit-cycle"] = {
     "amplitudes-unit": (["--amplitudes", "1furlong,2mm"], "furlong"),
     "plot-suffix": (["--plot", "{tmp}/lc.txt"], "--plot"),
     "dt-too-large": (["--dt", "0.1"], "--dt"),
+    "harmonics-first": (["--harmonics", "1,3"], "--harmonics"),
+    "harmonics-not-whole": (["--harmonics", "3.5"], "--harmonics"),
+    "harmonics-text": (["--harmonics", "odd"], "--harmonics"),
 }
 for cmd, cases in OWN.items():
     for case_id, (args, message) in cases.items():

@@ -46,10 +46,11 @@ def test_harmonic_balance_finds_the_simulated_hunting_cycle(params):
     # error. Asserted at 2 % (5 x that) and a converged residual
     model, kw, sim = _hunting(params, "rigid")
     hb = harmonic_balance(model, "position", {"amplitude": 8.0e-6, "freq_hz": 6.9, "stable": True}, **kw)
-    assert hb["converged"] and hb["residual"] < 1e-2
+    assert hb["harmonic_balance"]["converged"] and hb["harmonic_balance"]["residual"] < 1e-2
+    assert hb["method"] == "harmonic balance"
     assert hb["amplitude"] == pytest.approx(sim["amplitude"], rel=0.02)
     assert hb["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.02)
-    assert 0.2 < hb["harmonics"][3] < 0.4  # a stick-slip cycle: far from a sine (measured 0.29)
+    assert 0.2 < hb["harmonic_balance"]["harmonics"][3] < 0.4  # stick-slip: far from a sine (measured 0.29)
 
 
 def test_harmonic_balance_rejects_bad_orders(params):
@@ -75,7 +76,7 @@ def test_pi_hunting_prediction_vs_simulation(params, screw, df_err):
     df = describing_function(model, "position", np.geomspace(1e-6, 3e-5, 7), np.geomspace(1.5, 15, 10), **kw)
     (c,) = [c for c in df.cycles if c["stable"]]
     hb = harmonic_balance(model, "position", refine(model, "position", c, **kw), **kw)
-    assert hb["converged"]
+    assert hb["method"] == "harmonic balance"
     assert hb["amplitude"] == pytest.approx(sim["amplitude"], rel=0.03)
     assert hb["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.03)
     assert hb["df_amplitude"] / sim["amplitude"] - 1 == pytest.approx(df_err[0], abs=0.05)
@@ -83,22 +84,29 @@ def test_pi_hunting_prediction_vs_simulation(params, screw, df_err):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("B, amp_sim, f_sim", [(3e-4, 16.7e-6, 1.76), (5e-4, 27.5e-6, 1.75)])
+@pytest.mark.parametrize("B, amp_sim, f_sim", [(1e-4, 5.84e-6, 1.76), (3e-4, 16.7e-6, 1.75), (5e-4, 27.6e-6, 1.75)])
 def test_aircraft_backlash_prediction_vs_simulation(params, B, amp_sim, f_sim):
     # studies/aircraft_backlash.py: 747, rigid screw, hybrid friction, at the actuator-command
-    # break. Measured: predicted 14.9 / 32.3 um at 1.51 Hz against the 300 s runs' 16.7 / 27.5 um
-    # at 1.76 / 1.75 Hz (the simulated values are asserted here from their own run below):
-    # amplitude -11 % / +17 % (the issue's 25 %), frequency -14 % (asserted at 18 %; the
-    # issue's 10 % is not met: the describing function jumps at the gap, see the README)
+    # break, grid 0.01 B..B x 0.3..5 Hz. Measured: predicted 5.37 / 14.9 / 24.8 um at 1.48 / 1.51 /
+    # 1.51 Hz against the 300 s runs' 5.84 / 16.7 / 27.6 um at 1.76 / 1.75 / 1.75 Hz (the simulated
+    # values are checked here against their own run below): amplitude -8 / -11 / -10 % (asserted
+    # at the issue's 25 %), frequency -16 / -14 / -14 % (asserted at 18 %; the issue's 10 % is
+    # not met: the forced open loop has several periodic answers to one sine, see the README)
     from ema_casadi.limitcycle import setup
 
     model = ema.build_model(params, {"airframe": "b747", "friction": "hybrid", "screw": "rigid"})
     s = setup(model, "aircraft", model.p(B=B))
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=1e-4)
-    df = describing_function(model, "aircraft", np.geomspace(3e-6, 3e-4, 7), np.geomspace(0.3, 5.0, 8), **kw)
+    df = describing_function(model, "aircraft", np.geomspace(0.01, 1.0, 7) * B, np.geomspace(0.3, 5.0, 8), **kw)
     (c,) = [c for c in df.cycles if c["stable"]]
-    t, y = s["confirm"](300.0, 1e-4)
-    sim = cycle_of(t, y, 150.0)
+    res = s["confirm"](300.0, 1e-4)
+    sim = cycle_of(res.t, res["x_cmd"], 150.0)
     assert sim["amplitude"] == pytest.approx(amp_sim, rel=0.05) and sim["freq_hz"] == pytest.approx(f_sim, rel=0.02)
     assert c["amplitude"] == pytest.approx(sim["amplitude"], rel=0.25)
     assert c["freq_hz"] == pytest.approx(sim["freq_hz"], rel=0.18)
+    if B == 3e-4:
+        # the harmonic balance cannot balance this cycle (residual 0.19 after 6 steps, measured)
+        # and says so: the prediction stays the describing function's, flagged
+        hb = harmonic_balance(model, "aircraft", c, iterations=6, **kw)
+        assert not hb["harmonic_balance"]["converged"] and hb["method"] == "describing function"
+        assert (hb["amplitude"], hb["freq_hz"]) == (c["amplitude"], c["freq_hz"])
