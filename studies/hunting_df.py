@@ -36,7 +36,8 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi._files import write_text
-from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, plot_nichols, refine
+from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, harmonic_orders, plot_nichols, refine
+from ema_casadi.signals import parse_list
 
 ROOT = Path(__file__).resolve().parent.parent
 #: case -> (variants, loop, break signal, amplitudes, freqs (Hz), display scale, unit)
@@ -88,7 +89,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     params = ema.load_parameters(args.model)
-    orders = tuple(int(k) for k in args.harmonics.split(","))
+    orders = harmonic_orders(parse_list(args.harmonics, "dimensionless", "1"))
     rows = [run_case(params, c, args.k_i_x, args.t_end, 1e-4, out, orders) for c in args.cases.split(",")]
     write_text(out / "hunting_df.json", json.dumps(rows, indent=1, default=float))
     print("| case | describing function | harmonic balance (1, " + args.harmonics + ") | simulated (1st harmonic) "

@@ -62,17 +62,15 @@ def _axes(args):
 
 
 def _orders(text: str) -> tuple:
+    from ..limitcycle import harmonic_orders
     from ..signals import SignalError, parse_list
 
     if text.strip().lower() == "none":
         return ()
     try:
-        orders = parse_list(text, "dimensionless", "1")
-    except SignalError as exc:
-        raise UserError(f"--harmonics: {exc}") from None
-    if any(k != int(k) or not 2 <= k <= 31 for k in orders) or len(set(orders)) != len(orders):
-        raise UserError(f"--harmonics: distinct whole orders from 2 to 31 (or 'none'), got '{text}'")
-    return tuple(int(k) for k in orders)
+        return harmonic_orders(parse_list(text, "dimensionless", "1"))
+    except (SignalError, ValueError) as exc:
+        raise UserError(f"--harmonics: {str(exc).removeprefix('harmonics: ')} (or 'none')") from None
 
 
 def run(args) -> dict:

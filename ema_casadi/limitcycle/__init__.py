@@ -5,9 +5,9 @@ harmonic balance with the higher harmonics (:func:`harmonic_balance`), the confi
 long simulation (:func:`cycle_of`) and the Nichols chart."""
 
 from ._df import DescribingFunction, break_response, cycle_of, describing_function, predict, refine
-from ._hb import harmonic_balance
+from ._hb import harmonic_balance, harmonic_orders
 from ._plot import plot_nichols
 from ._setup import LOOP_SETUPS, confirm_cycle, setup
 
 __all__ = ["DescribingFunction", "break_response", "cycle_of", "describing_function", "predict", "refine",
-           "harmonic_balance", "plot_nichols", "LOOP_SETUPS", "confirm_cycle", "setup"]
+           "harmonic_balance", "harmonic_orders", "plot_nichols", "LOOP_SETUPS", "confirm_cycle", "setup"]

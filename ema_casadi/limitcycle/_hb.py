@@ -27,7 +27,22 @@ import numpy as np
 from ..assembly import Model
 from ._df import _periodic_runner
 
-__all__ = ["harmonic_balance"]
+__all__ = ["harmonic_balance", "harmonic_orders"]
+
+
+def harmonic_orders(harmonics) -> tuple:
+    """The higher harmonics to balance, checked: distinct whole orders from 2 to 31 (the
+    64-sample period's Nyquist limit); ``ValueError`` naming what is wrong otherwise.
+
+    Parameters
+    ----------
+    harmonics : iterable of int or float
+        The orders (e.g. ``(3, 5, 7)``, or parsed from ``"3,5,7"``).
+    """
+    orders = tuple(harmonics)
+    if any(k != int(k) or not 2 <= k <= 31 for k in orders) or len(set(orders)) != len(orders):
+        raise ValueError(f"harmonics: distinct whole orders from 2 to 31, got {', '.join(f'{k:g}' for k in orders)}")
+    return tuple(int(k) for k in orders)
 
 
 def _unpack(z, H):
@@ -79,13 +94,11 @@ def harmonic_balance(model: Model, loop: str, cycle: dict, *, p, x0, inputs=None
         values when it converged and stay the describing function's otherwise
         (``method`` says which), ``df_amplitude`` / ``df_freq_hz`` keep the starting root.
     """
-    H = tuple(int(k) for k in harmonics)
-    if any(k < 2 or k >= 32 for k in H) or len(set(H)) != len(H):
-        raise ValueError(f"harmonics: distinct orders from 2 to 31, got {harmonics!r}")
+    H = harmonic_orders(harmonics)
     run = _periodic_runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle)
     z = np.zeros(2 + 2 * len(H))
     z[:2] = math.log(cycle["amplitude"]), math.log(cycle["freq_hz"])
-    r, Y = _residual(run, z, H)
+    _, Y = _residual(run, z, H)
     for i, k in enumerate(H):  # start the higher harmonics from the describing function's answer
         z[2 + 2 * i: 4 + 2 * i] = (Y[k] / cycle["amplitude"]).real, (Y[k] / cycle["amplitude"]).imag
     r, Y = _residual(run, z, H)
