@@ -1,0 +1,244 @@
+"""Fit named parameters to test records (weighted least squares with exact sensitivities).
+
+Records (CSV with a time column and a Unit: row or units in brackets, or .mat with
+time and one field per signal): columns named after model inputs (x_cmd, f_ext, ...)
+drive the model, columns named after model states or outputs (x_rod, phi, omega, i_q,
+F_in, ...) are fitted. The fitted parameter file (--out) keeps the input file's
+layout with the estimates in place; --report DIR writes measured vs fitted figures,
+residuals, the correlation heat map, the intervals and summary.json/summary.md.
+A parameter whose 95 % interval is wider than +-50 % or that is correlated beyond 0.95
+with another is reported as not identifiable from these records (a wide one is held
+at its start value and the others fitted again). A fit that does not converge ends
+with exit status 3 and writes nothing.
+--track fits each record alone in the order of its time stamp (--stamp: a file-level
+field such as '# flight_hours: 1200' or a column) and extrapolates each parameter's
+trend to --limit NAME=VALUE (remaining useful life).
+Without records, the built-in example runs: records simulated from the reference set
+with worn parameters, fitted from the reference values.
+Example: ema identify step.csv chirp.csv --free F_seal,c_v,J_m,psi --sigma x_rod=0.3um --out fitted.toml
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from . import DEFAULT_MODEL, UserError, check_output_dir, check_output_path
+
+COMMAND = "identify"
+ORDER = 12
+HELP = "fit parameters to test records: estimates, 95 % intervals, identifiability, health trend"
+
+
+def add_arguments(p):
+    p.add_argument("records", nargs="*", metavar="RECORD", help="test records (.csv or .mat); none: the example")
+    p.add_argument("--free", default=None, metavar="NAME[,NAME...]", help="parameters to fit (flat names)")
+    p.add_argument("--bounds", action="append", default=[], metavar="NAME=LO:HI",
+                   help="bounds of a free parameter (SI), repeatable; LO > 0 for a positive (log-scaled) one")
+    p.add_argument("--sigma", action="append", default=[], metavar="CHANNEL=VALUE",
+                   help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
+                        "default: the record's field sigma_CHANNEL, else estimated from the residuals")
+    p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
+                   help="model evaluations per fit; more means not converged (exit 3); default 60")
+    p.add_argument("--keep-unidentifiable", action="store_true",
+                   help="do not hold parameters with intervals wider than +-50 %% at their start values")
+    p.add_argument("--profile", action="append", default=[], metavar="NAME",
+                   help="profile-likelihood interval of a free parameter, repeatable")
+    p.add_argument("--validate", nargs="+", default=[], metavar="RECORD",
+                   help="records not used in the fit, predicted with the estimates (NRMSE, residual whiteness)")
+    p.add_argument("--track", action="store_true",
+                   help="health trend: fit each record alone in the order of its time stamp")
+    p.add_argument("--stamp", default="flight_hours", metavar="FIELD",
+                   help="--track: the records' time-stamp field or column; default flight_hours")
+    p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
+                   help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
+    p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress on stderr (--no-progress to hide); default: when stderr is a terminal")
+
+
+def _pairs(items, flag) -> dict:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise UserError(f"{flag} expects NAME=VALUE, got '{item}'")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _bounds(items) -> dict:
+    out = {}
+    for name, text in _pairs(items, "--bounds").items():
+        lo, sep, hi = text.partition(":")
+        try:
+            a, b = float(lo), float(hi)
+        except ValueError:
+            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)") from None
+        if not sep or math.isnan(a) or math.isnan(b):
+            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)")
+        if not a < b:
+            raise UserError(f"--bounds {name}={text}: LO must be below HI")
+        out[name] = (a, b)
+    return out
+
+
+def _quantities(items, flag, model) -> dict:
+    """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
+    from ..signals import SignalError, parse_quantity
+    from ..identification._records import _KIND_OF_UNIT
+
+    units = {**model.units, **model.params.units()}
+    out = {}
+    for name, text in _pairs(items, flag).items():
+        kind = _KIND_OF_UNIT.get(units.get(name, ""))
+        try:
+            out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
+        except (SignalError, ValueError):
+            raise UserError(f"{flag} {name}={text}: expected a number (SI) or a quantity in a "
+                            f"{kind or units.get(name, 'SI')} unit") from None
+    return out
+
+
+def _split(args):
+    """(model file, records): a first positional that is not a .toml file is a record."""
+    model, records = args.model, list(args.records)
+    if model != DEFAULT_MODEL and Path(model).suffix.lower() != ".toml":
+        records.insert(0, model)
+        model = DEFAULT_MODEL
+    return model, records
+
+
+def run(args) -> dict:
+    from ..assembly import build_model
+    from ..identification import IdentificationError
+    from ..params import load_parameters
+
+    out = check_output_path(args.out, (".toml",), "--out")
+    model_file, records = _split(args)
+    if args.starts < 1:
+        raise UserError(f"--starts must be at least 1, got {args.starts}")
+    if args.max_evaluations < 2:
+        raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
+    params = load_parameters(model_file, dict(args.variant))
+    model = build_model(params)
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    try:
+        if not records:
+            return _example(args, params, out, progress)
+        if args.free is None:
+            raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
+        free = [s.strip() for s in args.free.split(",") if s.strip()]
+        kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
+              "starts": args.starts, "max_evaluations": args.max_evaluations,
+              "hold_unidentifiable": not args.keep_unidentifiable, "progress": progress}
+        if args.track:
+            return _track(args, params, records, free, kw)
+        return _fit(args, params, model, records, free, kw, out)
+    except IdentificationError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _fit(args, params, model, records, free, kw, out) -> dict:
+    from ..identification import profile, read_record, validate
+    from ..identification._plot import report_names
+
+    recs = [read_record(r, model) for r in records]  # every record checked before any work
+    checks = [read_record(r, model) for r in args.validate]
+    for name in args.profile:
+        if name not in free:
+            from .._checks import nearest
+
+            raise UserError(f"--profile {name}: not a free parameter{nearest(name, free)}")
+    report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
+    res = identify_api(params, recs, free, **kw)
+    doc = res.to_dict()
+    if args.profile:
+        doc["profiles"] = {n: profile(res, n) for n in args.profile}
+    if checks:
+        doc["validation"] = validate(res, checks)
+    written = []
+    if out is not None:
+        written.append(str(res.write(out, note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
+    if report is not None:
+        written.append(str(res.write_report(report)))
+    doc["written"] = written
+    return doc
+
+
+def identify_api(params, recs, free, **kw):
+    """The API call the command makes (one place to see it)."""
+    from ..identification import identify
+
+    return identify(params, recs, free, **kw)
+
+
+def _track(args, params, records, free, kw) -> dict:
+    from ..identification import track
+
+    limits = _quantities(args.limit, "--limit", __import__("ema_casadi").build_model(params))
+    report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
+    if args.out is not None:
+        raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
+    kw = {k: v for k, v in kw.items() if k not in ("starts",)}
+    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
+    doc = tr.to_dict()
+    if report is not None:
+        doc["written"] = [str(tr.write_report(report))]
+    return doc
+
+
+def _example(args, params, out, progress) -> dict:
+    """The built-in example: records simulated with worn parameters, fitted."""
+    from .._files import scratch_dir
+    from ..identification import example_records
+
+    with scratch_dir() as tmp:
+        paths, truth = example_records(params, tmp)
+        free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
+        model = __import__("ema_casadi").build_model(params)
+        doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
+                                                      "max_evaluations": args.max_evaluations,
+                                                      "hold_unidentifiable": not args.keep_unidentifiable,
+                                                      "sigma": _quantities(args.sigma, "--sigma", model),
+                                                      "bounds": _bounds(args.bounds)}, out)
+    doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
+                                              "these values, sensor noise added; fitted from the reference values"}
+    return doc
+
+
+def report(result: dict) -> None:
+    """Print the parameter table and the channels' residuals."""
+    w = sys.stdout.write
+    if "trend" in result:
+        from ..identification._track import report_text
+
+        w(report_text(result))
+        return
+    truth = result.get("example", {}).get("truth", {})
+    if truth:
+        w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
+    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval':>25}  identifiable\n")
+    for n, d in result["parameters"].items():
+        if d.get("estimate") is None:
+            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
+            continue
+        lo, hi = d["interval"]
+        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
+        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g}  {ok}\n")
+    for c in result["channels"]:
+        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
+          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    for name, prof in result.get("profiles", {}).items():
+        w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
+    for v in result.get("validation", []):
+        w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
+          f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
+    w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
+    for p in result.get("written", []):
+        w(f"wrote {p}\n")

@@ -1,0 +1,312 @@
+"""``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
+noise) by a trust-region Gauss-Newton / Levenberg-Marquardt method with the exact
+Jacobian, noise levels estimated where not given, then the Fisher-information
+uncertainty and the identifiability verdicts (SPEC §4.12)."""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from .._checks import instance, integer, nearest, number
+from ..assembly import Model, build_model
+from ..params import Parameters
+from ..simulation import RunFailed
+from ..simulation._result import progress_bar
+from ._problem import Predictor, free_parameters
+from ._records import IdentificationError, Record, read_record
+from ._result import IdentResult, uncertainty
+
+#: Relative change of the estimated noise levels below which their re-estimation stops.
+SIGMA_TOL = 0.02
+#: Re-estimation rounds of the noise levels at most.
+SIGMA_ROUNDS = 6
+#: Evaluations within this distance (in log-parameters) of the point where the step
+#: sequences were chosen replay them (the cost is then a smooth function, so the small
+#: steps near the optimum compare like with like); farther ones choose them anew.
+REGRID = 0.05
+#: Relative tolerances of the least-squares solve (cost, step, gradient): the cost is
+#: ~N at the optimum and fluctuates by ~sqrt(2N) between noise realisations, so 1e-8
+#: leaves the optimum far inside its own uncertainty.
+TOL = 1e-8
+
+
+class FitFailed(RunFailed):
+    """A fit that did not converge, or whose model run failed at the start values: not
+    a result (the command line: exit status 3, one line, no fitted file).
+
+    Parameters
+    ----------
+    what : str
+        The reason, one line.
+    """
+
+    def __init__(self, what: str):
+        super().__init__(what, 0.0, None)
+        self.reason = what
+        self.args = (what,)
+
+
+def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
+             variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
+             max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False) -> IdentResult:
+    """Fit named parameters of ``params`` to test records.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set (from :func:`~ema_casadi.params.load_parameters`); its values
+        are the start of the fit and the values of everything not free.
+    records : sequence of str, Path or Record
+        Record files (CSV or ``.mat``, see :func:`read_record`) or records read.
+    free : sequence of str
+        Flat names of the parameters to fit (``["F_seal", "c_v", "J_m"]``).
+    bounds : dict, optional
+        Name -> (lo, hi) in SI; a log-scaled (positive) parameter needs lo > 0.
+    sigma : dict, optional
+        Channel -> noise standard deviation (SI). Channels without one take the
+        record's field ``sigma_<channel>`` if every record gives it, else are
+        estimated from the residuals (one level per channel, over all records).
+    variants : dict, optional
+        Variant overrides of the model the records are fitted with.
+    start : dict, optional
+        Name -> start value (SI) instead of the file's.
+    starts : int
+        Fits from different starts (the first the file's values, the others drawn
+        log-normally around it, seeded by ``seed``); the lowest cost wins.
+    seed : int
+        Seed of the extra starts.
+    max_evaluations : int
+        Model evaluations per fit at most; a fit that needs more did not converge.
+    hold_unidentifiable : bool
+        A parameter whose interval is wider than +-50 % is held at its start value
+        and the others are fitted again without it.
+    progress : bool
+        One line of progress on stderr.
+
+    Returns
+    -------
+    IdentResult
+        Estimates, intervals, correlation, identifiability, residual statistics,
+        fitted trajectories.
+
+    Raises
+    ------
+    IdentificationError
+        A mistake in the request (before any fit).
+    FitFailed
+        The fit did not converge, or the model fails at the start values.
+    """
+    t_wall = time.perf_counter()
+    instance(params, Parameters, "params", IdentificationError, " (from load_parameters)")
+    starts = integer(starts, "starts", IdentificationError, minimum=1)
+    max_evaluations = integer(max_evaluations, "max_evaluations", IdentificationError, minimum=2)
+    if isinstance(free, str):
+        free = [s.strip() for s in free.split(",") if s.strip()]
+    model = build_model(params, variants)
+    recs = [r if isinstance(r, Record) else read_record(r, model) for r in _as_list(records)]
+    if not recs:
+        raise IdentificationError("records: give at least one record")
+    fr = free_parameters(model, free, bounds, start)
+    given = _sigmas(recs, sigma)
+    pred = Predictor(model, recs, fr, model.p())
+    fit = _Fit(pred, given, max_evaluations, progress)
+    best = None
+    rng = np.random.default_rng(seed)
+    for k in range(starts):
+        z0 = fr.z(fr.theta0)
+        if k:
+            lo, hi = fr.z_bounds()
+            z0 = np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                         lo + 1e-9, hi - 1e-9)
+        try:
+            out = fit.run(z0)
+        except FitFailed:
+            if k == 0 and starts == 1:
+                raise
+            continue
+        if best is None or out["cost"] < best["cost"]:
+            best = out
+    if best is None:
+        raise FitFailed(f"none of the {starts} starts converged")
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    return res
+
+
+def _as_list(records) -> list:
+    if isinstance(records, (str, Record)) or hasattr(records, "__fspath__"):
+        return [records]
+    return list(records)
+
+
+def _sigmas(recs, sigma) -> dict:
+    """Given noise levels: the argument's, then fields ``sigma_<channel>`` present in
+    every record that measures the channel."""
+    channels = sorted({c for r in recs for c in r.channels})
+    out = {}
+    for c, v in (sigma or {}).items():
+        if c not in channels:
+            raise IdentificationError(f"--sigma {c}: no record measures it{nearest(c, channels)}")
+        out[c] = number(v, f"--sigma {c}", IdentificationError, positive=True)
+    for c in channels:
+        if c in out:
+            continue
+        vals = [r.fields.get(f"sigma_{c}") for r in recs if c in r.channels]
+        if vals and all(isinstance(v, float) and v > 0 for v in vals):
+            out[c] = float(np.mean(vals))
+    return out
+
+
+class _Fit:
+    """One fit: residuals and Jacobian from one prediction, the noise re-estimation
+    around the least-squares solve."""
+
+    def __init__(self, pred: Predictor, given: dict, max_evaluations: int, progress: bool):
+        self.pred, self.given, self.max_eval, self.progress = pred, given, max_evaluations, progress
+        self.channels = sorted({c for r in pred.records for c in r.channels})
+        self._cache = None
+        self.z_grid = None
+        self.evaluations = 0
+
+    # -- residuals -------------------------------------------------------------------
+    def errors(self, theta):
+        """(predictions, e per (record, channel), de/dz per (record, channel)); e =
+        measured - model, from the second sample on (the first fixes the start)."""
+        preds = self.pred.predict(theta)
+        e, de = {}, {}
+        for i, (rec, pr) in enumerate(zip(self.pred.records, preds, strict=True)):
+            for c, meas in rec.channels.items():
+                e[i, c] = meas[1:] - pr["y"][c][1:]
+                de[i, c] = -pr["dy"][c][1:]
+        return preds, e, de
+
+    def weighted(self, e, de, sig):
+        keys = sorted(e, key=lambda k: (k[0], k[1]))
+        r = np.concatenate([e[k] / sig[k[1]] for k in keys])
+        J = np.concatenate([de[k] / sig[k[1]] for k in keys])
+        return r, J
+
+    def _eval(self, z, sig):
+        key = z.tobytes()
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        theta = self.pred.free.theta(z)
+        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > REGRID:
+            self.pred.refresh()  # far from where the step sequences were chosen: choose them here
+            self.z_grid = z.copy()
+        self.evaluations += 1
+        try:
+            _, e, de = self.errors(theta)
+            r, J = self.weighted(e, de, sig)
+            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
+                raise RunFailed("non-finite prediction", 0.0)
+        except RunFailed:
+            r, J = None, None
+        self._cache = (key, (r, J))
+        progress_bar(min(1.0, self.evaluations / self.max_eval), self.progress, "identify",
+                     f"evaluation {self.evaluations}")
+        return r, J
+
+    # -- the fit ---------------------------------------------------------------------
+    def run(self, z0) -> dict:
+        from scipy.optimize import least_squares
+
+        fr = self.pred.free
+        theta0 = fr.theta(z0)
+        try:
+            _, e0, _ = self.errors(theta0)
+        except RunFailed as exc:
+            raise FitFailed(f"the model run fails at the start values: {exc.reason}") from None
+        sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
+        sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
+        lo, hi = fr.z_bounds()
+        z = np.clip(np.asarray(z0, float), lo, hi)
+        estimate = [c for c in self.channels if c not in self.given]
+        n_fail = [0]
+        r_bad = [None]
+
+        for _round in range(SIGMA_ROUNDS):
+            def fun(zz, sig=sig):
+                r, _ = self._eval(np.asarray(zz), sig)
+                if r is None:  # a failed run: a cost the trust region steps back from
+                    n_fail[0] += 1
+                    return r_bad[0]
+                return r
+
+            def jac(zz, sig=sig):
+                return self._eval(np.asarray(zz), sig)[1]
+
+            self.pred.refresh()  # the step sequences chosen at this round's start, then frozen
+            self._cache, self.z_grid = None, z.copy()
+            r_start, _ = self._eval(z, sig)
+            if r_start is None:
+                raise FitFailed("the model run fails at the start of a round")
+            r_bad[0] = np.full(len(r_start), 1e3 * (np.linalg.norm(r_start) / np.sqrt(len(r_start)) + 1.0))
+            budget = self.max_eval - self.evaluations
+            if budget < 2:
+                raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                tol = TOL if _round or not estimate else 1e3 * TOL  # the first weights are provisional
+                sol = least_squares(fun, z, jac, bounds=(lo, hi), method="trf", x_scale=1.0, ftol=tol,
+                                    xtol=tol, gtol=tol, max_nfev=budget)
+            if sol.status <= 0 or not np.isfinite(sol.cost):
+                raise FitFailed(f"did not converge within {self.max_eval} model evaluations "
+                                f"(cost {sol.cost:.4g}, {sol.message.rstrip('.')})")
+            z = sol.x
+            est = [c for c in self.channels if c not in self.given]
+            if not est:
+                break
+            _, e, _ = self.errors(fr.theta(z))
+            n_tot = sum(len(v) for v in e.values())
+            dof = max(1.0, 1.0 - len(z) / n_tot)
+            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in est}
+            change = max(abs(new[c] / sig[c] - 1) for c in est)
+            sig = {**sig, **new}
+            if change < SIGMA_TOL:
+                break
+        r, J = self._eval(z, sig)
+        progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
+        return {"z": z, "sigma": sig, "r": r, "J": J, "cost": 0.5 * float(r @ r), "status": int(sol.status),
+                "message": sol.message, "estimated": [c for c in self.channels if c not in self.given],
+                "failed_trials": n_fail[0]}
+
+
+def _rms(arrays) -> float:
+    a = np.concatenate(arrays) if arrays else np.zeros(1)
+    return float(np.sqrt(np.mean(a * a)))
+
+
+def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool) -> IdentResult:
+    """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
+    their start values and the others fitted again; the result."""
+    fr = fit.pred.free
+    estimated = bool(out["estimated"])
+    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+    held = {}
+    wide = [n for n, w in zip(fr.names, unc["wide"], strict=True) if w]
+    evaluations = fit.pred.evaluations
+    if hold and wide and len(wide) < len(fr.names):
+        theta = fr.theta(out["z"])
+        for n in wide:
+            k = fr.names.index(n)
+            held[n] = {"start": float(fr.theta0[k]), "estimate_when_free": float(theta[k]),
+                       "interval_when_free": [float(v) for v in unc["interval"][k]],
+                       "relative_halfwidth": float(unc["halfwidth"][k])}
+        keep = [n for n in fr.names if n not in wide]
+        base = fit.pred.base.copy()
+        base[fr.index] = np.where(np.isin(fr.names, wide), fr.theta0, theta)
+        pred = Predictor(model, recs, fr.subset(keep, theta), base)
+        sig = {c: out["sigma"][c] for c in out["estimated"]}
+        fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
+        out = {**fit2.run(pred.free.z(pred.free.theta0)), "estimated": out["estimated"]}
+        fit, fr = fit2, pred.free
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+        evaluations += pred.evaluations
+    theta = fr.theta(out["z"])
+    preds, e, _ = fit.errors(theta)
+    return IdentResult.build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
+                             preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
+                             evaluations=evaluations)
