@@ -168,6 +168,7 @@ class _Fit:
         self.channels = sorted({c for r in pred.records for c in r.channels})
         self._cache = None
         self.z_grid = None
+        self.failure = ""
         self.evaluations = 0
 
     # -- residuals -------------------------------------------------------------------
@@ -188,37 +189,43 @@ class _Fit:
         J = np.concatenate([de[k] / sig[k[1]] for k in keys])
         return r, J
 
-    def _eval(self, z, sig):
+    def _raw(self, z):
+        """(predictions, e, de) at ``z``, or None where the run failed; the last one kept."""
+        z = np.asarray(z, float)
         key = z.tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        theta = self.pred.free.theta(z)
         if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > REGRID:
             self.pred.refresh()  # far from where the step sequences were chosen: choose them here
             self.z_grid = z.copy()
         self.evaluations += 1
         try:
-            _, e, de = self.errors(theta)
-            r, J = self.weighted(e, de, sig)
-            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J))):
-                raise RunFailed("non-finite prediction", 0.0)
-        except RunFailed:
-            r, J = None, None
-        self._cache = (key, (r, J))
+            raw = self.errors(self.pred.free.theta(z))
+            if not all(np.all(np.isfinite(v)) for d in raw[1:] for v in d.values()):
+                raw, self.failure = None, "non-finite model values"
+        except RunFailed as exc:
+            raw, self.failure = None, exc.reason
+        self._cache = (key, raw)
         progress_bar(min(1.0, self.evaluations / self.max_eval), self.progress, "identify",
                      f"evaluation {self.evaluations}")
-        return r, J
+        return raw
+
+    def _eval(self, z, sig):
+        """Weighted residuals and Jacobian at ``z`` (None, None where the run failed)."""
+        raw = self._raw(z)
+        return (None, None) if raw is None else self.weighted(raw[1], raw[2], sig)
 
     # -- the fit ---------------------------------------------------------------------
     def run(self, z0) -> dict:
         from scipy.optimize import least_squares
 
         fr = self.pred.free
-        theta0 = fr.theta(z0)
-        try:
-            _, e0, _ = self.errors(theta0)
-        except RunFailed as exc:
-            raise FitFailed(f"the model run fails at the start values: {exc.reason}") from None
+        z0 = np.asarray(z0, float)
+        self.z_grid = None
+        raw = self._raw(z0)
+        if raw is None:
+            raise FitFailed(f"the model run fails at the start values: {self.failure}")
+        e0 = raw[1]
         sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
         sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
         lo, hi = fr.z_bounds()
@@ -238,8 +245,8 @@ class _Fit:
             def jac(zz, sig=sig):
                 return self._eval(np.asarray(zz), sig)[1]
 
-            self.pred.refresh()  # the step sequences chosen at this round's start, then frozen
-            self._cache, self.z_grid = None, z.copy()
+            if _round:  # the step sequences chosen anew at a later round's start, then frozen
+                self._cache, self.z_grid = None, None
             r_start, _ = self._eval(z, sig)
             if r_start is None:
                 raise FitFailed("the model run fails at the start of a round")
@@ -259,7 +266,7 @@ class _Fit:
             est = [c for c in self.channels if c not in self.given]
             if not est:
                 break
-            _, e, _ = self.errors(fr.theta(z))
+            _, e, _ = self._raw(z)
             n_tot = sum(len(v) for v in e.values())
             dof = max(1.0, 1.0 - len(z) / n_tot)
             new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in est}
@@ -283,6 +290,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
     """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
     their start values and the others fitted again; the result."""
     fr = fit.pred.free
+    start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
     estimated = bool(out["estimated"])
     unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
     held = {}
@@ -306,7 +314,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
         evaluations += pred.evaluations
     theta = fr.theta(out["z"])
-    preds, e, _ = fit.errors(theta)
+    preds, e, _ = fit._raw(out["z"])
     return IdentResult.build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
                              preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
-                             evaluations=evaluations)
+                             evaluations=evaluations, start=start)

@@ -62,7 +62,7 @@ def uncertainty(free, z, J, r, estimated: bool) -> dict:
         hi = np.where(free.log, theta * np.exp(half), theta + half * free.dtheta_dz(theta))
         rel = np.where(free.log, np.expm1(half), half * free.dtheta_dz(theta) / np.abs(theta))
     D = free.dtheta_dz(theta)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):
         cov = cov_z * np.outer(D, D)
     offdiag = np.abs(corr - np.eye(n))
     partner = [int(np.argmax(offdiag[k])) if n > 1 else -1 for k in range(n)]
@@ -177,7 +177,8 @@ class IdentResult:
     fitted_params: object = field(default=None, repr=False)
 
     @classmethod
-    def build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations):
+    def build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,
+              start):
         """The result from the pieces of :func:`identify` (internal)."""
         names = free.names
         ident = {}
@@ -195,7 +196,7 @@ class IdentResult:
         traj = [{"record": rec.path, "t": rec.t, "measured": dict(rec.channels),
                  "fitted": {c: pr["y"][c] for c in rec.channels}} for rec, pr in zip(records, preds, strict=True)]
         fitted = params.replace(**{n: float(v) for n, v in zip(names, theta, strict=True)})
-        return cls(names=tuple(names), start={n: float(v) for n, v in zip(names, free.theta0, strict=True)},
+        return cls(names=tuple(names), start={n: float(start[n]) for n in names},
                    estimate={n: float(v) for n, v in zip(names, theta, strict=True)},
                    interval={n: (float(a), float(b)) for n, (a, b) in zip(names, unc["interval"], strict=True)},
                    std={n: float(np.sqrt(unc["cov"][k, k])) for k, n in enumerate(names)},
