@@ -90,8 +90,8 @@ def _bounds(items) -> dict:
 
 def _quantities(items, flag, model) -> dict:
     """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
-    from ..signals import SignalError, parse_quantity
     from ..identification._records import _KIND_OF_UNIT
+    from ..signals import SignalError, parse_quantity
 
     units = {**model.units, **model.params.units()}
     out = {}

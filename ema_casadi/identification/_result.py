@@ -206,7 +206,8 @@ class IdentResult:
                    info={"cost": out["cost"], "s2": unc["s2"], "evaluations": int(evaluations),
                          "wall_time": wall_time, "variants": dict(model.variants),
                          "records": [r.path for r in records],
-                         "units": {c: model.units[c] for r in records for c in r.channels}, "samples": int(sum(len(v) for v in errors.values())),
+                         "units": {c: model.units[c] for r in records for c in r.channels},
+                         "samples": int(sum(len(v) for v in errors.values())),
                          "solver": "least_squares trf, exact Jacobian (RODAS4 forward sensitivities)",
                          "optimizer_message": out["message"]},
                    params=params, fitted_params=fitted)

@@ -111,7 +111,7 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
     Xt[0] = x0
     SX[0] = np.asarray(S0, float).T
     state = np.concatenate([[0.0, min(_ros.H0, t_end), 0.0, 0.0, 0.0, 0.0], x0]).astype(float)
-    S = np.ascontiguousarray(np.asarray(S0, float).T)  # ns x nx: the driver's column-major nx x ns
+    S = np.array(np.asarray(S0, float).T, order="C")  # a copy (the driver writes it): column-major nx x ns
     Wc = np.ascontiguousarray(np.asarray(W, float).T)
     stats = np.zeros(len(_ros._STATS))
     opt = np.array([rtol, atol, t_end, _ros.H_FLOOR, _ros.MAX_FORCED])
