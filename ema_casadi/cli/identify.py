@@ -96,7 +96,11 @@ def _quantities(items, flag, model) -> dict:
     units = {**model.units, **model.params.units()}
     out = {}
     for name, text in _pairs(items, flag).items():
-        kind = _KIND_OF_UNIT.get(units.get(name, ""))
+        if name not in units:
+            from .._checks import nearest
+
+            raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
+        kind = _KIND_OF_UNIT.get(units[name])
         try:
             out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
         except (SignalError, ValueError):
