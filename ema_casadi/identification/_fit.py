@@ -315,6 +315,6 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         evaluations += pred.evaluations
     theta = fr.theta(out["z"])
     preds, e, _ = fit._raw(out["z"])
-    return IdentResult.build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
+    return IdentResult._build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
                              preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
                              evaluations=evaluations, start=start)

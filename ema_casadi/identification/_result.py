@@ -147,14 +147,18 @@ class IdentResult:
     channels : list of dict
         Residual statistics per record and channel (:func:`channel_stats`).
     sigma : dict
-        Channel -> noise level used (SI), and :attr:`sigma_estimated` which ones came
-        from the residuals.
+        Channel -> noise level used (SI).
+    sigma_estimated : list of str
+        The channels whose noise level came from the residuals.
     trajectories : list of dict
         Per record: ``t``, ``measured`` and ``fitted`` per channel (SI).
     status : str
         ``converged``.
     info : dict
         Cost, evaluations, wall time, the model's variants, records, noise factor s^2.
+    params, fitted_params : Parameters
+        The set fitted and the set with the estimates in place (held parameters at
+        their start values).
     """
 
     names: tuple
@@ -177,7 +181,7 @@ class IdentResult:
     fitted_params: object = field(default=None, repr=False)
 
     @classmethod
-    def build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,
+    def _build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,
               start):
         """The result from the pieces of :func:`identify` (internal)."""
         names = free.names
