@@ -9,7 +9,10 @@ residuals, the correlation heat map, the intervals and summary.json/summary.md.
 A parameter whose 95 % interval is wider than +-50 % or that is correlated beyond 0.95
 with another is reported as not identifiable from these records (a wide one is held
 at its start value and the others fitted again). A fit that does not converge ends
-with exit status 3 and writes nothing.
+with exit status 3 and writes nothing. A fit whose residuals are not explained by
+the noise (chi-square against the given noise level, Ljung-Box whiteness) is
+inadequate: exit status 3 with the fitted file written as FILE.inadequate.toml, or
+status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level
 field such as '# flight_hours: 1200' or a column) and extrapolates each parameter's
 trend to --limit NAME=VALUE (remaining useful life).
@@ -43,6 +46,9 @@ def add_arguments(p):
     p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
+    p.add_argument("--allow-misfit", action="store_true",
+                   help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
+                        "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
     p.add_argument("--keep-unidentifiable", action="store_true",
                    help="do not hold parameters with intervals wider than +-50 %% at their start values")
     p.add_argument("--profile", action="append", default=[], metavar="NAME",
@@ -167,11 +173,21 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     if checks:
         doc["validation"] = validate(res, checks)
     written = []
+    bad = not res.adequacy["adequate"]
     if out is not None:
-        written.append(str(res.write(out, note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
+        target = out.with_name(out.name[: -len(out.suffix)] + ".inadequate.toml") if bad and not args.allow_misfit \
+            else out
+        written.append(str(res.write(target, note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
     if report is not None:
         written.append(str(res.write_report(report)))
     doc["written"] = written
+    if bad:
+        reasons = res.adequacy["reasons"]
+        line = f"inadequate fit: {reasons[0]}" + (f" (and {len(reasons) - 1} more)" if len(reasons) > 1 else "")
+        if args.allow_misfit:
+            sys.stderr.write(f"ema identify: warning: {line}\n")
+        else:
+            doc["failure"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
     return doc
 
 

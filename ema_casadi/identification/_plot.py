@@ -113,12 +113,20 @@ def intervals_figure(result, truth: dict | None = None):
     return fig
 
 
-def figures(result) -> dict:
-    """Every figure of the report by name."""
+def figures(result, truth: dict | None = None) -> dict:
+    """Every figure of the report by name.
+
+    Parameters
+    ----------
+    result : IdentResult
+        The fit.
+    truth : dict, optional
+        Known true values marked on the intervals.
+    """
     out = {f"fit_{k}": fit_figure(result, k) for k in range(len(result.trajectories))}
     if len(result.names) > 1:
         out["correlation"] = correlation_figure(result)
-    out["intervals"] = intervals_figure(result)
+    out["intervals"] = intervals_figure(result, truth)
     return out
 
 

@@ -135,6 +135,11 @@ def free_parameters(model, names, bounds: dict | None = None, start: dict | None
     names = tuple(names)
     if not names:
         raise IdentificationError("free: name at least one parameter to fit")
+    if model.hybrid or model.switched:
+        what = "hybrid (stick-slip) friction" if model.hybrid else "a switched PWM bridge"
+        raise IdentificationError(f"variants {model.variants}: {what} has no derivatives with respect to the "
+                                  "parameters across its switches; identify with the continuous variant "
+                                  "(friction=smooth, inverter=ideal)")
     p0 = model.p()
     used = model.used_params
     for n in names:

@@ -246,3 +246,18 @@ def test_predictor_rebuilds_the_model_never(model_cache, example):
     n = len(m.cache)
     pred.predict([180.0])
     assert len(m.cache) == n
+
+
+def test_a_fit_of_the_right_structure_is_adequate(example_fit):
+    assert example_fit.adequacy == {"adequate": True, "reasons": []}
+    assert example_fit.to_dict()["intervals_trustworthy"] is True
+
+
+def test_a_wrong_structure_is_reported_inadequate(params, tmp_path):
+    """Noise levels given: the chi-square test fires as well as the whiteness test."""
+    rec = idn.synthetic_record(params, tmp_path / "m.csv", t_end=0.3, x_cmd="step:1mm@0.02",
+                               truth={"F_seal": 210.0, "J_m": 1.5e-3})
+    res = idn.identify(params, [rec], ["F_seal"], sigma={"x_rod": 0.3e-6, "i_q": 0.05})
+    assert not res.adequacy["adequate"]
+    text = " ".join(res.adequacy["reasons"])
+    assert "x the noise level" in text and "not white" in text

@@ -100,3 +100,28 @@ def test_plain_identify_runs_the_example(capsys):
     for n, v in doc["example"]["truth"].items():
         d = doc["parameters"][n]
         assert abs(d["estimate"] - v) <= 3 * d["std"], n
+
+
+@pytest.fixture(scope="module")
+def misfit_record(params, tmp_path_factory):
+    """A record whose rotor inertia is +25 % while the fit may move only F_seal: the
+    model cannot explain it."""
+    d = tmp_path_factory.mktemp("misfit")
+    return idn.synthetic_record(params, d / "m.csv", t_end=0.3, x_cmd="step:1mm@0.02",
+                                truth={"F_seal": 210.0, "J_m": 1.5e-3})
+
+
+def test_an_inadequate_fit_exits_3_and_says_so_in_the_file_name(tmp_path, capsys, misfit_record):
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--json", "--no-progress"], capsys)
+    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "not white" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.inadequate.toml"]
+    assert json.loads(out)["adequate"] is False
+    assert "INADEQUATE FIT" in (tmp_path / "fit.inadequate.toml").read_text()
+
+
+def test_allow_misfit_warns_and_succeeds(tmp_path, capsys, misfit_record):
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--allow-misfit", "--no-progress"], capsys)
+    assert code == 0 and err.startswith("ema identify: warning: inadequate fit") and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.toml"]
