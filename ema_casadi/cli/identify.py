@@ -32,7 +32,7 @@ from . import DEFAULT_MODEL, UserError, check_output_dir, check_output_path
 
 COMMAND = "identify"
 ORDER = 12
-HELP = "fit parameters to test records: estimates, 95 % intervals, identifiability, health trend"
+HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
 
 
 def add_arguments(p):

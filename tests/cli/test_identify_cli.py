@@ -125,3 +125,10 @@ def test_allow_misfit_warns_and_succeeds(tmp_path, capsys, misfit_record):
                            "--allow-misfit", "--no-progress"], capsys)
     assert code == 0 and err.startswith("ema identify: warning: inadequate fit") and err.count("\n") == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.toml"]
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["identify", "--help"]])
+def test_help(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0 and "identify" in capsys.readouterr().out
