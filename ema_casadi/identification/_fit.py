@@ -1,12 +1,11 @@
 """``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
-noise) by a trust-region Gauss-Newton / Levenberg-Marquardt method with the exact
-Jacobian, noise levels estimated where not given, then the Fisher-information
-uncertainty and the identifiability verdicts (SPEC §4.12)."""
+noise) by Levenberg-Marquardt (``_lm``) with the exact Jacobian, noise levels
+estimated where not given, then the Fisher-information uncertainty and the
+identifiability verdicts (SPEC §4.12)."""
 
 from __future__ import annotations
 
 import time
-import warnings
 
 import numpy as np
 
@@ -15,6 +14,7 @@ from ..assembly import Model, build_model
 from ..params import Parameters
 from ..simulation import RunFailed
 from ..simulation._result import progress_bar
+from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, uncertainty
@@ -27,10 +27,6 @@ SIGMA_ROUNDS = 6
 #: sequences were chosen replay them (the cost is then a smooth function, so the small
 #: steps near the optimum compare like with like); farther ones choose them anew.
 REGRID = 0.05
-#: Relative tolerances of the least-squares solve (cost, step, gradient): the cost is
-#: ~N at the optimum and fluctuates by ~sqrt(2N) between noise realisations, so 1e-8
-#: leaves the optimum far inside its own uncertainty.
-TOL = 1e-8
 
 
 class FitFailed(RunFailed):
@@ -217,7 +213,6 @@ class _Fit:
 
     # -- the fit ---------------------------------------------------------------------
     def run(self, z0) -> dict:
-        from scipy.optimize import least_squares
 
         fr = self.pred.free
         z0 = np.asarray(z0, float)
@@ -231,54 +226,32 @@ class _Fit:
         lo, hi = fr.z_bounds()
         z = np.clip(np.asarray(z0, float), lo, hi)
         estimate = [c for c in self.channels if c not in self.given]
-        n_fail = [0]
-        r_bad = [None]
 
         for _round in range(SIGMA_ROUNDS):
-            def fun(zz, sig=sig):
-                r, _ = self._eval(np.asarray(zz), sig)
-                if r is None:  # a failed run: a cost the trust region steps back from
-                    n_fail[0] += 1
-                    return r_bad[0]
-                return r
-
-            def jac(zz, sig=sig):
-                return self._eval(np.asarray(zz), sig)[1]
-
             if _round:  # the step sequences chosen anew at a later round's start, then frozen
                 self._cache, self.z_grid = None, None
-            r_start, _ = self._eval(z, sig)
-            if r_start is None:
-                raise FitFailed("the model run fails at the start of a round")
-            r_bad[0] = np.full(len(r_start), 1e3 * (np.linalg.norm(r_start) / np.sqrt(len(r_start)) + 1.0))
-            budget = self.max_eval - self.evaluations
+            budget = self.max_eval - self.evaluations + 1  # the round's start may be the cached point
             if budget < 2:
                 raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                tol = TOL if _round or not estimate else 1e3 * TOL  # the first weights are provisional
-                sol = least_squares(fun, z, jac, bounds=(lo, hi), method="trf", x_scale=1.0, ftol=tol,
-                                    xtol=tol, gtol=tol, max_nfev=budget)
-            if sol.status <= 0 or not np.isfinite(sol.cost):
-                raise FitFailed(f"did not converge within {self.max_eval} model evaluations "
-                                f"(cost {sol.cost:.4g}, {sol.message.rstrip('.')})")
-            z = sol.x
-            est = [c for c in self.channels if c not in self.given]
-            if not est:
+            tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
+            sol = levenberg_marquardt(lambda zz, sig=sig: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
+            if not sol["converged"]:
+                raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
+            z = sol["z"]
+            if not estimate:
                 break
             _, e, _ = self._raw(z)
             n_tot = sum(len(v) for v in e.values())
-            dof = max(1.0, 1.0 - len(z) / n_tot)
-            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in est}
-            change = max(abs(new[c] / sig[c] - 1) for c in est)
+            dof = max(1e-3, 1.0 - len(z) / n_tot)
+            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in estimate}
+            change = max(abs(new[c] / sig[c] - 1) for c in estimate)
             sig = {**sig, **new}
             if change < SIGMA_TOL:
                 break
         r, J = self._eval(z, sig)
         progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
-        return {"z": z, "sigma": sig, "r": r, "J": J, "cost": 0.5 * float(r @ r), "status": int(sol.status),
-                "message": sol.message, "estimated": [c for c in self.channels if c not in self.given],
-                "failed_trials": n_fail[0]}
+        return {"z": z, "sigma": sig, "r": r, "J": J, "cost": 0.5 * float(r @ r), "message": sol["message"],
+                "estimated": estimate}
 
 
 def _rms(arrays) -> float:

@@ -33,7 +33,7 @@ from ._records import IdentificationError, Record, available_bytes
 #: values): the bias the discretisation error puts into the estimates is at most 0.09
 #: of their standard deviations (0.008 at rtol 1e-5, 0.23 at rtol 1e-3), with 35000
 #: steps instead of 49000 at rtol 1e-5.
-RTOL, ATOL = 1e-4, 1e-7
+RTOL, ATOL = 3e-5, 3e-8
 
 _CHECK = {f.name: f.metadata["check"] for cls in GROUPS.values() for f in fields(cls)}
 

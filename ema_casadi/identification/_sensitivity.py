@@ -8,7 +8,9 @@ exact derivatives of the computed trajectory (not of a finite-difference neighbo
 at the cost of a Jacobian-vector product per stage and direction and a second
 directional derivative per step, with the step's LU reused. One library per model and
 number of directions, cached on disk; the parameter directions are data, so any set of
-free parameters of that size runs on it.
+free parameters of that size runs on it. Input tables are evaluated by time, not by
+segment, so the steps need not stop at every row of a record (2000 rows a second);
+the error control sees the kinks of the interpolated input.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ def _dj(ns):
         K = ca.SX.sym("K", x.numel(), _ros_stages())
         V = ca.SX.sym("V", x.numel(), ns)
         W = ca.SX.sym("W", p.numel(), ns)
-        F = ca.vertcat(ca.vec(ca.jtimes(xdot, x, K)), ca.jtimes(xdot, u, ud))
+        F = ca.vertcat(ca.vec(ca.jtimes(xdot, x, K)), ca.jtimes(xdot, u, ud), xdot)
         d = ca.jtimes(F, ca.vertcat(x, p), ca.vertcat(V, W))
         return ca.Function("ros_dj", [x, u, ud, p, K, V, W], [ca.densify(d)], {"cse": True})
     return make
@@ -62,7 +64,8 @@ def library(model, ns: int):
                  Path(__file__).read_bytes(), model.f.serialize(), str(ns)]
         path, info = compile_source(
             f"rosenbrock_sens_{model.nx}_{ns}", parts,
-            lambda: _ros._source(model, (_jvp(ns), _dj(ns)), {"EMA_NS": ns}, _SENS.read_text()),
+            lambda: _ros._source(model, (_jvp(ns), _dj(ns)), {"EMA_NS": ns, "EMA_TABLE_BY_TIME": 1},
+                                 _SENS.read_text()),
             ("-funroll-loops",))
         fn = None
         if path is not None:
@@ -79,6 +82,11 @@ def library(model, ns: int):
 #: Room for recorded step sizes per sample (the reference records take 1-4 steps per
 #: sample at 2 kHz); a run that needs more is re-run with room for all.
 _STEPS_PER_SAMPLE = 16
+#: A replayed step whose error estimate exceeds this many times the tolerance ends the
+#: replay: the run is made again with steps chosen by the error control (far from where
+#: a grid was chosen the dynamics may need other steps; replayed blindly, a stiff
+#: mode can then grow without bound).
+REPLAY_LIMIT = 30.0
 
 
 def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: np.ndarray, S0: np.ndarray,
@@ -91,7 +99,9 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
     Without ``steps`` the step sizes are chosen by the error control and returned in
     ``info["step_sizes"]``; with ``steps`` (from such a run) exactly those steps are
     taken, so that the result is a smooth function of ``pv`` (the frozen grid).
-    ``room``: how many step sizes to make room for when recording (default
+    A replay that does not fit (a step's error estimate above :data:`REPLAY_LIMIT`
+    times the tolerance) falls back to chosen steps (``info["step_sizes"]`` then holds
+    the new ones). ``room``: how many step sizes to make room for when recording (default
     :data:`_STEPS_PER_SAMPLE` per sample).
 
     Raises RunFailed when the driver gives up or the states go non-finite (the
@@ -103,7 +113,11 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
         raise RunFailed("identification needs a C compiler (the compiled RODAS4 with sensitivities)", 0.0, None)
     n = len(grid)
     t_end = float(grid[-1])
-    cuts = {b for s in sig.values() for b in s.breakpoints() if 0 < b < t_end}
+    # steps land on the breakpoints of steps, ramps, sines, not on a table's rows: the
+    # driver finds a table's piece from the time (EMA_TABLE_BY_TIME), its kinks are left
+    # to the error control (a record's input is a table of one row per sample)
+    cuts = {b for s in sig.values() for term in s.terms if term.kind != "table" for b in term.breakpoints()
+            if 0 < b < t_end}
     edges = np.array(sorted({0.0, t_end, *cuts}), float)
     terms, tab = _ros._encode(model, sig)
     Xt = np.empty((n, model.nx))
@@ -114,7 +128,7 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
     S = np.array(np.asarray(S0, float).T, order="C")  # a copy (the driver writes it): column-major nx x ns
     Wc = np.ascontiguousarray(np.asarray(W, float).T)
     stats = np.zeros(len(_ros._STATS))
-    opt = np.array([rtol, atol, t_end, _ros.H_FLOOR, _ros.MAX_FORCED])
+    opt = np.array([rtol, atol, t_end, _ros.H_FLOOR, _ros.MAX_FORCED, REPLAY_LIMIT])
     pv = np.ascontiguousarray(pv, float)
     grid = np.ascontiguousarray(grid, float)
     mode = 1 if steps is None else 2
@@ -131,6 +145,8 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
                     S.ctypes.data, SX[done:].ctypes.data, mode, hs.ctypes.data, len(hs), hs_n.ctypes.data)
         good = np.all(np.isfinite(Xt[done : done + n_done.value]))
         done += n_done.value
+        if status in (-5, -6):  # the replayed grid does not fit these parameters: choose the steps
+            return run(model, sig, grid, pv, x0, W, S0, rtol, atol)
         if status < 0 or not good:
             what = _ros._failure(status, state[1], rtol, atol) if status < 0 else "non-finite states"
             raise RunFailed(what, float(state[0]), None)

@@ -15,7 +15,11 @@
  * also record the accepted step sizes (mode 1) and replay them without error control
  * (mode 2): on a frozen step sequence the computed solution is a smooth function of
  * the parameters (an adaptive one jumps as the step choices change), which a
- * least-squares fit with exact derivatives needs.
+ * least-squares fit with exact derivatives needs; a replayed step whose error estimate
+ * exceeds opt[5] times the tolerance ends the run (status -6: choose steps anew). With EMA_TABLE_BY_TIME a table's piece
+ * is found from the time itself rather than from the segment's start, so that steps may
+ * cross its rows (the identification's records are tables of thousands of rows with
+ * small slope changes; the error control sees the kinks).
  *
  * Method: RODAS4 (Hairer & Wanner, Solving ODEs II, 2nd ed., Sec. IV.7), a 6-stage,
  * order-4 Rosenbrock method, L-stable and stiffly accurate, with an embedded order-3
@@ -62,6 +66,11 @@ static const double ros_e[ROS_S] = {0.0, 0.0, 0.0, 0.0, 0.0, 1.0};
 
 #define NX EMA_NX
 #define NU EMA_NU
+#ifdef EMA_TABLE_BY_TIME
+#define ROS_PIECE_AT t
+#else
+#define ROS_PIECE_AT seg
+#endif
 
 /* term layout: 12 doubles per term; a term counts in the segments that start in
    [T_LO, T_HI) and is evaluated at t - T_SHIFT (pieces of a piecewise signal) */
@@ -89,6 +98,8 @@ typedef struct {
 #ifdef EMA_NS
   const double* W; /* parameter directions, n_p x EMA_NS column-major */
   double* S;       /* sensitivities of x at the step's start, NX x EMA_NS column-major */
+  double dF0[NX * EMA_NS], dF1[NX * EMA_NS]; /* d f / d theta at the step's ends (dense output) */
+  int have_dF;     /* dF0, dF1 computed for the current step */
 #endif
 } ros_ctx;
 
@@ -117,14 +128,14 @@ static void ros_inputs(const ros_ctx* c, double t_g, double seg_g, double* u, do
       const double* tt = c->tab + (long)q[T_OFF];
       long n = (long)q[T_LEN], lo = 0, hi = n - 1, mid;
       const double* vv = tt + n;
-      if (seg < tt[0]) {
+      if (ROS_PIECE_AT < tt[0]) {
         u[i] += vv[0];
-      } else if (seg >= tt[n - 1]) {
+      } else if (ROS_PIECE_AT >= tt[n - 1]) {
         u[i] += vv[n - 1];
       } else {
         while (hi - lo > 1) { /* tt[lo] <= seg < tt[hi] */
           mid = (lo + hi) / 2;
-          if (tt[mid] <= seg) lo = mid; else hi = mid;
+          if (tt[mid] <= ROS_PIECE_AT) lo = mid; else hi = mid;
         }
         w = (vv[hi] - vv[lo]) / (tt[hi] - tt[lo]);
         u[i] += vv[lo] + w * (t - tt[lo]);
@@ -352,8 +363,8 @@ static int ros_run(const double* p, const double* terms, int n_terms, const doub
     if (!(hh > 16 * 2.220446049250313e-16 * fmax(1.0, fabs(t)))) { status = nonfinite ? -2 : -1; goto done; }
     err = ros_step(&c, t, seg, hh, x, f0, J, ft, rtol, atol, xn);
     nonfinite = !isfinite(err);
-    if (mode == 2) {
-      if (nonfinite) { status = -2; goto done; }
+    if (mode == 2) { /* a replayed step whose error estimate is far above the tolerance: not this grid */
+      if (nonfinite || err > opt[5]) { status = -6; goto done; }
       err = 0.0;
     }
     fac = nonfinite ? 5.0 : fmax(1.0 / 6.0, fmin(5.0, pow(err, 1.0 / ROS_ORDER) / 0.9));
@@ -453,7 +464,8 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
    (NX x EMA_NS, in/out) the sensitivities at state[S_T], SX (NX x EMA_NS per sample) the
    sensitivities at the samples filled; mode 0 adaptive, 1 adaptive recording the
    accepted step sizes into hs (capacity hs_cap, count in/out in *hs_n; beyond the
-   capacity they are counted, not stored), 2 replaying hs (-5 when it runs out). */
+   capacity they are counted, not stored), 2 replaying hs (-5 when it runs out, -6 when a
+   step's error estimate exceeds opt[5]). */
 int ema_ros_sens_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
                      int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
                      long max_attempts, double* stats, int* n_done, const double* W, double* S, double* SX,
