@@ -1,12 +1,12 @@
 """Parameter identification from test records (SPEC §4.12): ``identify()``.
 
 Named parameters of a parameter file are fitted to measured time series by weighted
-least squares (maximum likelihood under Gaussian sensor noise): a trust-region
-Gauss-Newton / Levenberg-Marquardt method (``scipy.optimize.least_squares``, ``trf``)
-whose residuals and exact Jacobian come from one run per record of the compiled
-RODAS4 solver with forward sensitivities (``_sensitivity``; the model is built once,
-the parameters are its input). Positive parameters are fitted in log scale, bounds
-honoured, noise levels per channel given or estimated from the residuals. The result
+least squares (maximum likelihood under Gaussian sensor noise): Levenberg-Marquardt
+(``_lm``, with a statistical stopping rule) whose residuals and exact Jacobian come
+from one run per record of the compiled RODAS4 solver with forward sensitivities
+(``_sensitivity``; the model is built once, the parameters are its input). Positive
+parameters are fitted in log scale, bounds honoured, noise levels per channel given
+or estimated from the residuals. The result
 carries the Fisher-information covariance, 95 % intervals, the correlation, the
 identifiability verdicts (interval wider than +-50 % or correlation beyond 0.95: not
 identifiable from these records), residual statistics per channel and record, and

@@ -257,7 +257,7 @@ class IdentResult:
                          "records": [r.path for r in records],
                          "units": {c: model.units[c] for r in records for c in r.channels},
                          "samples": int(sum(len(v) for v in errors.values())),
-                         "solver": "least_squares trf, exact Jacobian (RODAS4 forward sensitivities)",
+                         "solver": "Levenberg-Marquardt, exact Jacobian (RODAS4 forward sensitivities)",
                          "optimizer_message": out["message"]},
                    params=params, fitted_params=fitted)
 
