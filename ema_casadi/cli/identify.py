@@ -254,6 +254,11 @@ def report(result: dict) -> None:
     for c in result["channels"]:
         w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
           f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    if result.get("adequate", True):
+        w("adequate: the residuals are explained by the noise (chi-square, whiteness)\n")
+    else:
+        for reason in result["misfit"]:
+            w(f"INADEQUATE: {reason}\n")
     for name, prof in result.get("profiles", {}).items():
         w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
     for v in result.get("validation", []):
