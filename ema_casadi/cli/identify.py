@@ -99,7 +99,7 @@ def _quantities(items, flag, model) -> dict:
     from ..identification._records import _KIND_OF_UNIT
     from ..signals import SignalError, parse_quantity
 
-    units = {**model.units, **model.params.units()}
+    units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
     out = {}
     for name, text in _pairs(items, flag).items():
         if name not in units:
@@ -155,9 +155,15 @@ def run(args) -> dict:
 
 
 def _fit(args, params, model, records, free, kw, out) -> dict:
-    from ..identification import profile, read_record, validate
+    from ..identification import is_frequency_record, profile, read_record, validate
     from ..identification._plot import report_names
 
+    kinds = {is_frequency_record(r) for r in records}
+    if len(kinds) > 1:
+        raise UserError("records: time series and frequency responses (freq_hz, gain_db, phase_deg) cannot be "
+                        "fitted together; give one kind")
+    if kinds == {True}:
+        return _fit_frequency(args, params, records, free, kw, out)
     recs = [read_record(r, model) for r in records]  # every record checked before any work
     checks = [read_record(r, model) for r in args.validate]
     for name in args.profile:
@@ -188,6 +194,27 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
             sys.stderr.write(f"ema identify: warning: {line}\n")
         else:
             doc["failure"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
+    return doc
+
+
+def _fit_frequency(args, params, records, free, kw, out) -> dict:
+    """Frequency-response records: fitted through the linear model."""
+    from ..identification import identify_frequency
+
+    for flag in ("track", "profile", "validate"):
+        if getattr(args, flag):
+            raise UserError(f"--{flag} is for time-series records, not frequency responses")
+    from ..identification._plot import report_names
+
+    report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
+    res = identify_frequency(params, records, free, sigma={k: v for k, v in kw["sigma"].items()},
+                             max_evaluations=kw["max_evaluations"])
+    doc = res.to_dict()
+    doc["written"] = []
+    if out is not None:
+        doc["written"].append(str(res.write(out, note="frequency-response fit through the linear model")))
+    if report is not None:
+        doc["written"].append(str(res.write_report(report)))
     return doc
 
 

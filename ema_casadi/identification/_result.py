@@ -255,7 +255,7 @@ class IdentResult:
                    info={"cost": out["cost"], "s2": unc["s2"], "evaluations": int(evaluations),
                          "wall_time": wall_time, "variants": dict(model.variants),
                          "records": [r.path for r in records],
-                         "units": {c: model.units[c] for r in records for c in r.channels},
+                         "units": {c: model.units.get(c, "") for r in records for c in r.channels},
                          "samples": int(sum(len(v) for v in errors.values())),
                          "solver": "Levenberg-Marquardt, exact Jacobian (RODAS4 forward sensitivities)",
                          "optimizer_message": out["message"]},
