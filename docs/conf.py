@@ -7,6 +7,7 @@ this machine. ``make docs`` passes ``-W`` (every warning is an error).
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -19,6 +20,11 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
 import ema_casadi  # noqa: E402
+
+sys.path.insert(0, str(HERE))
+import _api  # noqa: E402
+
+_api.write(HERE / "api" / "index.md")  # the API reference, generated from the package
 
 project = "ema_casadi"
 author = "the ema_casadi authors"
@@ -37,7 +43,7 @@ extensions = [
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py", "auto_examples/*.zip",
+exclude_patterns = ["_build", "_api.py", "_cli_parser.py", "readme_figure.py", "auto_examples/*.ipynb", "auto_examples/*.py", "auto_examples/*.zip",
                     "auto_examples/*.json", "auto_examples/*.md5", "**/sg_execution_times.rst"]
 
 # --- MyST -------------------------------------------------------------------------
@@ -69,7 +75,6 @@ sphinx_gallery_conf = {
     "reset_modules": ("matplotlib",),
     "image_scrapers": ("matplotlib",),
     "matplotlib_animations": False,
-    "examples_working_dir": None,  # each example runs in the examples folder; they write no files
 }
 
 # --- HTML ---------------------------------------------------------------------------
@@ -103,5 +108,26 @@ def _optional_pages(app, docname, source):
     source[0] = text
 
 
+# --- docstrings: |x| is an absolute value, not a reStructuredText substitution --------
+_LITERAL = re.compile(r"(``.*?``|`[^`]*`)")
+_BARS = re.compile(r"(?<![\\|])\|(?=[^\s|])([^|\n]*?[^\s\\|])\|(?!\|)")
+
+
+def _escape_bars(app, what, name, obj, options, lines):
+    """Escape ``|...|`` outside literals in a docstring, so ``|v|`` reads as written
+    (docutils would take it for a substitution reference and fail the build)."""
+    for i, line in enumerate(lines):
+        stripped = line.lstrip()
+        if "|" not in line or stripped.startswith(("| ", "+-", "+=")) or stripped == "|":
+            continue  # a line block or a grid table
+        parts = _LITERAL.split(line)
+        lines[i] = "".join(p if k % 2 else _BARS.sub(r"\\|\1\\|", p) for k, p in enumerate(parts))
+
+
+def _setup_docstrings(app):
+    app.connect("autodoc-process-docstring", _escape_bars, priority=100)  # before numpydoc (500)
+
+
 def setup(app):
     app.connect("source-read", _optional_pages)
+    _setup_docstrings(app)

@@ -217,6 +217,12 @@ def build_parser():
     return parser, mods
 
 
+def get_parser():
+    """The ``ema`` argument parser with every subcommand (for the documentation's CLI
+    reference, built by sphinx-argparse; :func:`main` parses with the same parser)."""
+    return build_parser()[0]
+
+
 def join_negative_values(argv: list[str], parser) -> list[str]:
     """``--f-ext -30kN`` -> ``--f-ext=-30kN``: a token that starts with '-' and a digit or
     '.' after a flag that takes a value is that flag's value (argparse alone reads
