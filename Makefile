@@ -20,7 +20,7 @@ demo: $(STAMP)
 	$(BIN)/ema demo --out $(OUT)
 
 test: $(STAMP)
-	$(BIN)/ruff check ema_casadi tests benchmarks studies
+	$(BIN)/ruff check ema_casadi tests benchmarks studies examples docs
 	$(BIN)/python -m pytest -q -n 2
 
 test-all: $(STAMP)

@@ -27,8 +27,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 #: Seconds one page's code may take (the slowest page measured ~10 s on the 2-core machine).
 TIMEOUT = 240
-_FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$",
-                    re.M | re.S)
+_FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)\n"
+                    r"(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.M | re.S)
 NO_RUN = "{no-run}"
 _CONSOLE = ("sh", "console", "shell", "bash")
 
@@ -95,7 +95,8 @@ def test_the_fence_parser_finds_blocks_and_options(tmp_path):
     page = tmp_path / "page.md"
     page.write_text("text\n\n```python\nx = 1\n```\n\nmore `inline`\n\n```python {no-run}\nboom()\n```\n\n"
                     "```sh\nema --help\nls\n```\n", encoding="utf-8")
-    assert blocks(page) == [("python", "", "x = 1\n"), ("python", "{no-run}", "boom()\n"), ("sh", "", "ema --help\nls\n")]
+    assert blocks(page) == [("python", "", "x = 1\n"), ("python", "{no-run}", "boom()\n"),
+                            ("sh", "", "ema --help\nls\n")]
     assert _python(page) == "x = 1\n"
     assert _help_lines(page) == ["ema --help"]
 
