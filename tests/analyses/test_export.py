@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import compiled
 from ema_casadi import export as ex
 from ema_casadi import linearisation as lz
+from ema_casadi._util import _compiled as compiled
 from ema_casadi.cli import main
 
 
