@@ -48,7 +48,8 @@ def offenders(files) -> list[str]:
 def test_the_pattern_catches_what_it_should(tmp_path):
     """Each kind of reference is caught, and ordinary text is not."""
     bad = ["see ../shared/SPEC.md", "(SPEC §7)", "AIRCRAFT.md §3", "issue 13", "Issue 4: margins", "STACK_NOTES"]
-    good = ["the reliability contract (docs: reliability)", "SWEEP.toml", "an issue with the solver", "§3.6 of the book"]
+    good = ["the reliability contract (docs: reliability)", "SWEEP.toml", "an issue with the solver",
+            "§3.6 of the book"]
     assert all(PATTERN.search(s) for s in bad)
     assert not any(PATTERN.search(s) for s in good)
 
