@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -24,7 +25,10 @@ import ema_casadi  # noqa: E402
 sys.path.insert(0, str(HERE))
 import _api  # noqa: E402
 
-_api.write(HERE / "api" / "index.md")  # the API reference, generated from the package
+# the API reference, generated from the package; the stubs are made anew at every build
+# (a module that moved or went leaves no stale page behind)
+shutil.rmtree(HERE / "api" / "generated", ignore_errors=True)
+_api.write(HERE / "api" / "index.md")
 
 project = "ema_casadi"
 author = "the ema_casadi authors"
