@@ -105,9 +105,9 @@ def _optional_pages(app, docname, source):
         text = text.replace("%OPTIONAL_PAGES%", "\n".join(extra))
     if docname == "changelog":
         if (ROOT / "CHANGELOG.md").exists():
-            inc = "```{include} ../CHANGELOG.md\n:relative-docs: docs/\n:relative-images:\n:heading-offset: 1\n```"
+            inc = "```{include} ../CHANGELOG.md\n:relative-docs: docs/\n:relative-images:\n```"
         else:
-            inc = "No release has been recorded yet."
+            inc = "# Changelog\n\nNo release has been recorded yet."
         text = text.replace("%CHANGELOG%", inc)
     source[0] = text
 
