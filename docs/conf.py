@@ -40,6 +40,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",  # MathJax served from the site itself: the pages read offline
     "numpydoc",
     "sphinx_gallery.gen_gallery",
     "sphinxarg.ext",
