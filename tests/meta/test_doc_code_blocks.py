@@ -34,8 +34,8 @@ _CONSOLE = ("sh", "console", "shell", "bash")
 
 
 def _pages() -> list[Path]:
-    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))] if (ROOT / "docs").is_dir() \
-        else [ROOT / "README.md"]
+    docs = sorted(p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts)
+    return [ROOT / "README.md", *docs]
 
 
 def blocks(path: Path) -> list[tuple[str, str, str]]:
