@@ -103,7 +103,7 @@ def _quantities(items, flag, model) -> dict:
     out = {}
     for name, text in _pairs(items, flag).items():
         if name not in units:
-            from .._checks import nearest
+            from .._util._checks import nearest
 
             raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
         kind = _KIND_OF_UNIT.get(units[name])
@@ -125,9 +125,9 @@ def _split(args):
 
 
 def run(args) -> dict:
-    from ..assembly import build_model
     from ..identification import IdentificationError
-    from ..params import load_parameters
+    from ..model.assembly import build_model
+    from ..model.params import load_parameters
 
     out = check_output_path(args.out, (".toml",), "--out")
     model_file, records = _split(args)
@@ -168,7 +168,7 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     checks = [read_record(r, model) for r in args.validate]
     for name in args.profile:
         if name not in free:
-            from .._checks import nearest
+            from .._util._checks import nearest
 
             raise UserError(f"--profile {name}: not a free parameter{nearest(name, free)}")
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
@@ -242,7 +242,7 @@ def _track(args, params, records, free, kw) -> dict:
 
 def _example(args, params, out, progress) -> dict:
     """The built-in example: records simulated with worn parameters, fitted."""
-    from .._files import scratch_dir
+    from .._util._files import scratch_dir
     from ..identification import example_records
 
     with scratch_dir() as tmp:

@@ -1,4 +1,4 @@
-"""Parameter identification from test records (SPEC §4.12): ``identify()``.
+"""Parameter identification from test records: ``identify()``.
 
 Named parameters of a parameter file are fitted to measured time series by weighted
 least squares (maximum likelihood under Gaussian sensor noise): Levenberg-Marquardt

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import nearest
-from ..assembly import build_model
+from .._util._checks import nearest
+from ..model.assembly import build_model
 from ._problem import Predictor
 from ._records import IdentificationError, Record, read_record
 from ._result import Z95, autocorrelation, channel_stats
 
 #: chi-square(1) 95 % quantile: the profile interval is where the cost rises by
-#: CHI2_95 s^2 / 2 above its minimum (SPEC §4.12).
+#: CHI2_95 s^2 / 2 above its minimum.
 CHI2_95 = 3.841458820694124
 
 

@@ -1,7 +1,7 @@
 """``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
 noise) by Levenberg-Marquardt (``_lm``) with the exact Jacobian, noise levels
 estimated where not given, then the Fisher-information uncertainty and the
-identifiability verdicts (SPEC §4.12)."""
+identifiability verdicts."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from .._checks import instance, integer, nearest, number
-from ..assembly import Model, build_model
-from ..params import Parameters
+from .._util._checks import instance, integer, nearest, number
+from ..model.assembly import Model, build_model
+from ..model.params import Parameters
 from ..simulation import RunFailed
 from ..simulation._result import progress_bar
 from ._lm import COST_TOL, levenberg_marquardt
@@ -53,7 +53,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     Parameters
     ----------
     params : Parameters
-        The parameter set (from :func:`~ema_casadi.params.load_parameters`); its values
+        The parameter set (from :func:`~ema_casadi.model.params.load_parameters`); its values
         are the start of the fit and the values of everything not free.
     records : sequence of str, Path or Record
         Record files (CSV or ``.mat``, see :func:`read_record`) or records read.
@@ -109,6 +109,14 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     given = _sigmas(recs, sigma)
     pred = Predictor(model, recs, fr, model.p())
     fit = _Fit(pred, given, max_evaluations, progress)
+    best = _best_start(fit, fr, starts, seed)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    return res
+
+
+def _best_start(fit, fr, starts: int, seed: int) -> dict:
+    """The lowest-cost fit of ``starts`` (the first from the file's values, the others
+    drawn log-normally around them, seeded)."""
     best = None
     rng = np.random.default_rng(seed)
     for k in range(starts):
@@ -120,15 +128,14 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         try:
             out = fit.run(z0)
         except FitFailed:
-            if k == 0 and starts == 1:
+            if starts == 1:
                 raise
             continue
         if best is None or out["cost"] < best["cost"]:
             best = out
     if best is None:
         raise FitFailed(f"none of the {starts} starts converged")
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
-    return res
+    return best
 
 
 def _as_list(records) -> list:

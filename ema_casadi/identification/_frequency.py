@@ -23,10 +23,10 @@ import time
 
 import numpy as np
 
-from .._checks import nearest
-from .._tables import _table_rows
-from ..assembly import build_model
+from .._util._checks import nearest
+from ..model.assembly import build_model
 from ..signals import SignalError
+from ..signals._tables import _table_rows
 from ._lm import levenberg_marquardt
 from ._problem import free_parameters
 from ._records import IdentificationError, Record, _fields
@@ -112,6 +112,16 @@ def _errors(model, recs, pv) -> dict:
     return e
 
 
+def _given(recs, sigma) -> dict:
+    """Noise levels given: the argument's, else the records' fields if all give them."""
+    given = dict(sigma or {})
+    for c in ("gain_db", "phase_deg"):
+        vals = [r.fields.get(f"sigma_{c}") for r in recs]
+        if c not in given and all(isinstance(v, float) for v in vals):
+            given[c] = float(np.mean(vals))
+    return given
+
+
 def identify_frequency(params, records, free, *, sigma: dict | None = None, variants: dict | None = None,
                        max_evaluations: int = 40) -> IdentResult:
     """Fit named parameters to measured frequency responses through the linear model.
@@ -137,11 +147,7 @@ def identify_frequency(params, records, free, *, sigma: dict | None = None, vari
     recs = [read_frequency_record(r, model) for r in records]
     fr = free_parameters(model, free)
     base = model.p()
-    given = dict(sigma or {})
-    for c in ("gain_db", "phase_deg"):
-        vals = [r.fields.get(f"sigma_{c}") for r in recs]
-        if c not in given and all(isinstance(v, float) for v in vals):
-            given[c] = float(np.mean(vals))
+    given = _given(recs, sigma)
 
     def pv_of(z):
         pv = base.copy()

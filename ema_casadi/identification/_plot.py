@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .._files import atomic_dir
+from .._util._files import atomic_dir
+from ._data import plain
 
 #: Display scale and unit of the usual channels (SI otherwise).
 _DISPLAY = {"m": (1e3, "mm"), "rad": (1.0, "rad"), "rad/s": (1.0, "rad/s"), "A": (1.0, "A"), "N": (1e-3, "kN")}
@@ -148,13 +149,11 @@ def write_report(result, folder) -> Path:
     """
     import matplotlib.pyplot as plt
 
-    from ..cli import _jsonable
-
     with atomic_dir(folder) as tmp:
         for name, fig in figures(result).items():
             fig.savefig(Path(tmp) / f"{name}.png", dpi=110)
             plt.close(fig)
-        (Path(tmp) / "summary.json").write_text(json.dumps(_jsonable(result.to_dict()), indent=1) + "\n")
+        (Path(tmp) / "summary.json").write_text(json.dumps(plain(result.to_dict()), indent=1) + "\n")
         (Path(tmp) / "summary.md").write_text("# Identification\n\n" + result.summary())
     return Path(folder)
 

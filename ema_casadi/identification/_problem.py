@@ -20,10 +20,10 @@ from dataclasses import dataclass, fields
 import casadi as ca
 import numpy as np
 
-from .._checks import nearest
-from .._parallel import cores
-from ..compiled import BufferCall, compile_function
-from ..params import GROUPS, NONNEG, POS
+from .._util._checks import nearest
+from .._util._compiled import BufferCall, compile_function
+from .._util._parallel import cores
+from ..model.params import GROUPS, NONNEG, POS
 from ..simulation._inputs import _input_signals
 from . import _sensitivity
 from ._records import IdentificationError, Record, available_bytes

@@ -6,7 +6,7 @@ model, linearly interpolated between the samples as measured; columns named afte
 model state or output (``x_rod``, ``phi``, ``omega``, ``i_q``, ``F_in``, ...) are
 measurements. Anything else is an error naming the column (with the nearest name).
 
-CSV: the layout the toolkit writes (SPEC §6 Files): a header whose first column is
+CSV: the layout the toolkit writes: a header whose first column is
 ``time`` (or ``t``), an optional ``Unit:`` row, or units in brackets in the header
 (``x_rod [mm]``, ``time [ms]``); SI where no unit is named. Comment lines before the
 header of the form ``# NAME: VALUE`` (or ``NAME = VALUE``) are file-level fields: a
@@ -26,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import nearest
-from .._tables import _header, _table_rows, _unit_scale, read_text
-from ..signals import SI_UNIT, Signal, SignalError
+from .._util._checks import nearest
+from ..signals import Signal, SignalError
+from ..signals._signal import SI_UNIT
+from ..signals._tables import _header, _table_rows, _unit_scale, read_text
 
 __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
 

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_text
+from .._util._files import write_text
+from ._data import plain
 
 #: A parameter is not identifiable from the records when its 95 % interval is wider than
 #: this fraction of its value on either side ...
@@ -288,9 +289,7 @@ class IdentResult:
         path : str or Path
             The file.
         """
-        from ..cli import _jsonable
-
-        return write_text(path, json.dumps(_jsonable(self.to_dict()), indent=1) + "\n")
+        return write_text(path, json.dumps(plain(self.to_dict()), indent=1) + "\n")
 
     def summary(self) -> str:
         """A Markdown summary: the parameters with intervals and verdicts, the channels."""
@@ -386,7 +385,7 @@ def write_fitted(params, values: dict, path: str | Path, header: str) -> Path:
     header : str
         Comment lines written at the top.
     """
-    from ..params import GROUPS
+    from ..model.params import GROUPS
 
     group_of = {f: g for g, cls in GROUPS.items() for f in cls.__dataclass_fields__}
     src = Path(str(params.source))

@@ -22,8 +22,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..compiled import compile_source
+from .._util._compiled import compile_source
+from .._util._interrupts import check as check_interrupt
 from ..simulation import RunFailed
 from ..simulation import _rosenbrock as _ros
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_text
-from ..assembly import build_model
+from .._util._files import write_text
+from ..model.assembly import build_model
 from ..signals import Signal, parse_signal
 from ..simulation import simulate
 from ..simulation._inputs import _as_signal

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import atomic_dir
-from ..assembly import build_model
+from .._util._files import atomic_dir
+from ..model.assembly import build_model
+from ._data import plain
 from ._fit import identify
 from ._records import IdentificationError, read_record
 from ._result import Z95
@@ -87,13 +88,11 @@ class TrackResult:
         """
         import matplotlib.pyplot as plt
 
-        from ..cli import _jsonable
-
         with atomic_dir(folder) as tmp:
             fig = self.plot()
             fig.savefig(Path(tmp) / "trend.png", dpi=110)
             plt.close(fig)
-            (Path(tmp) / "trend.json").write_text(json.dumps(_jsonable(self.to_dict()), indent=1) + "\n")
+            (Path(tmp) / "trend.json").write_text(json.dumps(plain(self.to_dict()), indent=1) + "\n")
         return Path(folder)
 
 
@@ -169,7 +168,7 @@ def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | 
     limits = dict(limits or {})
     for n in limits:
         if n not in free:
-            from .._checks import nearest
+            from .._util._checks import nearest
 
             raise IdentificationError(f"--limit {n}: not a free parameter{nearest(n, free)}")
     model = build_model(params, variants)

@@ -1,4 +1,4 @@
-"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (SPEC §4.8).
+"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (docs: aircraft).
 
 The airframe part declares what its trim solves for (``trim_free``: the throttle and
 the attitude command) and which states it fixes (``trim_fix``: airspeed and altitude
@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import instance
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import instance
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._common import _LIFT, OperatingPointError, _eval
 from ._trim import (
     OperatingPoint,

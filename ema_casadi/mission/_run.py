@@ -11,19 +11,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..components.thermal import NODES
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.components.thermal import NODES
+from ..model.params import Parameters
 from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, simulate
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 
 __all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT"]
 
-#: The full model's step (s): the hybrid friction's (README "Hybrid (Karnopp) friction").
+#: The full model's step (s): the hybrid friction's (docs: friction-and-endstops).
 FULL_DT = 1e-4
 #: The fast path's step (s): the same model at twice the step. On the reference mission
-#: its temperatures differ from the full model's by at most 0.16 K (README "Missions");
+#: its temperatures differ from the full model's by at most 0.16 K (docs: missions);
 #: RK4 stays stable (the 1.42 kHz drive-train mode at |lambda h| = 1.8 < 2.8).
 FAST_DT = 2e-4
 

@@ -1,4 +1,4 @@
-"""Carrier-synchronous simulation of a switched model (a PWM bridge, issue 11).
+"""Carrier-synchronous simulation of a switched model (a PWM bridge).
 
 One compiled step advances one carrier period T = 1/f_sw: the ECU samples at its start
 (and at the valley T/2 for double update: the current loop at 2 f_sw), the model's
@@ -14,7 +14,7 @@ samples of switched powers is not).
 
 The step is rolled out like the RK4 rollout (:mod:`._rk4`): ``fold`` over ``k`` periods
 per kept sample, ``mapaccum`` over the samples of a chunk, compiled and cached with
-:func:`~ema_casadi.compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
+:func:`~ema_casadi._util._compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
 kept (``resolve``): its start, its states and its leg states, for plots of the switched
 waveforms (a step plot, ``steps-post``).
 
@@ -31,9 +31,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..assembly import Model
-from ..compiled import BufferCall, compile_keyed
+from .._util._compiled import BufferCall, compile_keyed
+from .._util._interrupts import check as check_interrupt
+from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import SimResult, SimulationError, _result, progress_bar

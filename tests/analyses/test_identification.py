@@ -1,4 +1,4 @@
-"""Parameter identification (SPEC §4.12): exact sensitivities, recovery of known
+"""Parameter identification: exact sensitivities, recovery of known
 parameters from records the toolkit simulates, identifiability verdicts, the health
 trend, the profile likelihood and the record reader.
 

@@ -1,4 +1,4 @@
-"""``ema identify`` (SPEC §6, §7): a mistake -> exit 2 and one line naming it, nothing
+"""``ema identify``: a mistake -> exit 2 and one line naming it, nothing
 written; a fit that does not converge -> exit 3, one line, no fitted file; plain
 ``ema identify`` (the built-in example) succeeds and writes what it is asked to."""
 
