@@ -132,3 +132,19 @@ def test_help(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 0 and "identify" in capsys.readouterr().out
+
+
+def test_track_writes_the_trend(params, tmp_path, capsys):
+    """Three records stamped 0, 1000, 2000 h (seal friction 150, 200, 250 N): the trend
+    report, with the crossing of 300 N predicted."""
+    recs = [str(idn.synthetic_record(params, tmp_path / f"r{h}.csv", t_end=0.3, x_cmd="step:1mm@0.02",
+                                     truth={"F_seal": 150.0 + 0.05 * h}, seed=h, fields={"flight_hours": h}))
+            for h in (0, 1000, 2000)]
+    code, out, err = _run(["identify", "--track", *recs, "--free", "F_seal", "--limit", "F_seal=300N",
+                           "--report", str(tmp_path / "trend"), "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    doc = json.loads(out)
+    assert [r["stamp"] for r in doc["records"]] == [0.0, 1000.0, 2000.0]
+    a, b = doc["trend"]["F_seal"]["crossing_interval"]
+    assert a <= 3000.0 <= b
+    assert sorted(p.name for p in (tmp_path / "trend").iterdir()) == ["trend.json", "trend.png"]
