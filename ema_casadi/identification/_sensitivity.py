@@ -91,7 +91,7 @@ REPLAY_LIMIT = 30.0
 
 def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: np.ndarray, S0: np.ndarray,
         rtol: float, atol: float, steps: np.ndarray | None = None,
-        room: int | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+        room: int | None = None, rows: bool = False) -> tuple[np.ndarray, np.ndarray, dict]:
     """States X (nx x n) at the samples ``grid`` (from 0, ascending) and their
     sensitivities S (n x ns x nx: sample, direction, state) along the parameter
     directions ``W`` (n_p x ns) from ``S0`` (nx x ns) at t = 0.
@@ -116,7 +116,7 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
     # steps land on the breakpoints of steps, ramps, sines, not on a table's rows: the
     # driver finds a table's piece from the time (EMA_TABLE_BY_TIME), its kinks are left
     # to the error control (a record's input is a table of one row per sample)
-    cuts = {b for s in sig.values() for term in s.terms if term.kind != "table" for b in term.breakpoints()
+    cuts = {b for s in sig.values() for term in s.terms if rows or term.kind != "table" for b in term.breakpoints()
             if 0 < b < t_end}
     edges = np.array(sorted({0.0, t_end, *cuts}), float)
     terms, tab = _ros._encode(model, sig)
@@ -146,13 +146,13 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
         good = np.all(np.isfinite(Xt[done : done + n_done.value]))
         done += n_done.value
         if status in (-5, -6):  # the replayed grid does not fit these parameters: choose the steps
-            return run(model, sig, grid, pv, x0, W, S0, rtol, atol)
+            return run(model, sig, grid, pv, x0, W, S0, rtol, atol, rows=rows)
         if status < 0 or not good:
             what = _ros._failure(status, state[1], rtol, atol) if status < 0 else "non-finite states"
             raise RunFailed(what, float(state[0]), None)
     k = int(hs_n[0])
     if mode == 1 and k > len(hs):  # more steps than room: again with room for all
-        return run(model, sig, grid, pv, x0, W, S0, rtol, atol, room=k + 16)
+        return run(model, sig, grid, pv, x0, W, S0, rtol, atol, room=k + 16, rows=rows)
     info = {"compute_time": time.perf_counter() - t0, **dict(zip(_ros._STATS, stats.astype(int).tolist(),
                                                                  strict=True)), **cinfo,
             "step_sizes": hs[:k].copy() if mode == 1 else steps}
