@@ -83,6 +83,8 @@ class Screw:
     C: float = _p("N/m", POS, "drive-train axial stiffness (N/m)")
     c_c: float = _p("N*s/m", NONNEG, "contact damping, acts only in contact (N s/m)")
     B: float = _p("m", NONNEG, "backlash, total gap (m)")
+    P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
+                        default=0.1)
 
 
 @dataclass(frozen=True)
