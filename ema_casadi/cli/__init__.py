@@ -99,7 +99,7 @@ def add_common(p) -> None:
                    help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
                         "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
                         "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
-                        "stribeck=off|on, iron_loss=off|on")
+                        "stribeck=off|on, iron_loss=off|on, anti_windup=backcalc|clamping, limit_shape=clip|smooth")
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 
