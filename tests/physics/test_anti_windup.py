@@ -149,3 +149,24 @@ def test_efficiency_switch_width_is_the_parameter():
 def test_negative_blend_width_is_refused(params):
     with pytest.raises(ema.ParameterError, match="P_blend"):
         params.replace(P_blend=-0.1)
+
+
+def test_the_option_from_the_command_line_and_from_the_file(tmp_path, capsys):
+    """``--variant anti_windup=clamping`` and ``[model] anti_windup = "clamping"`` build
+    the same model: the same variants and the same run, bit for bit (one process)."""
+    import json
+
+    from conftest import REFERENCE
+    from ema_casadi.cli import main
+
+    text = REFERENCE.read_text()
+    assert 'anti_windup = "backcalc"' in text
+    clamp = tmp_path / "clamping.toml"
+    clamp.write_text(text.replace('anti_windup = "backcalc"', 'anti_windup = "clamping"'))
+    runs = []
+    for args in ([str(REFERENCE), "--variant", "anti_windup=clamping"], [str(clamp)]):
+        out = tmp_path / f"run{len(runs)}.csv"
+        assert main(["simulate", *args, "--x-cmd", "step:10mm", "--f-ext", "10kN", "--t-end", "0.05",
+                     "--out", str(out), "--json"]) == 0
+        runs.append((json.loads(capsys.readouterr().out)["variants"], out.read_text()))
+    assert runs[0][0]["anti_windup"] == "clamping" and runs[0] == runs[1]
