@@ -170,3 +170,54 @@ def test_the_option_from_the_command_line_and_from_the_file(tmp_path, capsys):
                      "--out", str(out), "--json"]) == 0
         runs.append((json.loads(capsys.readouterr().out)["variants"], out.read_text()))
     assert runs[0][0]["anti_windup"] == "clamping" and runs[0] == runs[1]
+
+
+def _gate(d, w):
+    s = np.clip(d / w, 0.0, 1.0)
+    return s * s * (3 - 2 * s)
+
+
+def test_pmsm_clamping_rates_follow_the_equations(params):
+    """The PMSM's per-axis clamping (docs: each axis's excess v_k_u - v_k on the voltage
+    circle) and the speed PI's, at random states that put the loops on and off their
+    limits: the integrator rates of the model against NumPy from the documented
+    equations (rtol 1e-12: the same arithmetic up to reordering)."""
+    model = ema.build_model(params, {"anti_windup": "clamping"})
+    P = params.as_dict()
+    r = P["p"] / (2 * np.pi)
+    rng = np.random.default_rng(7)
+    hits = {"z_w": 0, "z_d": 0, "z_q": 0}
+    for _ in range(300):
+        x = dict(zip(model.states, rng.normal(size=model.nx) * [20, 150, 150, 20, 20, 50, 80, 2e-3, 0.05],
+                     strict=True))
+        x["x_rod"] = x["phi"] * r
+        x_cmd = rng.normal() * 2e-3
+        xdot = dict(zip(model.states, np.asarray(model.f(list(x.values()), model.u(x_cmd=x_cmd), model.p())[0])
+                        .ravel(), strict=True))
+        # position P loop and speed PI (current limit I_max)
+        w_max = P["v_max"] / r
+        w_cmd = np.clip(P["K_x"] / r * (x_cmd - x["x_rod"]), -w_max, w_max)
+        e_w = w_cmd - x["omega"]
+        u = P["K_p_w"] * e_w + x["z_w"]
+        d = u - np.clip(u, -P["I_max"], P["I_max"])
+        w = controller.AW_BAND * P["I_max"]
+        K_i = P["K_p_w"] / P["T_i_w"]
+        z_w_dot = K_i * (e_w - _gate(d, w) * max(e_w, 0) - _gate(-d, w) * min(e_w, 0))
+        # FOC current PIs on the voltage circle
+        i_cmd = u - d
+        w_e = P["pp"] * x["omega"]
+        e = {"z_d": -x["i_d"], "z_q": i_cmd - x["i_q"]}
+        v_u = {"z_d": P["K_p_i"] * e["z_d"] + x["z_d"] - w_e * P["L_q"] * x["i_q"],
+               "z_q": P["K_p_i"] * e["z_q"] + x["z_q"] + w_e * (P["L_d"] * x["i_d"] + P["psi"])}
+        v_lim = P["k_v"] * P["V_dc"] / np.sqrt(3)
+        scale = min(1.0, v_lim / np.sqrt(v_u["z_d"] ** 2 + v_u["z_q"] ** 2 + 1e-12))
+        expect = {"z_w": z_w_dot}
+        for k in ("z_d", "z_q"):
+            dk = v_u[k] * (1 - scale)
+            gw = controller.AW_BAND * v_lim
+            expect[k] = P["K_i_i"] * (e[k] - _gate(dk, gw) * max(e[k], 0) - _gate(-dk, gw) * min(e[k], 0))
+            hits[k] += int(abs(dk) > 0 and e[k] * dk > 0)
+        hits["z_w"] += int(d != 0 and e_w * d > 0)
+        for k, v in expect.items():
+            assert xdot[k] == pytest.approx(v, rel=1e-12, abs=1e-12 * P["K_i_i"]), k
+    assert min(hits.values()) > 20, hits  # the clamping branch was exercised on every loop
