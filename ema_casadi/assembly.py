@@ -44,6 +44,7 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
+from ._derived import Contract
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
 from ._kwargs import check_keywords
@@ -58,7 +59,7 @@ _SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ 
 
 
 @dataclass
-class Model:
+class Model(Contract):
     """An assembled EMA model.
 
     Attributes

@@ -14,7 +14,12 @@ from ._part import (
     MARGIN,
     OUTPUT_KINDS,
     AssemblyError,
+    POLICIES,
     Bound,
+    Freeze,
+    Gain,
+    Limit,
+    Seed,
     Bus,
     Hold,
     Input,
@@ -29,7 +34,7 @@ from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantErr
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Hold", "Input", "Loop", "Output",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Freeze", "Gain", "Limit", "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",

@@ -6,7 +6,7 @@ import math
 
 import casadi as ca
 
-from ._part import MARGIN, Bound, Input, Output, Part, State, der
+from ._part import MARGIN, Bound, Input, Output, Part, Seed, State, der
 from .motor import no_load_speed, shaft
 
 __all__ = [
@@ -162,10 +162,28 @@ ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model 
 # declared by the thermal parts, which pass it on as eta_screw (or replace it by eta(T_s))
 
 
+#: Small-signal policy: backlash "off" closes the gap (dead zone and play have slope 1 at B = 0).
+_SMALL_SIGNAL = {"backlash": {"off": {"B": 0.0}}}
+#: Inside the gap the spring has no slope and a trim's Newton cannot find the contact:
+#: start from the backlash-free trim with the nut moved half the gap towards the flank
+#: that carries the screw force.
+def _inside_gap(P, y):
+    if P.B > 0 and abs(y["x_in"] - y["x_rod"]) < P.B / 2:
+        return (f"backlash kept: the operating point sits inside the {P.B * 1e6:.3g} um gap, so the linear "
+                "model has the rod decoupled from the screw; use backlash='off' or a load")
+    return None
+
+
+_GAP_SEED = Seed("backlash", lambda P, y: math.copysign(1.0, y["F_in"]) * (P.B / 2) / lead_ratio(P)
+                 if y["F_in"] != 0 else 0.0, warn=_inside_gap)
+
+
 def _shaft_states(contact: bool):
+    # with the rigid screw (contact at the shaft) only the play reads the shaft angle:
+    # without backlash at rest nothing restores it (a neutral mode)
     return (
         State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / lead_ratio(P),
-              travel=lead_ratio, bound=_NUT_ANGLE),
+              travel=lead_ratio, bound=_NUT_ANGLE, neutral=contact, seed=_GAP_SEED),
         State("omega", "rad/s", "motor speed", roles=("shaft_speed",) + (("contact_velocity",) if contact else ()),
               scale=lambda P: P.v_max / lead_ratio(P), bound=_SPEED),
     )
@@ -203,6 +221,7 @@ class Elastic(Part):
     inputs = (F_EXT,)
     outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
+    small_signal = _SMALL_SIGNAL
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS
@@ -247,12 +266,16 @@ class Rigid(Part):
     family, value = "screw", "rigid"
     doc = "one-mass: rod rigid on the shaft, backlash as a play on the position signal"
     states = _shaft_states(contact=True) + (
+        # without backlash the play rests anywhere: held exactly at the nut, where both edges
+        # act and the AD slope is 1 (a gap of -1e-17 at a shaft speed of +1e-16 selects 0)
         State("x_play", "m", "rod position after the backlash play", roles=("rod_position", "play"),
-              scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL),
+              scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL, rest="x_in",
+              rest_when=lambda P: P.B == 0),
     )
     inputs = (F_EXT,)
     outputs = _outputs(_ROD_SPEED)
     params = _PARAMS + ("B",)
+    small_signal = _SMALL_SIGNAL
     stored = ("E_kin",)
     loads = ("f_ext",)
     limits = _LIMITS

@@ -169,6 +169,7 @@ class Smooth(Part):
     outputs = _OUT
     heat = {"P_friction": "screw", "P_viscous": "screw"}
     params = _PARAMS + ("v_s", "r_start", "v_st")
+    small_signal = {"friction": {"off": {"F_seal": 0.0, "C_bear": 0.0}}}
     options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
 
     def signals(self):
@@ -191,6 +192,12 @@ class Hybrid(Part):
     outputs = _OUT
     heat = Smooth.heat
     params = _PARAMS + ("eps", "r_start")
+    # the stick band closed too: the hybrid model then linearises exactly like the smooth one
+    small_signal = {"friction": {
+        "off": {"F_seal": 0.0, "C_bear": 0.0, "eps": 0.0},
+        "smooth": "friction policy 'smooth' linearises the smooth friction law; the hybrid (Karnopp) "
+                  "variant has no meaningful slope: use friction policy 'off'",
+    }}
 
     def signals(self):
         out = _common(None)

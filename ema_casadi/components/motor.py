@@ -14,10 +14,12 @@ is 0 and the equations are those without iron loss.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
 from . import controller
-from ._part import MARGIN, Bound, Hold, Input, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "OMEGA_FE", "Pmsm", "Dc", "CURRENT_LOOP",
            "CURRENT_BOUND"]
@@ -186,6 +188,14 @@ def _iron(opt):
     return {("T_fe", "P_fe"): iron, "T_m": lambda b: b["T_em"] - b["T_fe"]}
 
 
+#: The voltage limit of the current controller (the linear-SVPWM circle), which a trim
+#: keeps inactive; lifted through k_v, not V_dc (V_dc also sets the switching losses,
+#: which heat the inverter node of a thermal network).
+_LIMITS = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
+                 lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
+_GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+
+
 class Pmsm(Part):
     """3-phase PMSM in the rotor dq frame with FOC current control (SPEC §2.1, §2.3)."""
 
@@ -194,6 +204,8 @@ class Pmsm(Part):
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS
     heat = _HEAT
     loops = (CURRENT_LOOP,)
@@ -231,6 +243,8 @@ class Dc(Part):
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS
     heat = _HEAT
     loops = (CURRENT_LOOP,)

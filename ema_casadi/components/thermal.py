@@ -44,7 +44,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..params import TABLE_MAX
-from ._part import Input, Output, Part, State, der, heat_signal
+from ._part import Freeze, Input, Output, Part, State, der, heat_signal
 from .ballscrew import ETA
 
 __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
@@ -111,6 +111,12 @@ def network(T_w, T_h, T_s, T_inv, T_amb, Q_w, Q_h, Q_s, Q_inv, P):
             (Q_s - q_sh) * (1 / P.C_th_s), (Q_inv - q_ia) * (1 / P.C_th_inv), q_ha + q_ia)
 
 
+#: The linearisation freezes the screw-nut efficiency blend at its value g_screw = g at
+#: the point (1/eta = eta_inv = g): the blend switches over ~0.1 W and its slope at
+#: standstill would act as a fictitious shaft damping.
+_FREEZE = Freeze("g_screw", inputs={"eta": lambda g: 1.0 / g}, params={"eta_inv": lambda g: g})
+
+
 class Off(Part):
     """No thermal network: R, psi, eta_inv as in the parameter file, eta the input."""
 
@@ -118,6 +124,7 @@ class Off(Part):
     doc = "no thermal network: parameters at T_ref, the eta input drives the screw"
     inputs = (ETA,)
     params = ("R", "psi", "eta_inv")
+    freeze = (_FREEZE,)
 
     def signals(self):
         return {
@@ -156,6 +163,8 @@ class Lumped(Part):
     params = ("R", "psi", "eta", "eta_inv", "alpha_Cu", "alpha_psi", "T_ref", "feedback_R", "feedback_psi",
               "feedback_eta", "C_th_w", "R_th_ws", "C_th_h", "R_th_ha", "C_th_s", "R_th_sh", "C_th_inv",
               "R_th_inv") + tuple(f"{n}_{i}" for n in ("T_eta", "eta_T") for i in range(TABLE_MAX))
+    # frozen, the eta input drives the screw (the table eta(T_s) switched off)
+    freeze = (Freeze("g_screw", _FREEZE.inputs, {**_FREEZE.params, "feedback_eta": lambda g: 0.0}),)
 
     def signals(self):
         def rates(b):
