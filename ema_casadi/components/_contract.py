@@ -74,11 +74,16 @@ class Freeze:
         The output whose value at the point fixes the freeze.
     inputs, params : dict
         Input / parameter name -> ``fn(v) -> value`` (SI).
+    nominal : callable, optional
+        ``nominal(P) -> v``: the value to freeze at without an operating point (a guess
+        of the small-signal model: the screw-nut factor driving the load, 1/eta), the
+        value the inputs give at their defaults: only ``params`` are then set.
     """
 
     signal: str
     inputs: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
+    nominal: Callable | None = None
 
 
 @dataclass(frozen=True)

@@ -114,7 +114,8 @@ def network(T_w, T_h, T_s, T_inv, T_amb, Q_w, Q_h, Q_s, Q_inv, P):
 #: The linearisation freezes the screw-nut efficiency blend at its value g_screw = g at
 #: the point (1/eta = eta_inv = g): the blend switches over ~0.1 W and its slope at
 #: standstill would act as a fictitious shaft damping.
-_FREEZE = Freeze("g_screw", inputs={"eta": lambda g: 1.0 / g}, params={"eta_inv": lambda g: g})
+_FREEZE = Freeze("g_screw", inputs={"eta": lambda g: 1.0 / g}, params={"eta_inv": lambda g: g},
+                 nominal=lambda P: 1.0 / P.eta)
 
 
 class Off(Part):
@@ -164,7 +165,8 @@ class Lumped(Part):
               "feedback_eta", "C_th_w", "R_th_ws", "C_th_h", "R_th_ha", "C_th_s", "R_th_sh", "C_th_inv",
               "R_th_inv") + tuple(f"{n}_{i}" for n in ("T_eta", "eta_T") for i in range(TABLE_MAX))
     # frozen, the eta input drives the screw (the table eta(T_s) switched off)
-    freeze = (Freeze("g_screw", _FREEZE.inputs, {**_FREEZE.params, "feedback_eta": lambda g: 0.0}),)
+    freeze = (Freeze("g_screw", _FREEZE.inputs, {**_FREEZE.params, "feedback_eta": lambda g: 0.0},
+                     nominal=_FREEZE.nominal),)
 
     def signals(self):
         def rates(b):

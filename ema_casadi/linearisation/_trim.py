@@ -224,6 +224,32 @@ def _freeze_efficiency(model: Model, u, p, frozen: dict):
     return u, _with(model, p, values)
 
 
+def small_signal_point(model: Model, u, p, friction: str = "off", backlash: str = "off"):
+    """Inputs and parameters of a small-signal model without an operating point (a
+    guess): the policies applied (the parts' overrides) and, with friction ``off``, the
+    blends the parts freeze held at their nominal values (the screw-nut factor driving
+    the load, 1/eta). Returns (u, p).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    u, p : array_like
+        Inputs and parameter vector (SI).
+    friction, backlash : str
+        Small-signal policies (:data:`~ema_casadi.components.POLICIES`).
+    """
+    q, _ = _policy_vector(model, p, friction, backlash)
+    u = np.array(u, dtype=float)
+    fz = model.freezes if friction == "off" and all(f.nominal for f in model.freezes) else ()
+    if not fz:
+        return u, q
+    # the nominal value is that of the inputs at their defaults: only the parameters are set
+    P = model.pdict(q)
+    values = {name: fn(float(f.nominal(P))) for f in fz for name, fn in f.params.items()}
+    return u, _with(model, q, values)
+
+
 def _consistent(new: dict, old: dict) -> bool:
     return all(abs(new[k] - old[k]) <= 1e-13 * abs(old[k]) for k in old)
 

@@ -287,27 +287,3 @@ def _stepper(variants: dict, params: Parameters, samples: int, rtol: float, atol
 
 def _is_hybrid(model: Model) -> bool:
     return model.hybrid
-
-
-def hybrid_available(params: Parameters) -> tuple[bool, str]:
-    """Whether the hybrid (stick-slip) friction variant can be simulated here, and why not.
-
-    Parameters
-    ----------
-    params : Parameters
-        Parameter set to build the hybrid-friction model from.
-
-    Returns
-    -------
-    ok : bool
-        True when the variant builds and has its stick projection.
-    why : str
-        One-line reason when ``ok`` is False, else ``""``.
-    """
-    try:
-        model = build_model(params, {"friction": "hybrid"})
-    except (ParameterError, ValueError) as exc:
-        return False, f"friction variant 'hybrid' is not available: {exc}"
-    if getattr(model, "project", None) is None:
-        return False, "friction variant 'hybrid' is accepted but has no stick projection (model.project) yet"
-    return True, ""
