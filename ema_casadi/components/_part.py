@@ -143,7 +143,8 @@ class State:
     rest : str, optional
         A memory element without restoring dynamics of its own (a play, a friction
         bristle): the trim holds it at the value of this signal (one more trim equation,
-        the state equal to the signal, and the state set exactly to it after).
+        the state equal to the signal, and the state set exactly to it after); the
+        signal is an output of the model.
     rest_when : callable, optional
         ``rest_when(P) -> bool``: when the ``rest`` rule applies (default always; the
         play only without backlash, where its edges meet).
