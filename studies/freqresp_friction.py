@@ -7,7 +7,6 @@ Paper: smooth and hybrid friction agree within the 0-5 Hz band.
 Exits with a message (status 0) when the hybrid variant is not available.
 """
 
-import sys
 
 import numpy as np
 from freqresp_common import parse, summary

@@ -17,7 +17,7 @@ import numpy as np
 from .. import _interrupts
 from ..assembly import Model, build_model
 from ..compiled import BufferCall
-from ..params import ParameterError, Parameters
+from ..params import Parameters
 from ..signals import Signal
 from ..simulation import STEPS_PER_CALL, RunFailed, simulate
 from ..simulation._envelope import Monitor, captured_stderr, integrator_failure

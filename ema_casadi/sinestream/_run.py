@@ -164,7 +164,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     xdot = model.f(x, u, pp)[0]
     ju = model.inputs.index("x_cmd")
     jac = ca.Function("lin_jacobians", [x, u, pp], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)[:, ju]])
-    v_max = model.limit_values(p)["rod_speed"]
+    rate_limit = model.limit_values(p)["rod_speed"]
     # the rod's own travel: its position state, or the shaft angle where the rod
     # position is a play (the rigid screw)
     travel = model.travel(p)
@@ -191,7 +191,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
             # rod speed amplitude of the linear response per unit command amplitude
             g_rod = abs(Xc[j_rod]) * per_unit
             for ia, A in enumerate(amplitudes):
-                scale = A * min(1.0, v_max / max(w * g_rod * A, 1e-300))
+                scale = A * min(1.0, rate_limit / max(w * g_rod * A, 1e-300))
                 guess = x_rest + scale * Xc.imag
                 # a guess outside the physical envelope (the linearised hybrid rod is
                 # stuck: its "response" drives the currents far beyond I_max) would
