@@ -3,7 +3,6 @@ package docstring)."""
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,7 +10,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._checks import read_toml
+from .._checks import nearest, read_toml
 from ..params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
@@ -257,8 +256,7 @@ class Ramp(Signal):
 
 
 def _nearest(name, options) -> str:
-    match = difflib.get_close_matches(name, sorted(options), n=1, cutoff=0.0)
-    return f" (did you mean '{match[0]}'?)" if match else ""
+    return nearest(name, sorted(options))
 
 
 def _keys(where: str, table: dict, allowed: set) -> None:
