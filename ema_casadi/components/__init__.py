@@ -23,12 +23,14 @@ from ._part import (
     Input,
     Limit,
     Loop,
+    Node,
     Output,
     Part,
     Seed,
     State,
     der,
     heat_signal,
+    node_outflow,
 )
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
@@ -37,6 +39,6 @@ __all__ = [
     "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Freeze", "Gain", "Limit", "Seed",
     "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
-    "HEAT_NODES", "heat_signal",
+    "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
 ]

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain"]
+__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow"]
 
 
 #: Small-signal policies of the linearisation: policy -> allowed values, first the
@@ -130,3 +130,35 @@ class Gain:
     loop: str
     kind: str = "gain"
     zero_scale: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Node:
+    """The thermal node a temperature state is (:attr:`State.node`).
+
+    Attributes
+    ----------
+    name : str
+        The node (one of ``HEAT_NODES``: ``winding``, ``housing``, ...).
+    capacity : callable
+        ``capacity(P) -> float``: its heat capacity (J/K).
+    limit : callable
+        ``limit(P) -> float``: the temperature it is rated for (degC), what a mission is
+        judged against when its file names none.
+    """
+
+    name: str
+    capacity: Callable
+    limit: Callable
+
+
+def node_outflow(node: str) -> str:
+    """Bus name of the heat a thermal node passes on to its neighbours and the ambient (W):
+    its heat input less C dT/dt. A part with temperature states provides it per node.
+
+    Parameters
+    ----------
+    node : str
+        The node (``winding``, ``housing``, ``screw``, ``inverter``).
+    """
+    return f"P_out_{node}"

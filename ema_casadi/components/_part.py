@@ -36,11 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Freeze, Gain, Limit, Seed
+from ._contract import POLICIES, Freeze, Gain, Limit, Node, Seed, node_outflow
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Part", "Bus",
-    "AssemblyError", "der", "POLICIES",
+    "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
@@ -154,6 +154,9 @@ class State:
         with a ``rest`` rule.
     seed : Seed, optional
         Where the trim starts this state (:class:`Seed`).
+    node : Node, optional
+        For a temperature: the thermal node it is (:class:`Node`: name, heat capacity,
+        rated temperature); its part provides :func:`node_outflow` of it.
     """
 
     name: str
@@ -169,6 +172,7 @@ class State:
     rest_when: Callable | None = None
     neutral: bool = False
     seed: Seed | None = None
+    node: Node | None = None
 
     @property
     def memory(self) -> bool:

@@ -11,7 +11,7 @@ from .motor import no_load_speed, shaft
 
 __all__ = [
     "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "P_BLEND",
-    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA",
+    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA", "held_at_rest",
 ]
 
 #: Width (W) over which the screw-nut efficiency switches between the direct and the
@@ -155,7 +155,22 @@ _FORCE = Bound(lambda E: MARGIN * held_force(E), f"{MARGIN:g} x the largest forc
 _RINGING_ROD = Bound(lambda E: MARGIN * no_load_speed(E) * lead_ratio(E)
                      + MARGIN * held_force(E) / math.sqrt(E.C * E.M),
                      f"{MARGIN:g} x the no-load speed at the rod + its ringing under the largest load step")
-_LIMITS = {"overtravel": lambda P: OVERTRAVEL}
+def held_at_rest(P):
+    """Largest rod force the current limit holds at standstill, where the screw-nut
+    factor sits at the middle of its blend, (1/eta + eta_inv)/2: K_t I_max / ((p/2 pi) g)
+    (N; 54.5 kN on the reference set).
+
+    Parameters
+    ----------
+    P : SimpleNamespace
+        Parameter values by flat name (uses ``pp``, ``psi``, ``I_max``, ``p``, ``eta``, ``eta_inv``).
+    """
+    return 1.5 * P.pp * P.psi * P.I_max / (lead_ratio(P) * (0.5 / P.eta + 0.5 * P.eta_inv))
+
+
+#: Envelope limits: the overtravel, and the load the actuator holds at standstill
+#: (``held_load``: what a mission's load profile is checked against before it runs).
+_LIMITS = {"overtravel": lambda P: OVERTRAVEL, "held_load": held_at_rest}
 
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE)
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
