@@ -331,6 +331,9 @@ class Part:
     trim_limits: ClassVar[tuple] = ()
     #: Gains a tuner may move (:class:`Gain`), outer loop first.
     gains: ClassVar[tuple] = ()
+    #: Named operating conditions (the airframe's flight conditions): name -> flat
+    #: parameter values (SI) that set it up.
+    conditions: ClassVar[dict] = {}
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})
