@@ -128,10 +128,9 @@ def _row_scale(A, B, x, u, target, size):
     return np.abs(A) @ (size + np.abs(x)) + np.abs(B) @ np.abs(u) + np.abs(target)
 
 
-def _rest_rows(model: Model, p, x, y, C):
+def _rest_rows(model: Model, rest: dict, x, y, C):
     """Residual and Jacobian rows of the memory states held at a signal (their ``rest``
-    rule): x_s - y_signal = 0."""
-    rest = model.rest_states(p)
+    rule, ``rest``: state -> signal): x_s - y_signal = 0."""
     r = np.array([x[model.index(n)] - y[model.yindex(sig)] for n, sig in rest.items()])
     J = np.zeros((len(rest), model.nx))
     for row, (n, sig) in enumerate(rest.items()):
@@ -151,12 +150,12 @@ def _newton(model, x, u, p, target, size, tol, max_iter):
     is judged against what the row can carry, not against round-off.
     """
     rel = np.inf
-    rest = bool(model.rest_states(p))
+    rest = model.rest_states(p)
     for _ in range(max_iter):
         if rest:  # each iterate with its memory states exactly at their signal (an edge of a play)
-            x = _hold_at_rest(model, x, u, p)
+            x = _hold_at_rest(model, x, u, p, rest)
         xdot, y, A, B, C, _D = _eval(model, x, u, p)
-        r_rest, J_rest, i_rest = _rest_rows(model, p, x, y.ravel(), C)
+        r_rest, J_rest, i_rest = _rest_rows(model, rest, x, y.ravel(), C)
         r = np.concatenate([xdot.ravel() - target, r_rest])
         scale = np.concatenate([_row_scale(A, B, x, u, target, size), size[i_rest] + np.abs(x[i_rest])])
         rel = float(np.max(np.abs(r) / np.where(scale > 0, scale, 1.0)))
@@ -169,11 +168,15 @@ def _newton(model, x, u, p, target, size, tol, max_iter):
     return x, rel, False
 
 
-def _hold_at_rest(model: Model, x, u, p):
-    """The memory states set exactly to their rest signal (after a converged trim)."""
+def _hold_at_rest(model: Model, x, u, p, rest: dict | None = None):
+    """The memory states set exactly to their rest signal (``rest``: state -> signal,
+    default the model's at ``p``)."""
+    rest = model.rest_states(p) if rest is None else rest
+    if not rest:
+        return x
     x = x.copy()
     y = _eval(model, x, u, p)[1].ravel()
-    for n, sig in model.rest_states(p).items():
+    for n, sig in rest.items():
         x[model.index(n)] = y[model.yindex(sig)]
     return x
 
