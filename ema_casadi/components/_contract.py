@@ -48,6 +48,8 @@ class Limit:
         Display factor (1e3 for mm/s).
     holds_load : bool
         The message estimates the largest load held (value proportional to the load).
+    digits : int
+        Significant digits of the message's numbers.
     """
 
     name: str
@@ -60,6 +62,7 @@ class Limit:
     unit: str
     scale: float = 1.0
     holds_load: bool = False
+    digits: int = 4
 
 
 @dataclass(frozen=True)

@@ -196,7 +196,7 @@ def _omega_max(P):
 #: The saturations of the outer loops, which a trim keeps inactive.
 _LIMITS = (
     Limit("current", "current limit", "i_q", lambda y, P: abs(y["i_cmd"]), lambda P: P.I_max, "I_max",
-          lift=("I_max",), unit="A", holds_load=True),
+          lift=("I_max",), unit="A", holds_load=True, digits=3),
     Limit("rod_speed", "rate limit", "the rod speed command", lambda y, P: abs(y["omega_cmd"]) * P.p / (2 * math.pi),
           lambda P: P.v_max, "v_max", lift=("v_max",), unit="mm/s", scale=1e3),
 )

@@ -207,10 +207,10 @@ def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v
             est = ""
             if lim.holds_load and f_ext:
                 est = f" (about {abs(f_ext) * top / need / 1e3:.3g} kN is the most it can hold here)"
-            k, unit = lim.scale, lim.unit
+            k, unit, g = lim.scale, lim.unit, f".{lim.digits}g"
             raise OperatingPointError(
-                f"no operating point within the {lim.what} {where}: it needs {lim.symbol} = {need * k:.4g} {unit}, "
-                f"above the {lim.what} {lim.why} = {top * k:.4g} {unit}{est}"
+                f"no operating point within the {lim.what} {where}: it needs {lim.symbol} = {need * k:{g}} {unit}, "
+                f"above the {lim.what} {lim.why} = {top * k:{g}} {unit}{est}"
             )
 
 
