@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..components import REGISTRY
 from ..linearisation import LinearizationError
+from ..model.components import REGISTRY
 
 __all__ = ["CONDITIONS", "condition_overrides"]
 

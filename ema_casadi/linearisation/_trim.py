@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import instance, integer, number, vector
-from ..assembly import AssemblyError, Model
-from ..params import Parameters
+from .._util._checks import instance, integer, number, vector
+from ..model.assembly import AssemblyError, Model
+from ..model.params import Parameters
 from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
 
 
@@ -240,7 +240,7 @@ def small_signal_point(model: Model, u, p, friction: str = "off", backlash: str 
     u, p : array_like
         Inputs and parameter vector (SI).
     friction, backlash : str
-        Small-signal policies (:data:`~ema_casadi.components.POLICIES`).
+        Small-signal policies (:data:`~ema_casadi.model.components.POLICIES`).
     """
     q, _ = _policy_vector(model, p, friction, backlash)
     u = np.array(u, dtype=float)
@@ -392,7 +392,7 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
 
 
 def _seeded(model: Model, x, u, p_trim, target, size, tol, max_iter):
-    """The starting state moved by the parts' seeds (:class:`~ema_casadi.components.Seed`):
+    """The starting state moved by the parts' seeds (:class:`~ema_casadi.model.components.Seed`):
     where a policy's ``off`` overrides change the parameters (a backlash gap), trim with
     them first, then move each seeded state by its offset from that point."""
     P = model.pdict(p_trim)

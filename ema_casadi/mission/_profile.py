@@ -11,16 +11,16 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from .._checks import nearest, read_toml
-from ..components import REGISTRY, VariantError, parts_for, validate_variants
-from ..params import Parameters
+from .._util._checks import nearest, read_toml
+from ..model.components import REGISTRY, VariantError, parts_for, validate_variants
+from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
 __all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "node_limits",
            "MISSION_VARIANTS"]
 
 #: Temperature state -> its thermal node, as the registered parts declare them
-#: (:class:`~ema_casadi.components.Node`: heat capacity and rated temperature).
+#: (:class:`~ema_casadi.model.components.Node`: heat capacity and rated temperature).
 NODES = {s.name: s.node for values in REGISTRY.values() for cls in values.values() for s in cls.states
          if s.node is not None}
 

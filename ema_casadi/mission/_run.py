@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..components import node_outflow
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.components import node_outflow
+from ..model.params import Parameters
 from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, simulate
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import nearest
-from ..assembly import Model
-from ..components import REGISTRY
-from ..params import Parameters
+from .._util._checks import nearest
+from ..model.assembly import Model
+from ..model.components import REGISTRY
+from ..model.params import Parameters
 
 
 def _declared_gains() -> dict:
