@@ -1,4 +1,4 @@
-"""Flight conditions of AIRCRAFT.md §1 and §4: airspeed, altitude, configuration, gains."""
+"""Flight conditions of the aircraft loop (docs: aircraft): airspeed, altitude, configuration, gains."""
 
 from __future__ import annotations
 

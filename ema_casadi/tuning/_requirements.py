@@ -32,7 +32,7 @@ def _declared_gains() -> dict:
 
 #: Tunable gains (flat parameter names), as the parts declare them: name -> Gain.
 GAIN_INFO = _declared_gains()
-#: Tunable gains (flat parameter names, SPEC §3 symbols).
+#: Tunable gains (flat parameter names, the physics reference's symbols).
 GAINS = tuple(GAIN_INFO)
 
 
