@@ -49,6 +49,11 @@ def add_arguments(p):
     p.add_argument("--allow-misfit", action="store_true",
                    help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
                         "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
+    p.add_argument("--compare", action="append", default=[], metavar="KEY=V1,V2[,...]",
+                   help="fit every combination of these variant/option values (repeatable: anti_windup=backcalc,"
+                        "clamping) and rank them: adequate first, then by BIC; the best is written")
+    p.add_argument("--max-fits", type=int, default=None, metavar="N",
+                   help="--compare: most combinations (each a full fit); default 8")
     p.add_argument("--keep-unidentifiable", action="store_true",
                    help="do not hold parameters with intervals wider than +-50 %% at their start values")
     p.add_argument("--profile", action="append", default=[], metavar="NAME",
@@ -149,6 +154,8 @@ def run(args) -> dict:
               "hold_unidentifiable": not args.keep_unidentifiable, "progress": progress}
         if args.track:
             return _track(args, params, records, free, kw)
+        if args.compare:
+            return _compare(args, params, model, records, free, kw, out)
         return _fit(args, params, model, records, free, kw, out)
     except IdentificationError as exc:
         raise UserError(str(exc)) from None
@@ -181,9 +188,8 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     written = []
     bad = not res.adequacy["adequate"]
     if out is not None:
-        target = out.with_name(out.name[: -len(out.suffix)] + ".inadequate.toml") if bad and not args.allow_misfit \
-            else out
-        written.append(str(res.write(target, note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
+        written.append(str(res.write(_target(out, bad and not args.allow_misfit),
+                                     note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
     if report is not None:
         written.append(str(res.write_report(report)))
     doc["written"] = written
@@ -195,6 +201,11 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
         else:
             doc["failure"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
     return doc
+
+
+def _target(out: Path, inadequate: bool) -> Path:
+    """The fitted file's name: FILE.inadequate.toml for an inadequate fit."""
+    return out.with_name(out.name[: -len(out.suffix)] + ".inadequate.toml") if inadequate else out
 
 
 def _fit_frequency(args, params, records, free, kw, out) -> dict:
@@ -215,6 +226,42 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         doc["written"].append(str(res.write(out, note="frequency-response fit through the linear model")))
     if report is not None:
         doc["written"].append(str(res.write_report(report)))
+    return doc
+
+
+def _compare(args, params, model, records, free, kw, out) -> dict:
+    """--compare: every combination fitted, ranked; the best written (as inadequate when
+    no combination is adequate)."""
+    from ..identification import MAX_FITS, combinations, compare, read_record
+
+    options = {}
+    for item in args.compare:
+        key, sep, values = item.partition("=")
+        vals = [v.strip() for v in values.split(",") if v.strip()]
+        if not sep or not key.strip() or not vals:
+            raise UserError(f"--compare expects KEY=V1,V2[,...], got '{item}'")
+        options[key.strip()] = vals
+    max_fits = MAX_FITS if args.max_fits is None else args.max_fits
+    if max_fits < 1:
+        raise UserError(f"--max-fits must be at least 1, got {max_fits}")
+    combinations(options, dict(args.variant), max_fits)  # checked before any work
+    for r in records:
+        read_record(r, model)
+    cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
+                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"])
+    best = cmp.best
+    if best is None:
+        from ..simulation import RunFailed
+
+        raise RunFailed("no combination converged", 0.0)
+    doc = {**best.to_dict(), **cmp.to_dict()}
+    bad = not best.adequacy["adequate"]
+    doc["written"] = []
+    if out is not None:
+        note = f"structure chosen by comparison: {cmp.rows[0]['variants']}"
+        doc["written"].append(str(best.write(_target(out, bad and not args.allow_misfit), note=note)))
+    if bad and not args.allow_misfit:
+        doc["failure"] = f"no compared structure is adequate; the best: {best.adequacy['reasons'][0]}"
     return doc
 
 
@@ -286,6 +333,9 @@ def report(result: dict) -> None:
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")
+    for row in result.get("comparison", []):
+        state = "failed: " + row["failed"] if "failed" in row else ("adequate" if row["adequate"] else "INADEQUATE")
+        w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
     for name, prof in result.get("profiles", {}).items():
         w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
     for v in result.get("validation", []):

@@ -15,6 +15,7 @@ the fitted trajectories; ``profile()`` gives profile-likelihood intervals,
 one against a time stamp for a health trend.
 """
 
+from ._compare import MAX_FITS, Comparison, bic, combinations, compare
 from ._diagnostics import CHI2_95, profile, validate
 from ._fit import FitFailed, identify
 from ._frequency import identify_frequency, is_frequency_record, read_frequency_record
@@ -26,4 +27,5 @@ from ._track import TrackResult, track, trend
 __all__ = ["identify", "IdentResult", "IdentificationError", "FitFailed", "Record", "read_record", "MAX_BYTES",
            "WIDE", "CORRELATED", "autocorrelation", "SENSOR_NOISE", "synthetic_record", "example_records",
            "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "profile", "validate", "CHI2_95", "track", "trend",
-           "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record"]
+           "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record",
+           "compare", "Comparison", "combinations", "bic", "MAX_FITS"]

@@ -111,6 +111,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     fit = _Fit(pred, given, max_evaluations, progress)
     best = _best_start(fit, fr, starts, seed)
     res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    res.info["variant_overrides"] = dict(variants or {})
     return res
 
 

@@ -336,7 +336,7 @@ class IdentResult:
         for n in self.held:
             head.append(f"  {n}: NOT IDENTIFIABLE from these records, left at {self.held[n]['start']:.6g}: "
                         f"{self.identifiable[n]}")
-        return write_fitted(self.params, self.estimate, path, "\n".join(head))
+        return write_fitted(self.params, self.estimate, path, "\n".join(head), self.info.get("variant_overrides"))
 
     def plot(self, truth: dict | None = None) -> dict:
         """The report's figures (matplotlib Figures by name): ``fit_<k>`` measured vs
@@ -370,7 +370,10 @@ _LINE = re.compile(r"^(\s*)([A-Za-z_]\w*)(\s*=\s*\{\s*value\s*=\s*)([^,}]+?)(\s*
 _TABLE = re.compile(r"^\s*\[([A-Za-z_]\w*)\]")
 
 
-def write_fitted(params, values: dict, path: str | Path, header: str) -> Path:
+_VARIANT = re.compile(r'^(\s*)([A-Za-z_]\w*)(\s*=\s*)"[^"]*"(.*)$')
+
+
+def write_fitted(params, values: dict, path: str | Path, header: str, variants: dict | None = None) -> Path:
     """The parameter file of ``params`` (its source text, layout and comments kept) with
     ``values`` (flat name -> SI) put in place; written atomically.
 
@@ -384,6 +387,9 @@ def write_fitted(params, values: dict, path: str | Path, header: str) -> Path:
         Output file.
     header : str
         Comment lines written at the top.
+    variants : dict, optional
+        Variant and option choices to put in the ``[model]`` table (a structure chosen
+        by comparison).
     """
     from ..model.params import GROUPS
 
@@ -394,15 +400,25 @@ def write_fitted(params, values: dict, path: str | Path, header: str) -> Path:
         return params.replace(**values).to_toml(path, header)
     lines = src.read_text(encoding="utf-8-sig").splitlines()
     table, done = None, set()
+    variants = dict(variants or {})
     for i, line in enumerate(lines):
         m = _TABLE.match(line)
         if m:
             table = m.group(1)
             continue
+        mv = _VARIANT.match(line)
+        if table == "model" and mv and mv.group(2) in variants:
+            lines[i] = f'{mv.group(1)}{mv.group(2)}{mv.group(3)}"{variants.pop(mv.group(2))}"{mv.group(4)}'
+            continue
         m = _LINE.match(line)
         if m and m.group(2) in values and group_of.get(m.group(2)) == table:
             lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{float(values[m.group(2)])!r}{m.group(5)}"
             done.add(m.group(2))
+    if variants:  # choices the [model] table does not name yet: added under its header
+        at = next((i for i, line in enumerate(lines) if _TABLE.match(line) and _TABLE.match(line).group(1) == "model"),
+                  None)
+        new = [f'{k} = "{v}"  # chosen by the fit' for k, v in variants.items()]
+        lines = (lines[: at + 1] + new + lines[at + 1 :]) if at is not None else ["[model]", *new, "", *lines]
     missing = [n for n in values if n not in done]
     if missing:  # keys the file does not set (defaults): written as the whole set instead
         return params.replace(**values).to_toml(path, header)

@@ -283,3 +283,34 @@ def test_a_frequency_response_is_fitted_through_the_linear_model(params, model_c
     for n, v in truth.items():
         assert res.identifiable[n] is True and abs(res.estimate[n] - v) <= 3 * res.std[n], n
     assert res.identifiable["F_seal"] is not True
+
+
+def test_compare_finds_the_ecu_structure(params, tmp_path):
+    """Records of an ECU with clamping anti-windup (5 mm and 10 mm steps, the speed and
+    current loops saturate), fitted with the default back-calculation: inadequate
+    (residuals ~10x the noise, not white). Compared over anti_windup: clamping ranks
+    first, adequate, its estimates within 3 sigma of the truth; written with the
+    chosen structure in the [model] table."""
+    truth = {"F_seal": 210.0, "J_m": 1.44e-3}
+    rec = idn.synthetic_record(params, tmp_path / "sat.csv", t_end=0.6, x_cmd="step:5mm@0.05+step:-10mm@0.3",
+                               truth=truth, seed=1, variants={"anti_windup": "clamping"})
+    sigma = {"x_rod": 0.3e-6, "i_q": 0.05}
+    cmp = idn.compare(params, [rec], list(truth), {"anti_windup": ["backcalc", "clamping"]}, sigma=sigma)
+    assert [r["variants"]["anti_windup"] for r in cmp.rows] == ["clamping", "backcalc"]
+    assert cmp.rows[0]["adequate"] and not cmp.rows[1]["adequate"]
+    assert cmp.rows[1]["bic"] - cmp.rows[0]["bic"] > 10
+    best = cmp.best
+    for n, v in truth.items():
+        assert abs(best.estimate[n] - v) <= 3 * best.std[n], n
+    text = best.write(tmp_path / "fit.toml").read_text()
+    assert 'anti_windup = "clamping"' in text
+    assert ema.load_parameters(tmp_path / "fit.toml").variants["anti_windup"] == "clamping"
+
+
+def test_compare_refuses_unknown_options_and_too_many_fits():
+    with pytest.raises(idn.IdentificationError, match="did you mean 'anti_windup'"):
+        idn.combinations({"anti_windop": ["clamping"]})
+    with pytest.raises(idn.IdentificationError, match="did you mean 'clamping'"):
+        idn.combinations({"anti_windup": ["clamp"]})
+    with pytest.raises(idn.IdentificationError, match="--max-fits"):
+        idn.combinations({"anti_windup": ["backcalc", "clamping"], "limit_shape": ["clip", "smooth"]}, max_fits=3)

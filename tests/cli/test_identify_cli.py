@@ -148,3 +148,17 @@ def test_track_writes_the_trend(params, tmp_path, capsys):
     a, b = doc["trend"]["F_seal"]["crossing_interval"]
     assert a <= 3000.0 <= b
     assert sorted(p.name for p in (tmp_path / "trend").iterdir()) == ["trend.json", "trend.png"]
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--compare", "anti_windop=clamping"], ["did you mean 'anti_windup'"]),
+    (["--compare", "anti_windup=clamp"], ["did you mean 'clamping'"]),
+    (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--max-fits", "3"],
+     ["--max-fits"]),
+    (["--compare", "anti_windup"], ["KEY=V1,V2"]),
+])
+def test_compare_mistakes_exit_2(tmp_path, capsys, record, flags, words):
+    code, _, err = _run(["identify", str(record), "--free", "F_seal", *flags, "--out", str(tmp_path / "f.toml")],
+                        capsys)
+    assert code == 2 and err.count("\n") == 1 and all(w in err for w in words), err
+    assert list(tmp_path.iterdir()) == []
