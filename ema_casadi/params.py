@@ -453,13 +453,14 @@ def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
                              f"gives inverse efficiencies {[round(v, 4) for v in inv]}, outside (0, 1]")
 
 
-def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:
+def load_parameters(path: str | Path | None = None, variants: dict[str, str] | None = None) -> Parameters:
     """Load and validate a parameter file.
 
     Parameters
     ----------
-    path : str or Path
-        TOML parameter file (SPEC §3 layout).
+    path : str or Path, optional
+        TOML parameter file, read as given (relative to the working folder); default
+        the packaged reference set ``cesa_ema.toml`` (wherever the program runs).
     variants : dict, optional
         Variant overrides on top of the file's ``[model]`` table.
 
@@ -471,6 +472,10 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
         (with the nearest valid name), wrong type or unit, non-finite or out-of-range
         value, unknown variant.
     """
+    if path is None:
+        from ._resources import packaged_file
+
+        path = packaged_file()
     if not isinstance(path, (str, Path)):
         raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
     if variants is not None and not isinstance(variants, dict):

@@ -3,15 +3,12 @@ peaks against the limits, the heat balance; CSV, JSON-ready summary, figure."""
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from .._files import write_text
 from ..components.thermal import NODES, network
 from ._profile import Mission
 
@@ -283,9 +280,10 @@ class MissionResult:
         return names, units, np.column_stack(cols)
 
     def to_csv(self, path: str | Path, dt: float = 1.0) -> Path:
-        """Write :meth:`table` as CSV (atomically): a ``time`` column, then a ``Unit:``
-        row (MATLAB Simulation Data Inspector metadata: temperatures in degC, SI
-        otherwise), then the rows.
+        """Write :meth:`table` as CSV (atomically) in the layout of every time series the
+        toolkit writes (:func:`~ema_casadi._tables.write_series`): ``time``, one column
+        per signal, a ``Unit:`` row (temperatures in degC, SI otherwise), 10 significant
+        digits; readable back as a signal (``mission.csv:x_cmd``).
 
         Parameters
         ----------
@@ -294,14 +292,10 @@ class MissionResult:
         dt : float
             Row spacing (s).
         """
+        from .._tables import write_series
+
         names, units, data = self.table(dt)
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(names)
-        w.writerow([""] + [f"Unit: {u}" if u and u != "1" else "" for u in units[1:]])
-        for row in data:
-            w.writerow([f"{row[0]:.6g}", f"{int(row[1])}", *(f"{v:.8g}" for v in row[2:])])
-        return write_text(path, buf.getvalue())
+        return write_series(path, names, units, data, fmt="%.10g")
 
     def plot(self, path: str | Path, title: str = "") -> Path:
         """Temperatures and losses over the mission, segments shaded (PNG, atomically).

@@ -94,16 +94,11 @@ class SimResult:
         path : str or Path
             The CSV file.
         """
+        from .._tables import write_series
+
         cols = self.columns()[1:]
         units = self.units()
-        head = ",".join(["time", *cols]) + "\n" + ",".join(["Unit:", *(units[c] for c in cols)]) + "\n"
-
-        def write(tmp):
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                fh.write(head)
-                np.savetxt(fh, self.table(), delimiter=",", fmt="%.17g")
-
-        return write_with(path, write)
+        return write_series(path, ["time", *cols], ["s", *(units[c] for c in cols)], self.table())
 
     def to_mat(self, path: str | Path, name: str = "ema_sim") -> Path:
         """Write the time series as a MATLAB struct (SPEC §6 Files); atomic.
@@ -219,8 +214,14 @@ def hunting_metrics(t: np.ndarray, e: np.ndarray, t_from: float = 0.0) -> dict:
 # ---------------------------------------------------------------------------------
 
 
+#: The last tenth each label reported, when stderr is not a terminal (a log).
+_logged: dict = {}
+
+
 def progress_bar(frac: float, enabled: bool, label: str = "simulate", note: str = ""):
-    """Draw a one-line progress bar on stderr (a newline at 1).
+    """Show progress on stderr: on a terminal a one-line bar redrawn in place (a newline
+    at 1); into a file or a pipe (a log) whole lines only, one per tenth done, never a
+    carriage return.
 
     Parameters
     ----------
@@ -236,10 +237,23 @@ def progress_bar(frac: float, enabled: bool, label: str = "simulate", note: str 
     if not enabled:
         return
     n = int(30 * frac)
-    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%{' ' + note.ljust(48) if note else ''}")
-    if frac >= 1:
-        sys.stderr.write("\n")
+    text = f"{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%{' ' + note if note else ''}"
+    if _is_terminal(sys.stderr):
+        sys.stderr.write(f"\r{text.ljust(len(label) + 88)}" + ("\n" if frac >= 1 else ""))
+    else:
+        tenth = int(10 * frac + 1e-9)
+        if frac > 0 and tenth == _logged.get(label):
+            return
+        _logged[label] = None if frac >= 1 else tenth
+        sys.stderr.write(text.rstrip() + "\n")
     sys.stderr.flush()
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 def _result(model, sig, t, X, Y, info):

@@ -36,7 +36,7 @@ BASE = {
     "freqresp": ["freqresp", "{model}", "--amplitudes", "1mm", "--freqs", "1", "--max-periods", "3"],
     "export": ["export", "{model}", "--format", "json", "--out", "{tmp}/lin.json"],
     "tune": ["tune", "{model}", "--out", "{tmp}/tuned.toml", "--max-iter", "1"],
-    "demo": ["demo", "{model}", "--out", "{tmp}/out", "--quiet"],
+    "demo": ["demo", "{model}", "--out", "{tmp}/out", "--no-progress"],
     "sweep": ["sweep", "{model}", "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"],
     "aircraft": ["aircraft", "{model}", "--no-responses", "--condition", "cruise_sl"],
     "limit-cycle": ["limit-cycle", "{model}", "--amplitudes", "1um,2um", "--freqs", "5,6", "--t-end", "0",
