@@ -1,17 +1,22 @@
-# ema_casadi — make demo | make test (ruff, then pytest) | make bench
-# Every target creates or refreshes .venv and installs the package (editable) into it.
+# ema_casadi — make demo | make test (ruff, then pytest) | make bench | make lock
+# Every target creates or refreshes .venv and installs the package (editable) into it, at the
+# versions of requirements/lock.txt (the exact releases the test suite was run with).
+# `make lock` rewrites that file from a fresh venv holding the newest releases (then run
+# `make test` and commit the lock); `make test-newest` runs the suite against the newest
+# releases without the lock, in .venv-newest.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+LOCK   := requirements/lock.txt
 OUT    ?= out
 
-.PHONY: install demo test test-all bench clean
+.PHONY: install demo test test-all test-newest bench lock clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e ".[dev]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -26,8 +31,28 @@ test: $(STAMP)
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 -m "slow or not slow"
 
+# the suite on the newest releases (no lock): what a user installing today gets
+test-newest:
+	rm -rf .venv-newest
+	$(PYTHON) -m venv .venv-newest
+	.venv-newest/bin/python -m pip install --quiet --upgrade pip
+	.venv-newest/bin/python -m pip install --quiet -e ".[dev]"
+	.venv-newest/bin/python -m pip freeze --exclude-editable | grep -iE '^(casadi|numpy|scipy|control|matplotlib)=='
+	.venv-newest/bin/python -m pytest -q -n 2
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py
 
+# the lock from a fresh venv with the newest releases of every dependency (dev extras included)
+lock:
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	.venv-lock/bin/python -m pip install --quiet -e ".[dev]"
+	mkdir -p requirements
+	{ echo "# pip freeze of a fresh venv with ema_casadi[dev] (make lock); make install uses it as constraints"; \
+	  .venv-lock/bin/python -m pip freeze --exclude-editable; } > $(LOCK)
+	rm -rf .venv-lock
+
 clean:
-	rm -rf $(OUT) .pytest_cache build *.egg-info
+	rm -rf $(OUT) .pytest_cache build *.egg-info .venv-newest .venv-lock

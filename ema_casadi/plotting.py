@@ -1,17 +1,43 @@
-"""Plots (matplotlib, Agg backend, PNG written atomically). mm and mm/s on axes."""
+"""Plots (matplotlib, PNG written atomically). mm and mm/s on axes.
+
+Every plot function builds a :class:`matplotlib.figure.Figure`; given a path it writes
+the PNG (and returns the path), without one it returns the figure (closed to pyplot,
+so a notebook shows it once, as the cell's value). The Agg backend is selected unless
+a backend was chosen already (``MPLBACKEND``, a notebook's inline backend).
+"""
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import matplotlib
 
-matplotlib.use("Agg")
+if "MPLBACKEND" not in os.environ and "ipykernel" not in sys.modules and "matplotlib.pyplot" not in sys.modules:
+    matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from ._files import write_with  # noqa: E402
 
-__all__ = ["plot_simulation", "save"]
+__all__ = ["plot_simulation", "save", "finish"]
+
+
+def finish(fig, path: str | Path | None):
+    """The end of every plot function: write ``fig`` to ``path`` (PNG, atomically) and
+    return the path, or without a path return the figure, closed to pyplot.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or Path or None
+        The PNG file, or None.
+    """
+    if path is None:
+        plt.close(fig)
+        return fig
+    return save(fig, path)
 
 
 def save(fig, path: str | Path) -> Path:

@@ -122,26 +122,35 @@ class SweepResult:
         return {"runs": len(self.rows), "ok": int(ok.sum()), "failed": int((~ok).sum()),
                 "statistics": stats, "sensitivity_spearman": sens}
 
-    def plot(self, path: str | Path, max_panels: int = 6) -> Path:
+    def plot(self, path: str | Path | None = None, max_panels: int = 6):
         """Histograms of the metrics (top row) and each metric against each swept
         parameter that varies, with the rank correlation (below); failed runs and
-        values that do not exist (inf, NaN) left out.
+        values that do not exist (inf, NaN) left out, and a metric without any finite
+        value not drawn (its name is listed in the title instead).
 
         Parameters
         ----------
-        path : str or Path
-            The PNG file (written atomically).
+        path : str or Path, optional
+            A PNG file to write (atomically); without it the figure is returned (a
+            notebook shows it).
         max_panels : int
             At most this many metrics and parameters are drawn.
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+            The figure, or ``path`` when one was given.
         """
-        from ..plotting import plt, save
+        from ..plotting import finish, plt
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids
-        metrics, params = self.metrics[:max_panels], varied[:max_panels]
+        drawable = [m for m in self.metrics if (ok & np.isfinite(self.column(m))).any()]
+        empty = [m for m in self.metrics if m not in drawable]
+        metrics, params = drawable[:max_panels], varied[:max_panels]
         ncol = max(len(metrics), len(params), 1)
         nrow = 1 + (len(metrics) if params else 0)
-        fig, axes = plt.subplots(nrow, ncol, figsize=(3.0 * ncol, 2.4 * nrow), squeeze=False)
+        fig, axes = plt.subplots(nrow, ncol, figsize=(3.4 * ncol, 2.6 * nrow), squeeze=False, layout="constrained")
         for ax in axes.ravel():
             ax.set_visible(False)
         units = self.units()
@@ -149,18 +158,46 @@ class SweepResult:
         for j, m in enumerate(metrics):
             y = self.column(m)
             good = ok & np.isfinite(y)
-            ax = axes[0, j]
-            ax.set_visible(True)
+            ax = _panel(axes[0, j])
             ax.hist(y[good], bins=min(30, max(5, int(np.sqrt(good.sum())))), color="C0")
-            ax.set_xlabel(f"{m} ({units.get(m, '')})", fontsize=8)
-            ax.set_title(f"{good.sum()} of {len(y)} runs", fontsize=8)
+            ax.set_title(f"{_wrap(m)}\n{good.sum()} of {len(y)} runs", fontsize=8)
+            ax.set_xlabel(units.get(m, "") or "-", fontsize=8)
             for i, p in enumerate(params):
-                ax = axes[1 + j, i]
-                ax.set_visible(True)
+                ax = _panel(axes[1 + j, i])
                 ax.plot(self.column(p)[good], y[good], ".", ms=2, color="C1")
-                ax.set_title(f"rho = {sens[m][p]:.2f}", fontsize=8)
-                ax.set_xlabel(f"{p} ({units.get(p, '')})", fontsize=8)
-                ax.set_ylabel(m, fontsize=7)
-        fig.suptitle(f"sweep {self.spec.name}: {len(self.rows)} runs, {int((~ok).sum())} failed", fontsize=10)
-        fig.tight_layout()
-        return save(fig, path)
+                ax.text(0.03, 0.95, f"rho = {sens[m][p]:.2f}", transform=ax.transAxes, fontsize=7, va="top")
+                if j == len(metrics) - 1:
+                    ax.set_xlabel(f"{p} ({units.get(p, '')})", fontsize=8)
+                if i == 0:
+                    ax.set_ylabel(_wrap(m, 18), fontsize=7)
+        title = f"sweep {self.spec.name}: {len(self.rows)} runs, {int((~ok).sum())} failed"
+        if len(drawable) > len(metrics):
+            title += f"; first {len(metrics)} of {len(drawable)} metrics"
+        if empty:
+            title += f"\nno finite value: {', '.join(empty[:4])}{', ...' if len(empty) > 4 else ''}"
+        fig.suptitle(title, fontsize=10)
+        return finish(fig, path)
+
+
+def _panel(ax):
+    """A visible axes with few, small ticks (long numbers do not run into each other)."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_visible(True)
+    ax.tick_params(labelsize=7)
+    ax.xaxis.set_major_locator(MaxNLocator(4))
+    ax.yaxis.set_major_locator(MaxNLocator(4))
+    return ax
+
+
+def _wrap(name: str, width: int = 26) -> str:
+    """A long column name broken at its underscores onto lines of about ``width``."""
+    lines, line = [], ""
+    for part in name.split("_"):
+        piece = part if not line else f"{line}_{part}"
+        if len(piece) > width and line:
+            lines.append(line + "_")
+            line = part
+        else:
+            line = piece
+    return "\n".join([*lines, line])

@@ -101,20 +101,20 @@ def test_a_state_outside_at_the_start_fails_at_t0(model_cache):
     x0 = m.x0()
     x0[m.index("x_rod")] = 0.2
     with pytest.raises(RunFailed, match=r"x_rod = 0.2 m left") as info:
-        ema.simulate(m, 0.01, x0=x0, solver="cvodes", dt=1e-3)
+        ema.simulate(m, 0.01, x0=x0, solver="cvodes", dt_out=1e-3)
     assert info.value.time == 0.0
 
 
 def test_an_integrator_failure_is_a_failed_run_with_its_time(model_cache, capsys):
     with pytest.raises(RunFailed, match=r"CVODES failed: .*\(CV_TOO_MUCH_ACC\) at t = ") as info:
-        ema.simulate(model_cache(), 0.05, 1e-3, solver="cvodes", dt=1e-3, rtol=1e-30, atol=1e-40)
+        ema.simulate(model_cache(), 0.05, 1e-3, solver="cvodes", dt_out=1e-3, rtol=1e-30, atol=1e-40)
     assert info.value.time < 1e-3 and info.value.result.t[0] == 0.0
     assert capsys.readouterr().err == ""  # CVODES's own complaint is captured, not printed
 
 
 def test_an_integrator_failure_of_the_hybrid_wrapper_too(model_cache):
     with pytest.raises(RunFailed, match=r"CV_TOO_MUCH_ACC"):
-        ema.simulate(model_cache(friction="hybrid"), 0.05, 1e-3, solver="cvodes", dt=1e-3, rtol=1e-30, atol=1e-40)
+        ema.simulate(model_cache(friction="hybrid"), 0.05, 1e-3, solver="cvodes", dt_out=1e-3, rtol=1e-30, atol=1e-40)
 
 
 def test_reading_the_integrators_complaint():

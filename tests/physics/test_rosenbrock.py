@@ -23,7 +23,7 @@ F_SHORT = Signal.step(20e3, 0.3)
 
 
 def _reference(model, t_end, x_cmd, **kw):
-    return ema.simulate(model, t_end, x_cmd, solver="cvodes", dt=1e-3, rtol=1e-10, atol=1e-12, **kw)
+    return ema.simulate(model, t_end, x_cmd, solver="cvodes", dt_out=1e-3, rtol=1e-10, atol=1e-12, **kw)
 
 
 def _rod_error(res, ref):
