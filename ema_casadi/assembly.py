@@ -408,6 +408,18 @@ def _sum(bus, names):
     return total
 
 
+def _check_tables(params: Parameters, parts) -> None:
+    """Refuse a model whose parts read a table the parameter file does not have."""
+    if not params.missing:
+        return
+    group_of = params.group_of()
+    for part in parts:
+        for name in part.params:
+            if group_of.get(name) in params.missing:
+                raise ParameterError(f"{params.source}: missing table [{group_of[name]}] (its key '{name}' is read "
+                                     f"by {part.family} = {part.value}); add the table or choose another variant")
+
+
 def build_model(params: Parameters, variants: dict | None = None) -> Model:
     """Assemble the EMA for a variant choice.
 
@@ -426,6 +438,7 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     v.update(variants or {})
     params = dataclasses.replace(params, variants=v)
     parts, ignored = parts_for(v)
+    _check_tables(params, parts)
     states, inputs, outputs, providers, loops, holds = _declarations(parts)
 
     names = Parameters.names()

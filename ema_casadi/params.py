@@ -25,6 +25,7 @@ import numpy as np
 from ._checks import describe, number, read_toml
 from ._checks import nearest as _nearest
 from ._files import write_text
+from ._param_units import raw_value
 from ._params_airframe import Airframe
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
@@ -194,7 +195,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
-    "airframe": Airframe,  # issue 13: optional table, every key defaulted
+    "airframe": Airframe,  # an optional table: every key defaulted
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
@@ -233,6 +234,10 @@ class Parameters:
         The default variant choice of the set (its ``[model]`` table).
     source : str
         Where the set came from (a file path), named in error messages.
+    missing : tuple of str
+        The tables the file does not have (their values are NaN): a model whose
+        variants read one of them is refused by :func:`~ema_casadi.assembly.build_model`
+        with the table's name, every other model builds.
     """
 
     actuator: Actuator
@@ -246,6 +251,7 @@ class Parameters:
     airframe: Airframe = Airframe()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
+    missing: tuple = ()
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod
@@ -254,6 +260,11 @@ class Parameters:
         parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
         out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
+
+    @staticmethod
+    def group_of() -> dict[str, str]:
+        """Flat parameter name -> the table it belongs to (``"B"`` -> ``"screw"``)."""
+        return {n: g for g, cls in GROUPS.items() for f in fields(cls) for n in _flat_names(f)}
 
     @staticmethod
     def units() -> dict[str, str]:
@@ -299,7 +310,8 @@ class Parameters:
         **values : float
             New values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
-        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
+        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()
+               if g not in self.missing}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
         for k, v in values.items():
             if k not in flat_group:
@@ -363,19 +375,7 @@ def _check_table(where: str, meta: dict, value: Any) -> tuple:
 def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool, bare: bool = False):
     where = src if bare else f"{src}: [{group}] {name}"
     unit = meta["unit"]
-    if plain:
-        value = raw
-    else:
-        if not isinstance(raw, dict) or "value" not in raw or "unit" not in raw:
-            raise ParameterError(
-                f'{where}: expected a table {{ value = <number>, unit = "{unit}" }}, got {raw!r}'
-            )
-        extra = set(raw) - {"value", "unit"}
-        if extra:
-            raise ParameterError(f"{where}: unexpected field(s) {sorted(extra)}; expected value and unit")
-        if raw["unit"] != unit:
-            raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
-        value = raw["value"]
+    value = raw if plain else raw_value(where, raw, unit, ParameterError)  # convertible units (_param_units)
     if meta.get("table"):
         return _check_table(where, meta, value)
     check = meta["check"]
@@ -410,11 +410,13 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     unknown = set(data) - set(GROUPS) - {"model"}
     for g in sorted(unknown):
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
-    groups = {}
+    groups, missing = {}, []
     for g, cls in GROUPS.items():
         table = data.get(g, {} if all("default" in f.metadata for f in fields(cls)) else None)
-        if table is None:
-            raise ParameterError(f"{src}: missing table [{g}]")
+        if table is None:  # only the variants that read it need it: named when one does (build_model)
+            missing.append(g)
+            groups[g] = cls(**{f.name: _absent(f) for f in fields(cls)})
+            continue
         if not isinstance(table, dict):
             raise ParameterError(f"{src}: [{g}] must be a table")
         names = [f.name for f in fields(cls)]
@@ -437,8 +439,17 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
-    _check_eta_table(src, groups["thermal"], s)
-    return Parameters(**groups, variants=merged, source=src)
+    if "thermal" not in missing:
+        _check_eta_table(src, groups["thermal"], s)
+    return Parameters(**groups, variants=merged, source=src, missing=tuple(missing))
+
+
+def _absent(f):
+    """The value of a key whose table the file does not have: its default, else NaN
+    (never read: a model whose parts read it is refused, naming the table)."""
+    if "default" in f.metadata:
+        return f.metadata["default"]
+    return (math.nan, math.nan) if f.metadata.get("table") else math.nan
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
@@ -480,8 +491,13 @@ def load_parameters(path: str | Path | None = None, variants: dict[str, str] | N
         raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
     if variants is not None and not isinstance(variants, dict):
         raise ParameterError(f"variants: expected a dict of variant names, got {describe(variants)}")
+    from .components import validate_variants
+
     src = str(path)
     data = read_toml(path, "parameter file", ParameterError)
     merged = _variant_table(data.get("model", {}), src)
-    merged.update(_variant_table(variants or {}, "variant"))
+    validate_variants(merged, f"{src}: [model]")  # each mistake blamed on where it was made
+    given = _variant_table(variants or {}, "variants")
+    validate_variants(given, "variants")
+    merged.update(given)
     return _build(data, merged, src)

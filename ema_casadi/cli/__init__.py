@@ -167,9 +167,11 @@ def model_path(args) -> str:
 def load(args):
     """(Parameters, Model) from the common arguments."""
     from ..assembly import build_model
+    from ..components import validate_variants
     from ..params import load_parameters
 
     variants = dict(args.variant)
+    validate_variants(variants, "--variant")
     params = load_parameters(model_path(args), variants)
     return params, build_model(params)
 

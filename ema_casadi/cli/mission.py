@@ -80,6 +80,9 @@ def run(args) -> dict:
     out = _check(args)
     args.mission = second_file(args, args.mission, args.mission_file, flag="--mission", what="mission",
                                key="segment", default=DEFAULT_MISSION)
+    from ..components import validate_variants
+
+    validate_variants(dict(args.variant), "--variant")
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)

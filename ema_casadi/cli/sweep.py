@@ -66,6 +66,7 @@ def run(args) -> dict:
     from ..components import validate_variants
 
     given = dict(args.variant)
+    validate_variants(given, "--variant")
     params = load_parameters(args.model, given)  # the sweep file's [variants] go on top
     validate_variants({k: v for k, v in params.variants.items() if k not in given}, str(args.model))
     validate_variants(params.variants, "--variant")

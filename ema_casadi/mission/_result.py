@@ -297,16 +297,51 @@ class MissionResult:
         names, units, data = self.table(dt)
         return write_series(path, names, units, data, fmt="%.10g")
 
-    def plot(self, path: str | Path, title: str = "") -> Path:
-        """Temperatures and losses over the mission, segments shaded (PNG, atomically).
+    def plot(self, path: str | Path | None = None, title: str = ""):
+        """Temperatures and losses over the mission, segments shaded.
 
         Parameters
         ----------
-        path : str or Path
-            The PNG file.
+        path : str or Path, optional
+            A PNG file to write (atomically); without it the figure is returned.
         title : str
             Figure title (default the mission's name).
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
         """
         from ._plot import plot_mission
 
         return plot_mission(self, path, title)
+
+    def to_pandas(self, dt: float = 1.0):
+        """:meth:`table` as a :class:`pandas.DataFrame` indexed by ``time`` (s), units in
+        ``frame.attrs["units"]``. Needs pandas.
+
+        Parameters
+        ----------
+        dt : float
+            Row spacing (s).
+        """
+        from .._notebook import data_frame
+
+        names, units, data = self.table(dt)
+        return data_frame({n: data[:, i] for i, n in enumerate(names)}, index="time", units=dict(zip(names, units,
+                                                                                                   strict=True)))
+
+    def _facts(self) -> dict:
+        return {"mission": self.mission.name, "duration": f"{self.t[-1]:g} s", "samples": len(self.t),
+                "solver": self.info.get("solver"),
+                "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
+
+    def __repr__(self) -> str:
+        from .._notebook import short_repr
+
+        return short_repr("MissionResult", self._facts())
+
+    def _repr_html_(self) -> str:
+        from .._notebook import html_summary
+
+        peaks = {f"peak {n}": f"{float(np.max(self.series[n])):.1f} degC" for n in self.nodes}
+        return html_summary("MissionResult", {**self._facts(), **peaks})

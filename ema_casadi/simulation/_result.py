@@ -77,8 +77,56 @@ class SimResult:
         return {k: float(v[-1]) for k, v in self.outputs.items()}
 
     def table(self) -> np.ndarray:
+        """Samples x (time, then every signal of :meth:`columns`), SI."""
         cols = self.columns()[1:]
         return np.column_stack([self.t] + [self[c] for c in cols])
+
+    def to_pandas(self):
+        """The time series as a :class:`pandas.DataFrame` indexed by ``time`` (s), one
+        column per signal (SI; units in ``frame.attrs["units"]``). Needs pandas."""
+        from .._notebook import data_frame
+
+        cols = self.columns()[1:]
+        return data_frame({"time": self.t, **{c: self[c] for c in cols}}, index="time", units=self.units())
+
+    def plot(self, signals=None, path: str | Path | None = None, title: str = ""):
+        """Plot against time: by default command and rod position, rod velocity, current,
+        voltage; with ``signals`` (names) one panel per unit, lengths in mm.
+
+        Parameters
+        ----------
+        signals : sequence of str, optional
+            The signals to draw (``["x_rod", "F_in"]``).
+        path : str or Path, optional
+            A PNG file to write; without it the figure is returned.
+        title : str
+            Figure title (default the variants).
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+        """
+        from ..plotting import plot_simulation
+
+        return plot_simulation(self, path, title, signals=signals)
+
+    def _facts(self) -> dict:
+        t_end = f"{self.t[-1]:g} s" if len(self.t) else None
+        return {"t_end": t_end, "samples": len(self.t), "signals": len(self.columns()) - 1,
+                "solver": self.info.get("solver"), "status": self.info.get("status"),
+                "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
+
+    def __repr__(self) -> str:
+        from .._notebook import short_repr
+
+        return short_repr("SimResult", self._facts())
+
+    def _repr_html_(self) -> str:
+        from .._notebook import html_summary
+
+        final = {k: f"{v:.6g} {self.unit_table.get(k, '')}" for k, v in self.final().items()
+                 if k in ("x_rod", "v_rod", "i_q", "F_in")}
+        return html_summary("SimResult", {**self._facts(), **{f"final {k}": v for k, v in final.items()}})
 
     def to_csv(self, path: str | Path) -> Path:
         """Write the time series as CSV (SPEC §6 Files); atomic.

@@ -8,7 +8,7 @@ from pathlib import Path
 from ._result import FreqResponse
 
 
-def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: float | None = None) -> Path:
+def plot_bode(resp: FreqResponse, path: str | Path | None = None, title: str = "", stroke: float | None = None):
     """Bode plot (gain dB, phase deg against Hz), one line per (variant, load, amplitude).
 
     Points that did not settle are marked with an ``x``. PNG, written atomically.
@@ -17,8 +17,8 @@ def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: flo
     ----------
     resp : FreqResponse
         Sine-stream result.
-    path : str or Path
-        PNG file.
+    path : str or Path, optional
+        PNG file; without it the figure is returned.
     title : str
         Figure title.
     stroke : float, optional
@@ -26,8 +26,8 @@ def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: flo
 
     Returns
     -------
-    Path
-        ``path``.
+    matplotlib.figure.Figure or Path
+        The figure, or ``path`` when one was given.
     """
     from ..plot_frequency import plot_bode as draw_bode  # matplotlib only when plotting
 

@@ -122,6 +122,20 @@ class SweepResult:
         return {"runs": len(self.rows), "ok": int(ok.sum()), "failed": int((~ok).sum()),
                 "statistics": stats, "sensitivity_spearman": sens}
 
+    def to_pandas(self):
+        """The table (one row per run, the columns of :meth:`to_csv`) as a
+        :class:`pandas.DataFrame` indexed by ``run``; units in ``frame.attrs["units"]``.
+        Needs pandas."""
+        from .._notebook import data_frame
+
+        return data_frame({c: [r.get(c) for r in self.rows] for c in self.columns}, index="run", units=self.units())
+
+    def __repr__(self) -> str:
+        from .._notebook import short_repr
+
+        return short_repr("SweepResult", {"sweep": self.spec.name, "runs": len(self.rows),
+                                          "failed": self.info.get("failed"), "metrics": len(self.metrics)})
+
     def plot(self, path: str | Path | None = None, max_panels: int = 6):
         """Histograms of the metrics (top row) and each metric against each swept
         parameter that varies, with the rank correlation (below); failed runs and

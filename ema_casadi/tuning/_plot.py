@@ -28,20 +28,22 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         The assembled model.
     params_before : Parameters
         The parameter set with the start gains.
-    folder : str or Path
-        Existing folder the PNGs are written into.
+    folder : str or Path or None
+        Existing folder the PNGs are written into; None: return the two figures.
     reference : Parameters, optional
         A further gain set drawn dotted.
 
     Returns
     -------
-    list of Path
-        The two PNG files.
+    list of Path or of matplotlib.figure.Figure
+        The two PNG files (or figures).
     """
-    folder = Path(folder)
     sets = {"before": (params_before, "--"), "after": (result.params, "-")}
     if reference is not None:
         sets["reference"] = (reference, ":")
+    if folder is None:  # the figures themselves (a notebook)
+        return [_plot_bode(result, model, sets, None), _plot_step(result, model, sets, None)]
+    folder = Path(folder)
     return [_plot_bode(result, model, sets, folder / "tune_bode.png"),
             _plot_step(result, model, sets, folder / "tune_step.png")]
 
@@ -49,7 +51,7 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
 def _plot_bode(result, model, sets, path):
     import matplotlib.pyplot as plt
 
-    from ..plotting import save  # first: it selects the Agg backend
+    from ..plotting import finish  # first: it selects the Agg backend
 
     f = frequency_grid(0.1, 1e4, 60)
     F = result.loads[0]
@@ -73,13 +75,13 @@ def _plot_bode(result, model, sets, path):
     ax[0, 0].legend(fontsize=8)
     fig.suptitle(f"gain tuning ({result.objective}), linearised at {_load_label(F)}", fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
 def _plot_step(result, model, sets, path):
     import matplotlib.pyplot as plt
 
-    from ..plotting import save  # first: it selects the Agg backend
+    from ..plotting import finish  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     amp = None
@@ -104,4 +106,4 @@ def _plot_step(result, model, sets, path):
         a.legend(fontsize=8)
     ax[0].set_title(f"nonlinear {amp * 1e3:g} mm step (full model, no load)", fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)

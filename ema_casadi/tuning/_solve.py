@@ -116,6 +116,30 @@ class TuneResult:
             "before": self.verification_before, "after": self.verification_after,
         }
 
+    def plot(self, model: Model | None = None, reference: Parameters | None = None) -> list:
+        """The Bode plots (closed loop and the loop transfers, first load case) and the
+        nonlinear step before and after tuning, as two matplotlib Figures.
+
+        Parameters
+        ----------
+        model : Model, optional
+            The model tuned (default: built from :attr:`params` and :attr:`variants`).
+        reference : Parameters, optional
+            A further gain set drawn dotted.
+        """
+        from ._plot import plot_tuning
+
+        model = model if model is not None else build_model(self.params, self.variants or None)
+        before = self.params.replace(**self.gains_before)
+        return plot_tuning(self, model, before, None, reference)
+
+    def __repr__(self) -> str:
+        from .._notebook import short_repr
+
+        return short_repr("TuneResult", {"success": self.success, "status": self.status, "objective":
+                                         f"{self.objective} = {self.objective_value:.4g}",
+                                         "gains": ", ".join(f"{k}={v:.4g}" for k, v in self.gains_after.items())})
+
     def write(self, path) -> Path:
         """Write the parameter file with the tuned gains (atomically); returns its path.
 
