@@ -146,6 +146,14 @@ def progress_of(args) -> bool:
     return sys.stderr.isatty() if args.progress is None else bool(args.progress)
 
 
+def stage(args, label: str, frac: float, note: str = "") -> None:
+    """Progress of a command made of stages (``ema tune``, ``ema aircraft``, ...): the
+    fraction done and what runs now, by the one progress bar (whole lines into a log)."""
+    from ..simulation import progress_bar
+
+    progress_bar(frac, progress_of(args), label, note)
+
+
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=None, metavar="MODEL.toml",
                    help=f"parameter file (TOML); default: the packaged reference set {DEFAULT_MODEL}")
