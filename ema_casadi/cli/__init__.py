@@ -133,7 +133,13 @@ def _holds_table(path: str, key: str) -> bool:
 
 def add_progress(p) -> None:
     """The progress convention of every long command: ``--progress/--no-progress``, by
-    default on only when stderr is a terminal (read it with :func:`progress_of`)."""
+    default on only when stderr is a terminal (read it with :func:`progress_of`).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser.
+    """
     import argparse
 
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -142,7 +148,13 @@ def add_progress(p) -> None:
 
 
 def progress_of(args) -> bool:
-    """Whether to show progress: the flag of :func:`add_progress`, else stderr is a terminal."""
+    """Whether to show progress: the flag of :func:`add_progress`, else stderr is a terminal.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     return sys.stderr.isatty() if args.progress is None else bool(args.progress)
 
 

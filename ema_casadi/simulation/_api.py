@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 from ._rosenbrock import _simulate_rosenbrock, library
+
+if TYPE_CHECKING:
+    from ..signals import Signal
 
 SOLVERS = ("auto", "rk4", "cvodes", "rosenbrock")
 
@@ -64,9 +68,9 @@ _WHOLE = 1e-9
 def simulate(
     model: Model,
     t_end: float,
-    x_cmd=None,
-    f_ext=None,
-    eta=None,
+    x_cmd: Signal | float | str | None = None,
+    f_ext: Signal | float | str | None = None,
+    eta: Signal | float | str | None = None,
     *,
     dt: float = 1e-5,
     solver: str = "auto",

@@ -15,6 +15,7 @@ import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
 from ._metrics import compute_metrics, metric_columns, needs_simulation, simulate_scenario
 from ._spec import SweepError, SweepSpec
+
+if TYPE_CHECKING:
+    from ._result import SweepResult
 
 __all__ = ["sweep", "BACKENDS", "PointFailed"]
 
@@ -125,7 +129,7 @@ def _process_init():
 
 # -- the driver ------------------------------------------------------------------
 def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = None, backend: str = "processes",
-          scheduler: str | None = None, resume: bool = False, progress: bool = False):
+          scheduler: str | None = None, resume: bool = False, progress: bool = False) -> SweepResult:
     """Run every run of a sweep and return its table.
 
     Parameters

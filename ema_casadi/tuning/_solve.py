@@ -7,6 +7,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,11 @@ from ._problem import TuningProblem
 from ._report import _message
 from ._requirements import Requirements, TuneError, _goal, _load_label, _request
 from ._verify import step_metrics, verify
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
 
 _FEAS_TOL = 1e-6         # a normalised constraint below -_FEAS_TOL is violated
 #: At most this many solves: after each, frequencies where a dense (100 per decade)
@@ -159,12 +165,12 @@ def tune(
     params: Parameters,
     variants: dict | None = None,
     *,
-    free=None,
-    loads=(0.0,),
+    free: Sequence[str] | None = None,
+    loads: Sequence[float] = (0.0,),
     objective: str = "bandwidth",
     requirements: Requirements | None = None,
     start: dict | None = None,
-    freqs=None,
+    freqs: ArrayLike | None = None,
     max_iter: int = 200,
     hessian: str = "exact",
     verify_step: float = 1e-3,
