@@ -1,4 +1,4 @@
-"""The ``[airframe]`` parameter table (SPEC §2.8, ../shared/AIRCRAFT.md), SI inside.
+"""The ``[airframe]`` parameter table (the aircraft pitch loop), SI inside.
 
 Read by the airframe parts (``airframe = "transport" | "b747"``): the Stevens & Lewis
 medium transport (AIRCRAFT.md §1, converted from US units with ft = 0.3048 m,

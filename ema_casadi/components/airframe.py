@@ -1,6 +1,6 @@
 """Airframe, elevator surface and pitch flight-control law: the outer loop (SPEC §2.8).
 
-``airframe = "none" | "transport" | "b747"`` (data: ../shared/AIRCRAFT.md, SI inside):
+``airframe = "none" | "transport" | "b747"`` (Stevens & Lewis transport and Boeing 747 data, SI inside):
 
 ``transport``
     The Stevens & Lewis medium transport, nonlinear longitudinal (AIRCRAFT.md §1):

@@ -1,4 +1,4 @@
-"""Issue 4: operating points and exact linearisation.
+"""Operating points and exact linearisation.
 
 Tolerances are stated where used; analytic values come from SPEC §2-3.
 """
@@ -144,7 +144,7 @@ def test_loop_break_by_flag_equals_closed_loop_identity(model_cache, loop):
     """Opening a loop by its flag gives the same L as the closed-loop identity: with the
     loop closed, the injection d reaches the measurement as T_d = -L/(1+L), so
     L = -T_d/(1+T_d). Two routes through the model, agreement to round-off (1e-8). The
-    aircraft loop (issue 13) on the transport, trimmed at its flight condition."""
+    aircraft loop on the transport, trimmed at its flight condition."""
     if loop == "aircraft":
         model = model_cache(airframe="transport")
         op = lz.flight_point(model)

@@ -1,4 +1,4 @@
-"""Issue 4: stability margins, disk margins, Bode, and the margins/bode CLI."""
+"""Stability margins, disk margins, Bode, and the margins/bode CLI."""
 
 import json
 import math

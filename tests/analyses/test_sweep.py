@@ -1,4 +1,4 @@
-"""Sweeps and Monte Carlo (issue 15): the same rows whoever runs them, draws that do not
+"""Sweeps and Monte Carlo: the same rows whoever runs them, draws that do not
 depend on the sweep's size, failed runs as rows with their reason, and every metric of
 the registry equal to the toolkit's single analysis of that run.
 

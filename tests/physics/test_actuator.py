@@ -1,4 +1,4 @@
-"""Issue 2 acceptance: the reference actuator's physics, at every screw fidelity.
+"""The reference actuator's physics, at every screw fidelity.
 
 Tolerances: each test states where its number comes from (SPEC §3/§5 analytic values,
 an independent solver, or a conservation law).

@@ -1,5 +1,5 @@
 """Airframe transcription, the aircraft loop against an independent python-control
-computation, and the describing function against python-control (issue 13)."""
+computation, and the describing function against python-control."""
 
 from __future__ import annotations
 

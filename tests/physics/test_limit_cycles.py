@@ -1,4 +1,4 @@
-"""Limit cycles by describing function against long simulations (issue 13)."""
+"""Limit cycles by describing function against long simulations."""
 
 from __future__ import annotations
 

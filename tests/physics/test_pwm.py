@@ -1,4 +1,4 @@
-"""Issue 11 acceptance: the switched PWM bridge (inverter = "pwm").
+"""The switched PWM bridge (inverter = "pwm").
 
 The carrier-synchronous stepper integrates each sub-interval between two switching
 instants with RK4 at its own length; the switching instants come in closed form from
