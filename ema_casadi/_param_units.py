@@ -44,6 +44,9 @@ def raw_value(where: str, raw: Any, unit: str, error: type) -> Any:
     if given == unit:
         return raw["value"]
     value = raw["value"]
+    if KIND_OF_UNIT.get(unit) is None:
+        raise error(f"{where}: unit '{given}' is not the SI unit '{unit}' (converted units are read for "
+                    f"{', '.join(KIND_OF_UNIT)})")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not isinstance(given, str):
         raise error(f"{where}: unit '{given}' is not the SI unit '{unit}' (a conversion needs a number and a unit)")
     return _converted(where, f"{value!r} {given}", unit, error)

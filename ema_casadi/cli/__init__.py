@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from pathlib import Path
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL", "check_output_path", "check_output_dir", "add_progress", "progress_of",
-           "second_file"]
+           "stage", "second_file", "model_path"]
 
 #: The packaged reference parameter set: the model of every command run without a MODEL.toml.
 DEFAULT_MODEL = "cesa_ema.toml"
