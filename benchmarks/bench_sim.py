@@ -66,10 +66,10 @@ def main():
 
     # ema_casadi: compiled RODAS4, CVODES and compiled RK4 (compile time reported separately)
     t0 = time.perf_counter()
-    ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt=1e-3)
+    ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt_out=1e-3)
     ros_build = time.perf_counter() - t0
     ladder("ema_casadi rosenbrock (compiled RODAS4)",
-           lambda tol: ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt=1e-3, rtol=tol,
+           lambda tol: ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt_out=1e-3, rtol=tol,
                                     atol=tol * 1e-3)["x_rod"],
            [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8], repeat=5)
     ladder("ema_casadi cvodes",

@@ -43,12 +43,17 @@ def raw_value(where: str, raw: Any, unit: str, error: type) -> Any:
     given = raw["unit"]
     if given == unit:
         return raw["value"]
-    value = raw["value"]
-    if KIND_OF_UNIT.get(unit) is None:
-        raise error(f"{where}: unit '{given}' is not the SI unit '{unit}' (converted units are read for "
+    from .signals import _UNITS
+
+    value, kind = raw["value"], KIND_OF_UNIT.get(unit)
+    if kind is None:
+        raise error(f"{where}: unit '{given}' is not the expected SI unit '{unit}' (other units are read for "
                     f"{', '.join(KIND_OF_UNIT)})")
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not isinstance(given, str):
-        raise error(f"{where}: unit '{given}' is not the SI unit '{unit}' (a conversion needs a number and a unit)")
+    if not isinstance(given, str) or given not in _UNITS[kind]:
+        raise error(f"{where}: unit '{given}' is not the expected SI unit '{unit}' nor another {kind} unit "
+                    f"({', '.join(_UNITS[kind])})")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise error(f"{where}: expected a number, got {type(value).__name__} {value!r}")
     return _converted(where, f"{value!r} {given}", unit, error)
 
 

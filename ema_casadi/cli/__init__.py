@@ -160,7 +160,19 @@ def progress_of(args) -> bool:
 
 def stage(args, label: str, frac: float, note: str = "") -> None:
     """Progress of a command made of stages (``ema tune``, ``ema aircraft``, ...): the
-    fraction done and what runs now, by the one progress bar (whole lines into a log)."""
+    fraction done and what runs now, by the one progress bar (whole lines into a log).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (its ``--progress`` flag).
+    label : str
+        The command, before the bar.
+    frac : float
+        Fraction done, 0..1.
+    note : str
+        What runs now.
+    """
     from ..simulation import progress_bar
 
     progress_bar(frac, progress_of(args), label, note)
@@ -178,7 +190,13 @@ def add_common(p) -> None:
 
 
 def model_path(args) -> str:
-    """The parameter file of the command: MODEL.toml as given, else the packaged reference."""
+    """The parameter file of the command: MODEL.toml as given, else the packaged reference.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``args.model`` None when no MODEL.toml was named).
+    """
     from .._resources import packaged_file
 
     return args.model if args.model is not None else str(packaged_file(DEFAULT_MODEL))
