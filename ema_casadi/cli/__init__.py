@@ -18,7 +18,7 @@ Exit status and stderr (SPEC §7), always one line, never a traceback:
 - 130 / 143: interrupted by SIGINT (Ctrl-C) / SIGTERM, within about a second.
 
 Outputs are written atomically and committed together at the end of the command
-(:func:`ema_casadi._files.transaction`): an error, a failed run or an interrupt leaves
+(:func:`ema_casadi._util._files.transaction`): an error, a failed run or an interrupt leaves
 no output and no temporary file.
 
 Importing this package costs next to nothing (``sys`` and the signal module): what
@@ -33,7 +33,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from .. import _interrupts
+from .._util import _interrupts
 
 _interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
 
@@ -55,10 +55,10 @@ class UserError(ValueError):
 
 
 def _user_errors() -> tuple:
-    from .. import _files
+    from .._util import _files
     from ..export import ExportError
     from ..linearisation import LinearizationError
-    from ..params import ParameterError
+    from ..model.params import ParameterError
     from ..signals import SignalError
     from ..simulation import SimulationError
 
@@ -108,7 +108,7 @@ def second_file(args, positional: str | None, flag_value: str | None, *, flag: s
     default : str
         The packaged file used when none is given.
     """
-    from .._resources import packaged_file
+    from .._util._resources import packaged_file
 
     if positional is not None and flag_value is not None:
         raise UserError(f"{flag} {flag_value}: the {what} file is already given as the second argument "
@@ -197,16 +197,16 @@ def model_path(args) -> str:
     args : argparse.Namespace
         The parsed command line (``args.model`` None when no MODEL.toml was named).
     """
-    from .._resources import packaged_file
+    from .._util._resources import packaged_file
 
     return args.model if args.model is not None else str(packaged_file(DEFAULT_MODEL))
 
 
 def load(args):
     """(Parameters, Model) from the common arguments."""
-    from ..assembly import build_model
-    from ..components import validate_variants
-    from ..params import load_parameters
+    from ..model.assembly import build_model
+    from ..model.components import validate_variants
+    from ..model.params import load_parameters
 
     variants = dict(args.variant)
     validate_variants(variants, "--variant")
@@ -250,7 +250,7 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...], flag: str) ->
     """
     from pathlib import Path
 
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -276,7 +276,7 @@ def check_output_dir(path: str | None, names, flag: str) -> Path | None:
     flag : str
         The flag, for the message (``"--out"``).
     """
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -416,7 +416,7 @@ class _Stop:
             sys.stderr = self.stderr
 
     def report(self, signum) -> int:
-        from .. import _files
+        from .._util import _files
 
         with self._once:
             if not self.reported:
@@ -451,7 +451,7 @@ def _run(argv, stop) -> int:
     """Parse, run the command in one output transaction, report; the exit status."""
     import json
 
-    from .. import _files
+    from .._util import _files
     from ..simulation import RunFailed
 
     parser, mods = build_parser()

@@ -3,7 +3,7 @@ nonlinear frequency-response map; PNGs plus summary.md and summary.json in --out
 
 from __future__ import annotations
 
-from .. import _files
+from .._util import _files
 from ..demo import DEMO_FILES, KEPT_FOLDERS, run_demo
 from . import UserError, add_progress, load, progress_of
 

@@ -23,7 +23,7 @@ import math
 import sys
 from pathlib import Path
 
-from .._resources import REFERENCE_MISSION
+from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
 from . import UserError, _jsonable, add_progress, progress_of, second_file
 
@@ -75,12 +75,12 @@ def _check(args) -> Path:
 
 def run(args) -> dict:
     from ..mission import MissionError, MissionFailed, load_mission, run_mission
-    from ..params import load_parameters
+    from ..model.params import load_parameters
 
     out = _check(args)
     args.mission = second_file(args, args.mission, args.mission_file, flag="--mission", what="mission",
                                key="segment", default=DEFAULT_MISSION)
-    from ..components import validate_variants
+    from ..model.components import validate_variants
 
     validate_variants(dict(args.variant), "--variant")
     params = load_parameters(args.model)
@@ -100,7 +100,7 @@ def run(args) -> dict:
     res.to_csv(paths["csv"], dt=args.csv_dt)
     res.plot(paths["png"])
     summary["written"] = [str(p) for p in paths.values()]
-    from .._files import write_text
+    from .._util._files import write_text
 
     write_text(paths["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary

@@ -20,7 +20,7 @@ Example: ema sweep --spec models/sweep_hunting_backlash.toml --out results.csv -
 
 from __future__ import annotations
 
-from .._resources import REFERENCE_SWEEP
+from .._util._resources import REFERENCE_SWEEP
 from . import UserError, add_progress, check_output_path, progress_of, second_file
 
 COMMAND = "sweep"
@@ -48,7 +48,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..params import load_parameters
+    from ..model.params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep
 
     args.spec = second_file(args, args.spec, args.spec_file, flag="--spec", what="sweep", key="sweep",
@@ -63,7 +63,7 @@ def run(args) -> dict:
         raise UserError("--scheduler runs on the cluster's workers: give it or --jobs/--threads, not both")
     if args.resume and out is None:
         raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
-    from ..components import validate_variants
+    from ..model.components import validate_variants
 
     given = dict(args.variant)
     validate_variants(given, "--variant")

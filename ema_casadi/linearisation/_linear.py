@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._checks import describe, instance
-from .._kwargs import check_keywords, keywords_of
-from ..assembly import Model
+from .._util._checks import describe, instance
+from .._util._kwargs import check_keywords, keywords_of
+from ..model.assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
 

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..components.thermal import NODES, network
+from ..model.components.thermal import NODES, network
 from ._profile import Mission
 
 __all__ = ["MissionResult"]
@@ -281,7 +281,7 @@ class MissionResult:
 
     def to_csv(self, path: str | Path, dt: float = 1.0) -> Path:
         """Write :meth:`table` as CSV (atomically) in the layout of every time series the
-        toolkit writes (:func:`~ema_casadi._tables.write_series`): ``time``, one column
+        toolkit writes (:func:`~ema_casadi.signals._tables.write_series`): ``time``, one column
         per signal, a ``Unit:`` row (temperatures in degC, SI otherwise), 10 significant
         digits; readable back as a signal (``mission.csv:x_cmd``).
 
@@ -292,7 +292,7 @@ class MissionResult:
         dt : float
             Row spacing (s).
         """
-        from .._tables import write_series
+        from ..signals._tables import write_series
 
         names, units, data = self.table(dt)
         return write_series(path, names, units, data, fmt="%.10g")
@@ -311,7 +311,7 @@ class MissionResult:
         -------
         matplotlib.figure.Figure or Path
         """
-        from ._plot import plot_mission
+        from ..plots._mission import plot_mission
 
         return plot_mission(self, path, title)
 
@@ -324,7 +324,7 @@ class MissionResult:
         dt : float
             Row spacing (s).
         """
-        from .._notebook import data_frame
+        from .._util._notebook import data_frame
 
         names, units, data = self.table(dt)
         return data_frame({n: data[:, i] for i, n in enumerate(names)}, index="time", units=dict(zip(names, units,
@@ -336,12 +336,12 @@ class MissionResult:
                 "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
 
     def __repr__(self) -> str:
-        from .._notebook import short_repr
+        from .._util._notebook import short_repr
 
         return short_repr("MissionResult", self._facts())
 
     def _repr_html_(self) -> str:
-        from .._notebook import html_summary
+        from .._util._notebook import html_summary
 
         peaks = {f"peak {n}": f"{float(np.max(self.series[n])):.1f} degC" for n in self.nodes}
         return html_summary("MissionResult", {**self._facts(), **peaks})

@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._checks import describe, instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import describe, instance, integer, number, vector
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
@@ -72,84 +72,62 @@ def simulate(
     f_ext: Signal | float | str | None = None,
     eta: Signal | float | str | None = None,
     *,
-    dt: float = 1e-5,
-    solver: str = "auto",
-    params: Parameters | None = None,
-    p: np.ndarray | None = None,
-    x0: np.ndarray | None = None,
-    from_trim: bool = False,
-    zoh: bool = False,
-    decimate: int | None = None,
-    dt_out: float | None = None,
-    rtol: float | None = None,
-    atol: float | None = None,
-    event_tol: float = 1e-7,
-    jit: bool = True,
-    progress: bool = False,
+    dt: float = 1e-5, solver: str = "auto",
+    params: Parameters | None = None, p: np.ndarray | None = None,
+    x0: np.ndarray | None = None, from_trim: bool = False, zoh: bool = False,
+    decimate: int | None = None, dt_out: float | None = None,
+    rtol: float | None = None, atol: float | None = None, event_tol: float = 1e-7,
+    jit: bool = True, progress: bool = False,
     **signals,
 ) -> SimResult:
-    """Simulate ``model`` from 0 to ``t_end`` (s).
-
-    Samples are kept at 0, ``dt_out``, 2 ``dt_out``, ... and at ``t_end`` (the last
-    interval shorter when ``dt_out`` does not divide ``t_end``); never past ``t_end``.
-    Every argument is checked first: a wrong type or value raises
-    :class:`SimulationError` (:class:`~ema_casadi.signals.SignalError` for a signal)
-    naming it, and a run above :data:`MAX_STEPS` or :data:`MAX_RESULT_BYTES` is refused
-    with the estimate before anything is built (module docstring).
+    """Simulate ``model`` from 0 to ``t_end`` (s): samples at 0, ``dt_out``, 2 ``dt_out``,
+    ... and at ``t_end``. Every argument is checked first (:class:`SimulationError`, or
+    :class:`~ema_casadi.signals.SignalError` for a signal, naming it; a run above
+    :data:`MAX_STEPS` or :data:`MAX_RESULT_BYTES` is refused with the estimate).
 
     Parameters
     ----------
     model : Model
-        From :func:`~ema_casadi.assembly.build_model`.
+        From :func:`~ema_casadi.model.assembly.build_model`.
     t_end : float
         End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str
         Rod command (m), external force (N, + pushes the rod in), screw efficiency (-);
         None: the input's default (0 m, 0 N, the set's eta; no x_cmd behind an airframe).
     **signals : Signal, float or str
-        Any other model input by name (``model.inputs``, e.g. the loop-break
-        injections ``d_x``); strings in the unit of the input's quantity kind.
-        Undriven inputs take their declared default.
+        Any other model input by name (``model.inputs``, e.g. ``d_x``), strings in its
+        quantity's unit; undriven inputs take their declared default.
     dt : float
         RK4 step (s).
     solver : {"auto", "rk4", "cvodes", "rosenbrock"}
-        ``auto`` (default), the fast path: ``rosenbrock`` at :data:`AUTO_RTOL` /
-        :data:`AUTO_ATOL` for a continuous model, ``rk4`` at ``dt`` where the model
-        switches or sticks (hybrid friction, the sampled ECU ``zoh``, a PWM bridge).
-        ``rosenbrock``: variable-step RODAS4 in compiled C (not for hybrid friction;
-        without a C compiler it runs ``cvodes``, with a warning). The solver that ran
-        and its tolerance are in ``info["solver"]`` and ``info["tolerance"]``.
+        ``auto`` (default): ``rosenbrock`` (compiled RODAS4; ``cvodes`` without a C
+        compiler) at :data:`AUTO_RTOL`, :data:`AUTO_ATOL` on a continuous model, ``rk4``
+        where it switches or sticks (hybrid friction, ``zoh``, a PWM bridge); what ran
+        and its tolerance: ``info["solver"]``, ``info["tolerance"]``.
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
     x0 : array, optional
         Initial state, one value per ``model.states`` (default: at rest, all zero).
     from_trim : bool
-        Start at the trimmed operating point of the inputs' values at t = 0
-        (:func:`~ema_casadi.linearisation.operating_point`), so a load present at t = 0
-        does not knock the rod back; not with ``x0``.
+        Start at the operating point of the inputs' values at t = 0 (a load present
+        from the start does not knock the rod back); not with ``x0``.
     zoh : bool
         Sampled ECU at its rates (rk4 only).
     decimate, dt_out : int or float, optional
-        Keep every ``decimate``-th step, or one sample per ``dt_out`` seconds (for
-        ``rk4`` a whole number of steps); default one sample per :data:`DT_OUT`
-        (1e-4 s; rk4: the nearest whole number of steps). ``decimate=1`` keeps every
-        step (a switched model: every sub-interval).
+        Keep every ``decimate``-th step (1: all), or a sample every ``dt_out`` s (rk4: a
+        whole number of steps); default every :data:`DT_OUT` (1e-4 s).
     rtol, atol : float, optional
-        Tolerances of the variable-step solvers (the same error weighting for both);
-        default :data:`AUTO_RTOL`, :data:`AUTO_ATOL` when ``auto`` chose the solver,
-        else :data:`RTOL`, :data:`ATOL`.
+        Tolerances of the variable-step solvers; default :data:`AUTO_RTOL`,
+        :data:`AUTO_ATOL` for ``auto``, else :data:`RTOL`, :data:`ATOL`.
     event_tol : float
-        cvodes with hybrid friction: the stick/slip switching instants are located to
-        within this time (s) before the integrator is restarted.
+        cvodes with hybrid friction: switching instants located to this time (s).
     jit : bool
         Compile the rollout to native code (cached on disk).
     progress : bool
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
-    requested = solver
-    solver, why = choose_solver(model, solver, zoh)
-    rtol, atol = tolerances(requested, rtol, atol)
+    (solver, why), requested, (rtol, atol) = choose_solver(model, solver, zoh), solver, tolerances(solver, rtol, atol)
     if from_trim and x0 is not None:
         raise SimulationError("give x0 or from_trim, not both")
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)

@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from ..assembly import Model
+from ..model.assembly import Model
 from ._result import SimResult, SimulationError
 
 __all__ = ["choose_solver", "tolerances", "trimmed_start", "AUTO_RTOL", "AUTO_ATOL", "RTOL", "ATOL"]
@@ -92,7 +92,7 @@ def trimmed_start(model: Model, sig: dict, pv: np.ndarray, x_base: np.ndarray | 
     if model.states_with("temperature"):
         plant = model.cache.get("trim_plant")
         if plant is None:
-            from ..assembly import build_model
+            from ..model.assembly import build_model
 
             plant = model.cache["trim_plant"] = build_model(model.params, {**model.variants, "thermal": "off"})
         given = dict(zip(model.param_names, pv, strict=True))

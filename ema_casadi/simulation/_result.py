@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_with
+from .._util._files import write_with
 
 __all__ = ["SimulationError", "SimResult", "step_response_metrics", "hunting_metrics", "progress_bar"]
 
@@ -33,7 +33,7 @@ class SimResult:
     info : dict
         Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
     unit_table : dict
-        Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
+        Signal name -> SI unit (the model's :attr:`~ema_casadi.model.assembly.Model.units`).
     kinds : dict
         Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
     """
@@ -84,7 +84,7 @@ class SimResult:
     def to_pandas(self):
         """The time series as a :class:`pandas.DataFrame` indexed by ``time`` (s), one
         column per signal (SI; units in ``frame.attrs["units"]``). Needs pandas."""
-        from .._notebook import data_frame
+        from .._util._notebook import data_frame
 
         cols = self.columns()[1:]
         return data_frame({"time": self.t, **{c: self[c] for c in cols}}, index="time", units=self.units())
@@ -106,7 +106,7 @@ class SimResult:
         -------
         matplotlib.figure.Figure or Path
         """
-        from ..plotting import plot_simulation
+        from ..plots._base import plot_simulation
 
         return plot_simulation(self, path, title, signals=signals)
 
@@ -117,12 +117,12 @@ class SimResult:
                 "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
 
     def __repr__(self) -> str:
-        from .._notebook import short_repr
+        from .._util._notebook import short_repr
 
         return short_repr("SimResult", self._facts())
 
     def _repr_html_(self) -> str:
-        from .._notebook import html_summary
+        from .._util._notebook import html_summary
 
         final = {k: f"{v:.6g} {self.unit_table.get(k, '')}" for k, v in self.final().items()
                  if k in ("x_rod", "v_rod", "i_q", "F_in")}
@@ -142,7 +142,7 @@ class SimResult:
         path : str or Path
             The CSV file.
         """
-        from .._tables import write_series
+        from ..signals._tables import write_series
 
         cols = self.columns()[1:]
         units = self.units()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_with
+from .._util._files import write_with
 from ..simulation import SimulationError
 
 #: Result fields per point, with units. ``status`` is ``converged``, ``not_converged``
@@ -94,7 +94,7 @@ class FreqResponse:
 
     def to_pandas(self):
         """:meth:`rows` as a :class:`pandas.DataFrame`, one row per point (SI). Needs pandas."""
-        from .._notebook import data_frame
+        from .._util._notebook import data_frame
 
         rows = self.rows()
         return data_frame({k: [r[k] for r in rows] for k in rows[0]})
@@ -116,12 +116,12 @@ class FreqResponse:
         -------
         matplotlib.figure.Figure or Path
         """
-        from ._plot import plot_bode
+        from ..plots._sinestream import plot_bode
 
         return plot_bode(self, path, title, stroke)
 
     def __repr__(self) -> str:
-        from .._notebook import short_repr
+        from .._util._notebook import short_repr
 
         converged = int(np.asarray(self.data["converged"]).sum())
         return short_repr("FreqResponse", {"shape": "x".join(map(str, self.shape)), "axes": ", ".join(self.axes),

@@ -127,12 +127,12 @@ class SweepResult:
         """The table (one row per run, the columns of :meth:`to_csv`) as a
         :class:`pandas.DataFrame` indexed by ``run``; units in ``frame.attrs["units"]``.
         Needs pandas."""
-        from .._notebook import data_frame
+        from .._util._notebook import data_frame
 
         return data_frame({c: [r.get(c) for r in self.rows] for c in self.columns}, index="run", units=self.units())
 
     def __repr__(self) -> str:
-        from .._notebook import short_repr
+        from .._util._notebook import short_repr
 
         return short_repr("SweepResult", {"sweep": self.spec.name, "runs": len(self.rows),
                                           "failed": self.info.get("failed"), "metrics": len(self.metrics)})
@@ -156,7 +156,7 @@ class SweepResult:
         matplotlib.figure.Figure or Path
             The figure, or ``path`` when one was given.
         """
-        from ..plotting import finish, plt
+        from ..plots._base import finish, plt
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids

@@ -19,12 +19,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .. import _interrupts
-from .._files import after_commit
-from .._parallel import check_main_guard, cores, dask_map
+from .._util import _interrupts
+from .._util._files import after_commit
+from .._util._parallel import check_main_guard, cores, dask_map
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
-from ._metrics import compute_metrics, metric_columns, needs_simulation, simulate_scenario
+from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
 from ._spec import SweepError, SweepSpec
 
 if TYPE_CHECKING:
@@ -37,10 +37,6 @@ BACKENDS = ("processes", "threads")
 BATCH_MAX = 25
 
 
-class PointFailed(Exception):
-    """A metric whose analysis reported a failed point (the run is failed)."""
-
-
 # -- one run ---------------------------------------------------------------------
 class _Worker:
     """What one worker keeps between runs of a sweep: a model per variant choice."""
@@ -51,7 +47,7 @@ class _Worker:
         self.names = None
 
     def model(self, variant: tuple):
-        from ..assembly import build_model
+        from ..model.assembly import build_model
 
         if variant not in self.models:
             self.models[variant] = build_model(self.spec.params, dict(variant))

@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.params import Parameters
 from ._problem import TuningProblem
 from ._report import _message
 from ._requirements import Requirements, TuneError, _goal, _load_label, _request
@@ -133,14 +133,14 @@ class TuneResult:
         reference : Parameters, optional
             A further gain set drawn dotted.
         """
-        from ._plot import plot_tuning
+        from ..plots._tuning import plot_tuning
 
         model = model if model is not None else build_model(self.params, self.variants or None)
         before = self.params.replace(**self.gains_before)
         return plot_tuning(self, model, before, None, reference)
 
     def __repr__(self) -> str:
-        from .._notebook import short_repr
+        from .._util._notebook import short_repr
 
         return short_repr("TuneResult", {"success": self.success, "status": self.status, "objective":
                                          f"{self.objective} = {self.objective_value:.4g}",

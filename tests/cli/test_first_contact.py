@@ -23,7 +23,7 @@ def _ema(args, cwd, **kw):
 
 # -- installed means usable ---------------------------------------------------------------
 def test_the_packaged_reference_files_are_the_defaults_in_any_folder(tmp_path):
-    from ema_casadi._resources import packaged_file, packaged_files
+    from ema_casadi._util._resources import packaged_file, packaged_files
 
     assert {"cesa_ema.toml", "mission_regional.toml", "sweep_reference.toml"} <= set(packaged_files())
     assert packaged_file().read_bytes() == REFERENCE.read_bytes()  # one copy: the repository's models/
@@ -116,7 +116,7 @@ def test_a_wrong_variant_flag_blames_the_flag(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--variant: unknown motor variant 'bldc'" in err and ".toml" not in err
     with pytest.raises(ema.ParameterError, match=r"^variants: unknown motor variant 'bldc'"):
-        ema.load_parameters(REFERENCE, {"motor": "bldc"})
+        ema.build_model(ema.load_parameters(REFERENCE, {"motor": "bldc"}))
 
 
 # -- envelope messages ----------------------------------------------------------------------------
@@ -194,7 +194,7 @@ def test_the_default_sweeps_step_metrics_are_the_steps():
     step, finite in every run; every metric has values; the figure has no empty panel."""
     import tomllib
 
-    from ema_casadi._resources import packaged_file
+    from ema_casadi._util._resources import packaged_file
     from ema_casadi.sweeps import parse_sweep, sweep
 
     data = tomllib.loads(packaged_file("sweep_reference.toml").read_text())
@@ -214,7 +214,7 @@ def test_the_default_sweeps_step_metrics_are_the_steps():
 def test_the_sweep_figure_has_no_empty_panel_and_no_overlapping_text():
     import tomllib
 
-    from ema_casadi._resources import packaged_file
+    from ema_casadi._util._resources import packaged_file
     from ema_casadi.sweeps import parse_sweep, sweep
 
     data = tomllib.loads(packaged_file("sweep_reference.toml").read_text())
@@ -247,7 +247,7 @@ def test_an_unguarded_script_is_refused_before_any_worker_starts(tmp_path):
     script = tmp_path / "unguarded.py"
     body = """
         import ema_casadi as ema
-        from ema_casadi._resources import packaged_file
+        from ema_casadi._util._resources import packaged_file
         from ema_casadi.sweeps import load_sweep, sweep
 
         spec = load_sweep(packaged_file("sweep_reference.toml"), ema.load_parameters())
@@ -263,13 +263,13 @@ def test_an_unguarded_script_is_refused_before_any_worker_starts(tmp_path):
     lines = textwrap.dedent(body).strip().splitlines()
     guarded.write_text("\n".join(lines[:4]) + "\n\nif __name__ == '__main__':\n" + "\n".join(
         "    " + line for line in lines[4:]) + "\n")
-    from ema_casadi._parallel import _inside_main_guard
+    from ema_casadi._util._parallel import _inside_main_guard
 
     assert _inside_main_guard(str(guarded), 8) and not _inside_main_guard(str(script), 7)
 
 
 def test_the_check_passes_where_there_is_no_script():
-    from ema_casadi._parallel import check_main_guard
+    from ema_casadi._util._parallel import check_main_guard
     from ema_casadi.sweeps import SweepError
 
     check_main_guard(SweepError, "sweep(jobs=2)")  # pytest's __main__ is no user script calling sweep

@@ -92,7 +92,7 @@ def test_the_model_alone_is_the_model(tmp_path):
     """`ema mission /abs/cesa_ema.toml` takes the file for the model and runs the packaged mission."""
     import argparse
 
-    from ema_casadi._resources import REFERENCE_MISSION, packaged_file
+    from ema_casadi._util._resources import REFERENCE_MISSION, packaged_file
     from ema_casadi.cli import UserError, second_file
 
     args = argparse.Namespace(model=str(REFERENCE), model_given=True)
@@ -107,7 +107,7 @@ def test_the_model_alone_is_the_model(tmp_path):
 def test_the_default_folder_is_out_mission_and_the_demo_check_keeps_it(tmp_path, short, monkeypatch):
     """Without --out the mission writes into out/mission; the demo's check of out/ accepts that
     folder (the demo keeps it when it replaces its own files)."""
-    from ema_casadi._files import check_folder
+    from ema_casadi._util._files import check_folder
     from ema_casadi.demo import DEMO_FILES, KEPT_FOLDERS
 
     monkeypatch.chdir(tmp_path)
