@@ -4,6 +4,7 @@ step), computed here and drawn by :mod:`ema_casadi.plots._tuning`."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..frequency import bode, closed_loop, frequency_grid
 from ..linearisation import loop_model, operating_point
@@ -11,8 +12,10 @@ from ..model.assembly import Model
 from ..model.params import Parameters
 from ..plots._tuning import draw_bode, draw_step
 from ._requirements import _load_label
-from ._solve import TuneResult
 from ._verify import step_metrics
+
+if TYPE_CHECKING:
+    from ._solve import TuneResult
 
 __all__ = ["plot_tuning"]
 

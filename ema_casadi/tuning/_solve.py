@@ -133,7 +133,7 @@ class TuneResult:
         reference : Parameters, optional
             A further gain set drawn dotted.
         """
-        from ..plots._tuning import plot_tuning
+        from ._figures import plot_tuning
 
         model = model if model is not None else build_model(self.params, self.variants or None)
         before = self.params.replace(**self.gains_before)
