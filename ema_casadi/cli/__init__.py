@@ -1,4 +1,4 @@
-"""The ``ema`` command line (SPEC §6).
+"""The ``ema`` command line (docs: cli).
 
 Each subcommand lives in its own module of this package and defines ``COMMAND``
 (name), ``ORDER`` (position in ``--help``), ``HELP`` (one line), ``add_arguments(parser)``
@@ -7,7 +7,7 @@ and ``run(args) -> dict`` (the ``--json`` result) plus optionally ``report(resul
 file. Every command takes the model file as first argument, ``--variant KEY=VALUE``
 (repeatable) and ``--json``.
 
-Exit status and stderr (SPEC §7), always one line, never a traceback:
+Exit status and stderr (the reliability contract, docs: reliability), always one line, never a traceback:
 
 - 0: done;
 - 2: a mistake in a file, key, flag or value (checked before any work, outputs
@@ -37,14 +37,14 @@ from .._util import _interrupts
 
 _interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
 
+from ._options import DEFAULT_MODEL, _holds_table, add_progress, model_path, progress_of, stage  # noqa: E402, F401
+
 if TYPE_CHECKING:
     from pathlib import Path
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL", "check_output_path", "check_output_dir", "add_progress", "progress_of",
            "stage", "second_file", "model_path"]
 
-#: The packaged reference parameter set: the model of every command run without a MODEL.toml.
-DEFAULT_MODEL = "cesa_ema.toml"
 
 #: Exit status of a failed run (and of ``ema freqresp`` with a failed point).
 EXIT_FAILED = 3
@@ -120,86 +120,33 @@ def second_file(args, positional: str | None, flag_value: str | None, *, flag: s
     return named if named is not None else str(packaged_file(default))
 
 
-def _holds_table(path: str, key: str) -> bool:
-    """True when ``path`` is a readable TOML file with a top-level ``key``."""
-    import tomllib
+class _VariantHelp:
+    """The ``--variant`` help, generated from the registry when it is shown (importing
+    the parts at every start-up would cost ~0.2 s): every key and option with its values."""
 
-    try:
-        with open(path, "rb") as f:
-            return key in tomllib.load(f)
-    except (OSError, ValueError):
-        return False
+    def __str__(self) -> str:
+        from ..model.components import OPTIONS, REGISTRY
 
+        keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
+        opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
+        return f"variant choice, repeatable: {keys}; options {opts}"
 
-def add_progress(p) -> None:
-    """The progress convention of every long command: ``--progress/--no-progress``, by
-    default on only when stderr is a terminal (read it with :func:`progress_of`).
+    def __mod__(self, params) -> str:  # argparse expands %(default)s-style fields
+        return str(self) % params
 
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-        The command's parser.
-    """
-    import argparse
+    def __contains__(self, text: str) -> bool:
+        return text in str(self)
 
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress on stderr (--no-progress: none); default: on when stderr is a terminal (a log "
-                        "gets whole lines, no carriage returns)")
-
-
-def progress_of(args) -> bool:
-    """Whether to show progress: the flag of :func:`add_progress`, else stderr is a terminal.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    return sys.stderr.isatty() if args.progress is None else bool(args.progress)
-
-
-def stage(args, label: str, frac: float, note: str = "") -> None:
-    """Progress of a command made of stages (``ema tune``, ``ema aircraft``, ...): the
-    fraction done and what runs now, by the one progress bar (whole lines into a log).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line (its ``--progress`` flag).
-    label : str
-        The command, before the bar.
-    frac : float
-        Fraction done, 0..1.
-    note : str
-        What runs now.
-    """
-    from ..simulation import progress_bar
-
-    progress_bar(frac, progress_of(args), label, note)
+    def strip(self) -> str:
+        return str(self).strip()
 
 
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=None, metavar="MODEL.toml",
-                   help=f"parameter file (TOML); default: the packaged reference set {DEFAULT_MODEL}")
+                   help=f"parameter file (TOML, docs: physics); default: the packaged reference set {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
-                        "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
-                        "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
-                        "stribeck=off|on, iron_loss=off|on")
+                   help=_VariantHelp())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
-
-
-def model_path(args) -> str:
-    """The parameter file of the command: MODEL.toml as given, else the packaged reference.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line (``args.model`` None when no MODEL.toml was named).
-    """
-    from .._util._resources import packaged_file
-
-    return args.model if args.model is not None else str(packaged_file(DEFAULT_MODEL))
 
 
 def load(args):
@@ -319,6 +266,12 @@ def build_parser():
         mod.add_arguments(p)
         mods[mod.COMMAND] = mod
     return parser, mods
+
+
+def get_parser():
+    """The ``ema`` argument parser with every subcommand (for the documentation's CLI
+    reference, built by sphinx-argparse; :func:`main` parses with the same parser)."""
+    return build_parser()[0]
 
 
 def join_negative_values(argv: list[str], parser) -> list[str]:

@@ -1,9 +1,9 @@
-"""A flight mission through the thermal network (SPEC §4.10): temperatures, losses and
+"""A flight mission through the thermal network (docs: missions): temperatures, losses and
 energy per part and per segment, peaks against the limits stated in the mission file.
 
 MISSION.toml holds [[segment]] tables (duration, x_cmd, f_ext, T_amb) run back to back
 on the full model (thermal = lumped, hybrid friction, iron loss on; compiled RK4 at
---dt); the format is in the README ("Missions") and in models/mission_regional.toml.
+--dt); the format is in the docs (missions) and in models/mission_regional.toml.
 MODEL.toml comes first, MISSION.toml second (or by --mission); without them the
 packaged reference set and mission run. A single file that is a mission is refused
 (name it with --mission). Writes OUT/<mission>.csv (1 s rows: time, then a Unit: row,
@@ -50,7 +50,7 @@ def add_arguments(p):
     p.add_argument("--dt", type=float, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
     p.add_argument("--fast", action="store_true",
                    help=f"the fast path: the same model at {FAST_DT:g} s, about twice as fast (worst temperature "
-                        "difference to the full model 0.16 K on models/mission_regional.toml, README)")
+                        "difference to the full model 0.16 K on models/mission_regional.toml; docs: missions)")
     p.add_argument("--dt-out", type=float, default=0.01,
                    help="spacing of the kept samples the energies are integrated from (s); default 0.01")
     p.add_argument("--csv-dt", type=float, default=1.0, help="row spacing of the CSV (s); default 1")

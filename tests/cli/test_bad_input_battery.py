@@ -1,4 +1,4 @@
-"""The bad-input battery (SPEC §7): every command, the parameter file, signals, signal
+"""The bad-input battery (docs: reliability): every command, the parameter file, signals, signal
 files and the Python API, each given one mistake.
 
 Every CLI case asserts exit status 2, exactly one line on stderr that names the
@@ -387,7 +387,7 @@ OWN = {
         "out-is-a-file": (["--out", "{tmp}/afile"], "--out"),
     },
 }
-OWN["aircraft"] = {  # the aircraft pitch loop
+OWN["aircraft"] = {  # the aircraft loop
     "condition-unknown": (["--condition", "cruise"], "--condition"),
     "t-end-negative": (["--t-end", "-1"], "--t-end"),
     "gust-time-zero": (["--gust-time", "0"], "--gust-time"),
