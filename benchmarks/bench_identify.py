@@ -64,7 +64,7 @@ def _peer(params, paths, free, log):
         for rec in recs:
             sig = {k: ema.Signal.table(rec.t, v) for k, v in rec.inputs.items()}
             try:
-                res = ema.simulate(model, rec.t[-1], solver="rosenbrock", dt=rec.t[1] - rec.t[0], p=pv, **sig)
+                res = ema.simulate(model, rec.t[-1], solver="rosenbrock", dt_out=rec.t[1] - rec.t[0], p=pv, **sig)
             except ema.RunFailed:
                 return np.full(sum(len(x.t) - 1 for x in recs) * 2, 1e6)
             for c, meas in rec.channels.items():

@@ -23,12 +23,11 @@ Example: ema identify step.csv chirp.csv --free F_seal,c_v,J_m,psi --sigma x_rod
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
 
-from . import DEFAULT_MODEL, UserError, check_output_dir, check_output_path
+from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
 
 COMMAND = "identify"
 ORDER = 12
@@ -69,8 +68,7 @@ def add_arguments(p):
     p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress on stderr (--no-progress to hide); default: when stderr is a terminal")
+    add_progress(p)
 
 
 def _pairs(items, flag) -> dict:
@@ -122,11 +120,11 @@ def _quantities(items, flag, model) -> dict:
 
 def _split(args):
     """(model file, records): a first positional that is not a .toml file is a record."""
-    model, records = args.model, list(args.records)
-    if model != DEFAULT_MODEL and Path(model).suffix.lower() != ".toml":
-        records.insert(0, model)
-        model = DEFAULT_MODEL
-    return model, records
+    records = list(args.records)
+    if args.model is not None and Path(args.model).suffix.lower() != ".toml":
+        records.insert(0, args.model)
+        args.model = None
+    return model_path(args), records
 
 
 def run(args) -> dict:
@@ -142,7 +140,7 @@ def run(args) -> dict:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
     params = load_parameters(model_file, dict(args.variant))
     model = build_model(params)
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    progress = progress_of(args)
     try:
         if not records:
             return _example(args, params, out, progress)

@@ -84,7 +84,7 @@ def synthetic_record(params, path, *, t_end: float, x_cmd=0.0, f_ext=0.0, channe
             else _as_signal(value, name, kind)
         sampled[name] = s(t)
     tables = {k: Signal.table(t, v) for k, v in sampled.items()}
-    res = simulate(model, t[-1], solver="rosenbrock", dt=1.0 / rate, p=pv, rtol=1e-10, atol=1e-13, **tables)
+    res = simulate(model, t[-1], solver="rosenbrock", dt_out=1.0 / rate, p=pv, rtol=1e-10, atol=1e-13, **tables)
     rng = np.random.default_rng(seed)
     sig = {**SENSOR_NOISE, **(noise or {})}
     cols = {**sampled, **{c: res[c] + rng.normal(0.0, sig[c], len(res.t)) for c in channels}}
