@@ -43,6 +43,9 @@ def add_arguments(p):
                    help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
                         "default: the record's field sigma_CHANNEL, else estimated from the residuals")
     p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
+                   help="estimate each record's initial state instead of starting at rest (a record cut from "
+                        "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--allow-misfit", action="store_true",
@@ -149,7 +152,8 @@ def run(args) -> dict:
         free = [s.strip() for s in args.free.split(",") if s.strip()]
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
-              "hold_unidentifiable": not args.keep_unidentifiable, "progress": progress}
+              "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
+              "progress": progress}
         if args.track:
             return _track(args, params, records, free, kw)
         if args.compare:
@@ -176,6 +180,8 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
             from .._util._checks import nearest
 
             raise UserError(f"--profile {name}: not a free parameter{nearest(name, free)}")
+    if args.profile and kw.get("estimate_x0") is not False:
+        raise UserError("--profile with --estimate-x0: the profile re-fits start at rest; use the Wald intervals")
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
     res = identify_api(params, recs, free, **kw)
     doc = res.to_dict()
@@ -210,9 +216,9 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     """Frequency-response records: fitted through the linear model."""
     from ..identification import identify_frequency
 
-    for flag in ("track", "profile", "validate"):
+    for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
-            raise UserError(f"--{flag} is for time-series records, not frequency responses")
+            raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     from ..identification._plot import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
@@ -246,7 +252,8 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     for r in records:
         read_record(r, model)
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
-                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"])
+                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
+                  estimate_x0=kw["estimate_x0"])
     best = cmp.best
     if best is None:
         from ..simulation import RunFailed
@@ -277,7 +284,9 @@ def _track(args, params, records, free, kw) -> dict:
     report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
     if args.out is not None:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
-    kw = {k: v for k, v in kw.items() if k not in ("starts",)}
+    if kw["estimate_x0"] is not False:
+        raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
     doc = tr.to_dict()
     if report is not None:

@@ -105,7 +105,8 @@ def bic(result) -> float:
 
 
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
-            max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False) -> Comparison:
+            max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
+            estimate_x0=False) -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters
@@ -119,7 +120,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
-    sigma, variants, max_evaluations, progress
+    sigma, variants, max_evaluations, progress, estimate_x0
         As for :func:`~ema_casadi.identification.identify`.
     max_fits : int
         Most combinations (refused above).
@@ -128,7 +129,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     for combo in combinations(options, variants, max_fits):
         try:
             res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
-                           progress=progress)
+                           progress=progress, estimate_x0=estimate_x0)
         except FitFailed as exc:
             rows.append({"variants": combo, "failed": exc.reason, "adequate": False, "bic": float("inf")})
             results.append(None)
