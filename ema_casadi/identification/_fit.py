@@ -14,6 +14,7 @@ from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..simulation import RunFailed
 from ..simulation._result import progress_bar
+from . import _consistency
 from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters
 from ._records import IdentificationError, Record, read_record
@@ -55,7 +56,7 @@ class FitFailed(RunFailed):
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
-             progress: bool = False) -> IdentResult:
+             consistency: bool = True, progress: bool = False) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -92,6 +93,9 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         the mechanical states (:data:`X0_ROLES`: positions and speeds) and the outer
         loops' integrals, or the state names. Extra free values per record, with exact sensitivities; the parameters'
         intervals include what the unknown start costs.
+    consistency : bool
+        With several records, test that they agree (each re-fitted alone against all
+        together, :mod:`._consistency`); disagreement makes the fit inadequate.
     progress : bool
         One line of progress on stderr.
 
@@ -123,7 +127,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     pred = Predictor(model, recs, fr, model.p(), x0_states(model, estimate_x0))
     fit = _Fit(pred, given, max_evaluations, progress)
     best = _best_start(fit, fr, starts, seed)
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency)
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
@@ -321,7 +325,8 @@ def _rms(arrays) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
-def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool) -> IdentResult:
+def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool,
+            consistency_test: bool = True) -> IdentResult:
     """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
     their start values and the others fitted again; the result."""
     fr = fit.pred.free
@@ -355,6 +360,13 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
                              preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
                              evaluations=evaluations, start=start)
     res.info["initial_state"] = initial_states(fit, out)
+    if consistency_test and len(recs) > 1:
+        test = _consistency.consistency(fit, out)
+        res.adequacy["consistency"] = test
+        extra = _consistency.reasons(test)
+        if extra:
+            res.adequacy["reasons"] = [*res.adequacy["reasons"], *extra]
+            res.adequacy["adequate"] = False
     return res
 
 

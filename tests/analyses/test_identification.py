@@ -249,7 +249,8 @@ def test_predictor_rebuilds_the_model_never(model_cache, example):
 
 
 def test_a_fit_of_the_right_structure_is_adequate(example_fit):
-    assert example_fit.adequacy == {"adequate": True, "reasons": []}
+    assert example_fit.adequacy["adequate"] is True and example_fit.adequacy["reasons"] == []
+    assert example_fit.adequacy["consistency"]["consistent"] is True
     assert example_fit.to_dict()["intervals_trustworthy"] is True
 
 
