@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
+from .._util._parallel import cores
 
 COMMAND = "identify"
 ORDER = 12
@@ -43,6 +44,8 @@ def add_arguments(p):
                    help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
                         "default: the record's field sigma_CHANNEL, else estimated from the residuals")
     p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="--starts: worker processes (the result does not depend on it); default the cores")
     p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
                    help="estimate each record's initial state instead of starting at rest (a record cut from "
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
@@ -139,6 +142,8 @@ def run(args) -> dict:
     model_file, records = _split(args)
     if args.starts < 1:
         raise UserError(f"--starts must be at least 1, got {args.starts}")
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
     params = load_parameters(model_file, dict(args.variant))
@@ -153,7 +158,7 @@ def run(args) -> dict:
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
-              "progress": progress}
+              "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
         if args.track:
             return _track(args, params, records, free, kw)
         if args.compare:
@@ -251,6 +256,9 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     combinations(options, dict(args.variant), max_fits)  # checked before any work
     for r in records:
         read_record(r, model)
+    from ..identification._plot import report_names
+
+    report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
                   estimate_x0=kw["estimate_x0"])
@@ -265,6 +273,8 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     if out is not None:
         note = f"structure chosen by comparison: {cmp.rows[0]['variants']}"
         doc["written"].append(str(best.write(_target(out, bad and not args.allow_misfit), note=note)))
+    if report is not None:
+        doc["written"].append(str(cmp.write_report(report)))
     if bad and not args.allow_misfit:
         doc["failure"] = f"no compared structure is adequate; the best: {best.adequacy['reasons'][0]}"
     return doc
@@ -286,7 +296,7 @@ def _track(args, params, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0")}
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
     doc = tr.to_dict()
     if report is not None:
@@ -307,7 +317,8 @@ def _example(args, params, out, progress) -> dict:
                                                       "max_evaluations": args.max_evaluations,
                                                       "hold_unidentifiable": not args.keep_unidentifiable,
                                                       "sigma": _quantities(args.sigma, "--sigma", model),
-                                                      "bounds": _bounds(args.bounds)}, out)
+                                                      "bounds": _bounds(args.bounds),
+                                                      "jobs": min(args.starts, args.jobs or cores())}, out)
     doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
                                               "these values, sensor noise added; fitted from the reference values"}
     return doc

@@ -47,6 +47,25 @@ class Comparison:
         """The best fit (the first row's result)."""
         return self.results[0]
 
+    def plot(self):
+        """The residuals of every structure side by side (a matplotlib Figure)."""
+        from ._plot import comparison_figure
+
+        return comparison_figure(self)
+
+    def write_report(self, folder) -> object:
+        """The best fit's report folder with ``comparison.png`` added (assembled aside
+        and moved in whole).
+
+        Parameters
+        ----------
+        folder : str or Path
+            The folder.
+        """
+        from ._plot import write_report
+
+        return write_report(self.best, folder, {"comparison": self.plot()})
+
     def to_dict(self) -> dict:
         """Plain data (``--json``)."""
         return {"comparison": self.rows, "chosen": self.rows[0]["variants"] if self.rows else None}

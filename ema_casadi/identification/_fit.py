@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from .._util._checks import instance, integer, nearest, number
+from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..simulation import RunFailed
@@ -56,7 +57,7 @@ class FitFailed(RunFailed):
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
-             consistency: bool = True, progress: bool = False) -> IdentResult:
+             consistency: bool = True, jobs: int = 1, progress: bool = False) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -83,6 +84,9 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         log-normally around it, seeded by ``seed``); the lowest cost wins.
     seed : int
         Seed of the extra starts.
+    jobs : int
+        Worker processes for the starts (spawned: a script calling this with jobs > 1
+        needs ``if __name__ == "__main__":``); the result is the same for any jobs.
     max_evaluations : int
         Model evaluations per fit at most; a fit that needs more did not converge.
     hold_unidentifiable : bool
@@ -124,9 +128,10 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         raise IdentificationError("records: give at least one record")
     fr = free_parameters(model, free, bounds, start)
     given = _sigmas(recs, sigma)
-    pred = Predictor(model, recs, fr, model.p(), x0_states(model, estimate_x0))
-    fit = _Fit(pred, given, max_evaluations, progress)
-    best = _best_start(fit, fr, starts, seed)
+    xs = x0_states(model, estimate_x0)
+    jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
+    spec = (params, variants, recs, fr, xs, given, max_evaluations)
+    fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
     res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency)
     res.info["variant_overrides"] = dict(variants or {})
     return res
@@ -149,28 +154,70 @@ def x0_states(model, estimate_x0) -> tuple:
     return tuple(names)
 
 
-def _best_start(fit, fr, starts: int, seed: int) -> dict:
-    """The lowest-cost fit of ``starts`` (the first from the file's values, the others
-    drawn log-normally around them, seeded)."""
-    best = None
+def _start_points(fr, starts: int, seed: int) -> list:
+    """The starts: the file's values, then points drawn log-normally around them (seeded)."""
     rng = np.random.default_rng(seed)
-    for k in range(starts):
+    lo, hi = fr.z_bounds()
+    out = [fr.z(fr.theta0)]
+    for _ in range(1, starts):
         z0 = fr.z(fr.theta0)
-        if k:
-            lo, hi = fr.z_bounds()
-            z0 = np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
-                         lo + 1e-9, hi - 1e-9)
-        try:
-            out = fit.run(z0)
-        except FitFailed:
-            if starts == 1:
-                raise
-            continue
-        if best is None or out["cost"] < best["cost"]:
-            best = out
-    if best is None:
-        raise FitFailed(f"none of the {starts} starts converged")
-    return best
+        out.append(np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                           lo + 1e-9, hi - 1e-9))
+    return out
+
+
+def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec):
+    """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
+    each from a fresh predictor, on ``jobs`` processes (the result does not depend on
+    ``jobs``: a worker's fit is the same computation, its final state handed back)."""
+    points = _start_points(fr, starts, seed)
+    results = []
+    if jobs <= 1 or starts == 1:
+        for z0 in points:
+            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            try:
+                results.append((fit, fit.run(z0)))
+            except FitFailed as exc:
+                if starts == 1:
+                    raise
+                results.append((None, exc.reason))
+    else:
+        check_main_guard(IdentificationError, f"identify(starts={starts}, jobs={jobs})")
+        for _z0, got in zip(points, process_map(_start_in_worker, [(*spec, z0) for z0 in points], jobs), strict=True):
+            if isinstance(got, str):
+                results.append((None, got))
+                continue
+            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            _install(fit, got["state"])
+            results.append((fit, got["out"]))
+    done = [(k, f, o) for k, (f, o) in enumerate(results) if f is not None]
+    if not done:
+        raise FitFailed(f"none of the {starts} starts converged ({results[0][1]})")
+    _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
+    return fit, out
+
+
+def _start_in_worker(args) -> dict | str:
+    """One start in a worker process: the optimum and the fit's final state, or the
+    reason it failed."""
+    params, variants, recs, fr, xs, given, max_evaluations, z0 = args
+    model = build_model(params, variants)
+    fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, False)
+    try:
+        out = fit.run(z0)
+    except FitFailed as exc:
+        return exc.reason
+    pred = fit.pred
+    return {"out": out, "state": {"cache": fit._cache, "z_grid": fit.z_grid, "evaluations": fit.evaluations,
+                                  "steps": pred.steps, "rows": pred.rows, "pred_evaluations": pred.evaluations,
+                                  "dx0": pred.dx0}}
+
+
+def _install(fit, state: dict) -> None:
+    """A worker's final fit state in ``fit`` (the same model, records and free set)."""
+    fit._cache, fit.z_grid, fit.evaluations = state["cache"], state["z_grid"], state["evaluations"]
+    fit.pred.steps, fit.pred.rows = state["steps"], state["rows"]
+    fit.pred.evaluations, fit.pred.dx0 = state["pred_evaluations"], state["dx0"]
 
 
 def _as_list(records) -> list:

@@ -156,9 +156,22 @@ def test_track_writes_the_trend(params, tmp_path, capsys):
     (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--max-fits", "3"],
      ["--max-fits"]),
     (["--compare", "anti_windup"], ["KEY=V1,V2"]),
+    (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--compare",
+      "friction_shape=tanh,fermi", "--compare", "stribeck=off,on"], ["16 combinations", "--max-fits 8"]),
+    (["--estimate-x0", "omgea"], ["--estimate-x0 omgea", "did you mean 'omega'"]),
+    (["--starts", "2", "--jobs", "0"], ["--jobs"]),
 ])
 def test_compare_mistakes_exit_2(tmp_path, capsys, record, flags, words):
     code, _, err = _run(["identify", str(record), "--free", "F_seal", *flags, "--out", str(tmp_path / "f.toml")],
                         capsys)
     assert code == 2 and err.count("\n") == 1 and all(w in err for w in words), err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_compare_report_has_the_residuals_side_by_side(tmp_path, capsys, record):
+    code, out, err = _run(["identify", str(record), "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping",
+                           "--report", str(tmp_path / "rep"), "--json", "--no-progress"], capsys)
+    assert code in (0, 3), err
+    names = sorted(p.name for p in (tmp_path / "rep").iterdir())
+    assert "comparison.png" in names and "summary.json" in names
+    assert len(json.loads(out)["comparison"]) == 2
