@@ -27,8 +27,8 @@ import math
 import sys
 from pathlib import Path
 
-from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
 from .._util._parallel import cores
+from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
 
 COMMAND = "identify"
 ORDER = 12
