@@ -33,7 +33,7 @@ from scipy import stats
 
 from .._util._parallel import cores
 from ._lm import levenberg_marquardt
-from ._problem import Predictor
+from ._problem import Predictor, marginal
 from ._result import MISFIT_P
 
 #: A direction counts as determined by one record when its 95 % half-width (in the
@@ -153,10 +153,8 @@ def _record_residuals(e, de, sig, k):
 
 def _joint_std(J, n, out, free, theta) -> np.ndarray:
     """Standard deviations of the joint estimates (SI), initial states marginalised."""
-    from ._fit import _marginal
-
     s2 = float(out["r"] @ out["r"]) / max(1, len(out["r"]) - J.shape[1]) if out["estimated"] else 1.0
-    Jm = _marginal(J, n)
+    Jm = marginal(J, n)
     return np.sqrt(np.maximum(np.diag(s2 * np.linalg.pinv(Jm.T @ Jm)), 0)) * np.abs(free.dtheta_dz(theta))
 
 
@@ -165,13 +163,11 @@ def _refit(fit, k: int, V, z_full, sig):
     (and its initial-state offsets): (coordinates ..., cost), or None if it fails. The
     start is the joint fit's own evaluation of the record (no run), and the record's
     step sequence is the joint fit's, replayed near the optimum."""
-    from ._fit import _Fit
-
     pred = fit.pred
     n, m = len(pred.free.names), len(pred.x0_states)
     one = Predictor(pred.model, [pred.records[k]], pred.free, pred.base, pred.x0_states)
     one.steps, one.rows = [pred.steps[k]], [pred.rows[k]]
-    sub = _Fit(one, dict(sig), REFIT_EVALUATIONS, False)
+    sub = type(fit)(one, dict(sig), REFIT_EVALUATIONS, False)
     x0k = z_full[n + k * m : n + (k + 1) * m]
     z_start = np.concatenate([z_full[:n], x0k])
     preds, e, de = fit._raw(z_full)

@@ -17,7 +17,7 @@ from ..simulation import RunFailed
 from ..simulation._result import progress_bar
 from . import _consistency
 from ._lm import COST_TOL, levenberg_marquardt
-from ._problem import Predictor, free_parameters
+from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, uncertainty
 
@@ -82,11 +82,9 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     starts : int
         Fits from different starts (the first the file's values, the others drawn
         log-normally around it, seeded by ``seed``); the lowest cost wins.
-    seed : int
-        Seed of the extra starts.
-    jobs : int
-        Worker processes for the starts (spawned: a script calling this with jobs > 1
-        needs ``if __name__ == "__main__":``); the result is the same for any jobs.
+    seed, jobs : int
+        Seed of the extra starts; worker processes for them (a script needs a main
+        guard for jobs > 1); the result is the same for any jobs.
     max_evaluations : int
         Model evaluations per fit at most; a fit that needs more did not converge.
     hold_unidentifiable : bool
@@ -352,19 +350,8 @@ class _Fit:
         r, J = self._eval(z, sig)
         progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
         n = len(fr.names)
-        return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": _marginal(J, n), "J_full": J,
+        return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
                 "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
-
-
-def _marginal(J, n: int) -> np.ndarray:
-    """The Jacobian's first ``n`` columns with the directions of the others (the
-    estimated initial states, nuisance parameters) projected out: its Gram matrix is
-    the parameters' Fisher information with the initial states estimated alongside
-    (the Schur complement), so the intervals include what the unknown start costs."""
-    if J.shape[1] == n:
-        return J
-    Jt, Jx = J[:, :n], J[:, n:]
-    return Jt - Jx @ np.linalg.lstsq(Jx, Jt, rcond=1e-12)[0]
 
 
 def _rms(arrays) -> float:

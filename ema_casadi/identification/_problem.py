@@ -398,3 +398,14 @@ def _check_memory(model, rec: Record, ns: int) -> None:
         raise IdentificationError(f"{rec.path}: {rec.n} samples x {model.nx} states x {ns} free parameters need "
                                   f"about {need / 1e9:.3g} GB for the sensitivities, above the {limit / 1e9:.3g} GB "
                                   f"this machine allows one fit; use a shorter record or fewer samples")
+
+
+def marginal(J, n: int) -> np.ndarray:
+    """The Jacobian's first ``n`` columns with the directions of the others (the
+    estimated initial states, nuisance parameters) projected out: its Gram matrix is
+    the parameters' Fisher information with the initial states estimated alongside
+    (the Schur complement), so the intervals include what the unknown start costs."""
+    if J.shape[1] == n:
+        return J
+    Jt, Jx = J[:, :n], J[:, n:]
+    return Jt - Jx @ np.linalg.lstsq(Jx, Jt, rcond=1e-12)[0]
