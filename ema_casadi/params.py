@@ -288,8 +288,33 @@ class Parameters:
         for k, v in overrides.items():
             if k not in d:
                 raise UnknownParameterError(_unknown("Parameters.vector", k, d))
-            d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
+            d[k] = self.checked(k, v, f"Parameters.vector: {k}")
         return np.array([d[n] for n in self.names()], dtype=float)
+
+    def checked(self, name: str, value, where: str | None = None) -> float:
+        """``value`` for the flat parameter ``name`` (SI), checked as a parameter file's
+        value is (a number, finite, in the field's range), else :class:`ParameterError`
+        naming ``where`` (default the name; the command line passes its flag).
+
+        Parameters
+        ----------
+        name : str
+            Flat parameter name (``B``, ``K_i_x``, ``T_eta_2``); an unknown one raises
+            :class:`UnknownParameterError`.
+        value : float
+            The value (SI).
+        where : str, optional
+            How to name it in the message.
+        """
+        where = where or name
+        meta = _flat_meta().get(name)
+        if meta is None:
+            if name in LOOP_FLAGS:
+                return number(value, where, ParameterError)
+            raise UnknownParameterError(_unknown("Parameters.checked", name, _flat_meta()))
+        if not isinstance(value, bool) and isinstance(value, np.generic):
+            value = value.item()
+        return _check_value(where, "", "", meta, value, plain=True, bare=True)
 
     def replace(self, **values: float) -> Parameters:
         """A copy with some flat parameters changed (validated like a file).
@@ -335,6 +360,16 @@ class Parameters:
     def K_t(self) -> float:
         """Torque constant 1.5*pp*psi (N m/A)."""
         return 1.5 * self.motor.pp * self.motor.psi
+
+
+def _flat_meta() -> dict:
+    """Flat name -> the metadata its value is checked with (a table's entry: its item's)."""
+    out = {}
+    for cls in GROUPS.values():
+        for f in fields(cls):
+            meta = {k: v for k, v in f.metadata.items() if k != "table"}
+            out.update({n: meta for n in _flat_names(f)})
+    return out
 
 
 def _flat_names(f) -> list[str]:
@@ -438,7 +473,29 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
     _check_eta_table(src, groups["thermal"], s)
+    _check_relations(src, groups)
     return Parameters(**groups, variants=merged, source=src)
+
+
+#: Largest dead time as a share of the carrier period 1/f_sw: beyond it the dead time,
+#: not the duty, sets the bridge's voltage (the reference: 1.5 us of 62.5 us, 2.4 %).
+DEAD_TIME_SHARE = 0.1
+
+
+def _check_relations(src: str, groups: dict) -> None:
+    """Values valid one by one that mean nothing together: a dead time that eats the
+    carrier period, an actuator pin inside the horn radius (the crank cannot close)."""
+    pw = groups["power"]
+    if pw.t_dead >= DEAD_TIME_SHARE / pw.f_sw:
+        raise ParameterError(f"{src}: [power] t_dead: {pw.t_dead:g} s is {100 * pw.t_dead * pw.f_sw:.3g} % of the "
+                             f"carrier period 1/f_sw = {1 / pw.f_sw:g} s; it must stay below "
+                             f"{100 * DEAD_TIME_SHARE:g} % (DEAD_TIME_SHARE)")
+    af, stroke = groups["airframe"], groups["actuator"].stroke
+    a, r = af.a_pin, af.r_horn
+    if not a > r or not a - r < math.sqrt(a * a - r * r) - stroke:
+        raise ParameterError(f"{src}: [airframe] a_pin: {a:g} m with r_horn {r:g} m and a stroke of +-{stroke:g} m: "
+                             "the crank cannot reach the stroke's ends (need a_pin > r_horn and "
+                             "sqrt(a_pin^2 - r_horn^2) - stroke > a_pin - r_horn)")
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:

@@ -113,6 +113,31 @@ def load(args):
     return params, build_model(params)
 
 
+def overrides(params, flags: dict) -> dict:
+    """Parameter values set by flags, checked as a parameter file's values are, the
+    message naming the flag: ``{"--backlash": ("B", 0.1, 1e-3)}`` (flag -> flat name,
+    value as given or None when not given, factor to SI) -> ``{"B": 1e-4}``.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set the values go into.
+    flags : dict
+        Flag -> (flat parameter name, value or None, factor to SI).
+    """
+    from ..params import ParameterError
+
+    out = {}
+    for flag, (name, value, factor) in flags.items():
+        if value is None:
+            continue
+        try:
+            out[name] = params.checked(name, value * factor, f"{flag} {value:g}")
+        except ParameterError as exc:  # the value as given, not in SI
+            raise UserError(str(exc).split(", got ")[0]) from None
+    return out
+
+
 def _jsonable(obj):
     from pathlib import Path
 

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import time
 
-from . import UserError, check_output_path, load
+from . import UserError, check_output_path, load, overrides
 
 COMMAND = "limit-cycle"
 ORDER = 12
 HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
+#: Most points of the describing-function grid (amplitudes x frequencies).
+MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
 
 
@@ -46,18 +48,20 @@ def add_arguments(p):
 def _axes(args):
     import numpy as np
 
-    from ..signals import SignalError, parse_range
+    from ..signals import SignalError, log_grid
     from ..sinestream import parse_amplitudes, parse_freqs
 
     a_txt, f_txt, t_end = DEFAULTS[args.loop]
-    try:
-        rng = parse_range(args.amplitudes or a_txt, "length", "mm")
-        amps = np.geomspace(rng[0], rng[1], rng[2]) if rng else parse_amplitudes(args.amplitudes, 0.075)
-        freqs = parse_freqs(args.freqs or f_txt)
+    try:  # each axis refused before it is allocated, the grid before any run
+        amps = log_grid(args.amplitudes or a_txt, "length", "mm", "--amplitudes", UserError, MAX_GRID)
+        amps = parse_amplitudes(args.amplitudes, 0.075) if amps is None else amps
+        freqs = log_grid(args.freqs or f_txt, "frequency", "Hz", "--freqs", UserError, MAX_GRID)
+        freqs = parse_freqs(args.freqs) if freqs is None else freqs
     except (SignalError, ValueError) as exc:
         raise UserError(str(exc)) from None
-    if len(amps) < 2 or len(freqs) < 2 or np.any(amps <= 0) or len(amps) * len(freqs) > 400:
-        raise UserError("--amplitudes/--freqs: need 2 to 400 grid points in all, positive amplitudes")
+    if len(amps) < 2 or len(freqs) < 2 or np.any(amps <= 0) or len(amps) * len(freqs) > MAX_GRID:
+        raise UserError(f"--amplitudes/--freqs: {len(amps)} x {len(freqs)} points; need 2 to {MAX_GRID} grid "
+                        "points in all (MAX_GRID), at least 2 per axis, positive amplitudes")
     return amps, freqs, (t_end if args.t_end is None else args.t_end)
 
 
@@ -85,11 +89,7 @@ def run(args) -> dict:
     if args.loop == "aircraft":
         args.variant = [*args.variant, ("airframe", args.airframe)]
     params, model = load(args)
-    over = {}
-    if args.k_i_x is not None:
-        over["K_i_x"] = args.k_i_x
-    if args.backlash is not None:
-        over["B"] = args.backlash * 1e-3
+    over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
     s = setup(model, args.loop, model.p(**over), args.condition)
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
               settle=args.periods // 2)

@@ -26,18 +26,22 @@ import time
 from ..signals import parse_signal
 from ..simulation import SOLVERS, simulate
 from ..simulation._api import check_run
+from ..simulation._inputs import check_inputs
 from ..simulation._pwm import check_switched
 from . import UserError, check_output_path, load
 
 COMMAND = "simulate"
+#: The rod command when --x-cmd is not given (a model that takes x_cmd).
+DEFAULT_X_CMD = "step:1mm@0.01"
 ORDER = 2
 HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
 
 def add_arguments(p):
-    p.add_argument("--x-cmd", default="step:1mm@0.01", metavar="SIGNAL",
+    p.add_argument("--x-cmd", default=None, metavar="SIGNAL",
                    help="commanded rod position (bare numbers in mm; in a CSV file m unless the header names a "
-                        "unit); default step:1mm@0.01")
+                        f"unit); default {DEFAULT_X_CMD} (a model with an airframe is commanded by "
+                        "--input theta_cmd=...)")
     p.add_argument("--f-ext", default="0", metavar="SIGNAL",
                    help="external rod force, positive pushes the rod in (bare numbers in N, also in a CSV file); "
                         "default 0")
@@ -95,18 +99,33 @@ def run(args) -> dict:
         check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
                   event_tol=args.event_tol, labels=FLAGS, error=UserError)
     stroke = params.actuator.stroke
-    try:
-        x_cmd = parse_signal(args.x_cmd, "length", bare="mm", stroke=stroke, duration=args.t_end)
-    except ValueError as exc:
-        raise UserError(f"--x-cmd {exc}") from None
+    x_cmd = None
+    if "x_cmd" in model.inputs:
+        try:
+            x_cmd = parse_signal(args.x_cmd or DEFAULT_X_CMD, "length", bare="mm", stroke=stroke,
+                                 duration=args.t_end)
+        except ValueError as exc:
+            raise UserError(f"--x-cmd {exc}") from None
+    elif args.x_cmd is not None:
+        raise UserError(f"--x-cmd: the model (airframe={model.variants.get('airframe')}) takes no rod command; "
+                        f"it is commanded by {', '.join(n for n in model.inputs if n.endswith('_cmd'))} "
+                        "(--input NAME=SIGNAL)")
     try:
         f_ext = parse_signal(args.f_ext, "force", bare="N", duration=args.t_end)
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
+    given = {"x_cmd": x_cmd, "f_ext": f_ext, **others}
+    flags = {n: f"--{n.replace('_', '-')}" if n in ("x_cmd", "f_ext") else f"--input {n}" for n in given}
+    # the envelope and the sampling: before the run, naming the flag
+    step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
+        {f"--dt-out {dt_out:g} s": dt_out}
+    check_inputs(model, {n: s for n, s in given.items() if s is not None}, model.p(), args.t_end, step, flags,
+                 UserError)
     t0 = time.perf_counter()
-    res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress, **others)
+    res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
+                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress,
+                   **{n: s for n, s in given.items() if s is not None})
     written = []
     if out is not None:
         writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
@@ -114,7 +133,7 @@ def run(args) -> dict:
     if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
         from ..plot_pwm import plot_switched
 
-        full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=None, **others)
+        full = simulate(model, args.t_end, dt=args.dt, dt_out=None, **{n: s for n, s in given.items() if s is not None})
         written.append(str(plot_switched(full, plot)))
     elif plot is not None:
         from ..plotting import plot_simulation

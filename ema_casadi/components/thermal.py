@@ -44,7 +44,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..params import TABLE_MAX
-from ._part import Input, Output, Part, State, der, heat_signal
+from ._part import Bound, Input, Output, Part, State, der, heat_signal
 from .ballscrew import ETA
 
 __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
@@ -53,7 +53,11 @@ __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
 NODES = {"T_w": ("winding", "C_th_w"), "T_h": ("housing", "C_th_h"), "T_s": ("screw", "C_th_s"),
          "T_inv": ("inverter", "C_th_inv")}
 
-T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0)
+#: The cavity temperatures a lumped network means something for (degC, magnitude): a
+#: mission's range is -100...300 degC.
+T_AMB_MAX = 300.0
+T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0,
+              bound=Bound(lambda E: T_AMB_MAX, f"{T_AMB_MAX:g} degC, beyond any cavity temperature"))
 
 
 def eta_table(T, P):

@@ -36,7 +36,7 @@ from ..assembly import Model
 from ..params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
-from ._inputs import _input_signals
+from ._inputs import _input_signals, check_inputs
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -135,6 +135,8 @@ def simulate(
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
+    check_inputs(model, sig, pv, plan.t_end, {f"dt {plan.dt:g} s" if solver == "rk4" else
+                                              f"dt_out {plan.spacing:g} s": plan.dt if solver == "rk4" else plan.spacing})
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _timed(model, solver, plan.t_end, run, used=used)
 
@@ -184,6 +186,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, given, pv)
+    check_inputs(model, sig, pv, float(t_end), {f"dt {float(dt):g} s": float(dt)})
     out = None if dt_out is None else float(dt_out)
     return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
                                                                     bool(jit), bool(progress)), dt=float(dt))

@@ -7,7 +7,7 @@ import numpy as np
 from .._checks import describe
 from .._kwargs import check_keywords
 from ..assembly import Model
-from ..signals import Signal, SignalError, constant, parse_signal
+from ..signals import Signal, SignalError, check_signal, constant, parse_signal
 
 
 def _as_signal(value, name: str, kind: str) -> Signal:
@@ -43,6 +43,40 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
         sig[name] = _as_signal(value, name, inp.kind)
     return sig
+
+
+def check_inputs(model: Model, sig: dict, pv, t_end: float, sampling: dict, labels: dict | None = None,
+                 error: type = SignalError) -> None:
+    """Every driving signal against the model's envelope (its input's declared bound)
+    and the Nyquist frequency of the run's sampling, before the run (SPEC §7).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    sig : dict
+        Input name -> Signal.
+    pv : array_like
+        Parameter vector (SI).
+    t_end : float
+        The run's length (s).
+    sampling : dict
+        Label -> sampling interval (s), e.g. ``{"dt 5e-06 s": 5e-6}``.
+    labels : dict, optional
+        Input name -> how to name it (``{"x_cmd": "--x-cmd"}``).
+    error : type
+        The exception raised.
+    """
+    labels = labels or {}
+    bounds = model.envelope(pv)
+    for name, s in sig.items():
+        inp = model.input_info[name]
+        why = f" ({inp.bound.why})" if inp.bound is not None else ""
+        try:
+            check_signal(s, labels.get(name, name), SignalError, t_end, limit=bounds.get(name), unit=inp.unit,
+                         sampling=sampling)
+        except SignalError as exc:
+            raise error(f"{exc}{why}" if "beyond the" in str(exc) else str(exc)) from None
 
 
 def _input_matrix(model, sig, t):
