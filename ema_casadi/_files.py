@@ -295,6 +295,17 @@ def _probe(folder: Path, what: str) -> None:
     os.unlink(name)
 
 
+def _given(path, what: str) -> Path:
+    """``path`` as a Path; an empty one is refused (it would mean wherever the user
+    stands), as is one naming no file (``.``, ``/``)."""
+    if not str(path).strip():
+        raise OutputPathError(f"{what}: empty path; name the output")
+    p = Path(path)
+    if p.name in ("", ".", ".."):
+        raise OutputPathError(f"{what}: names no file or folder of its own; name the output")
+    return p
+
+
 def check_file(path: str | Path, what: str | None = None) -> Path:
     """Check that the file ``path`` can be written (before any work); returns it.
 
@@ -305,8 +316,8 @@ def check_file(path: str | Path, what: str | None = None) -> Path:
     what : str, optional
         How to name it in the message (default the path), e.g. ``"--out run.csv"``.
     """
-    path = Path(path)
     what = what or str(path)
+    path = _given(path, what)
     if path.is_dir():
         raise OutputPathError(f"{what}: is a folder; expected a file name")
     _probe(path.parent, what)
@@ -330,8 +341,8 @@ def check_folder(path: str | Path, names=(), what: str | None = None) -> Path:
     what : str, optional
         How to name it in the message (default the path), e.g. ``"--out out"``.
     """
-    path = Path(path)
     what = what or str(path)
+    path = _given(path, what)
     if path.exists() and not path.is_dir():
         raise OutputPathError(f"{what}: exists and is not a folder")
     _probe(path.parent, what)

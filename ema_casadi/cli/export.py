@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
-from . import UserError, check_output_path, load
+from . import UserError, check_output_path, load, refuse_unused
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
@@ -74,9 +74,23 @@ def _run_model_export(args) -> dict:
             **{k: v for k, v in r.items() if k != "path"}}
 
 
+def _applicable(args) -> None:
+    """Flags that mean nothing for the format given are refused, not ignored."""
+    if args.out is not None and not args.out.strip():
+        raise UserError("--out: empty path; name the output")
+    if args.format != "fmu-cs":
+        refuse_unused(args, {"--fmi-version": "fmi_version"}, f"to --format {args.format} (fmu-cs only; fmu-me is "
+                      "always FMI 3.0)")
+    if args.format in LINEAR_FORMATS or args.format == "fmu-me":
+        refuse_unused(args, {"--dt": "dt"}, f"to --format {args.format} (nothing steps)")
+    if args.format not in LINEAR_FORMATS:
+        refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
+
+
 def run(args) -> dict:
     from ..export import ExportError, export_function, save_linear
 
+    _applicable(args)
     if _model_export(args):
         return _run_model_export(args)
 

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import time
 
-from . import UserError, check_output_path, load, overrides
+from ..simulation._api import check_run
+
+from . import UserError, airframe_variant, check_output_path, load, overrides, refuse_unused
 
 COMMAND = "limit-cycle"
 ORDER = 12
@@ -25,9 +27,9 @@ DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300u
 
 def add_arguments(p):
     p.add_argument("--loop", choices=("position", "aircraft"), default="position", help="loop break; default position")
-    p.add_argument("--airframe", choices=("b747", "transport"), default="b747",
-                   help="airframe of the aircraft loop (ignored for position); default b747")
-    p.add_argument("--condition", default="cruise_sl", help="flight condition of the aircraft loop")
+    p.add_argument("--airframe", choices=("b747", "transport"), default=None,
+                   help="airframe of the aircraft loop (the same as --variant airframe=...); default b747")
+    p.add_argument("--condition", default=None, help="flight condition of the aircraft loop; default cruise_sl")
     p.add_argument("--amplitudes", default=None,
                    help="amplitudes at the break: A0-A1:N (log-spaced) or a list (bare numbers mm); "
                         "default 1um-30um:7 (position), 3um-300um:7 (aircraft)")
@@ -87,8 +89,16 @@ def run(args) -> dict:
         raise UserError("--dt in (0, 1e-3] s, --periods 4..200, --t-end 0..7200 s")
     t0 = time.perf_counter()
     if args.loop == "aircraft":
-        args.variant = [*args.variant, ("airframe", args.airframe)]
+        airframe_variant(args, "b747", ("b747", "transport"))
+    else:
+        refuse_unused(args, {"--airframe": "airframe", "--condition": "condition"}, "to the position loop "
+                      "(give --loop aircraft)")
+    args.condition = args.condition or "cruise_sl"
     params, model = load(args)
+    if t_end > 0:  # the confirming run's size and step, named by the flags
+        spacing = max(args.dt, 1e-4 if args.loop == "position" else 1e-3)  # what confirm_cycle keeps
+        check_run(model, t_end, dt=args.dt, dt_out=spacing,
+                  labels={"t_end": "--t-end", "dt": "--dt", "dt_out": "its sample spacing"}, error=UserError)
     over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
     s = setup(model, args.loop, model.p(**over), args.condition)
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,

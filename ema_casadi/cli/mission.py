@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from ..mission import FAST_DT
-from . import UserError, _jsonable, positionals
+from . import UserError, _jsonable, check_output_dir, positionals
 
 COMMAND = "mission"
 #: The mission run without a MISSION.toml: ~20 minutes of a regional-jet flight.
@@ -54,12 +54,7 @@ def _check(args) -> Path:
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    if not out.exists() and not out.parent.exists():
-        raise UserError(f"--out {out}: folder {out.parent} does not exist")
-    return out
+    return Path(args.out)
 
 
 def run(args) -> dict:
@@ -68,11 +63,13 @@ def run(args) -> dict:
 
     out = _check(args)
     args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
+    stem = Path(args.mission).stem
+    names = {"csv": f"{stem}.csv", "png": f"{stem}.png", "json": f"{stem}_summary.json"}
+    check_output_dir(args.out, names.values(), "--out")  # before any work; the folder is assembled aside
+    paths = {k: out / n for k, n in names.items()}
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)
-        stem = Path(args.mission).stem
-        paths = {"csv": out / f"{stem}.csv", "png": out / f"{stem}.png", "json": out / f"{stem}_summary.json"}
         res = run_mission(params, mission, dict(args.variant), dt=args.dt, dt_out=args.dt_out,
                           progress=not args.quiet)
     except MissionError as exc:
@@ -80,14 +77,14 @@ def run(args) -> dict:
     except MissionFailed as exc:
         sys.stderr.write(f"ema mission: failed: {exc}\n")
         raise SystemExit(3) from None
-    out.mkdir(exist_ok=True)
-    summary = res.summary()
-    res.to_csv(paths["csv"], dt=args.csv_dt)
-    res.plot(paths["png"])
-    summary["written"] = [str(p) for p in paths.values()]
-    from .._files import write_text
+    from .._files import atomic_dir, write_text
 
-    write_text(paths["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
+    summary = res.summary()
+    summary["written"] = [str(p) for p in paths.values()]
+    with atomic_dir(out) as tmp:  # the folder appears whole, or not at all
+        res.to_csv(tmp / names["csv"], dt=args.csv_dt)
+        res.plot(tmp / names["png"])
+        write_text(tmp / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary
 
 

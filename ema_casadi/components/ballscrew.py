@@ -10,7 +10,7 @@ from ._part import MARGIN, Bound, Input, Output, Part, State, der
 from .motor import no_load_speed, shaft
 
 __all__ = [
-    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "P_BLEND",
+    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "standstill_force", "P_BLEND",
     "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA",
 ]
 
@@ -138,6 +138,21 @@ def held_force(P):
         Parameter values by flat name (uses ``pp``, ``psi``, ``I_max``, ``p``, ``eta_inv``).
     """
     return 1.5 * P.pp * P.psi * P.I_max / (P.p / (2 * math.pi) * P.eta_inv)
+
+
+def standstill_force(P):
+    """Largest rod force the actuator holds at standstill at its current limit (N;
+    54.5 kN on the reference set): the torque K_t I_max through the screw-nut factor at
+    the middle of its blend at rest, (1/eta + eta_inv)/2. A load above it pushes the rod
+    back whatever the command: no response is measured there.
+
+    Parameters
+    ----------
+    P : SimpleNamespace or Parameters-like
+        Values by flat name (uses ``pp``, ``psi``, ``I_max``, ``p``, ``eta``, ``eta_inv``).
+    """
+    g = 0.5 / P.eta + 0.5 * P.eta_inv
+    return 1.5 * P.pp * P.psi * P.I_max * 2 * math.pi / P.p / g
 
 
 # ---- physical envelope (SPEC §7): what a run may do before it is garbage -------------

@@ -7,11 +7,13 @@ import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
-from .._checks import read_toml
+from .._checks import budget, read_toml
+from ..components.ballscrew import standstill_force
 from ..params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
@@ -30,6 +32,9 @@ _TOP = {"mission", "model", "limits", "segment"}
 _MISSION_KEYS = {"name", "T_start", "description"}
 _SEGMENT_KEYS = {"name", "duration", "x_cmd", "f_ext", "T_amb"}
 _SAMPLE_RATE = 1000.0  # Hz: commands and loads are checked against the envelope on this grid
+_CHUNK = 1_000_000  # samples checked at a time
+#: Most envelope samples of one segment: 1e5 s, the MAX_STEPS of the full model's step.
+_MAX_CHECKED = 1e8
 
 
 class MissionError(ValueError):
@@ -321,17 +326,21 @@ def _cavity(where: str, value, duration: float) -> Signal:
 def _check_envelope(where: str, seg: Segment, params: Parameters) -> None:
     """Commands within the stroke, loads within what the actuator holds, cavity
     temperatures in range: sampled over the segment before any simulation."""
-    t = np.linspace(0.0, seg.duration, max(2, int(seg.duration * _SAMPLE_RATE) + 1))
+    n = max(2, int(seg.duration * _SAMPLE_RATE) + 1)
+    for start in range(0, n, _CHUNK):  # a long segment in pieces: never one huge grid
+        t = np.linspace(0.0, seg.duration, n)[start:start + _CHUNK] if n <= _CHUNK else \
+            np.arange(start, min(n, start + _CHUNK)) * (seg.duration / (n - 1))
+        _check_samples(where, seg, params, t)
+
+
+def _check_samples(where: str, seg: Segment, params: Parameters, t: np.ndarray) -> None:
     stroke = params.actuator.stroke
     x = seg.x_cmd(t)
     if np.max(np.abs(x)) > stroke:
         k = int(np.argmax(np.abs(x)))
         raise MissionError(f"{where} x_cmd: reaches {x[k] * 1e3:.4g} mm at {t[k]:.4g} s, beyond the stroke "
                            f"+-{stroke * 1e3:.4g} mm")
-    # the force the current limit holds at standstill, where the screw-nut factor sits at
-    # the middle of its blend, (1/eta + eta_inv)/2 (README: 54.5 kN)
-    g = 0.5 / params.screw.eta + 0.5 * params.screw.eta_inv
-    F_hold = params.motor.I_max * params.K_t * 2 * math.pi / params.screw.p / g
+    F_hold = standstill_force(SimpleNamespace(**params.as_dict()))  # README: 54.5 kN
     f = seg.f_ext(t)
     if np.max(np.abs(f)) > F_hold:
         k = int(np.argmax(np.abs(f)))
@@ -372,9 +381,13 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
         raise MissionError(f"{source}: expected one or more [[segment]] tables")
     stroke = params.actuator.stroke
     segments = []
+    seen = {}
     for k, tab in enumerate(raw, 1):
         label = str(tab.get("name", f"segment {k}"))
         where = f"{source}: segment {k} ('{label}')"
+        if label in seen:  # the report's rows are by name: two of one name cannot both be read
+            raise MissionError(f"{where} name: '{label}' is also the name of segment {seen[label]}; names must differ")
+        seen[label] = k
         _keys(where, tab, _SEGMENT_KEYS)
         if "duration" not in tab:
             raise MissionError(f"{where}: missing key 'duration' (s)")
@@ -383,6 +396,10 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
         dur = _number(f"{where} duration", tab["duration"], "time", "s")
         if dur <= 0:
             raise MissionError(f"{where} duration: must be positive, got {dur:g} s")
+        # the envelope is sampled at _SAMPLE_RATE: its grid refused before it is allocated
+        budget(dur * _SAMPLE_RATE, _MAX_CHECKED, f"{where} duration {dur:g} s", MissionError,
+               unit="envelope samples", item_bytes=0, hint=f"at most {_MAX_CHECKED / _SAMPLE_RATE:g} s, "
+               "as long as MAX_STEPS steps of the full model's 1e-4 s")
         seg = Segment(
             name=label, duration=dur,
             x_cmd=_signal(f"{where} x_cmd", tab.get("x_cmd", "0"), "length", "mm", stroke, dur),
