@@ -32,7 +32,7 @@ from pathlib import Path
 
 __all__ = [
     "atomic_path", "atomic_dir", "write_text", "write_with", "transaction", "scratch_dir", "remove_temporaries",
-    "check_file", "check_folder", "OutputPathError", "after_commit",
+    "check_file", "check_folder", "OutputPathError", "after_commit", "on_error",
 ]
 
 
@@ -47,6 +47,8 @@ _live: set[Path] = set()
 _staged: list | None = None
 #: callables of the open transaction to run once its renames are done
 _after: list = []
+#: callables of the open transaction to run if it fails with an error (not an interrupt)
+_on_error: list = []
 
 
 def _temp_name(path: Path, suffix: str = "") -> Path:
@@ -116,14 +118,42 @@ def atomic_path(path: str | Path, suffix: str = "", *, stage: bool = True):
     with _lock:
         _live.add(tmp)
     try:
-        yield tmp
-        if stage:
-            _finish(tmp, path, folder=False)
-        else:
-            _commit(tmp, path, folder=False)
+        with _cannot_write(path):
+            yield tmp
+            if stage:
+                _finish(tmp, path, folder=False)
+            else:
+                _commit(tmp, path, folder=False)
     except BaseException:
         _remove(tmp)
         raise
+
+
+@contextlib.contextmanager
+def _cannot_write(target: Path):
+    """An OSError while an output is written (a full disk, a quota, a read-only
+    filesystem) as one line naming the output: :class:`OutputPathError`."""
+    try:
+        yield
+    except OutputPathError:
+        raise
+    except OSError as exc:
+        raise OutputPathError(f"{_shown(target)}: cannot write ({exc.strerror or exc})") from None
+
+
+#: folders being assembled -> the folder they become (messages name the latter)
+_folders: dict = {}
+
+
+def _shown(target: Path) -> Path:
+    """``target`` as the user named it: a file inside a folder being assembled is named
+    inside the folder it will become."""
+    for tmp, real in list(_folders.items()):
+        try:
+            return real / Path(target).relative_to(tmp)
+        except ValueError:
+            continue
+    return target
 
 
 @contextlib.contextmanager
@@ -143,13 +173,17 @@ def atomic_dir(path: str | Path):
     tmp = _temp_name(path)
     with _lock:
         _live.add(tmp)
+    _folders[tmp] = path
     try:
-        tmp.mkdir()
-        yield tmp  # the files inside are private until the folder moves: not staged
-        _finish(tmp, path, folder=True)
+        with _cannot_write(path):
+            tmp.mkdir()
+            yield tmp  # the files inside are private until the folder moves: not staged
+            _finish(tmp, path, folder=True)
     except BaseException:
         _remove(tmp)
         raise
+    finally:
+        _folders.pop(tmp, None)
 
 
 @contextlib.contextmanager
@@ -172,12 +206,16 @@ def transaction():
         return
     try:
         yield
-    except BaseException:
+    except BaseException as exc:
         with _lock:
             staged, _staged = _staged, None
             _after.clear()
+            undo = list(_on_error) if isinstance(exc, Exception) else []
+            _on_error.clear()
         for tmp, _, _ in staged:
             _remove(tmp)
+        for fn in undo:
+            fn()
         raise
     with _lock:
         staged, _staged = _staged, None
@@ -187,15 +225,35 @@ def transaction():
                     _commit(tmp, target, folder)
                 except OSError as exc:
                     raise OutputPathError(f"{target}: cannot write ({exc.strerror or exc})") from exc
-        except BaseException:
+        except BaseException as exc:
             for tmp, _, _ in staged:
                 _remove(tmp)
             _after.clear()
+            undo = list(_on_error) if isinstance(exc, Exception) else []
+            _on_error.clear()
+            for fn in undo:
+                fn()
             raise
         todo = list(_after)
         _after.clear()
+        _on_error.clear()
     for fn in todo:
         fn()
+
+
+def on_error(fn) -> None:
+    """Call ``fn()`` if the open :func:`transaction` fails with an error (not on an
+    interrupt, not on success); nothing outside a transaction. For what a failed
+    command must not leave: a new sweep journal whose table could not be written.
+
+    Parameters
+    ----------
+    fn : callable
+        Called without arguments.
+    """
+    with _lock:
+        if _staged is not None:
+            _on_error.append(fn)
 
 
 def after_commit(fn) -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _interrupts
-from .._files import after_commit
+from .._files import after_commit, on_error
 from .._parallel import cores, dask_map
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
@@ -158,15 +158,24 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     columns, text = _columns(spec)
     done, journal = _previous(spec, out, columns, text, resume)
     todo = [r for r in spec.runs if r.index not in done]
+    # a journal this sweep starts goes with a failure (a scheduler out of reach, a full
+    # disk: the next run must not be refused for it); an interrupt keeps it for --resume
+    new_journal = journal is not None and not journal.path.exists()
     if todo and journal is not None:
         journal.open()
     fresh = {}
     n_jobs = 1 if scheduler else (jobs or cores())
     try:
         _execute(spec, todo, n_jobs, backend, scheduler, fresh, journal, progress, len(spec.runs) - len(todo))
+    except Exception:
+        if new_journal:
+            journal.remove()
+        raise
     finally:
         if journal is not None:
             journal.close()
+    if new_journal:
+        on_error(journal.remove)
     rows = [done.get(r.index) or fresh[r.index] for r in spec.runs]
     info = {"runs": len(rows), "resumed": len(spec.runs) - len(todo), "computed": len(todo),
             "failed": sum(r["status"] != "ok" for r in rows), "wall_time": time.perf_counter() - t0,
@@ -175,7 +184,12 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
             "scheduler": scheduler, "fingerprint": spec.fingerprint()}
     result = SweepResult(spec=spec, rows=rows, columns=columns, info=info)
     if out is not None:
-        write_table(out, rows, columns)
+        try:
+            write_table(out, rows, columns)
+        except Exception:
+            if new_journal:
+                journal.remove()
+            raise
         if journal is not None:
             after_commit(journal.remove)
     return result
