@@ -117,10 +117,14 @@ def _run_batch(spec: SweepSpec, runs: list) -> list:
 
 
 def _process_init():
-    """A pool process leaves Ctrl-C to the sweep's own process (which ends the pool)."""
+    """A pool process leaves Ctrl-C to the sweep's own process (which ends the pool),
+    and ends with it when it dies (killed: no orphans)."""
     import signal
 
+    from .._parallel import die_with_parent
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent()
 
 
 # -- the driver ------------------------------------------------------------------
