@@ -369,6 +369,8 @@ def main(argv=None) -> int:
         try:
             _interrupts.replay_early()  # a signal that came during start-up
             status = _run(argv, stop)
+            if process:  # done and reported: a late signal must not kill the process silently
+                _interrupts.finished()
         except _interrupts.Interrupted as exc:
             status = stop.report(exc.signum)
         except KeyboardInterrupt:

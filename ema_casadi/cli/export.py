@@ -18,6 +18,8 @@ Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
 
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
@@ -66,8 +68,9 @@ def _run_model_export(args) -> dict:
     params, model = load(args)
     try:
         r = export_model(model, out, args.format, dt=args.dt, fmi_version=args.fmi_version)
-    except ExportError as exc:
-        raise UserError(f"--format {args.format}: {exc}") from None
+    except ExportError as exc:  # an argument of export_model is the flag that set it
+        text = re.sub(r"^(dt|fmi_version)\b", lambda m: "--" + m.group(1).replace("_", "-"), str(exc))
+        raise UserError(f"--format {args.format}: {text}") from None
     except OSError as exc:
         raise UserError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
     return {"model": args.model, "variants": model.variants, "format": args.format, "written": [str(r["path"])],
@@ -78,12 +81,10 @@ def _applicable(args) -> None:
     """Flags that mean nothing for the format given are refused, not ignored."""
     if args.out is not None and not args.out.strip():
         raise UserError("--out: empty path; name the output")
-    if args.format != "fmu-cs":
-        refuse_unused(args, {"--fmi-version": "fmi_version"}, f"to --format {args.format} (fmu-cs only; fmu-me is "
-                      "always FMI 3.0)")
-    if args.format in LINEAR_FORMATS or args.format == "fmu-me":
-        refuse_unused(args, {"--dt": "dt"}, f"to --format {args.format} (nothing steps)")
-    if args.format not in LINEAR_FORMATS:
+    if args.format in LINEAR_FORMATS:  # the model formats check theirs (ema_casadi.fmu)
+        refuse_unused(args, {"--fmi-version": "fmi_version", "--dt": "dt"},
+                      f"to --format {args.format} (a linear model: nothing steps, no FMI)")
+    else:
         refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
 
 

@@ -14,13 +14,14 @@ Example: ema mission models/cesa_ema.toml models/mission_regional.toml --out out
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
 from pathlib import Path
 
 from ..mission import FAST_DT
-from . import UserError, _jsonable, check_output_dir, positionals
+from . import UserError, _jsonable, check_output_dir, check_output_path, positionals
 
 COMMAND = "mission"
 #: The mission run without a MISSION.toml: ~20 minutes of a regional-jet flight.
@@ -54,6 +55,8 @@ def _check(args) -> Path:
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
+    if not args.out.strip():
+        raise UserError("--out: empty path; name the output folder")
     return Path(args.out)
 
 
@@ -65,8 +68,14 @@ def run(args) -> dict:
     args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
     stem = Path(args.mission).stem
     names = {"csv": f"{stem}.csv", "png": f"{stem}.png", "json": f"{stem}_summary.json"}
-    check_output_dir(args.out, names.values(), "--out")  # before any work; the folder is assembled aside
+    # before any work: a new folder is assembled aside and moved in whole; into an
+    # existing one each file is written aside and all are renamed at the end
+    new_folder = not out.is_dir()
+    if new_folder:
+        check_output_dir(args.out, names.values(), "--out")
     paths = {k: out / n for k, n in names.items()}
+    for p in () if new_folder else paths.values():
+        check_output_path(str(p), (p.suffix,), "--out")
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)
@@ -81,10 +90,10 @@ def run(args) -> dict:
 
     summary = res.summary()
     summary["written"] = [str(p) for p in paths.values()]
-    with atomic_dir(out) as tmp:  # the folder appears whole, or not at all
-        res.to_csv(tmp / names["csv"], dt=args.csv_dt)
-        res.plot(tmp / names["png"])
-        write_text(tmp / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
+    with atomic_dir(out) if new_folder else contextlib.nullcontext(out) as folder:  # whole, or not at all
+        res.to_csv(folder / names["csv"], dt=args.csv_dt)
+        res.plot(folder / names["png"])
+        write_text(folder / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary
 
 

@@ -102,7 +102,7 @@ def run(args) -> dict:
     x_cmd = None
     if "x_cmd" in model.inputs:
         try:
-            x_cmd = parse_signal(args.x_cmd or DEFAULT_X_CMD, "length", bare="mm", stroke=stroke,
+            x_cmd = parse_signal(DEFAULT_X_CMD if args.x_cmd is None else args.x_cmd, "length", bare="mm", stroke=stroke,
                                  duration=args.t_end)
         except ValueError as exc:
             raise UserError(f"--x-cmd {exc}") from None

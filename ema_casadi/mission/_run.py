@@ -29,8 +29,9 @@ FULL_DT = 1e-4
 FAST_DT = 2e-4
 
 #: Largest relative residual of the heat balance (losses = stored + to ambient) a
-#: mission may report; the reference mission closes to 0.05 % (README "Missions").
-HEAT_RESIDUAL_TOL = 0.01
+#: mission may report: the reference mission closes to 0.05 % (README "Missions"), a
+#: 5 s mission to 3 % (the sampling of the losses' first seconds); 10 % is no answer.
+HEAT_RESIDUAL_TOL = 0.1
 
 #: Signals kept besides the losses, the temperature states and the heat flows.
 KEPT = ("x_cmd", "x_rod", "f_ext", "T_amb", "i_q", "R_w", "psi_m", "eta_screw", "P_dc", "P_load", "P_amb",
@@ -128,7 +129,7 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
                            f"the sample spacing dt_out {dt_out:g} s: it would not be resolved")
     model = _model(params, mission, variants)
     # the whole run's size and time before anything is built: a mistake, not a failed run
-    check_run(model, _blocks(mission.duration, dt, dt_out, block)[-1][0] + dt_out, dt=dt, dt_out=dt_out,
+    check_run(model, sum(n for _, n in _blocks(mission.duration, dt, dt_out, block)), dt=dt, dt_out=dt_out,
               labels={"t_end": f"{mission.source}: the mission's {mission.duration:g} s", "dt": "dt",
                       "dt_out": "dt_out"}, error=MissionError)
     temps = model.states_with("temperature")
