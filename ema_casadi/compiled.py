@@ -129,7 +129,7 @@ def _read_index(folder: Path) -> dict:
     except FileNotFoundError:
         return {}
     except (OSError, ValueError):
-        _note(f"compile cache {folder / INDEX} is unreadable; its libraries are rebuilt")
+        _note(f"compile cache {folder / INDEX} is unreadable; its libraries are rebuilt", "index")
         return {}
 
 

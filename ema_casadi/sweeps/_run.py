@@ -116,17 +116,6 @@ def _run_batch(spec: SweepSpec, runs: list) -> list:
     return out
 
 
-def _process_init():
-    """A pool process leaves Ctrl-C to the sweep's own process (which ends the pool),
-    and ends with it when it dies (killed: no orphans)."""
-    import signal
-
-    from .._parallel import die_with_parent
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    die_with_parent()
-
-
 # -- the driver ------------------------------------------------------------------
 def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = None, backend: str = "processes",
           scheduler: str | None = None, resume: bool = False, progress: bool = False):
@@ -292,8 +281,13 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
         from concurrent.futures import ProcessPoolExecutor
 
         _quiet_resource_tracker()
+        import os
+
+        from .._parallel import worker_init
+
+        # the workers leave Ctrl-C to this process and die with it (killed: no orphans)
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_process_init)
+                                   initializer=worker_init, initargs=(os.getpid(),))
     try:
         pending = {pool.submit(_run_batch, spec, b) for b in batches}
         while pending:

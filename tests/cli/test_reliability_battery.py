@@ -271,3 +271,72 @@ def test_the_battery_covers_every_class():
     assert len(CASES) >= 120
     prefixes = {c.split("-")[0] for c in CASES}
     assert prefixes == {"size", "out", "value", "unused", "crash", "nyquist", "failed", "names"}
+
+
+# -- the Python API: the same shared checks, the toolkit's own exception types ---------------------
+@pytest.fixture(scope="module")
+def api(params, model_cache):
+    return {"params": params, "model": model_cache(), "thermal": model_cache(thermal="lumped")}
+
+
+def _api_cases():
+    import ema_casadi as E
+    from ema_casadi import _checks, frequency, signals
+
+    nan = float("nan")
+    return {
+        "checked-negative": (lambda c: c["params"].checked("B", -1e-4), E.ParameterError, "B"),
+        "checked-unknown": (lambda c: c["params"].checked("Bx", 1.0), TypeError, "Bx"),
+        "checked-where": (lambda c: c["params"].checked("K_i_x", -1.0, "--k-i-x -1"), E.ParameterError, "--k-i-x"),
+        "p-override-negative": (lambda c: c["model"].p(K_i_x=-3000.0), E.ParameterError, "K_i_x"),
+        "p-override-zero-positive": (lambda c: c["model"].p(M=0.0), E.ParameterError, "M"),
+        "p-override-nan": (lambda c: c["model"].p(B=nan), E.ParameterError, "B"),
+        "replace-t-dead": (lambda c: c["params"].replace(t_dead=1e-3), E.ParameterError, "t_dead"),
+        "replace-a-pin": (lambda c: c["params"].replace(a_pin=0.1), E.ParameterError, "a_pin"),
+        "bandwidth-level-positive": (lambda c: frequency.bandwidth(E.closed_loop(c["model"]), level_db=10),
+                                     E.LinearizationError, "level_db"),
+        "op-f-ext-huge": (lambda c: E.operating_point(c["model"], f_ext=1e300), E.OperatingPointError, "f_ext"),
+        "op-v-rod-huge": (lambda c: E.operating_point(c["model"], v_rod=-1e30), E.OperatingPointError, "v_rod"),
+        "simulate-x-cmd-huge": (lambda c: E.simulate(c["model"], 0.001, x_cmd=E.Signal.step(1e300)),
+                                E.SignalError, "x_cmd"),
+        "simulate-f-ext-huge": (lambda c: E.simulate(c["model"], 0.001, f_ext=1e300), E.SignalError, "f_ext"),
+        "simulate-T-amb-huge": (lambda c: E.simulate(c["thermal"], 0.001, T_amb=1e6), E.SignalError, "T_amb"),
+        "simulate-aliasing": (lambda c: E.simulate(c["model"], 0.001, x_cmd=E.Signal.sine(1e-3, 1e9), dt=5e-6),
+                              E.SignalError, "Nyquist"),
+        "simulate-aliasing-cvodes": (lambda c: E.simulate(c["model"], 0.01, x_cmd=E.Signal.sine(1e-3, 1e4),
+                                                          solver="cvodes", dt_out=1e-4), E.SignalError, "Nyquist"),
+        "budget": (lambda c: _checks.budget(1e12, 1e6, "grid", E.SweepError), E.SweepError, "1e+12"),
+        "budget-nan": (lambda c: _checks.budget(nan, 1e6, "grid", E.SweepError), E.SweepError, "grid"),
+        "log-grid-reversed": (lambda c: signals.log_grid("30-1:5", "frequency", "Hz", "--freqs", E.SignalError, 10),
+                              E.SignalError, "increasing"),
+        "log-grid-huge": (lambda c: signals.log_grid("1-30:1000000000000", "frequency", "Hz", "--freqs",
+                                                     E.SignalError, 10**5), E.SignalError, "1e+12"),
+        "number-negative": (lambda c: _checks.number(0.0, "level", E.SweepError, negative=True), E.SweepError,
+                            "negative"),
+    }
+
+
+API = list(_api_cases())
+
+
+@pytest.mark.parametrize("case_id", API)
+def test_api(case_id, api):
+    call, error, offender = _api_cases()[case_id]
+    with pytest.raises(error) as exc:
+        call(api)
+    msg = str(exc.value)
+    assert "\n" not in msg and offender in msg, msg
+
+
+def test_a_load_beyond_the_hold_force_is_a_failed_point_not_a_number(params):
+    """60 kN is above the 54.5 kN the reference actuator holds at standstill: that
+    point has no response to measure (status failed, NaN), the 0 kN point runs."""
+    import numpy as np
+
+    import ema_casadi as E
+
+    r = E.sine_stream(params, [1e-3], [1.0], loads=[0.0, 60e3], max_periods=3)
+    rows = r.rows()
+    assert rows[0]["status"] != "failed" and rows[1]["status"] == "failed"
+    assert "holds at standstill" in rows[1]["reason"]
+    assert np.isnan(rows[1]["gain_db"]) and np.isfinite(rows[0]["gain_db"])
