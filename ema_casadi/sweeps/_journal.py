@@ -86,11 +86,14 @@ class Journal:
 
     def open(self) -> None:
         """Open for appending (a new journal gets its first line)."""
-        new = not self.path.exists() or self.path.stat().st_size == 0
         try:
-            self._fh = open(self.path, "a", encoding="utf-8")
-        except OSError as exc:
+            self._open()
+        except OSError as exc:  # a full disk: one line naming the journal
             raise OutputPathError(f"{self.path}: cannot write the journal ({exc.strerror or exc})") from None
+
+    def _open(self) -> None:
+        new = not self.path.exists() or self.path.stat().st_size == 0
+        self._fh = open(self.path, "a", encoding="utf-8")
         if not new:
             # a line cut short by a crash: end it, so that the next row starts a line
             with open(self.path, "rb") as fh:

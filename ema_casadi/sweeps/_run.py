@@ -154,11 +154,11 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     # a journal this sweep starts goes with a failure (a scheduler out of reach, a full
     # disk: the next run must not be refused for it); an interrupt keeps it for --resume
     new_journal = journal is not None and not journal.path.exists()
-    if todo and journal is not None:
-        journal.open()
     fresh = {}
     n_jobs = 1 if scheduler else (jobs or cores())
     try:
+        if todo and journal is not None:
+            journal.open()
         _execute(spec, todo, n_jobs, backend, scheduler, fresh, journal, progress, len(spec.runs) - len(todo))
     except Exception:
         if new_journal:

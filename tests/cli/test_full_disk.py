@@ -8,6 +8,7 @@ a kernel that lets the test mount are needed; the tests are skipped otherwise).
 
 from __future__ import annotations
 
+import os
 import subprocess
 import tempfile
 from pathlib import Path
@@ -41,13 +42,14 @@ def full(tmp_path_factory):
     except (OSError, subprocess.SubprocessError):
         pytest.skip("cannot mount a small tmpfs here (needs root and mount rights): no full filesystem to test on")
     try:
-        with open(where / "filler", "wb") as fh:
-            try:
-                while True:
-                    fh.write(b"\0" * 4096)
-                    fh.flush()
-            except OSError:
-                pass
+        fd = os.open(where / "filler", os.O_WRONLY | os.O_CREAT)
+        try:
+            while True:
+                os.write(fd, b"\0" * 4096)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
         yield where
     finally:
         subprocess.run(["umount", "-l", str(where)], capture_output=True, timeout=10)
