@@ -14,7 +14,8 @@ from __future__ import annotations
 import os
 import threading
 
-__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "die_with_parent", "worker_init"]
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "die_with_parent",
+           "worker_init"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0

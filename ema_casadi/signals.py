@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "log_grid", "check_signal", "constant",
-           "read_text", "decode_utf8", "TIME_NAMES"]
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "log_grid",
+           "check_signal", "constant", "read_text", "decode_utf8", "TIME_NAMES"]
 
 
 class SignalError(ValueError):

@@ -19,7 +19,6 @@ Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
 from __future__ import annotations
 
 import re
-
 from pathlib import Path
 
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS

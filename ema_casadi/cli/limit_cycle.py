@@ -14,7 +14,6 @@ from __future__ import annotations
 import time
 
 from ..simulation._api import check_run
-
 from . import UserError, airframe_variant, check_output_path, load, overrides, refuse_unused
 
 COMMAND = "limit-cycle"

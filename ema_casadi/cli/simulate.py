@@ -102,8 +102,8 @@ def run(args) -> dict:
     x_cmd = None
     if "x_cmd" in model.inputs:
         try:
-            x_cmd = parse_signal(DEFAULT_X_CMD if args.x_cmd is None else args.x_cmd, "length", bare="mm", stroke=stroke,
-                                 duration=args.t_end)
+            x_cmd = parse_signal(DEFAULT_X_CMD if args.x_cmd is None else args.x_cmd, "length", bare="mm",
+                                 stroke=stroke, duration=args.t_end)
         except ValueError as exc:
             raise UserError(f"--x-cmd {exc}") from None
     elif args.x_cmd is not None:

@@ -135,8 +135,8 @@ def simulate(
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
-    check_inputs(model, sig, pv, plan.t_end, {f"dt {plan.dt:g} s" if solver == "rk4" else
-                                              f"dt_out {plan.spacing:g} s": plan.dt if solver == "rk4" else plan.spacing})
+    step = plan.dt if solver == "rk4" else plan.spacing  # what samples the signals
+    check_inputs(model, sig, pv, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _timed(model, solver, plan.t_end, run, used=used)
 

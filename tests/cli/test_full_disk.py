@@ -89,7 +89,12 @@ COMMANDS = {
 }
 
 
-@pytest.mark.parametrize("name", list(COMMANDS))
+#: Longer commands (tens of seconds): run with -m slow.
+SLOW = {"demo": ["demo", REF, "--out", "{full}/demo", "--quiet"],
+        "export-fmu-cs": ["export", REF, "--format", "fmu-cs", "--out", "{full}/x.fmu"]}
+
+
+@pytest.mark.parametrize("name", [*COMMANDS, *(pytest.param(n, marks=pytest.mark.slow) for n in SLOW)])
 def test_a_full_disk_is_one_line_and_leaves_nothing(name, full, tmp_path, capsys, monkeypatch):
     ctx = _inputs(tmp_path)
     tmpdir = tmp_path / "TMPDIR"
@@ -98,7 +103,7 @@ def test_a_full_disk_is_one_line_and_leaves_nothing(name, full, tmp_path, capsys
     monkeypatch.setattr(tempfile, "tempdir", str(tmpdir))
     monkeypatch.chdir(tmp_path)
     before = sorted(p.name for p in full.iterdir())
-    argv = [a.format(full=full, **ctx) for a in COMMANDS[name]]
+    argv = [a.format(full=full, **ctx) for a in {**COMMANDS, **SLOW}[name]]
     status = main(argv)
     out, err = capsys.readouterr()
     assert status == 2, err

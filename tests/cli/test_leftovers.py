@@ -7,7 +7,6 @@ result."""
 from __future__ import annotations
 
 import _thread
-import os
 import signal
 import subprocess
 import sys
@@ -78,7 +77,7 @@ def test_no_worker_outlives_a_killed_sweep_by_a_second(tmp_path):
         proc.kill()
         proc.wait()
         time.sleep(1.0)
-        assert [p for p in workers if _alive(p)] == [], [Path(f"/proc/{p}/status").read_text()[:300] for p in workers if _alive(p)]
+        assert [p for p in workers if _alive(p)] == []
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -115,7 +115,8 @@ EMPTY_OUTPUTS = {
     "sweep-out": [*SW, "--out", ""], "sweep-plot": [*SW, "--plot", ""],
     "freqresp-out": [*FR, "--out", ""], "freqresp-plot": [*FR, "--plot", ""],
     "limit-cycle-plot": [*LC, "--plot", ""], "margins-plot": ["margins", "{model}", "--plot", ""],
-    "bode-plot": ["bode", "{model}", "--points", "5", "--plot", ""], "linearize-out": ["linearize", "{model}", "--out", ""],
+    "bode-plot": ["bode", "{model}", "--points", "5", "--plot", ""],
+    "linearize-out": ["linearize", "{model}", "--out", ""],
     "aircraft-plot-dir": [*AC, "--no-responses", "--plot-dir", ""], "tune-out": ["tune", "{model}", "--out", ""],
 }
 for case_id, argv in EMPTY_OUTPUTS.items():
@@ -171,7 +172,8 @@ NOT_APPLYING = {
     "export-fmi-version-fmu-me": (["export", "{model}", "--format", "fmu-me", "--fmi-version", "2.0"],
                                   ["--fmi-version", "only fmu-cs"]),
     "export-fmi-version-json": (["export", "{model}", "--format", "json", "--fmi-version", "3.0"], "--fmi-version"),
-    "export-fmi-version-c": (["export", "{model}", "--format", "c", "--fmi-version", "2.0"], ["--fmi-version", "only fmu-cs"]),
+    "export-fmi-version-c": (["export", "{model}", "--format", "c", "--fmi-version", "2.0"],
+                             ["--fmi-version", "only fmu-cs"]),
     "export-dt-json": (["export", "{model}", "--format", "json", "--dt", "1e-5"], "--dt"),
     "export-dt-mat": (["export", "{model}", "--format", "mat", "--dt", "1e-5"], "--dt"),
     "export-dt-npz": (["export", "{model}", "--format", "npz", "--dt", "1e-5"], "--dt"),
@@ -217,7 +219,8 @@ for flag, value, extra in (("--x-cmd", "sine:1mm@1e9", []), ("--x-cmd", "sine:1m
         Case([*SIM, *extra, *args], [flag, "Nyquist"]))
 # a load the actuator cannot hold: a failed point, exit 3
 for loads in ("60kN", "-60kN", "0,55kN", "100kN"):
-    add(f"failed-freqresp-load-{loads}", Case([*FR, "--loads", loads], ["above the", "kN the actuator holds"], status=3))
+    add(f"failed-freqresp-load-{loads}", Case([*FR, "--loads", loads], ["above the", "kN the actuator holds"],
+                                              status=3))
 
 # -- messages that name the flags, not internals ---------------------------------------------------
 add("names-limit-cycle-t-end", Case([*LC[:-4], "--t-end", "1.00005", "--periods", "4"], "--t-end 1.00005 s"))
