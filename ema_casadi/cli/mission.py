@@ -62,7 +62,7 @@ def _check(args) -> Path:
 
 def run(args) -> dict:
     from ..mission import MissionError, MissionFailed, load_mission, run_mission
-    from ..params import load_parameters
+    from ..model.params import load_parameters
 
     out = _check(args)
     args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
@@ -86,7 +86,7 @@ def run(args) -> dict:
     except MissionFailed as exc:
         sys.stderr.write(f"ema mission: failed: {exc}\n")
         raise SystemExit(3) from None
-    from .._files import atomic_dir, write_text
+    from .._util._files import atomic_dir, write_text
 
     summary = res.summary()
     summary["written"] = [str(p) for p in paths.values()]

@@ -115,13 +115,7 @@ def run(args) -> dict:
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
-    given = {"x_cmd": x_cmd, "f_ext": f_ext, **others}
-    flags = {n: f"--{n.replace('_', '-')}" if n in ("x_cmd", "f_ext") else f"--input {n}" for n in given}
-    # the envelope and the sampling: before the run, naming the flag
-    step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
-        {f"--dt-out {dt_out:g} s": dt_out}
-    check_inputs(model, {n: s for n, s in given.items() if s is not None}, model.p(), args.t_end, step, flags,
-                 UserError)
+    given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})
     t0 = time.perf_counter()
     res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
                    zoh=args.zoh, event_tol=args.event_tol, progress=args.progress,
@@ -131,12 +125,12 @@ def run(args) -> dict:
         writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
         written.append(str(writer(out)))
     if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
-        from ..plot_pwm import plot_switched
+        from ..plots._pwm import plot_switched
 
         full = simulate(model, args.t_end, dt=args.dt, dt_out=None, **{n: s for n, s in given.items() if s is not None})
         written.append(str(plot_switched(full, plot)))
     elif plot is not None:
-        from ..plotting import plot_simulation
+        from ..plots._base import plot_simulation
 
         written.append(str(plot_simulation(res, plot)))
     info = res.info
@@ -155,6 +149,17 @@ def run(args) -> dict:
         "mode_switches": info.get("mode_switches"),
         "written": written,
     }
+
+
+def _checked(args, model, dt_out, given) -> dict:
+    """The driving signals against the envelope and the sampling, before the run,
+    naming the flags."""
+    flags = {n: f"--{n.replace('_', '-')}" if n in ("x_cmd", "f_ext") else f"--input {n}" for n in given}
+    step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
+        {f"--dt-out {dt_out:g} s": dt_out}
+    check_inputs(model, {n: s for n, s in given.items() if s is not None}, model.p(), args.t_end, step, flags,
+                 UserError)
+    return given
 
 
 def _named_inputs(items, model, stroke, t_end) -> dict:

@@ -12,9 +12,9 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from .._checks import budget, read_toml
-from ..components.ballscrew import standstill_force
-from ..params import Parameters
+from .._util._checks import budget, read_toml
+from ..model.components.ballscrew import standstill_force
+from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
 __all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "NODE_LIMITS",

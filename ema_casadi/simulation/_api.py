@@ -31,9 +31,9 @@ import warnings
 
 import numpy as np
 
-from .._checks import describe, instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import describe, instance, integer, number, vector
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import _input_signals, check_inputs
@@ -91,7 +91,7 @@ def simulate(
     Parameters
     ----------
     model : Model
-        From :func:`~ema_casadi.assembly.build_model`.
+        From :func:`~ema_casadi.model.assembly.build_model`.
     t_end : float
         End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str
@@ -134,11 +134,18 @@ def simulate(
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
-    step = plan.dt if solver == "rk4" else plan.spacing  # what samples the signals
-    check_inputs(model, sig, pv, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+    sig = _checked_inputs(model, _given(x_cmd, f_ext, eta, signals), pv, plan, solver)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _timed(model, solver, plan.t_end, run, used=used)
+
+
+def _checked_inputs(model, given, pv, plan, solver) -> dict:
+    """The run's input signals, checked against the envelope and the Nyquist rate of
+    what samples them (the rk4 step; the output spacing of a variable-step solver)."""
+    sig = _input_signals(model, given, pv)
+    step = plan.dt if solver == "rk4" else plan.spacing
+    check_inputs(model, sig, pv, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+    return sig
 
 
 def _given(x_cmd, f_ext, eta, signals) -> dict:

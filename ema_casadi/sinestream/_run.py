@@ -11,10 +11,10 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from .._checks import describe, instance, vector
-from ..assembly import Model
-from ..components import validate_variants
-from ..params import Parameters
+from .._util._checks import describe, instance, vector
+from ..model.assembly import Model
+from ..model.components import validate_variants
+from ..model.params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
 from ._kernels import _failed, _Settle, _stepper, hybrid_available
@@ -105,8 +105,8 @@ def sine_stream(
 
 def _beyond_hold(params: Parameters, pv, loads) -> dict:
     """Load index -> the reason, for loads above what the actuator holds at standstill
-    (:func:`~ema_casadi.components.ballscrew.standstill_force`)."""
-    from ..components.ballscrew import standstill_force
+    (:func:`~ema_casadi.model.components.ballscrew.standstill_force`)."""
+    from ..model.components.ballscrew import standstill_force
 
     F = standstill_force(SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True))))
     return {i: f"load {load / 1e3:.4g} kN is above the {F / 1e3:.3g} kN the actuator holds at standstill at its "

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import compiled
+from ema_casadi._util import _compiled as compiled
 
 pytestmark = pytest.mark.skipif(compiled.compiler() is None, reason="no C compiler on this machine")
 
@@ -151,7 +151,7 @@ def test_an_unusable_cache_folder_falls_back_to_a_temporary_one(kind, tmp_path, 
         np.testing.assert_array_equal(again, good)
         assert err.count("\n") == 1 and "cannot be used" in err and str(where).rstrip("/") in err, err
         assert so.parent.parent == tmp_path and so.parent.name.startswith("ema_casadi-cache-")
-        from ema_casadi import _files
+        from ema_casadi._util import _files
 
         assert so.parent in _files._live  # removed at exit, and by the interrupt handling
         _files._remove(so.parent)

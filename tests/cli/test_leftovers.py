@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import _interrupts, compiled
+from ema_casadi._util import _compiled as compiled
+from ema_casadi._util import _interrupts
 from ema_casadi.cli import main
 
 REF = str(REFERENCE)
@@ -119,7 +120,7 @@ def test_an_interrupted_build_leaves_nothing_in_tmpdir(tmp_path, monkeypatch):
 
 def test_a_signal_after_a_complete_run_is_ignored_not_fatal():
     code = ("import os, signal, time\n"
-            "from ema_casadi import _interrupts\n"
+            "from ema_casadi._util import _interrupts\n"
             "with _interrupts.handling():\n"
             "    _interrupts.finished()\n"
             "os.kill(os.getpid(), signal.SIGINT); os.kill(os.getpid(), signal.SIGTERM)\n"

@@ -284,7 +284,8 @@ def api(params, model_cache):
 
 def _api_cases():
     import ema_casadi as E
-    from ema_casadi import _checks, frequency, signals
+    from ema_casadi import frequency, signals
+    from ema_casadi._util import _checks
 
     nan = float("nan")
     return {
