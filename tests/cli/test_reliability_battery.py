@@ -344,3 +344,27 @@ def test_a_load_beyond_the_hold_force_is_a_failed_point_not_a_number(params):
     assert rows[0]["status"] != "failed" and rows[1]["status"] == "failed"
     assert "holds at standstill" in rows[1]["reason"]
     assert np.isnan(rows[1]["gain_db"]) and np.isfinite(rows[0]["gain_db"])
+
+
+# -- valid input that used to crash: now a result --------------------------------------------------
+VALID = {
+    "simulate-airframe-b747": ["simulate", REF, "--variant", "airframe=b747", "--t-end", "0.01", "--json"],
+    "simulate-airframe-transport": ["simulate", REF, "--variant", "airframe=transport", "--t-end", "0.01",
+                                    "--input", "theta_cmd=step:0.01@0.001", "--json"],
+    "aircraft-variant-airframe": ["aircraft", REF, "--variant", "airframe=b747", "--no-responses", "--json"],
+}
+
+
+@pytest.mark.parametrize("name", list(VALID))
+def test_valid_input_that_crashed_gives_a_result(name, tmp_path, capsys, monkeypatch):
+    import json
+    import math
+
+    monkeypatch.chdir(tmp_path)
+    assert main(VALID[name]) == 0, capsys.readouterr().err
+    out = json.loads(capsys.readouterr().out)
+    if name.startswith("simulate"):
+        assert out["variants"]["airframe"] == name.rsplit("-", 1)[1]
+        assert all(math.isfinite(v) for v in out["final"].values())
+    else:
+        assert out["airframe"] == "b747", out.get("airframe")
