@@ -1,4 +1,4 @@
-"""Argument checks of the public entry points (SPEC §7).
+"""Argument checks of the public entry points.
 
 A wrong type or value handed to a public function is reported as the toolkit's own
 exception type (the caller passes it: ``SimulationError``, ``OperatingPointError``, ...)
@@ -192,8 +192,8 @@ def size_text(n: float) -> str:
 def budget(count: float, limit: float, what: str, error: type, *, unit: str = "points", item_bytes: float = 8.0,
            limit_name: str = "", hint: str = "") -> int:
     """``count`` as an int when it is at most ``limit``; otherwise ``error`` with the
-    estimate (count and memory), before anything is allocated (SPEC §7: work the
-    machine cannot do is refused up front).
+    estimate (count and memory), before anything is allocated (the reliability contract:
+    work the machine cannot do is refused up front).
 
     Parameters
     ----------

@@ -31,6 +31,9 @@ from ..simulation._pwm import check_switched
 from . import UserError, check_output_path, load
 
 COMMAND = "simulate"
+#: A rod command beyond this many strokes means nothing (the end stops hold the rod at
+#: the stroke): refused.
+COMMAND_STROKES = 3.0
 #: The rod command when --x-cmd is not given (a model that takes x_cmd).
 DEFAULT_X_CMD = "step:1mm@0.01"
 ORDER = 2
@@ -157,8 +160,12 @@ def _checked(args, model, dt_out, given) -> dict:
     flags = {n: f"--{n.replace('_', '-')}" if n in ("x_cmd", "f_ext") else f"--input {n}" for n in given}
     step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
         {f"--dt-out {dt_out:g} s": dt_out}
-    check_inputs(model, {n: s for n, s in given.items() if s is not None}, model.p(), args.t_end, step, flags,
-                 UserError)
+    # a command far beyond the stroke, a cavity temperature no network means: refused
+    bounds = model.envelope()
+    limits = {"x_cmd": (COMMAND_STROKES * model.params.actuator.stroke, f"{COMMAND_STROKES:g} x the stroke")}
+    limits.update({n: (bounds[n], model.input_info[n].bound.why) for n in ("T_amb",) if n in bounds})
+    check_inputs(model, {n: s for n, s in given.items() if s is not None}, args.t_end, step, flags, UserError,
+                 limits)
     return given
 
 

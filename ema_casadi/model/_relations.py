@@ -1,4 +1,4 @@
-"""Checks of parameter values beyond a file's own (SPEC §7): values valid one by one
+"""Checks of parameter values beyond a file's own: values valid one by one
 that mean nothing together, checked when a parameter set is built; a single flat
 value set from elsewhere (a flag, an override), checked as a file's value is."""
 

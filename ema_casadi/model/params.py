@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from .._util._checks import describe, read_toml
+from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
 from ._params_airframe import Airframe
@@ -289,7 +289,7 @@ class Parameters:
         for k, v in overrides.items():
             if k not in d:
                 raise UnknownParameterError(_unknown("Parameters.vector", k, d))
-            d[k] = self.checked(k, v, f"Parameters.vector: {k}")
+            d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
         return np.array([d[n] for n in self.names()], dtype=float)
 
     def checked(self, name: str, value, where: str | None = None) -> float:

@@ -437,7 +437,7 @@ class Signal:
 
 def check_signal(sig: Signal, what: str, error: type, t_end: float, *, limit: float | None = None, unit: str = "",
                  sampling: dict | None = None) -> Signal:
-    """The one plausibility check of a driving signal before a run (SPEC §7): its
+    """The one plausibility check of a driving signal before a run: its
     largest value within ``limit`` and its highest frequency below the Nyquist rate of
     every sampling in ``sampling`` (a sine above it is sampled as garbage: aliasing).
 

@@ -144,7 +144,7 @@ def _checked_inputs(model, given, pv, plan, solver) -> dict:
     what samples them (the rk4 step; the output spacing of a variable-step solver)."""
     sig = _input_signals(model, given, pv)
     step = plan.dt if solver == "rk4" else plan.spacing
-    check_inputs(model, sig, pv, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+    check_inputs(model, sig, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     return sig
 
 
@@ -193,7 +193,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, given, pv)
-    check_inputs(model, sig, pv, float(t_end), {f"dt {float(dt):g} s": float(dt)})
+    check_inputs(model, sig, float(t_end), {f"dt {float(dt):g} s": float(dt)})
     out = None if dt_out is None else float(dt_out)
     return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
                                                                     bool(jit), bool(progress)), dt=float(dt))

@@ -110,7 +110,7 @@ def _beyond_hold(params: Parameters, pv, loads) -> dict:
 
     F = standstill_force(SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True))))
     return {i: f"load {load / 1e3:.4g} kN is above the {F / 1e3:.3g} kN the actuator holds at standstill at its "
-               "current limit: the rod is pushed back, no response to measure"
+               "current limit: the actuator cannot hold the load, no response to measure"
             for i, load in enumerate(loads) if abs(load) > F}
 
 

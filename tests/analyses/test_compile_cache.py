@@ -1,4 +1,4 @@
-"""The compile cache checks what it loads (SPEC §7): a damaged library (garbage,
+"""The compile cache checks what it loads: a damaged library (garbage,
 truncated, empty) is rebuilt with one line on stderr and never loaded; a file the
 cache's index does not record is rebuilt silently; a cache folder that cannot be used
 (a file, read-only) is replaced by a temporary folder with one line on stderr. Every

@@ -1,4 +1,4 @@
-"""A full disk (SPEC §7): every command that writes, with its output on a filesystem
+"""A full disk: every command that writes, with its output on a filesystem
 that has no space left, ends with exit status 2, one line naming the output and the
 reason, no traceback, and leaves nothing on that filesystem (nor in $TMPDIR).
 

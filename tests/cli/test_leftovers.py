@@ -1,4 +1,4 @@
-"""Nothing left behind (SPEC §7): no orphan workers after the sweep is killed, no sweep
+"""Nothing left behind: no orphan workers after the sweep is killed, no sweep
 journal after a scheduler out of reach, no compiler temporaries in $TMPDIR after an
 interrupted build, no half-written mission folder, no silent death by a signal after a
 complete run; and a heat balance beyond its tolerance is a failed mission, not a

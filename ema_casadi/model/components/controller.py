@@ -18,7 +18,7 @@ import math
 
 import casadi as ca
 
-from ._part import MARGIN, Bound, Hold, Input, Loop, Output, Part, State, der
+from ._part import Hold, Input, Loop, Output, Part, State, der
 
 __all__ = [
     "clamp", "pi_law", "position_law", "velocity_law", "current_law_simple", "current_law_foc",
@@ -193,18 +193,13 @@ def _omega_max(P):
     return 2 * math.pi * P.v_max / P.p
 
 
-#: A command beyond a few strokes means nothing (the end stops hold the rod at the
-#: stroke): refused before a run, a failed run if a signal gets there.
-_COMMAND = Bound(lambda E: MARGIN * E.stroke, f"{MARGIN:g} x the stroke")
-
-
 class PositionP(Part):
     """ECU outer loops: P position loop (rate-limited) and PI speed loop (SPEC §2.1)."""
 
     family, value = "controller", "P"
     doc = "position P loop -> speed PI loop -> current command"
     inputs = (
-        Input("x_cmd", "m", "length", "commanded rod position", bound=_COMMAND),
+        Input("x_cmd", "m", "length", "commanded rod position"),
         Input("d_x", "m", "length", "injection at the position feedback (loop break)", injection=True),
         Input("d_w", "rad/s", "angular_velocity", "injection at the speed feedback (loop break)", injection=True),
     )
