@@ -1,4 +1,4 @@
-"""The ``ema`` command line (SPEC §6).
+"""The ``ema`` command line (docs: cli).
 
 Each subcommand lives in its own module of this package and defines ``COMMAND``
 (name), ``ORDER`` (position in ``--help``), ``HELP`` (one line), ``add_arguments(parser)``
@@ -7,7 +7,7 @@ and ``run(args) -> dict`` (the ``--json`` result) plus optionally ``report(resul
 file. Every command takes the model file as first argument, ``--variant KEY=VALUE``
 (repeatable) and ``--json``.
 
-Exit status and stderr (SPEC §7), always one line, never a traceback:
+Exit status and stderr (the reliability contract, docs: reliability), always one line, never a traceback:
 
 - 0: done;
 - 2: a mistake in a file, key, flag or value (checked before any work, outputs
@@ -92,14 +92,32 @@ def positionals(model: str, second: str | None, default: str) -> tuple[str, str]
     return model, second
 
 
+class _VariantHelp:
+    """The ``--variant`` help, generated from the registry when it is shown (importing
+    the parts at every start-up would cost ~0.2 s): every key and option with its values."""
+
+    def __str__(self) -> str:
+        from ..model.components import OPTIONS, REGISTRY
+
+        keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
+        opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
+        return f"variant choice, repeatable: {keys}; options {opts}"
+
+    def __mod__(self, params) -> str:  # argparse expands %(default)s-style fields
+        return str(self) % params
+
+    def __contains__(self, text: str) -> bool:
+        return text in str(self)
+
+    def strip(self) -> str:
+        return str(self).strip()
+
+
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
-                   help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
+                   help=f"parameter file (TOML, docs: physics); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
-                        "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
-                        "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
-                        "stribeck=off|on, iron_loss=off|on")
+                   help=_VariantHelp())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 
@@ -111,99 +129,6 @@ def load(args):
     variants = dict(args.variant)
     params = load_parameters(args.model, variants)
     return params, build_model(params)
-
-
-def overrides(params, flags: dict) -> dict:
-    """Parameter values set by flags, checked as a parameter file's values are, the
-    message naming the flag: ``{"--backlash": ("B", 0.1, 1e-3)}`` (flag -> flat name,
-    value as given or None when not given, factor to SI) -> ``{"B": 1e-4}``.
-
-    Parameters
-    ----------
-    params : Parameters
-        The parameter set the values go into.
-    flags : dict
-        Flag -> (flat parameter name, value or None, factor to SI).
-    """
-    from ..model.params import ParameterError
-
-    out = {}
-    for flag, (name, value, factor) in flags.items():
-        if value is None:
-            continue
-        try:
-            out[name] = params.checked(name, value * factor, f"{flag} {value:g}")
-        except ParameterError as exc:  # the value as given, not in SI
-            raise UserError(str(exc).split(", got ")[0]) from None
-    return out
-
-
-def refuse_unused(args, flags: dict, why: str) -> None:
-    """A flag given where it does not apply is a mistake, not silently ignored:
-    UserError for the first of ``flags`` (flag -> attribute name) whose value was given
-    (not None, False or empty).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed arguments (the flags concerned default to None, False or []).
-    flags : dict
-        Flag -> attribute of ``args``.
-    why : str
-        Why they do not apply (``"with --no-responses (nothing is simulated)"``).
-    """
-    for flag, attr in flags.items():
-        if getattr(args, attr, None) not in (None, False, []):
-            raise UserError(f"{flag}: does not apply {why}")
-
-
-def fill_defaults(args, defaults: dict) -> None:
-    """Set each attribute of ``defaults`` that is None in ``args`` to its default (flags
-    whose default is None so that :func:`refuse_unused` can tell whether they were given).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed arguments.
-    defaults : dict
-        Attribute -> default value.
-    """
-    for attr, value in defaults.items():
-        if getattr(args, attr, None) is None:
-            setattr(args, attr, value)
-
-
-def airframe_variant(args, default: str, choices) -> str:
-    """The airframe of a command with an ``--airframe`` flag: ``--variant airframe=X``
-    and ``--airframe`` name the same choice; both given and different is a mistake
-    (never one silently overriding the other). Appends the choice to ``args.variant``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        With ``variant`` (list of pairs) and ``airframe`` (None when not given).
-    default : str
-        The command's default airframe.
-    choices : iterable of str
-        The airframes the command takes.
-    """
-    given = [v for k, v in args.variant if k == "airframe"]
-    chosen = given[-1] if given else None
-    if chosen is not None and args.airframe is not None and chosen != args.airframe:
-        raise UserError(f"--variant airframe={chosen} and --airframe {args.airframe} disagree; give one")
-    airframe = chosen or args.airframe or default
-    if airframe not in choices:
-        raise UserError(f"--variant airframe={airframe}: this command takes {', '.join(choices)}"
-                        f"{_nearest(airframe, choices)}")
-    args.airframe = airframe
-    args.variant = [*[(k, v) for k, v in args.variant if k != "airframe"], ("airframe", airframe)]
-    return airframe
-
-
-def _nearest(name, options) -> str:
-    from .._util._checks import nearest
-
-    return nearest(name, options)
 
 
 def _jsonable(obj):
@@ -308,6 +233,12 @@ def build_parser():
         mod.add_arguments(p)
         mods[mod.COMMAND] = mod
     return parser, mods
+
+
+def get_parser():
+    """The ``ema`` argument parser with every subcommand (for the documentation's CLI
+    reference, built by sphinx-argparse; :func:`main` parses with the same parser)."""
+    return build_parser()[0]
 
 
 def join_negative_values(argv: list[str], parser) -> list[str]:

@@ -1,4 +1,4 @@
-"""Limit cycles by describing function at a loop break (SPEC §4.9), then the confirming
+"""Limit cycles by describing function at a loop break (docs: aircraft), then the confirming
 long simulation. The nonlinear open loop (loop opened with its break flag) is driven at
 the break by a sine of each amplitude and frequency; L_N(A, f) is its first-harmonic
 response; a limit cycle is a root of L_N = -1 (stable when the loop gain falls through
@@ -14,7 +14,8 @@ from __future__ import annotations
 import time
 
 from ..simulation._api import check_run
-from . import UserError, airframe_variant, check_output_path, load, overrides, refuse_unused
+from . import UserError, check_output_path, load
+from ._flags import airframe_variant, overrides, refuse_unused
 
 COMMAND = "limit-cycle"
 ORDER = 12

@@ -1,4 +1,4 @@
-"""Assembly: composes the chosen parts into one model (SPEC §2).
+"""Assembly: composes the chosen parts into one model (docs: physics).
 
 :func:`build_model` looks every variant key up in the registry
 (:data:`~ema_casadi.model.components.REGISTRY`), collects what the parts declare (states,
@@ -23,7 +23,8 @@ For sampled (zero-order-hold) control the same wiring is also exposed split in t
 :attr:`Model.holds`) and ``sample(x, u, p, h, flags)`` (one ECU update of the loops
 whose flag is 1; flags in :attr:`Model.loops` order).
 
-The physical envelope (SPEC §7): parts declare a :class:`~ema_casadi.model.components.Bound`
+The physical envelope (the reliability contract, docs: reliability): parts declare a
+:class:`~ema_casadi.model.components.Bound`
 on the states and outputs they bring, and named envelope limits (the rod's
 ``overtravel``) that another part may widen (the end stop does);
 :meth:`Model.envelope` evaluates them for a parameter vector, and every simulation
@@ -45,6 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
+from ._derived import Contract
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
 from ._switched import switched_split
@@ -58,7 +60,7 @@ _SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ 
 
 
 @dataclass
-class Model:
+class Model(Contract):
     """An assembled EMA model.
 
     Attributes
@@ -416,7 +418,7 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     params : Parameters
         Parameter set; its ``variants`` are the defaults.
     variants : dict, optional
-        Overrides, e.g. ``{"motor": "dc", "screw": "rigid"}`` (SPEC §6). Unknown keys or
+        Overrides, e.g. ``{"motor": "dc", "screw": "rigid"}`` (docs: cli). Unknown keys or
         values raise :class:`~ema_casadi.model.params.ParameterError` listing the allowed ones.
     """
     if not isinstance(params, Parameters):

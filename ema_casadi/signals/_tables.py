@@ -1,4 +1,4 @@
-"""Signal tables (SPEC §6 Files): CSV files read as :class:`~ema_casadi.signals.Signal`
+"""Signal tables (the file layout, docs: simulate): CSV files read as :class:`~ema_casadi.signals.Signal`
 tables, UTF-8 (a byte-order mark accepted), SI unless a header names a unit; the
 time column ``time`` or ``t``, an optional ``Unit:`` row (the MATLAB Simulation Data
 Inspector layout), a column selector ``FILE.csv:COLUMN``. Used by
@@ -7,7 +7,6 @@ Inspector layout), a column selector ``FILE.csv:COLUMN``. Used by
 from __future__ import annotations
 
 import csv
-import difflib
 import io
 import math
 import re
@@ -15,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._util._checks import read_text_file
+from .._util._checks import nearest, read_text_file
 from ._signal import _NUM, _UNITS, SI_UNIT, Signal, SignalError
 
-#: Names the time column of a table may have (SPEC §6: ``time``; ``t`` accepted).
+#: Names the time column of a table may have (the file layout: ``time``; ``t`` accepted).
 TIME_NAMES = ("time", "t")
 _HEADER_CELL = re.compile(r"^\s*(.*?)\s*(?:\[([^\]]*)\])?\s*$")
 
@@ -112,8 +111,7 @@ def _read_table(path: Path, column: str | None, kind: str, stroke: float | None)
         j = 1
     else:
         if column not in signals:
-            near = difflib.get_close_matches(column, signals, n=1)
-            hint = f" (did you mean '{near[0]}'?)" if near else f"; columns: {', '.join(signals[:8])}"
+            hint = nearest(column, signals, cutoff=0.6) or f"; columns: {', '.join(signals[:8])}"
             raise SignalError(f"{path}: no column '{column}'{hint}")
         j = names.index(column)
     where = f"{path}: column '{names[j]}'"

@@ -12,12 +12,13 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import describe, instance, vector
+from ..linearisation import small_signal_point
 from ..model.assembly import Model
 from ..model.components import validate_variants
 from ..model.params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
-from ._kernels import _failed, _Settle, _stepper, hybrid_available
+from ._kernels import _failed, _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
 
@@ -82,36 +83,40 @@ def sine_stream(
     vset = _variant_set(params, variants)
     check_grid({"variants": len(vset), "loads": len(loads), "amplitudes": len(amplitudes), "freqs": len(freqs)},
                max_periods, jobs or _cores())
-    _check_hybrid(params, vset)
     pv = _param_vector(params, p)
     settle = _Settle(tol_db, tol_deg, max_periods)
     build = (samples, rtol, atol, hybrid_dt)
     tasks = _tasks(params, vset, build, pv, loads, amplitudes, freqs)
     n_jobs = jobs or _cores()
-    held = _beyond_hold(params, pv, loads)  # no response to measure: failed points, not numbers
-    tasks, beyond = [t for t in tasks if t[0][1] not in held], [t for t in tasks if t[0][1] in held]
+    held = _beyond_hold(vset, pv, loads)  # no response to measure: failed points, not numbers
+    tasks, beyond = [t for t in tasks if t[0][:2] not in held], [t for t in tasks if t[0][:2] in held]
     if scheduler:
         results = _run_dask(scheduler, tasks, params, build, settle, keep, progress) if tasks else {}
     else:
         results = _run_local(tasks, params, build, settle, keep, progress, n_jobs) if tasks else {}
-    results.update({t[0]: _failed(0, held[t[0][1]]) for t in beyond})
+    results.update({t[0]: _failed(0, held[t[0][:2]]) for t in beyond})
     shape = (len(vset), len(loads), len(amplitudes), len(freqs))
     data, samples_out, failed = _collect(results, shape, keep)
-    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks), data, failed, freqs)
+    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks) + len(beyond), data, failed, freqs)
     info["wall_time"] = time.perf_counter() - t_wall
     axes = {"variant": list(vset), "load": loads, "amplitude": amplitudes, "frequency": freqs}
     return FreqResponse(axes=axes, data=data, variants=vset, info=info, samples=samples_out)
 
 
-def _beyond_hold(params: Parameters, pv, loads) -> dict:
-    """Load index -> the reason, for loads above what the actuator holds at standstill
-    (:func:`~ema_casadi.model.components.ballscrew.standstill_force`)."""
-    from ..model.components.ballscrew import standstill_force
+def _beyond_hold(vset: dict, pv, loads) -> dict:
+    """(variant index, load index) -> the reason, for loads above what the variant's
+    actuator holds at standstill: the envelope limit ``held_load`` its parts declare."""
+    from ..model.components import parts_for
 
-    F = standstill_force(SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True))))
-    return {i: f"load {load / 1e3:.4g} kN is above the {F / 1e3:.3g} kN the actuator holds at standstill at its "
-               "current limit: the actuator cannot hold the load, no response to measure"
-            for i, load in enumerate(loads) if abs(load) > F}
+    P = SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True)))
+    out = {}
+    for iv, v in enumerate(vset.values()):
+        held = [float(part.limits["held_load"](P)) for part in parts_for(v)[0] if "held_load" in part.limits]
+        F = max(held, default=math.inf)
+        out.update({(iv, il): f"load {load / 1e3:.4g} kN is above the {F / 1e3:.3g} kN the actuator holds at "
+                               "standstill at its current limit: the actuator cannot hold the load, no response "
+                               "to measure" for il, load in enumerate(loads) if abs(load) > F})
+    return out
 
 
 def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs) -> None:
@@ -125,15 +130,6 @@ def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt,
             raise FreqRespError(f"{name}: expected a positive number, got {describe(v)}")
     if jobs is not None and (not isinstance(jobs, int) or jobs < 1):
         raise FreqRespError(f"jobs: expected a positive integer, got {jobs!r}")
-
-
-def _check_hybrid(params: Parameters, vset: dict) -> None:
-    """FreqRespError when a variant asks for hybrid friction and it is not available."""
-    for v in vset.values():
-        if v["friction"] == "hybrid":
-            ok, why = hybrid_available(params)
-            if not ok:
-                raise FreqRespError(why)
 
 
 def _param_vector(params: Parameters, p) -> np.ndarray:
@@ -179,16 +175,6 @@ def _tasks(params, vset, build, pv, loads, amplitudes, freqs) -> list:
     return tasks
 
 
-def _lin_params(model: Model, p: np.ndarray) -> np.ndarray:
-    """p with Coulomb friction, backlash and the efficiency switch removed."""
-    q = np.array(p, float)
-    names = model.param_names
-    for n, v in (("F_seal", 0.0), ("C_bear", 0.0), ("B", 0.0)):
-        q[names.index(n)] = v
-    q[names.index("eta_inv")] = 1.0 / q[names.index("eta")]
-    return q
-
-
 def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     """(i_load, i_amplitude, i_frequency) -> starting state (package docstring)."""
     nx = model.nx
@@ -198,8 +184,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     xdot = model.f(x, u, pp)[0]
     ju = model.inputs.index("x_cmd")
     jac = ca.Function("lin_jacobians", [x, u, pp], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)[:, ju]])
-    p_lin = _lin_params(model, p)
-    v_max = p[model.param_names.index("v_max")]
+    rate_limit = model.limit_values(p)["rod_speed"]
     # the rod's own travel: its position state, or the shaft angle where the rod
     # position is a play (the rigid screw)
     travel = model.travel(p)
@@ -213,7 +198,8 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
         x_rest, _ = step(np.zeros(nx), np.r_[p, 0.0, 1.0, load])
         if not np.all(np.isfinite(x_rest)):
             x_rest = np.zeros(nx)
-        uu = model.u(f_ext=load, eta=p[model.param_names.index("eta")])
+        # the small-signal model there: Coulomb friction and backlash off, the blends frozen
+        uu, p_lin = small_signal_point(model, model.u(p, f_ext=load), p)
         Ja, Jb = (np.asarray(m, float) for m in jac(x_rest, uu, p_lin))
         Jb = Jb.ravel()
         for jf, f in enumerate(freqs):
@@ -225,7 +211,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
             # rod speed amplitude of the linear response per unit command amplitude
             g_rod = abs(Xc[j_rod]) * per_unit
             for ia, A in enumerate(amplitudes):
-                scale = A * min(1.0, v_max / max(w * g_rod * A, 1e-300))
+                scale = A * min(1.0, rate_limit / max(w * g_rod * A, 1e-300))
                 guess = x_rest + scale * Xc.imag
                 # a guess outside the physical envelope (the linearised hybrid rod is
                 # stuck: its "response" drives the currents far beyond I_max) would

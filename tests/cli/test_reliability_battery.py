@@ -285,8 +285,8 @@ def api(params, model_cache):
 def _api_cases():
     import ema_casadi as E
     from ema_casadi import frequency, signals
-    from ema_casadi.simulation._inputs import check_inputs
     from ema_casadi._util import _checks
+    from ema_casadi.simulation._inputs import check_inputs
 
     nan = float("nan")
     return {

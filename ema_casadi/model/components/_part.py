@@ -11,6 +11,11 @@ submodels):
 - control :class:`Loop` entries it closes and the controller outputs it :class:`Hold`\\ s
   between ECU samples,
 - contributions to summed signals (stored energy, the load on the rod),
+- what the analyses need to know about it (the part contract):
+  its small-signal policies (:attr:`Part.small_signal`), what the linearisation freezes
+  (:class:`Freeze`), the saturations a trim must keep inactive (:class:`Limit`), how a
+  memory state is trimmed (:attr:`State.rest`, :class:`Seed`), the gains a tuner may
+  move (:class:`Gain`),
 - the physical envelope of what it brings: a :class:`Bound` on a state, input or output
   (``|value| <= bound(P)``), and named envelope ``limits`` that other parts may widen
   (the end stop widens the rod's ``overtravel``); every simulation is checked
@@ -31,8 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
+from ._contract import POLICIES, Freeze, Gain, Limit, Node, Seed, node_outflow
+
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Part", "Bus", "AssemblyError", "der",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Part", "Bus",
+    "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
@@ -44,7 +52,7 @@ OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
 
-#: Thermal nodes a loss can heat (SPEC §2.6): every ``loss`` output names one in its
+#: Thermal nodes a loss can heat (docs: physics): every ``loss`` output names one in its
 #: part's :attr:`Part.heat`, and the assembly sums them into :func:`heat_signal` per node.
 HEAT_NODES = ("winding", "housing", "screw", "inverter")
 
@@ -87,7 +95,7 @@ def der(name: str) -> str:
 class Bound:
     """The physical envelope of one signal: ``|value| <= limit(E)``.
 
-    A run whose signal leaves it is reported as failed, never as a result (SPEC §7).
+    A run whose signal leaves it is reported as failed, never as a result (the reliability contract, docs: reliability).
     Bounds are generous (a few times what the actuator can do), so they catch
     garbage — a rod running away, a current no winding survives — not a demanding
     but physical manoeuvre.
@@ -113,7 +121,7 @@ class State:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     roles : tuple of str
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
@@ -132,6 +140,23 @@ class State:
         For controller integrators: the loop whose ECU sample period integrates it.
     bound : Bound, optional
         Its physical envelope (None: only checked to be finite).
+    rest : str, optional
+        A memory element without restoring dynamics of its own (a play, a friction
+        bristle): the trim holds it at the value of this signal (one more trim equation,
+        the state equal to the signal, and the state set exactly to it after); the
+        signal is an output of the model.
+    rest_when : callable, optional
+        ``rest_when(P) -> bool``: when the ``rest`` rule applies (default always; the
+        play only without backlash, where its edges meet).
+    neutral : bool
+        The state may be a neutral mode of a linearisation (nothing restores it: a
+        memory state, or a position only a memory element reads). Default: a state
+        with a ``rest`` rule.
+    seed : Seed, optional
+        Where the trim starts this state (:class:`Seed`).
+    node : Node, optional
+        For a temperature: the thermal node it is (:class:`Node`: name, heat capacity,
+        rated temperature); its part provides :func:`node_outflow` of it.
     """
 
     name: str
@@ -143,6 +168,16 @@ class State:
     travel: Callable | None = None
     loop: str | None = None
     bound: Bound | None = None
+    rest: str | None = None
+    rest_when: Callable | None = None
+    neutral: bool = False
+    seed: Seed | None = None
+    node: Node | None = None
+
+    @property
+    def memory(self) -> bool:
+        """True when the state may be a neutral mode (``neutral`` or a ``rest`` rule)."""
+        return self.neutral or self.rest is not None
 
 
 @dataclass(frozen=True)
@@ -152,7 +187,7 @@ class Input:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     kind : str
         Its quantity for the signal parser, one of :data:`INPUT_KINDS`.
     default : float or str
@@ -179,7 +214,7 @@ class Output:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     kind : str
         One of :data:`OUTPUT_KINDS`.
     bound : Bound, optional
@@ -286,6 +321,19 @@ class Part:
     switched: ClassVar[tuple] = ()
     #: The parameter giving the carrier frequency (Hz) of :meth:`schedule`.
     carrier: ClassVar[str | None] = None
+    #: Small-signal policies (:data:`POLICIES`): policy -> value -> the parameter
+    #: overrides it applies (``{"friction": {"off": {"F_seal": 0.0}}}``), or a one-line
+    #: reason (str) when this part refuses that value.
+    small_signal: ClassVar[dict] = {}
+    #: What the linearisation freezes (:class:`Freeze`).
+    freeze: ClassVar[tuple] = ()
+    #: Saturations a trim must keep inactive (:class:`Limit`).
+    trim_limits: ClassVar[tuple] = ()
+    #: Gains a tuner may move (:class:`Gain`), outer loop first.
+    gains: ClassVar[tuple] = ()
+    #: Named operating conditions (the airframe's flight conditions): name -> flat
+    #: parameter values (SI) that set it up.
+    conditions: ClassVar[dict] = {}
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})

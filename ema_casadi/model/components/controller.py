@@ -1,4 +1,4 @@
-"""Electronic control unit: cascade position -> velocity -> current (SPEC §2.1).
+"""Electronic control unit: cascade position -> velocity -> current (docs: physics).
 
 Each loop is a PI (or P) law with an output clamp and back-calculation anti-windup:
 the integrator state ``z`` is kept in output units and is driven back by the clamp
@@ -18,7 +18,7 @@ import math
 
 import casadi as ca
 
-from ._part import Hold, Input, Loop, Output, Part, State, der
+from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = [
     "clamp", "pi_law", "position_law", "velocity_law", "current_law_simple", "current_law_foc",
@@ -119,7 +119,7 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None):
     """Current PI of the 1-phase (dc-equivalent) motor -> winding voltage (V).
 
     Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
-    (the power-invariant equivalent of SPEC §2.3), plus back-EMF feed-forward
+    (the power-invariant equivalent, docs: physics), plus back-EMF feed-forward
     K_e*omega, the counterpart of FOC decoupling. Returns (v, z_i_dot).
 
     Parameters
@@ -193,8 +193,22 @@ def _omega_max(P):
     return 2 * math.pi * P.v_max / P.p
 
 
+#: The saturations of the outer loops, which a trim keeps inactive.
+_LIMITS = (
+    Limit("current", "current limit", "i_q", lambda y, P: abs(y["i_cmd"]), lambda P: P.I_max, "I_max",
+          lift=("I_max",), unit="A", holds_load=True, digits=3),
+    Limit("rod_speed", "rate limit", "the rod speed command", lambda y, P: abs(y["omega_cmd"]) * P.p / (2 * math.pi),
+          lambda P: P.v_max, "v_max", lift=("v_max",), unit="mm/s", scale=1e3),
+)
+#: Tunable gains of the outer loops; K_i_x may start at zero: then it is scaled linearly
+#: from K_x^2/4 (the PI zero at K_x/4, its natural size).
+_K_X = Gain("K_x", "position")
+_K_I_X = Gain("K_i_x", "position", zero_scale=lambda ref: ref["K_x"] ** 2 / 4)
+_SPEED_GAINS = (Gain("K_p_w", "velocity"), Gain("T_i_w", "velocity", kind="time"))
+
+
 class PositionP(Part):
-    """ECU outer loops: P position loop (rate-limited) and PI speed loop (SPEC §2.1)."""
+    """ECU outer loops: P position loop (rate-limited) and PI speed loop (docs: physics)."""
 
     family, value = "controller", "P"
     doc = "position P loop -> speed PI loop -> current command"
@@ -208,6 +222,8 @@ class PositionP(Part):
         Output("i_cmd", "A", "q-current command of the speed loop"),
     )
     params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w")
+    trim_limits = _LIMITS
+    gains = (_K_X, *_SPEED_GAINS)
     loops = (POSITION_LOOP, VELOCITY_LOOP)
     holds = (Hold("omega_cmd", "rad/s", "position"), Hold("i_cmd", "A", "velocity"))
     states = (
@@ -236,6 +252,7 @@ class PositionPI(PositionP):
     value = "PI"
     doc = "position PI loop -> speed PI loop -> current command"
     params = PositionP.params + ("K_i_x",)
+    gains = (_K_X, _K_I_X, *_SPEED_GAINS)
     states = (
         State("z_x", "rad/s", "position-loop integral part", roles=("controller_integral",),
               scale=_omega_max, loop="position"),

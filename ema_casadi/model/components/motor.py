@@ -1,4 +1,4 @@
-"""Motors (SPEC §2.3): the 1-phase dc equivalent and the 3-phase PMSM in the rotor
+"""Motors (docs: physics): the 1-phase dc equivalent and the 3-phase PMSM in the rotor
 dq frame (amplitude-invariant), and the shaft.
 
 The winding resistance and the magnet flux are the signals ``R_w`` and ``psi_m`` of
@@ -6,7 +6,7 @@ the bus: the thermal part provides them (the parameters R and psi with ``thermal
 "off"``, functions of the winding and housing temperatures with ``"lumped"``). The
 controller keeps the nominal R and psi (the ECU does not know the temperature).
 
-Iron loss (SPEC §2.6, option ``iron_loss = "on"``) is a drag torque on the shaft,
+Iron loss (docs: physics, option ``iron_loss = "on"``) is a drag torque on the shaft,
 T_fe = P_fe / omega, folded into the shaft torque ``T_m``, so the energy balance
 closes with P_fe as one more loss; with ``"off"`` (the reference file's default) P_fe
 is 0 and the equations are those without iron loss.
@@ -14,10 +14,12 @@ is 0 and the equations are those without iron loss.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
 from . import controller
-from ._part import MARGIN, Bound, Hold, Input, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "OMEGA_FE", "Pmsm", "Dc", "CURRENT_LOOP",
            "CURRENT_BOUND"]
@@ -186,14 +188,24 @@ def _iron(opt):
     return {("T_fe", "P_fe"): iron, "T_m": lambda b: b["T_em"] - b["T_fe"]}
 
 
+#: The voltage limit of the current controller (the linear-SVPWM circle), which a trim
+#: keeps inactive; lifted through k_v, not V_dc (V_dc also sets the switching losses,
+#: which heat the inverter node of a thermal network).
+_LIMITS = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
+                 lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
+_GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+
+
 class Pmsm(Part):
-    """3-phase PMSM in the rotor dq frame with FOC current control (SPEC §2.1, §2.3)."""
+    """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics)."""
 
     family, value = "motor", "pmsm"
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS
     heat = _HEAT
     loops = (CURRENT_LOOP,)
@@ -224,13 +236,15 @@ class Pmsm(Part):
 
 
 class Dc(Part):
-    """1-phase dc-equivalent motor with a simple current PI (SPEC §2.3)."""
+    """1-phase dc-equivalent motor with a simple current PI (docs: physics)."""
 
     family, value = "motor", "dc"
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS
     heat = _HEAT
     loops = (CURRENT_LOOP,)
