@@ -21,6 +21,7 @@ def overrides(params, flags: dict) -> dict:
     flags : dict
         Flag -> (flat parameter name, value or None, factor to SI).
     """
+    from ..model._flat import checked
     from ..model.params import ParameterError
 
     out = {}
@@ -28,7 +29,7 @@ def overrides(params, flags: dict) -> dict:
         if value is None:
             continue
         try:
-            out[name] = params.checked(name, value * factor, f"{flag} {value:g}")
+            out[name] = checked(name, value * factor, f"{flag} {value:g}")
         except ParameterError as exc:  # the value as given, not in SI
             raise UserError(str(exc).split(", got ")[0]) from None
     return out

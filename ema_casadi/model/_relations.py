@@ -11,7 +11,7 @@ import math
 DEAD_TIME_SHARE = 0.1
 
 
-def check_relations(src: str, groups: dict, error: type) -> None:
+def check_relations(src: str, groups: dict, error: type, missing=()) -> None:
     """``error`` for a dead time that eats the carrier period, or an actuator pin
     inside the horn radius (the crank cannot close).
 
@@ -23,60 +23,19 @@ def check_relations(src: str, groups: dict, error: type) -> None:
         Group name -> its checked dataclass (``power``, ``airframe``, ``actuator``).
     error : type
         The exception raised (ParameterError).
+    missing : iterable of str
+        Groups the file does not have (checked when a variant reads them).
     """
     pw = groups["power"]
-    if pw.t_dead >= DEAD_TIME_SHARE / pw.f_sw:
+    if "power" not in missing and pw.t_dead >= DEAD_TIME_SHARE / pw.f_sw:
         raise error(f"{src}: [power] t_dead: {pw.t_dead:g} s is {100 * pw.t_dead * pw.f_sw:.3g} % of the "
                     f"carrier period 1/f_sw = {1 / pw.f_sw:g} s; it must stay below "
                     f"{100 * DEAD_TIME_SHARE:g} % (DEAD_TIME_SHARE)")
     af, stroke = groups["airframe"], groups["actuator"].stroke
     a, r = af.a_pin, af.r_horn
+    if {"airframe", "actuator"} & set(missing):
+        return
     if not a > r or not a - r < math.sqrt(a * a - r * r) - stroke:
         raise error(f"{src}: [airframe] a_pin: {a:g} m with r_horn {r:g} m and a stroke of +-{stroke:g} m: "
                     "the crank cannot reach the stroke's ends (need a_pin > r_horn and "
                     "sqrt(a_pin^2 - r_horn^2) - stroke > a_pin - r_horn)")
-
-
-
-def flat_rules(groups: dict, flat_names) -> dict:
-    """Flat parameter name -> the metadata its value is checked by (a table's entries:
-    the table's item rule).
-
-    Parameters
-    ----------
-    groups : dict
-        Group name -> its dataclass.
-    flat_names : callable
-        ``flat_names(field) -> list of str``.
-    """
-    from dataclasses import fields
-
-    return {n: {k: v for k, v in f.metadata.items() if k != "table"}
-            for cls in groups.values() for f in fields(cls) for n in flat_names(f)}
-
-
-def check_flat(rule: dict | None, value, where: str, check_value, error: type) -> float:
-    """``value`` checked by ``rule`` (a field's metadata) as a parameter file's value is;
-    a loop flag (no rule) only as a finite number.
-
-    Parameters
-    ----------
-    rule : dict or None
-        The field's metadata.
-    value : float
-        The value (SI).
-    where : str
-        How to name it in the message.
-    check_value : callable
-        The file reader's value check.
-    error : type
-        The exception raised.
-    """
-    import numpy as np
-
-    from .._util._checks import number
-
-    if rule is None:
-        return number(value, where, error)
-    value = value.item() if isinstance(value, np.generic) else value
-    return check_value(where, "", "", rule, value, plain=True, bare=True)

@@ -16,7 +16,7 @@ them as an input: changing a value never rebuilds a model.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +25,10 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
+from ._param_units import absent as _absent
+from ._param_units import raw_value
 from ._params_airframe import Airframe
-from ._relations import check_flat, check_relations, flat_rules
+from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -84,6 +86,8 @@ class Screw:
     C: float = _p("N/m", POS, "drive-train axial stiffness (N/m)")
     c_c: float = _p("N*s/m", NONNEG, "contact damping, acts only in contact (N s/m)")
     B: float = _p("m", NONNEG, "backlash, total gap (m)")
+    P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
+                        default=0.1)
 
 
 @dataclass(frozen=True)
@@ -236,6 +240,10 @@ class Parameters:
         The default variant choice of the set (its ``[model]`` table).
     source : str
         Where the set came from (a file path), named in error messages.
+    overrides : tuple of str
+        Variant keys given by ``load_parameters(variants=...)`` (a wrong one is blamed there).
+    missing : tuple of str
+        Tables the file lacks (NaN values): ``build_model`` names one its variants read.
     """
 
     actuator: Actuator
@@ -249,6 +257,8 @@ class Parameters:
     airframe: Airframe = Airframe()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
+    missing: tuple = ()
+    overrides: tuple = ()
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod
@@ -257,6 +267,11 @@ class Parameters:
         parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
         out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
+
+    @staticmethod
+    def group_of() -> dict[str, str]:
+        """Flat parameter name -> the table it belongs to (``"B"`` -> ``"screw"``)."""
+        return {n: g for g, cls in GROUPS.items() for f in fields(cls) for n in _flat_names(f)}
 
     @staticmethod
     def units() -> dict[str, str]:
@@ -294,19 +309,6 @@ class Parameters:
             d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
         return np.array([d[n] for n in self.names()], dtype=float)
 
-    def checked(self, name: str, value, where: str | None = None) -> float:
-        """``value`` (SI) of the flat parameter ``name`` checked as a file's value is.
-
-        Parameters
-        ----------
-        name, value, where : str, float, str
-            Flat name (unknown: UnknownParameterError), value (SI), how a ParameterError names it.
-        """
-        rules = flat_rules(GROUPS, _flat_names)
-        if name not in rules and name not in LOOP_FLAGS:
-            raise UnknownParameterError(_unknown("Parameters.checked", name, rules))
-        return check_flat(rules.get(name), value, where or name, _check_value, ParameterError)
-
     def replace(self, **values: float) -> Parameters:
         """A copy with some flat parameters changed (validated like a file).
 
@@ -315,7 +317,8 @@ class Parameters:
         **values : float
             New values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
-        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
+        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()
+               if g not in self.missing}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
         for k, v in values.items():
             if k not in flat_group:
@@ -379,19 +382,7 @@ def _check_table(where: str, meta: dict, value: Any) -> tuple:
 def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool, bare: bool = False):
     where = src if bare else f"{src}: [{group}] {name}"
     unit = meta["unit"]
-    if plain:
-        value = raw
-    else:
-        if not isinstance(raw, dict) or "value" not in raw or "unit" not in raw:
-            raise ParameterError(
-                f'{where}: expected a table {{ value = <number>, unit = "{unit}" }}, got {raw!r}'
-            )
-        extra = set(raw) - {"value", "unit"}
-        if extra:
-            raise ParameterError(f"{where}: unexpected field(s) {sorted(extra)}; expected value and unit")
-        if raw["unit"] != unit:
-            raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
-        value = raw["value"]
+    value = raw if plain else raw_value(where, raw, unit, ParameterError)  # convertible units (_param_units)
     if meta.get("table"):
         return _check_table(where, meta, value)
     check = meta["check"]
@@ -426,11 +417,13 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     unknown = set(data) - set(GROUPS) - {"model"}
     for g in sorted(unknown):
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
-    groups = {}
+    groups, missing = {}, []
     for g, cls in GROUPS.items():
         table = data.get(g, {} if all("default" in f.metadata for f in fields(cls)) else None)
-        if table is None:
-            raise ParameterError(f"{src}: missing table [{g}]")
+        if table is None:  # only the variants that read it need it: named when one does (build_model)
+            missing.append(g)
+            groups[g] = cls(**{f.name: _absent(f) for f in fields(cls)})
+            continue
         if not isinstance(table, dict):
             raise ParameterError(f"{src}: [{g}] must be a table")
         names = [f.name for f in fields(cls)]
@@ -453,10 +446,10 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
-    _check_eta_table(src, groups["thermal"], s)
-    check_relations(src, groups, ParameterError)
-    return Parameters(**groups, variants=merged, source=src)
-
+    if "thermal" not in missing:
+        _check_eta_table(src, groups["thermal"], s)
+    check_relations(src, groups, ParameterError, missing)
+    return Parameters(**groups, variants=merged, source=src, missing=tuple(missing))
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
@@ -471,13 +464,14 @@ def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
                              f"gives inverse efficiencies {[round(v, 4) for v in inv]}, outside (0, 1]")
 
 
-def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:
+def load_parameters(path: str | Path | None = None, variants: dict[str, str] | None = None) -> Parameters:
     """Load and validate a parameter file.
 
     Parameters
     ----------
-    path : str or Path
-        TOML parameter file (the layout of models/cesa_ema.toml).
+    path : str or Path, optional
+        TOML parameter file (the layout of models/cesa_ema.toml), read as given (relative
+        to the working folder); default the packaged reference set ``cesa_ema.toml``.
     variants : dict, optional
         Variant overrides on top of the file's ``[model]`` table.
 
@@ -489,6 +483,10 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
         (with the nearest valid name), wrong type or unit, non-finite or out-of-range
         value, unknown variant.
     """
+    if path is None:
+        from .._util._resources import packaged_file
+
+        path = packaged_file()
     if not isinstance(path, (str, Path)):
         raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
     if variants is not None and not isinstance(variants, dict):
@@ -496,5 +494,7 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     src = str(path)
     data = read_toml(path, "parameter file", ParameterError)
     merged = _variant_table(data.get("model", {}), src)
-    merged.update(_variant_table(variants or {}, "variant"))
-    return _build(data, merged, src)
+    given = _variant_table(variants or {}, "variants")
+    merged.update(given)
+    # the registry checks the names when a model is built, blaming the file or `variants`
+    return replace(_build(data, merged, src), overrides=tuple(given))

@@ -391,7 +391,7 @@ def _shown(values: dict) -> str:
 def _scenario(table: dict, params: Parameters, src: str) -> dict:
     _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
     where = f"{src} [scenario]"
-    out = {"duration": 1.0, "solver": table.get("solver", "cvodes"), "dt": 1e-4}
+    out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
     for key in ("duration", "dt", "dt_out", "rtol", "atol", "event_tol"):
         if key in table:
             out[key] = _num(where, table, key)

@@ -286,13 +286,15 @@ def _api_cases():
     import ema_casadi as E
     from ema_casadi import frequency, signals
     from ema_casadi._util import _checks
+    from ema_casadi.model._flat import checked
     from ema_casadi.simulation._inputs import check_inputs
 
     nan = float("nan")
     return {
-        "checked-negative": (lambda c: c["params"].checked("B", -1e-4), E.ParameterError, "B"),
-        "checked-unknown": (lambda c: c["params"].checked("Bx", 1.0), TypeError, "Bx"),
-        "checked-where": (lambda c: c["params"].checked("K_i_x", -1.0, "--k-i-x -1"), E.ParameterError, "--k-i-x"),
+        "checked-negative": (lambda c: checked("B", -1e-4), E.ParameterError, "B"),
+        "checked-unknown": (lambda c: checked("Bx", 1.0), TypeError, "Bx"),
+        "checked-where": (lambda c: checked("K_i_x", -1.0, "--k-i-x -1"), E.ParameterError, "--k-i-x"),
+        "checked-table-entry": (lambda c: checked("eta_T_0", 1.5), E.ParameterError, "eta_T_0"),
         "p-override-nan": (lambda c: c["model"].p(B=nan), E.ParameterError, "B"),
         "replace-t-dead": (lambda c: c["params"].replace(t_dead=1e-3), E.ParameterError, "t_dead"),
         "replace-a-pin": (lambda c: c["params"].replace(a_pin=0.1), E.ParameterError, "a_pin"),

@@ -10,15 +10,12 @@ from ._part import MARGIN, Bound, Input, Output, Part, Seed, State, der
 from .motor import no_load_speed, shaft
 
 __all__ = [
-    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "P_BLEND",
+    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force",
     "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA", "held_at_rest",
 ]
 
-#: Width (W) over which the screw-nut efficiency switches between the direct and the
-#: inverse value as the transmitted power changes sign. An exact switch makes a
-#: sliding mode that stalls variable-step solvers while a load is held at standstill;
-#: blending over ~0.1 W moves reference trajectories by < 0.25 um (measured).
-P_BLEND = 0.1
+#: The efficiency switch's former fixed width (W), the default of ``P_blend``.
+_P_REF = 0.1
 
 
 def lead_ratio(P):
@@ -34,7 +31,13 @@ def lead_ratio(P):
 
 def efficiency_factor(F, omega, eta, P, eta_inv=None):
     """Factor g in T_load = (p/2 pi) F g: 1/eta when the motor drives the load
-    (F omega > 0), eta_inv when the load back-drives; blended over P_BLEND watts.
+    (F omega > 0), eta_inv when the load back-drives, switched on the transmitted power
+    q = F omega p/(2 pi) (W) with the weight w = (1 + tanh(q/P_blend))/2 of the driving
+    value: g = w/eta + (1 - w) eta_inv. ``P_blend`` (W, a parameter, 0.1 W on the
+    reference set) is the width of the switch; ``P_blend = 0`` is the exact switch
+    w = (1 + sign(q))/2 (w = 1/2 at q = 0). An exact switch makes a sliding mode on q = 0
+    while a load is held at standstill, which variable-step solvers pay for in steps
+    (``docs/guide/ecu-structure.md``); 0.1 W moves reference trajectories by < 0.25 um.
 
     Parameters
     ----------
@@ -45,12 +48,17 @@ def efficiency_factor(F, omega, eta, P, eta_inv=None):
     eta : SX
         Direct efficiency of the screw-nut (-).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``p``, m, and ``eta_inv``, -, unless given).
+        Parameter symbols by flat name (uses ``p``, m, ``P_blend``, W, and ``eta_inv``, -,
+        unless given).
     eta_inv : SX, optional
         Inverse efficiency of the screw-nut (-); default ``P.eta_inv``.
     """
     eta_inv = P.eta_inv if eta_inv is None else eta_inv
-    w = 0.5 * (1 + ca.tanh(F * omega * lead_ratio(P) / P_BLEND))
+    q = F * omega * lead_ratio(P)
+    # q/P_blend written (q/0.1)(0.1/P_blend): at the default 0.1 W the factor is 1 and the
+    # values and derivatives are those of the former constant 0.1 W, bit for bit (a plain
+    # q/P_blend reorders the derivative's products); the exact switch where P_blend = 0
+    w = 0.5 * (1 + ca.if_else(P.P_blend > 0, ca.tanh((q / _P_REF) * (_P_REF / P.P_blend)), ca.sign(q)))
     return w / eta + (1 - w) * eta_inv
 
 
@@ -218,7 +226,7 @@ def _outputs(rod_speed: Bound) -> tuple:
     )
 
 
-_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
+_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max", "P_blend")
 
 
 class Elastic(Part):

@@ -165,7 +165,7 @@ _COMMON_OUT = (
     Output("P_fe", "W", "iron loss, a drag torque on the shaft (0 unless iron_loss = on)", kind="loss"),
 )
 _HEAT = {"P_cu": "winding", "P_fe": "housing"}
-_OPTIONS = {"iron_loss": ("off", "on")}
+_OPTIONS = {"iron_loss": ("off", "on"), **controller.AW_OPTION}
 _D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
 
 
@@ -222,7 +222,8 @@ class Pmsm(Part):
         def current_law(b):
             i_d, i_q = b["i_d"], b["i_q"]
             return controller.current_law_foc(
-                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P, b["v_dc"]
+                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P, b["v_dc"],
+                self.opt.get("anti_windup", controller.ANTI_WINDUP[0]),
             )
 
         def plant(b):
@@ -258,7 +259,7 @@ class Dc(Part):
     def signals(self):
         def current_law(b):
             v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P,
-                                                     b["v_dc"])
+                                                     b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]))
             return 0, v / 1.5, z_dot
 
         def plant(b):
