@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import time
 
-from ..signals import parse_signal
+from ..signals import SignalError, parse_signal
 from ..simulation import DT_OUT, SOLVERS, simulate
 from ..simulation._api import check_run
 from ..simulation._inputs import check_inputs
@@ -124,9 +124,14 @@ def run(args) -> dict:
     others = _named_inputs(args.input, model, stroke, args.t_end)
     given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})
     t0 = time.perf_counter()
-    res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
-                   **{n: s for n, s in given.items() if s is not None})
+    try:
+        res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
+                       zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
+                       **{n: s for n, s in given.items() if s is not None})
+    except SignalError as exc:  # checked against the chosen solver's sampling: named by its flag
+        name = str(exc).split(" ", 1)[0]
+        flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
+        raise UserError(flag + str(exc)[len(name):]) from None
     written = []
     if out is not None:
         writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
@@ -163,12 +168,16 @@ def run(args) -> dict:
     }
 
 
+#: Input names as the flags that set them.
+_FLAG_OF = {"x_cmd": "--x-cmd", "f_ext": "--f-ext"}
+
+
 def _checked(args, model, dt_out, given) -> dict:
     """The driving signals against the envelope and the sampling, before the run,
     naming the flags."""
-    flags = {n: f"--{n.replace('_', '-')}" if n in ("x_cmd", "f_ext") else f"--input {n}" for n in given}
+    flags = {n: _FLAG_OF.get(n, f"--input {n}") for n in given}
     step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
-        {f"--dt-out {dt_out:g} s": dt_out}
+        {f"--dt-out {dt_out:g} s": dt_out} if dt_out is not None else {}  # else simulate() checks its plan
     # a command far beyond the stroke, a cavity temperature no network means: refused
     bounds = model.envelope()
     limits = {"x_cmd": (COMMAND_STROKES * model.params.actuator.stroke, f"{COMMAND_STROKES:g} x the stroke")}

@@ -72,8 +72,8 @@ COMMANDS = {
     "export-npz": ["export", REF, "--format", "npz", "--out", "{full}/lin.npz"],
     "export-casadi": ["export", REF, "--format", "casadi", "--out", "{full}/f.casadi"],
     "export-c": ["export", REF, "--format", "c", "--out", "{full}/ema_f.c"],
-    "mission-new-folder": ["mission", REF, "{tmp}/m.toml", "--out", "{full}/out", "--fast", "--quiet"],
-    "mission-existing-folder": ["mission", REF, "{tmp}/m.toml", "--out", "{full}", "--fast", "--quiet"],
+    "mission-new-folder": ["mission", REF, "{tmp}/m.toml", "--out", "{full}/out", "--fast", "--no-progress"],
+    "mission-existing-folder": ["mission", REF, "{tmp}/m.toml", "--out", "{full}", "--fast", "--no-progress"],
     "sweep-out": ["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "--out", "{full}/s.csv"],
     "sweep-plot": ["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv", "--plot", "{full}/s.png"],
     "freqresp-out": ["freqresp", REF, "--amplitudes", "1mm", "--freqs", "1", "--max-periods", "3", "--out",
@@ -90,7 +90,7 @@ COMMANDS = {
 
 
 #: Longer commands (tens of seconds): run with -m slow.
-SLOW = {"demo": ["demo", REF, "--out", "{full}/demo", "--quiet"],
+SLOW = {"demo": ["demo", REF, "--out", "{full}/demo", "--no-progress"],
         "export-fmu-cs": ["export", REF, "--format", "fmu-cs", "--out", "{full}/x.fmu"]}
 
 

@@ -140,7 +140,7 @@ def test_an_interrupted_mission_leaves_no_folder(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(MissionResult, "plot", interrupted)
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    status = main(["mission", REF, str(tmp_path / "m.toml"), "--out", str(tmp_path / "out"), "--fast", "--quiet"])
+    status = main(["mission", REF, str(tmp_path / "m.toml"), "--out", str(tmp_path / "out"), "--fast", "--no-progress"])
     assert status == 130
     assert capsys.readouterr().err == "ema mission: interrupted\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml"]
@@ -155,7 +155,7 @@ def test_a_heat_balance_beyond_its_tolerance_is_a_failed_mission(tmp_path, capsy
     monkeypatch.setattr(_run, "HEAT_RESIDUAL_TOL", 1e-6)
     try:
         status = main(["mission", REF, str(tmp_path / "m.toml"), "--out", str(tmp_path / "out"), "--fast",
-                       "--quiet"])
+                       "--no-progress"])
     except SystemExit as exc:  # the mission command ends a failed run itself
         status = exc.code
     err = capsys.readouterr().err

@@ -75,7 +75,7 @@ peak = {}
 """
 SPAN = "1um,2um"
 LC = ["limit-cycle", "{model}", "--amplitudes", SPAN, "--freqs", "5,6", "--t-end", "0", "--periods", "4"]
-MISSION = ["mission", "{model}", "{tmp}/m.toml", "--out", "{tmp}/out", "--quiet", "--fast"]
+MISSION = ["mission", "{model}", "{tmp}/m.toml", "--out", "{tmp}/out", "--no-progress", "--fast"]
 SIM = ["simulate", "{model}", "--t-end", "0.001"]
 FR = ["freqresp", "{model}", "--amplitudes", "1mm", "--freqs", "1", "--max-periods", "3"]
 AC = ["aircraft", "{model}", "--condition", "cruise_sl"]
@@ -101,10 +101,10 @@ add("size-limit-cycle-grid", Case([*LC[:2], "--amplitudes", "1um-30um:30", "--fr
 
 # -- outputs: checked up front ---------------------------------------------------------------
 for case_id, out, message in (("proc", "/proc/ema_out", "cannot write in /proc"),
-                              ("below-a-file", "{tmp}/afile/out", "is a file, not a folder"),
+                              ("below-a-file", "{tmp}/afile/out", "is not a folder"),
                               ("is-a-file", "{tmp}/afile", "exists and is not a folder"),
                               ("empty", "", "empty path"),
-                              ("missing-parent", "{tmp}/no/out", "does not exist")):
+                              ("proc-below", "/proc/ema/out", "cannot write in /proc")):
     argv = [*MISSION]
     argv[argv.index("--out") + 1] = out
     add(f"out-mission-{case_id}", Case(argv, ["--out", message], {"m.toml": OK_MISSION, "afile": "x"}))
@@ -223,7 +223,7 @@ for loads in ("60kN", "-60kN", "0,55kN", "100kN"):
                                               status=3))
 
 # -- messages that name the flags, not internals ---------------------------------------------------
-add("names-limit-cycle-t-end", Case([*LC[:-4], "--t-end", "1.00005", "--periods", "4"], "--t-end 1.00005 s"))
+add("names-limit-cycle-t-end", Case([*LC[:-4], "--t-end", "7000", "--periods", "4"], ["--t-end 7000 s", "MAX_"]))
 add("names-limit-cycle-backlash", Case([*LC, "--backlash=-1"], "--backlash -1"))
 add("names-limit-cycle-k-i-x", Case([*LC, "--k-i-x=-1"], "--k-i-x -1"))
 
