@@ -161,3 +161,17 @@ def test_a_heat_balance_beyond_its_tolerance_is_a_failed_mission(tmp_path, capsy
     err = capsys.readouterr().err
     assert status == 3 and err.count("\n") == 1 and "heat balance" in err and "HEAT_RESIDUAL_TOL" in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml"]
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
+    """``ema bode --json | head -1``: the Bode table is larger than a pipe's buffer, so the
+    writer meets a closed pipe; it ends with the shell's broken-pipe status (141) and
+    nothing on stderr (before: a BrokenPipeError traceback)."""
+    ema = Path(sys.executable).with_name("ema")
+    proc = subprocess.Popen([str(ema), "bode", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            cwd=tmp_path)
+    first = proc.stdout.read(1)
+    proc.stdout.close()  # the reader goes away after one byte
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert first == b"{" and err == ""
