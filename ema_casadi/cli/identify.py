@@ -346,8 +346,15 @@ def report(result: dict) -> None:
     for c in result["channels"]:
         w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
           f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    test = result.get("consistency")
+    if test:
+        w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "
+          f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
+    for rec in (result.get("initial_state") or {}).get("records", []):
+        w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
     if result.get("adequate", True):
-        w("adequate: the residuals are explained by the noise (chi-square, whiteness)\n")
+        tests = "chi-square, whiteness" + (", consistency" if test else "")
+        w(f"adequate: the residuals are explained by the noise ({tests})\n")
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")
