@@ -249,6 +249,7 @@ class _Fit:
     def __init__(self, pred: Predictor, given: dict, max_evaluations: int, progress: bool):
         self.pred, self.given, self.max_eval, self.progress = pred, given, max_evaluations, progress
         self.channels = sorted({c for r in pred.records for c in r.channels})
+        self.regrid = REGRID  # farther than this from where the steps were chosen: choose them anew
         self._cache = None
         self.z_grid = None
         self.failure = ""
@@ -284,7 +285,7 @@ class _Fit:
         key = z.tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > REGRID:
+        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > self.regrid:
             self.pred.refresh()  # far from where the step sequences were chosen: choose them here
             self.z_grid = z.copy()
         self.evaluations += 1
