@@ -94,7 +94,7 @@ def _ours(params, paths, free, log):
 
     _fit._Fit._raw = raw
     try:
-        # the fit itself (the peer does no more); the records-consistency test adds about 40 % of CPU
+        # the fit itself (the peer does no more); the records-consistency test adds about half the CPU time
         res = identify(params, paths, free, sigma=SIGMA, consistency=False)
     finally:
         _fit._Fit._raw = orig
