@@ -26,6 +26,7 @@ from ._checks import describe, number, read_toml
 from ._checks import nearest as _nearest
 from ._files import write_text
 from ._params_airframe import Airframe
+from ._params_faults import FaultModel, Monitor, Sensor
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -194,7 +195,10 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
-    "airframe": Airframe,  # issue 13: optional table, every key defaulted
+    "airframe": Airframe,  # optional table, every key defaulted
+    "sensor": Sensor,  # optional tables, every key defaulted
+    "fault": FaultModel,
+    "monitor": Monitor,
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
@@ -226,7 +230,7 @@ class Parameters:
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop, airframe : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, airframe, sensor, fault, monitor : dataclass
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -244,6 +248,9 @@ class Parameters:
     thermal: Thermal
     endstop: EndStop
     airframe: Airframe = Airframe()
+    sensor: Sensor = Sensor()
+    fault: FaultModel = FaultModel()
+    monitor: Monitor = Monitor()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
 

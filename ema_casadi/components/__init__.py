@@ -1,13 +1,13 @@
 """Components: one module per family, each variant a *part* (SPEC §2).
 
-controller (ECU outer loops), motor (with its current controller), inverter (power
+controller (ECU outer loops), sensor (what the ECU reads), motor (with its current controller), inverter (power
 electronics), ballscrew (drive-train mechanics), friction, endstop, thermal, supply. A part declares its
 states, inputs, outputs, parameters and loops next to its equations
 (:mod:`~ema_casadi.components._part`); :data:`REGISTRY` maps every variant key and value
 to its part; :mod:`ema_casadi.assembly` composes the chosen parts by signal name.
 """
 
-from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
+from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, sensor, supply, thermal
 from ._part import (
     HEAT_NODES,
     INPUT_KINDS,
@@ -16,6 +16,7 @@ from ._part import (
     AssemblyError,
     Bound,
     Bus,
+    Fault,
     Hold,
     Input,
     Loop,
@@ -28,8 +29,8 @@ from ._part import (
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
-    "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Hold", "Input", "Loop", "Output",
+    "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "sensor", "supply", "thermal",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Fault", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",

@@ -32,7 +32,7 @@ from types import SimpleNamespace
 from typing import ClassVar
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Part", "Bus", "AssemblyError", "der",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Fault", "Part", "Bus", "AssemblyError", "der",
     "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
@@ -161,6 +161,12 @@ class Input:
         A loop-break injection (zero unless driven; listed after the other inputs).
     bound : Bound, optional
         Its physical envelope (None: only checked to be finite).
+    noise : str, optional
+        A unit white-noise input: the name of the loop (:class:`Loop`) at whose sample
+        rate it is held. A time simulation that does not drive it fills it with a seeded
+        sample-and-hold sequence of standard normal values (the parameter ``seed``; one
+        stream per input name), so a run is reproducible bit for bit; the linear
+        analyses see its default, 0.
     """
 
     name: str
@@ -170,6 +176,7 @@ class Input:
     default: float | str = 0.0
     injection: bool = False
     bound: Bound | None = None
+    noise: str | None = None
 
 
 @dataclass(frozen=True)
@@ -238,6 +245,38 @@ class Hold:
     loop: str
 
 
+@dataclass(frozen=True)
+class Fault:
+    """A fault a part can inject: the model input that activates it.
+
+    The input is 0 (healthy) unless driven; a fault schedule drives it from the onset
+    on with the severity (a step, or a ramp to it), so one model serves every case.
+
+    Attributes
+    ----------
+    kind : str
+        The fault kind (``jam``, ``free_run``, ``bias`` ...).
+    input : str
+        The model input that carries the fault's severity (0 when healthy).
+    unit : str
+        The severity's SI unit (what the input's value means).
+    lo, hi : float
+        The severity's allowed range (SI), inclusive.
+    doc : str
+        One line: what the fault does and what its severity is.
+    target : str, optional
+        The signal the fault acts on (sensor faults: the sensed signal), or None.
+    """
+
+    kind: str
+    input: str
+    unit: str
+    lo: float
+    hi: float
+    doc: str
+    target: str | None = None
+
+
 class Part:
     """Base class of a component variant; subclasses fill in the declarations.
 
@@ -286,12 +325,28 @@ class Part:
     switched: ClassVar[tuple] = ()
     #: The parameter giving the carrier frequency (Hz) of :meth:`schedule`.
     carrier: ClassVar[str | None] = None
+    #: Parameter values the small-signal (linear) analyses set, whatever their policy:
+    #: non-smooth effects a part writes so that these values remove them (a sensor's
+    #: quantisation step 0 gives slope exactly 1).
+    small_signal: ClassVar[dict] = {}
+    #: The faults this part can inject (:class:`Fault`), each through one of its inputs.
+    faults: ClassVar[tuple] = ()
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})
 
     def signals(self) -> dict:
         """Providers: ``{name or tuple of names: fn(bus) -> expr or tuple}``."""
+        return {}
+
+    def modify(self) -> dict:
+        """Modifiers of signals other parts provide: ``{name: fn(bus, value) -> new}``.
+
+        The assembly applies each to the provider's value of ``name`` (in assembly order
+        when several parts modify one signal), so a fault or a reaction acts on a signal
+        without the part that provides it knowing. A model without modifiers is the
+        model of the providers alone, expression for expression.
+        """
         return {}
 
     def project(self, prev: Bus, now: Bus):

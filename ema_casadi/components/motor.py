@@ -149,7 +149,7 @@ def no_load_speed(P):
 
 
 # ---- parts: each motor brings its own current controller (FOC or simple PI) ----------
-CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q", rate="f_s_i")
+CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q_s", rate="f_s_i")
 #: Envelope of the winding currents: the speed loop commands at most I_max; a few
 #: times that only flows when the back-EMF runs away from the voltage limit.
 CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
@@ -208,9 +208,11 @@ class Pmsm(Part):
 
     def signals(self):
         def current_law(b):
-            i_d, i_q = b["i_d"], b["i_q"]
+            # feedback from the current sensors; the decoupling terms from the same readings
+            i_d, i_q = b["i_d_s"], b["i_q_s"]
             return controller.current_law_foc(
-                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P, b["v_dc"]
+                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega_s"], b["z_d"], b["z_q"], b.P,
+                b["v_dc"]
             )
 
         def plant(b):
@@ -243,7 +245,7 @@ class Dc(Part):
 
     def signals(self):
         def current_law(b):
-            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P,
+            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega_s"], b["z_i"], b.P,
                                                      b["v_dc"])
             return 0, v / 1.5, z_dot
 

@@ -106,7 +106,8 @@ def _policy_vector(model: Model, p: np.ndarray, friction: str, backlash: str) ->
             "friction policy 'smooth' linearises the smooth friction law; the hybrid (Karnopp) "
             "variant has no meaningful slope: use friction policy 'off'"
         )
-    overrides = {}
+    # what the parts declare for every small-signal analysis (a sensor's quantisation off)
+    overrides = {k: v for part in model.parts for k, v in part.small_signal.items()}
     if backlash == "off":
         overrides["B"] = 0.0
     if friction == "off":

@@ -57,11 +57,12 @@ honour an interrupt (:mod:`ema_casadi._interrupts`) between chunks.
 from ._api import SOLVERS, simulate
 from ._cvodes import BDF_MAX_ORDER
 from ._envelope import Monitor, RunFailed
+from ._inputs import noise_signal
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
 
 __all__ = [
     "simulate", "SimResult", "SOLVERS", "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
-    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER",
+    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal",
 ]

@@ -134,7 +134,7 @@ def simulate(
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
+    sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv, plan.t_end)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _timed(model, solver, plan.t_end, run, used=used)
 
@@ -183,7 +183,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
         raise SimulationError("decimate: a switched model keeps samples by dt_out (whole carrier periods)")
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, given, pv)
+    sig = _input_signals(model, given, pv, float(t_end))
     out = None if dt_out is None else float(dt_out)
     return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
                                                                     bool(jit), bool(progress)), dt=float(dt))
