@@ -30,8 +30,8 @@ from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantErr
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "sensor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Fault", "Hold", "Input", "Loop", "Output",
-    "Part", "State", "der",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Fault", "Hold", "Input", "Loop",
+    "Output", "Part", "State", "der",
     "HEAT_NODES", "heat_signal",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
 ]
