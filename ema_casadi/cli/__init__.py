@@ -92,14 +92,20 @@ def positionals(model: str, second: str | None, default: str) -> tuple[str, str]
     return model, second
 
 
+def _variant_help() -> str:
+    """The --variant help, from the registry (first value of each key its default)."""
+    from ..components import OPTIONS, REGISTRY
+
+    keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
+    opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
+    return f"variant choice, repeatable: {keys}; options {opts}"
+
+
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
                    help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
-                        "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
-                        "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
-                        "stribeck=off|on, iron_loss=off|on")
+                   help=_variant_help())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 

@@ -7,7 +7,7 @@ states, inputs, outputs, parameters and loops next to its equations
 to its part; :mod:`ema_casadi.assembly` composes the chosen parts by signal name.
 """
 
-from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, sensor, supply, thermal
+from . import airframe, ballscrew, controller, endstop, faults, friction, inverter, motor, sensor, supply, thermal
 from ._part import (
     HEAT_NODES,
     INPUT_KINDS,
@@ -29,7 +29,7 @@ from ._part import (
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
-    "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "sensor", "supply", "thermal",
+    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "motor", "sensor", "supply", "thermal",
     "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Fault", "Hold", "Input", "Loop",
     "Output", "Part", "State", "der",
     "HEAT_NODES", "heat_signal",

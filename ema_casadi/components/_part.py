@@ -266,6 +266,9 @@ class Fault:
         One line: what the fault does and what its severity is.
     target : str, optional
         The signal the fault acts on (sensor faults: the sensed signal), or None.
+    rate : bool
+        The severity is a rate (``unit`` per second): the input ramps from the onset
+        (a drift) instead of stepping to the severity.
     """
 
     kind: str
@@ -275,6 +278,7 @@ class Fault:
     hi: float
     doc: str
     target: str | None = None
+    rate: bool = False
 
 
 class Part:

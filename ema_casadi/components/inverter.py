@@ -11,7 +11,7 @@ import casadi as ca
 
 from ._part import Output, Part
 
-__all__ = ["ideal", "averaged_losses", "current_amplitude", "Ideal"]
+__all__ = ["ideal", "averaged_losses", "current_amplitude", "open_bridge", "Ideal"]
 
 
 def ideal(v):
@@ -70,6 +70,33 @@ def current_amplitude(i_d, i_q):
     s = i_d**2 + i_q**2
     zero = s == 0
     return ca.sqrt(s + zero) - zero
+
+
+def open_bridge(b):
+    """Winding voltages (v_d, v_q) (V) with the bridge switched off (all gates off).
+
+    Below the diode clamp the windings are open: the voltage is the one that lets the
+    currents decay through the resistance ``R_open`` alone,
+    ``v = R i + (motional and cross-coupling terms) - R_open i``, so
+    ``L di/dt = -R_open i`` (an open circuit, made a fast decay for the integrator).
+    When that voltage would exceed what the freewheeling diodes allow, the circle
+    ``|v_dq| <= v_dc/sqrt(3)`` (the line-to-line back-EMF above the DC link), it is
+    clamped there and the diodes carry current back into the link: the motor brakes
+    above the speed where its back-EMF reaches the link. Works for both motors (the dc
+    equivalent is the q axis with i_d = 0).
+
+    Parameters
+    ----------
+    b : Bus
+        The signals (reads ``i_d``, ``i_q``, ``omega``, ``R_w``, ``psi_m``, ``v_dc``;
+        parameters ``pp``, ``L_d``, ``L_q``, ``R_open``).
+    """
+    P = b.P
+    i_d, i_q, w_e = b["i_d"], b["i_q"], P.pp * b["omega"]
+    v_d = (b["R_w"] - P.R_open) * i_d - w_e * P.L_q * i_q
+    v_q = (b["R_w"] - P.R_open) * i_q + w_e * (P.L_d * i_d + b["psi_m"])
+    scale = ca.fmin(1, (b["v_dc"] / 3**0.5) / ca.sqrt(v_d**2 + v_q**2 + 1e-12))
+    return scale * v_d, scale * v_q
 
 
 _P_BRIDGE = Output("P_bridge", "W", "power the bridge draws from the DC link: winding power + inverter losses",
