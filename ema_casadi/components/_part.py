@@ -38,8 +38,9 @@ __all__ = [
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
 #: (power dissipated, W), ``power`` (power through a port, W), ``energy`` (J), ``flag``
-#: (a mode indicator) and ``aux`` (an internal quantity exposed for analyses).
-OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
+#: (a mode indicator), ``aux`` (an internal quantity exposed for analyses) and ``alarm``
+#: (an ECU monitor's latch: 0 healthy, rising to 1 when it latches; detected at 1/2).
+OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")

@@ -16,7 +16,7 @@ those of the healthy actuator.
   stable), and stands still from the onset (a = 1).
 - **free_run** (``a_open``, 0..1): the bridge is switched off, the winding voltages
   become those of the open bridge with its freewheeling diodes
-  (:func:`~ema_casadi.components.inverter.open_bridge`):
+  (``v_d_open``, ``v_q_open``: :func:`~ema_casadi.components.inverter.open_bridge`):
   ``v = (1 - a) v_bridge + a v_open``. The surface then moves under its load against
   friction and the screw's back-driving efficiency.
 - **supply** (``a_supply``, 0..1): the DC link loses the fraction ``a`` of its voltage,
@@ -35,7 +35,6 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Fault, Input, Output, Part, State, der
-from .inverter import open_bridge
 
 __all__ = ["On", "SENSOR_TARGETS"]
 
@@ -124,7 +123,7 @@ class On(Part):
             a = _unit(b["a_jam"])
             return (1 - a) * (b["v_rod_mech"] + (b["x_rod_mech"] - b["x_jam"]) / b.P.tau_hold)
 
-        out = {"F_jam": jam, der("x_jam"): anchor, ("v_d_open", "v_q_open"): open_bridge}
+        out = {"F_jam": jam, der("x_jam"): anchor}
         for target, (tag, *_rest) in SENSOR_TARGETS.items():
             out[der(f"m_{tag}")] = (lambda b, target=target, tag=tag:
                                     (1 - _unit(b[f"stuck_{tag}"])) * (b[target] - b[f"m_{tag}"]) / b.P.tau_hold)

@@ -116,7 +116,8 @@ class Ideal(Part):
         Output("P_inv_sw", "W", "inverter switching loss", kind="loss"),
         _P_BRIDGE,
     )
-    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref")
+    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref", "R_open", "pp", "L_d",
+              "L_q")
     heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
 
     def signals(self):
@@ -127,6 +128,7 @@ class Ideal(Part):
             return averaged_losses(current_amplitude(b["i_d"], b["i_q"]), b.P, sq, b["v_dc"])
 
         return {
+            ("v_d_open", "v_q_open"): open_bridge,
             "v_d": lambda b: ideal(b["v_d_ref"]),
             "v_q": lambda b: ideal(b["v_q_ref"]),
             ("P_inv_cond", "P_inv_sw"): losses,
@@ -296,7 +298,8 @@ class Pwm(Part):
         Output("v_bc", "V", "line voltage b-c"),
         Output("i_dc", "A", "DC-link current of the bridge, sum s_k i_k"),
     )
-    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp")
+    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp", "R_open", "L_d",
+              "L_q")
     heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
     #: the leg states, and ``sw``: 1 in the switched simulation, 0 in the continuous model
     switched = (*(f"s_{k}" for k in LEGS), "sw")
@@ -347,6 +350,7 @@ class Pwm(Part):
             return P_T, P_D, P_T + P_D, P_sw
 
         return {
+            ("v_d_open", "v_q_open"): open_bridge,
             "theta_e": theta,
             ("d_a", "d_b", "d_c"): duties,
             **{f"s_{k}": (lambda b, k=k: b[f"d_{k}"]) for k in LEGS},
