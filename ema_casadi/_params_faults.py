@@ -49,6 +49,9 @@ class FaultModel:
     R_open: float = _d("Ohm", _POS, "bridge off: resistance the open windings see below the diode clamp (Ohm)",
                        100.0)
     tau_hold: float = _d("s", _POS, "time constant of the onset memories (jam anchor, stuck sensor) (s)", 1e-3)
+    R_f: float = _d("Ohm", _POS, "winding short: resistance of the short across the shorted turns (Ohm)", 0.05)
+    L_f: float = _d("H", _POS, "winding short: leakage inductance of the shorted loop per unit shorted fraction (H)",
+                    5e-4)
 
 
 @dataclass(frozen=True)
