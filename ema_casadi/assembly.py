@@ -458,6 +458,9 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     P = SimpleNamespace(**{n: p[i] for i, n in enumerate(names)})
     u = ca.SX.sym("u", len(inputs))
     U = {n: u[i] for i, n in enumerate(inputs)}
+    adjusted = {n: fn(P, U) for part in parts for n, fn in part.adjust().items()}
+    if adjusted:  # parameters some part makes signals (Part.adjust)
+        P = SimpleNamespace(**{**vars(P), **adjusted})
     X = {n: ca.SX.sym(n) for n in states}
     x = ca.vertcat(*X.values())
     roles: dict = {}

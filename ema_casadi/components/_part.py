@@ -354,6 +354,14 @@ class Part:
         """
         return {}
 
+    def adjust(self) -> dict:
+        """Parameters that become signals: ``{name: fn(P, u) -> expr}`` of the parameter
+        symbols ``P`` and the model inputs ``u`` (by name). Every part then reads the
+        adjusted value as ``bus.P.name`` (wear growing the friction with time). A model
+        without adjustments reads the parameters themselves.
+        """
+        return {}
+
     def project(self, prev: Bus, now: Bus):
         """Discrete map applied after each step (hybrid parts): returns
         ``({state name: new value}, stick flag)`` or None for a continuous part.

@@ -21,6 +21,9 @@ those of the healthy actuator.
   friction and the screw's back-driving efficiency.
 - **supply** (``a_supply``, 0..1): the DC link loses the fraction ``a`` of its voltage,
   ``v_dc -> (1 - a) v_dc`` (undervoltage; 1 is a supply loss).
+- **wear** (``wear_f``, ``wear_b``, relative growth, driven as a ramp from the onset at
+  the severity per second): ``F_seal``, ``C_bear`` grow as ``(1 + wear_f)``, the
+  backlash ``B`` as ``(1 + wear_b)`` (:meth:`~ema_casadi.components.Part.adjust`).
 - **sensor faults** on each sensed signal ``x_s`` (rod position), ``omega_s`` (speed
   estimate), ``i_q_s`` (q current): ``bias`` (a step of the reading, in its unit),
   ``drift`` (the same input, ramping at the severity per second), ``stuck`` (the reading
@@ -102,15 +105,21 @@ class On(Part):
         Input("a_jam", "1", "dimensionless", "fault: jam, fraction of the lock stiffness (0 healthy, 1 locked)"),
         Input("a_open", "1", "dimensionless", "fault: bridge off / drive loss (0 healthy, 1 off)"),
         Input("a_supply", "1", "dimensionless", "fault: fraction of the DC-link voltage lost (0 healthy, 1 lost)"),
+        Input("wear_f", "1", "dimensionless", "fault: relative growth of F_seal and C_bear (0 healthy)"),
+        Input("wear_b", "1", "dimensionless", "fault: relative growth of the backlash B (0 healthy)"),
         *_sensor_inputs(),
     )
     outputs = (Output("F_jam", "N", "force of the jam lock on the rod (positive pushes the rod in)"),)
-    params = ("k_jam", "d_jam", "R_open", "tau_hold", "pp", "L_d", "L_q", "p", "stroke", "v_max", "I_max")
+    params = ("k_jam", "d_jam", "tau_hold", "p", "stroke", "v_max", "I_max", "F_seal", "C_bear", "B")
     loads = ("F_jam",)
     faults = (
         Fault("jam", "a_jam", "1", 0.0, 1.0, "the rod locks at its onset position (1: fully)"),
         Fault("free_run", "a_open", "1", 0.0, 1.0, "the bridge is switched off (1): no drive, diodes only"),
         Fault("supply", "a_supply", "1", 0.0, 1.0, "the DC link loses this fraction of its voltage"),
+        Fault("wear_friction", "wear_f", "1/s", 0.0, 10.0, "F_seal and C_bear grow by this fraction per second",
+              rate=True),
+        Fault("wear_backlash", "wear_b", "1/s", 0.0, 100.0, "the backlash B grows by this fraction per second",
+              rate=True),
         *_sensor_faults(),
     )
 
@@ -128,6 +137,12 @@ class On(Part):
             out[der(f"m_{tag}")] = (lambda b, target=target, tag=tag:
                                     (1 - _unit(b[f"stuck_{tag}"])) * (b[target] - b[f"m_{tag}"]) / b.P.tau_hold)
         return out
+
+    def adjust(self):
+        def grown(name, by):
+            return lambda P, u: getattr(P, name) * (1 + ca.fmax(u[by], 0))
+
+        return {"F_seal": grown("F_seal", "wear_f"), "C_bear": grown("C_bear", "wear_f"), "B": grown("B", "wear_b")}
 
     def modify(self):
         def voltages(b, v, k):

@@ -181,3 +181,14 @@ def test_winding_short_current_and_loss_match_the_closed_form(params):
     r0 = ema.simulate(model, 0.6, **kw)
     Q = np.trapezoid(r["P_short"] + r["P_cu"] - r0["P_cu"], r.t) / params.thermal.C_th_w
     assert r["T_w"][-1] - r0["T_w"][-1] == pytest.approx(Q, rel=0.02)
+
+
+def test_wear_grows_the_friction_at_its_rate(faulty, params):
+    # friction wear at 2 /s from 0.1 s on a rod running at 40 mm/s (no load, the tanh
+    # saturated: v/v_s = 400): the Coulomb loss is F_seal (1 + 2 (t - 0.1)) |v|;
+    # 1e-6 relative covers tanh(400) = 1 - 1e-347 and the sampled velocity
+    rate, t_on = 2.0, 0.1
+    r = ema.simulate(faulty, 0.3, x_cmd="ramp:0.04", wear_f=ema.Signal.ramp(rate, t_on), dt=1e-5, dt_out=1e-4)
+    k = r.t > 0.15
+    F_r = params.friction.F_seal * (1 + rate * (r.t[k] - t_on))
+    assert np.allclose(r["P_friction"][k], F_r * np.abs(r["v_rod"][k]), rtol=1e-6)
