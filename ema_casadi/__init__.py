@@ -36,6 +36,7 @@ _EXPORTS = {
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
+    ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -67,4 +68,5 @@ __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream",
     "Requirements", "TuneError", "TuneResult", "tune",
     "SweepError", "SweepResult", "load_sweep", "sweep",
+    "FaultError", "FaultResult", "load_faults", "run_faults",
 ]

@@ -61,7 +61,8 @@ MAX_REDRAWS = 1000
 #: Most runs one sweep may hold.
 MAX_RUNS = 10**6
 _TABLES = ("sweep", "variants", "parameters", "scenario", "metrics")
-_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol")
+_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol",
+                  "zoh")
 _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
@@ -395,6 +396,10 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
     for key in ("dt_out", "rtol", "atol", "event_tol"):
         if key in table:
             out[key] = _num(where, table, key)
+    if "zoh" in table:  # the ECU sampled at its rates (rk4)
+        if not isinstance(table["zoh"], bool):
+            raise SweepError(f"{where} zoh: expected true or false, got {table['zoh']!r}")
+        out["zoh"] = table["zoh"]
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
     for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):

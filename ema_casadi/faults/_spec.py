@@ -1,0 +1,289 @@
+"""A fault file: the scenario and the fault cases, checked before any run.
+
+Layout (TOML, SI units; ``models/faults_reference.toml`` is the reference)::
+
+    [scenario]
+    duration = 0.6            # s
+    x_cmd = "sine:5mm@1"      # signals as for ema simulate (bare numbers: mm, N)
+    f_ext = "5kN"
+    dt = 1e-5                 # RK4 step (s); the ECU is sampled at its rates
+    sensor = "real"           # what the ECU reads: ideal | real
+
+    [[fault]]
+    kind = "jam"              # one of the model's fault kinds (ema faults --list)
+    onset = [0.1, 0.3]        # s: a number or a list (an axis of cases)
+    severity = 1.0            # in the kind's unit: a number or a list
+    ramp = 0.0                # s, optional: the severity is reached over this time
+
+    [[fault]]
+    kind = "stuck"
+    target = "x_s"            # sensor faults: the sensed signal
+
+    [monitor]                 # optional: thresholds over the parameter file's
+    t_jam = { value = 0.02, unit = "s" }
+
+Every [[fault]] gives kind x onset x severity cases; the no-fault case is always run.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._checks import nearest, read_toml
+from ..components import REGISTRY, Fault
+from ..params import ParameterError, Parameters
+from ..signals import Signal, SignalError, parse_signal
+
+__all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults", "fault_kinds", "fault_variants"]
+
+_TABLES = ("scenario", "fault", "monitor")
+_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor")
+_FAULT = ("kind", "target", "onset", "severity", "ramp")
+
+
+class FaultError(ValueError):
+    """A mistake in a fault file or a fault request (one line naming file and key)."""
+
+
+@dataclass(frozen=True)
+class FaultCase:
+    """One run: a fault (or none) with its onset, severity and ramp.
+
+    Attributes
+    ----------
+    label : str
+        ``kind[ target]`` (``none`` for the no-fault case).
+    fault : Fault or None
+        The model's declaration (its input, unit, range).
+    onset, severity, ramp : float
+        Onset (s), severity (the fault's unit), ramp time (s).
+    """
+
+    label: str
+    fault: Fault | None = None
+    onset: float = math.nan
+    severity: float = 0.0
+    ramp: float = 0.0
+
+    def signals(self) -> dict:
+        """The fault's input as a Signal, by input name (empty for the no-fault case)."""
+        f = self.fault
+        if f is None:
+            return {}
+        if f.rate:
+            return {f.input: Signal.ramp(self.severity, self.onset)}
+        if self.ramp > 0:
+            k = self.severity / self.ramp
+            return {f.input: Signal.ramp(k, self.onset) + Signal.ramp(-k, self.onset + self.ramp)}
+        return {f.input: Signal.step(self.severity, self.onset)}
+
+
+@dataclass
+class FaultSpec:
+    """A checked fault file.
+
+    Attributes
+    ----------
+    source : str
+        Where it came from.
+    params : Parameters
+        The parameter set with the file's [monitor] thresholds.
+    variants : dict
+        The variant choice of every run (faults and monitors on).
+    scenario : dict
+        ``duration``, ``dt``, ``dt_out`` (s), ``signals`` (input -> Signal) and ``text``
+        (input -> the file's value).
+    cases : list of FaultCase
+        The no-fault case first, then every fault case.
+    """
+
+    source: str
+    params: Parameters
+    variants: dict
+    scenario: dict
+    cases: list = field(default_factory=list)
+
+
+def fault_variants(params: Parameters, given: dict | None = None, sensor: str | None = None) -> dict:
+    """The variant choice of a fault run: the parameter set's and ``given`` with
+    ``faults``, ``monitors`` and the PMSM's ``winding_short`` on (and ``sensor`` if given)."""
+    v = {**params.variants, **(given or {}), "faults": "on", "monitors": "on"}
+    if sensor is not None:
+        v["sensor"] = sensor
+    if v.get("motor", "pmsm") == "pmsm":
+        v["winding_short"] = "on"
+    return v
+
+
+def fault_kinds(variants: dict) -> dict:
+    """Fault kind -> {target or None: Fault} that a model of ``variants`` can inject
+    (from its parts' declarations)."""
+    from ..components import parts_for, validate_variants
+
+    parts, _ = parts_for(validate_variants(variants))
+    out: dict = {}
+    for part in parts:
+        for f in part.faults:
+            out.setdefault(f.kind, {})[f.target] = f
+    return out
+
+
+def load_faults(path: str | Path, params: Parameters, variants: dict | None = None) -> FaultSpec:
+    """Read and check a fault file (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The fault file (TOML).
+    params : Parameters
+        The parameter set (its [monitor] thresholds are the defaults).
+    variants : dict, optional
+        Variant choices (``--variant``).
+    """
+    data = read_toml(path, "fault file", FaultError)
+    return parse_faults(data, params, str(path), variants)
+
+
+def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants: dict | None = None) -> FaultSpec:
+    """Check a fault description given as the dict ``tomllib`` returns.
+
+    Parameters
+    ----------
+    data : dict
+        The description.
+    params : Parameters
+        The parameter set.
+    src : str
+        Named in error messages.
+    variants : dict, optional
+        Variant choices under the file's.
+    """
+    if not isinstance(data, dict):
+        raise FaultError(f"{src}: expected a table of tables")
+    _known(src, data, _TABLES, "table")
+    scenario = data.get("scenario", {})
+    if not isinstance(scenario, dict):
+        raise FaultError(f"{src} [scenario]: expected a table")
+    _known(f"{src} [scenario]", scenario, _SCENARIO, "key")
+    sensor = scenario.get("sensor")
+    if sensor is not None and sensor not in REGISTRY["sensor"]:
+        raise FaultError(f"{src} [scenario] sensor: '{sensor}' unknown; choose one of {', '.join(REGISTRY['sensor'])}")
+    params = _monitor(data.get("monitor", {}), params, src)
+    v = fault_variants(params, variants, sensor)
+    try:
+        kinds = fault_kinds(v)
+    except ParameterError as exc:
+        raise FaultError(f"{src}: {exc}") from None
+    sc = _scenario(scenario, params, src)
+    faults = data.get("fault", [])
+    if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
+        raise FaultError(f"{src} [[fault]]: expected an array of tables")
+    cases = [FaultCase("none")]
+    for k, entry in enumerate(faults):
+        cases += _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"])
+    return FaultSpec(source=src, params=params, variants=v, scenario=sc, cases=cases)
+
+
+def _known(where, table, keys, what):
+    for k in table:
+        if k not in keys:
+            raise FaultError(f"{where}: unknown {what} '{k}'{nearest(k, keys)}; expected one of {', '.join(keys)}")
+
+
+def _monitor(table, params: Parameters, src: str) -> Parameters:
+    """The parameter set with the fault file's [monitor] values (checked like a file's)."""
+    from dataclasses import fields
+
+    from ..params import GROUPS
+
+    if not isinstance(table, dict):
+        raise FaultError(f"{src} [monitor]: expected a table")
+    meta = {f.name: f.metadata for f in fields(GROUPS["monitor"])}
+    values = {}
+    for key, raw in table.items():
+        if key not in meta:
+            raise FaultError(f"{src} [monitor]: unknown threshold '{key}'{nearest(key, meta)}")
+        unit = meta[key]["unit"]
+        if not isinstance(raw, dict) or set(raw) != {"value", "unit"}:
+            raise FaultError(f'{src} [monitor] {key}: expected {{ value = <number>, unit = "{unit}" }}, got {raw!r}')
+        if raw["unit"] != unit:
+            raise FaultError(f"{src} [monitor] {key}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
+        values[key] = raw["value"]
+    try:
+        return params.replace(**values) if values else params
+    except ParameterError as exc:
+        raise FaultError(f"{src} [monitor]: {exc}") from None
+
+
+def _positive(where, value, default=None) -> float:
+    if value is None:
+        value = default
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise FaultError(f"{where}: expected a positive number of seconds, got {value!r}")
+    return float(value)
+
+
+def _scenario(table: dict, params: Parameters, src: str) -> dict:
+    where = f"{src} [scenario]"
+    out = {"duration": _positive(f"{where} duration", table.get("duration"), 0.6),
+           "dt": _positive(f"{where} dt", table.get("dt"), 1e-5)}
+    out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), max(1e-4, out["dt"]))
+    sig, text = {}, {}
+    for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
+        value = table.get(key, 0)
+        text[key] = value
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise FaultError(f"{where} {key}: expected a signal such as \"step:1mm@0.01\", got {value!r}")
+        try:
+            sig[key] = parse_signal(str(value), kind, bare=bare, stroke=params.actuator.stroke,
+                                    duration=out["duration"])
+        except SignalError as exc:
+            raise FaultError(f"{where} {key}: {exc}") from None
+    out["signals"], out["text"] = sig, text
+    return out
+
+
+def _axis(where, value, default=None) -> list[float]:
+    if value is None:
+        value = default
+    values = value if isinstance(value, list) else [value]
+    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                             for v in values):
+        raise FaultError(f"{where}: expected a number or a list of numbers, got {value!r}")
+    return [float(v) for v in values]
+
+
+def _cases(where: str, entry: dict, kinds: dict, duration: float) -> list[FaultCase]:
+    _known(where, entry, _FAULT, "key")
+    kind = entry.get("kind")
+    if not isinstance(kind, str):
+        raise FaultError(f"{where} kind: expected a fault kind ({', '.join(kinds)}), got {kind!r}")
+    if kind not in kinds:
+        raise FaultError(f"{where} kind: unknown fault kind '{kind}'{nearest(kind, kinds)}; the model injects "
+                         f"{', '.join(kinds)}")
+    targets = kinds[kind]
+    target = entry.get("target")
+    if None in targets and target is not None:
+        raise FaultError(f"{where} target: a {kind} fault has no target, got {target!r}")
+    if None not in targets and target not in targets:
+        raise FaultError(f"{where} target: unknown target {target!r}{nearest(str(target), targets)} for a {kind} "
+                         f"fault; choose one of {', '.join(targets)}")
+    fault = targets[target]
+    onsets = _axis(f"{where} onset", entry.get("onset"), duration / 4)
+    for t in onsets:
+        if not 0 < t < duration:
+            raise FaultError(f"{where} onset: {t:g} s is outside the run (0, {duration:g}) s")
+    whole = fault.unit == "1" and fault.hi == 1.0  # 0..1 faults default to 1 (the full fault)
+    sev = _axis(f"{where} severity", entry.get("severity"), 1.0 if whole else None)
+    for s in sev:
+        if not fault.lo <= s <= fault.hi:
+            raise FaultError(f"{where} severity: {s:g} {fault.unit} is outside the range of a {kind} fault "
+                             f"[{fault.lo:g}, {fault.hi:g}] {fault.unit}")
+    ramp = entry.get("ramp", 0.0)
+    if isinstance(ramp, bool) or not isinstance(ramp, (int, float)) or not math.isfinite(ramp) or ramp < 0:
+        raise FaultError(f"{where} ramp: expected a non-negative number of seconds, got {ramp!r}")
+    label = kind if target is None else f"{kind} {target}"
+    return [FaultCase(label, fault, t, s, float(ramp)) for t, s in itertools.product(onsets, sev)]
