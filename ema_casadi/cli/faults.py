@@ -24,7 +24,7 @@ from . import UserError, _jsonable, positionals
 
 COMMAND = "faults"
 DEFAULT_FAULTS = "models/faults_reference.toml"
-ORDER = 12
+ORDER = 13
 HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detection per monitor, coverage"
 
 

@@ -92,10 +92,11 @@ def run_faults(params: Parameters | None = None, faults=DEFAULT_FAULTS, *, varia
 
 
 def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int = 1,
-                 tolerance: float = HEALTHY_TOLERANCE, progress: bool = False) -> dict:
-    """False alarms over ``n`` healthy runs of the fault file's scenario, through the
-    sweep engine: sensor noise (a seed per run), friction (``F_seal``, ``C_bear``) and
-    drive-train stiffness (``C``) drawn uniformly within +-``tolerance``, no fault.
+                 tolerance: float | None = None, progress: bool = False) -> dict:
+    """False alarms over ``n`` healthy runs of the fault file's scenario (its
+    ``[healthy]`` duration and step), through the sweep engine: sensor noise (a seed
+    per run), friction (``F_seal``, ``C_bear``) and drive-train stiffness (``C``) drawn
+    uniformly within +-``tolerance``, no fault.
 
     Returns a dict: ``runs``, ``false_alarms`` (runs in which some monitor latched),
     ``by_monitor`` (latched runs per monitor), ``failed`` runs, ``wall_time`` and
@@ -111,14 +112,18 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
         Local workers (default: the cores).
     seed : int
         Seed of the draws.
-    tolerance : float
-        Relative half-width of the uniform tolerances (-).
+    tolerance : float, optional
+        Relative half-width of the uniform tolerances (-); default the file's
+        ``[healthy] tolerance`` (HEALTHY_TOLERANCE).
     progress : bool
         Progress on stderr.
     """
     from ..sweeps import parse_sweep, sweep
 
     n = integer(n, "n", FaultError, minimum=1)
+    h = spec.healthy or {"duration": spec.scenario["duration"], "dt": spec.scenario["dt"],
+                         "dt_out": spec.scenario["dt_out"], "tolerance": HEALTHY_TOLERANCE}
+    tolerance = h["tolerance"] if tolerance is None else tolerance
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance < 1):
         raise FaultError(f"tolerance: expected a fraction in [0, 1), got {tolerance!r}")
     v = {k: val for k, val in spec.variants.items() if k not in ("faults", "winding_short")}
@@ -132,7 +137,7 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
         "variants": v,
         "parameters": {"F_seal": tol, "C_bear": tol, "C": tol,
                        "seed": {"distribution": "uniform", "low": 0.0, "high": 2.0**31}},
-        "scenario": {"duration": sc["duration"], "solver": "rk4", "dt": sc["dt"], "dt_out": sc["dt_out"],
+        "scenario": {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
                      "zoh": True, **sc["text"]},
         "metrics": {"peak": {"signals": list(alarms)}},
     }

@@ -22,6 +22,11 @@ Layout (TOML, SI units; ``models/faults_reference.toml`` is the reference)::
     [monitor]                 # optional: thresholds over the parameter file's
     t_jam = { value = 0.02, unit = "s" }
 
+    [healthy]                 # optional: the healthy runs (--healthy-runs) of the scenario
+    duration = 0.3            # s (default the scenario's)
+    dt = 1.5625e-5            # s (default the scenario's)
+    tolerance = 0.05          # +- relative on F_seal, C_bear, C
+
 Every [[fault]] gives kind x onset x severity cases; the no-fault case is always run.
 """
 
@@ -39,7 +44,8 @@ from ..signals import Signal, SignalError, parse_signal
 
 __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults", "fault_kinds", "fault_variants"]
 
-_TABLES = ("scenario", "fault", "monitor")
+_TABLES = ("scenario", "fault", "monitor", "healthy")
+_HEALTHY = ("duration", "dt", "dt_out", "tolerance")
 _SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor")
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
@@ -96,6 +102,8 @@ class FaultSpec:
     scenario : dict
         ``duration``, ``dt``, ``dt_out`` (s), ``signals`` (input -> Signal) and ``text``
         (input -> the file's value).
+    healthy : dict
+        The healthy runs' ``duration``, ``dt``, ``dt_out`` (s) and ``tolerance`` (-).
     cases : list of FaultCase
         The no-fault case first, then every fault case.
     """
@@ -105,6 +113,7 @@ class FaultSpec:
     variants: dict
     scenario: dict
     cases: list = field(default_factory=list)
+    healthy: dict = field(default_factory=dict)
 
 
 def fault_variants(params: Parameters, given: dict | None = None, sensor: str | None = None) -> dict:
@@ -184,7 +193,23 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     cases = [FaultCase("none")]
     for k, entry in enumerate(faults):
         cases += _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"])
-    return FaultSpec(source=src, params=params, variants=v, scenario=sc, cases=cases)
+    return FaultSpec(source=src, params=params, variants=v, scenario=sc, cases=cases,
+                     healthy=_healthy(data.get("healthy", {}), sc, src))
+
+
+def _healthy(table, sc: dict, src: str) -> dict:
+    where = f"{src} [healthy]"
+    if not isinstance(table, dict):
+        raise FaultError(f"{where}: expected a table")
+    _known(where, table, _HEALTHY, "key")
+    out = {k: _positive(f"{where} {k}", table.get(k), sc[k]) for k in ("duration", "dt")}
+    # a latch stays set: one sample per ms finds every alarm of a run
+    out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), _whole(1e-3, out["dt"]))
+    tol = table.get("tolerance", 0.05)
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1:
+        raise FaultError(f"{where} tolerance: expected a fraction in [0, 1), got {tol!r}")
+    out["tolerance"] = float(tol)
+    return out
 
 
 def _known(where, table, keys, what):
@@ -218,6 +243,11 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
         raise FaultError(f"{src} [monitor]: {exc}") from None
 
 
+def _whole(spacing: float, dt: float) -> float:
+    """The smallest whole number of steps dt at least ``spacing`` long (s)."""
+    return dt * max(1, math.ceil(spacing / dt - 1e-9))
+
+
 def _positive(where, value, default=None) -> float:
     if value is None:
         value = default
@@ -230,7 +260,7 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
     where = f"{src} [scenario]"
     out = {"duration": _positive(f"{where} duration", table.get("duration"), 0.6),
            "dt": _positive(f"{where} dt", table.get("dt"), 1e-5)}
-    out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), max(1e-4, out["dt"]))
+    out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), _whole(1e-4, out["dt"]))
     sig, text = {}, {}
     for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
         value = table.get(key, 0)

@@ -73,8 +73,10 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | Non
         if value is None and inp.injection:
             continue
         if value is None and inp.noise is not None and t_end is not None:
-            value = noise_signal(int(P.seed), name, float(getattr(P, model.loops[inp.noise].rate)), t_end)
-        elif value is None:
+            # built here from checked numbers (Signal.table checks them): no second check
+            sig[name] = noise_signal(int(P.seed), name, float(getattr(P, model.loops[inp.noise].rate)), t_end)
+            continue
+        if value is None:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
         sig[name] = _as_signal(value, name, inp.kind)
     return sig
