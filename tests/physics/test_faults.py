@@ -192,3 +192,16 @@ def test_wear_grows_the_friction_at_its_rate(faulty, params):
     k = r.t > 0.15
     F_r = params.friction.F_seal * (1 + rate * (r.t[k] - t_on))
     assert np.allclose(r["P_friction"][k], F_r * np.abs(r["v_rod"][k]), rtol=1e-6)
+
+
+@pytest.mark.slow
+def test_no_false_alarm_over_1000_healthy_runs(params):
+    # the acceptance: the reference scenario with sensor noise (a seed per run) and
+    # +-5 % friction and stiffness, 1000 runs through the sweep engine: no monitor latches
+    from conftest import ROOT
+    from ema_casadi.faults import DEFAULT_FAULTS, healthy_runs, load_faults
+
+    spec = load_faults(ROOT / DEFAULT_FAULTS, params)
+    h = healthy_runs(spec, 1000, jobs=2)
+    assert h["failed"] == 0, h["first_failure"]
+    assert h["false_alarms"] == 0, h["by_monitor"]
