@@ -1,4 +1,4 @@
-"""Benchmark: the FMU exports (ema_casadi.fmu).
+"""Benchmark: the FMU exports (ema_casadi.export.fmu).
 
 1. Build time of each FMU (every binary compiled in parallel: linux64, and win64 where
    MinGW-w64 is installed), from the assembled model to the written .fmu.
@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi import Signal, fmu
+from ema_casadi import Signal
+from ema_casadi.export import fmu
 
 ROOT = Path(__file__).resolve().parent.parent
 T_END, DT_OUT, DT = 1.0, 1e-3, 1e-5

@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 from ema_casadi.limitcycle import break_response, cycle_of, describing_function, harmonic_balance, refine, setup
-from ema_casadi.plotting import plt, save
+from ema_casadi.plots._base import plt, save
 
 ROOT = Path(__file__).resolve().parent.parent
 AMPS = np.geomspace(0.01, 1.0, 7)  # at the actuator command, times B (the cycle scales with the gap)

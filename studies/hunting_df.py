@@ -35,7 +35,7 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import Signal
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, harmonic_orders, plot_nichols, refine
 from ema_casadi.signals import parse_list
 

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi._files import write_text
-from ema_casadi.plotting import plt, save
+from ema_casadi._util._files import write_text
+from ema_casadi.plots._base import plt, save
 from ema_casadi.sweeps import SweepError, parse_sweep, sweep
 
 ROOT = Path(__file__).resolve().parent.parent

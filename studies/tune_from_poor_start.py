@@ -35,7 +35,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import linearisation as lz
 from ema_casadi import tuning as T
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 
 ROOT = Path(__file__).resolve().parent.parent
 LOADS = (0.0, 15e3, 30e3)

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from ..assembly import Model
 from ..linearisation import OperatingPoint
+from ..model.assembly import Model
 from ..signals import Signal, constant
 from ..simulation import simulate, step_response_metrics
 from ._conditions import condition_overrides

@@ -18,7 +18,7 @@ Exit status and stderr (SPEC §7), always one line, never a traceback:
 - 130 / 143: interrupted by SIGINT (Ctrl-C) / SIGTERM, within about a second.
 
 Outputs are written atomically and committed together at the end of the command
-(:func:`ema_casadi._files.transaction`): an error, a failed run or an interrupt leaves
+(:func:`ema_casadi._util._files.transaction`): an error, a failed run or an interrupt leaves
 no output and no temporary file.
 
 Importing this package costs next to nothing (``sys`` and the signal module): what
@@ -33,7 +33,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from .. import _interrupts
+from .._util import _interrupts
 
 _interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
 
@@ -53,10 +53,10 @@ class UserError(ValueError):
 
 
 def _user_errors() -> tuple:
-    from .. import _files
+    from .._util import _files
     from ..export import ExportError
     from ..linearisation import LinearizationError
-    from ..params import ParameterError
+    from ..model.params import ParameterError
     from ..signals import SignalError
     from ..simulation import SimulationError
 
@@ -94,7 +94,7 @@ def positionals(model: str, second: str | None, default: str) -> tuple[str, str]
 
 def _variant_help() -> str:
     """The --variant help, from the registry (first value of each key its default)."""
-    from ..components import OPTIONS, REGISTRY
+    from ..model.components import OPTIONS, REGISTRY
 
     keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
     opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
@@ -111,8 +111,8 @@ def add_common(p) -> None:
 
 def load(args):
     """(Parameters, Model) from the common arguments."""
-    from ..assembly import build_model
-    from ..params import load_parameters
+    from ..model.assembly import build_model
+    from ..model.params import load_parameters
 
     variants = dict(args.variant)
     params = load_parameters(args.model, variants)
@@ -155,7 +155,7 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...], flag: str) ->
     """
     from pathlib import Path
 
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -181,7 +181,7 @@ def check_output_dir(path: str | None, names, flag: str) -> Path | None:
     flag : str
         The flag, for the message (``"--out"``).
     """
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -318,7 +318,7 @@ class _Stop:
             sys.stderr = self.stderr
 
     def report(self, signum) -> int:
-        from .. import _files
+        from .._util import _files
 
         with self._once:
             if not self.reported:
@@ -353,7 +353,7 @@ def _run(argv, stop) -> int:
     """Parse, run the command in one output transaction, report; the exit status."""
     import json
 
-    from .. import _files
+    from .._util import _files
     from ..simulation import RunFailed
 
     parser, mods = build_parser()

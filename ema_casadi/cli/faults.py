@@ -57,8 +57,8 @@ def _check(args) -> Path:
 
 
 def _listing(params, variants) -> dict:
-    from ..assembly import build_model
     from ..faults import fault_kinds, fault_variants
+    from ..model.assembly import build_model
 
     v = fault_variants(params, variants)
     kinds = {k: {str(t): {"input": f.input, "unit": f.unit, "range": [f.lo, f.hi], "ramp": f.rate, "doc": f.doc}
@@ -68,7 +68,7 @@ def _listing(params, variants) -> dict:
 
 def run(args) -> dict:
     from ..faults import FaultError, load_faults, run_faults
-    from ..params import load_parameters
+    from ..model.params import load_parameters
 
     out = _check(args)
     args.model, args.faults = positionals(args.model, args.faults, DEFAULT_FAULTS)

@@ -64,7 +64,7 @@ def _check(args) -> Path:
 
 def run(args) -> dict:
     from ..mission import MissionError, MissionFailed, load_mission, run_mission
-    from ..params import load_parameters
+    from ..model.params import load_parameters
 
     out = _check(args)
     args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
@@ -85,7 +85,7 @@ def run(args) -> dict:
     res.to_csv(paths["csv"], dt=args.csv_dt)
     res.plot(paths["png"])
     summary["written"] = [str(p) for p in paths.values()]
-    from .._files import write_text
+    from .._util._files import write_text
 
     write_text(paths["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary

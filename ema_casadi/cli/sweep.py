@@ -46,7 +46,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..params import load_parameters
+    from ..model.params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep
 
     args.model, args.spec = positionals(args.model, args.spec, DEFAULT_SPEC)
@@ -60,7 +60,7 @@ def run(args) -> dict:
         raise UserError("--scheduler runs on the cluster's workers: give it or --jobs/--threads, not both")
     if args.resume and out is None:
         raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
-    from ..components import validate_variants
+    from ..model.components import validate_variants
 
     given = dict(args.variant)
     params = load_parameters(args.model, given)  # the sweep file's [variants] go on top

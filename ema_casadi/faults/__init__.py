@@ -12,12 +12,12 @@ The model of every case is the one model with the fault-injection part
 (``faults = on``), the monitors (``monitors = on``) and, for the PMSM, the
 turn-to-turn short (``winding_short = on``); a case drives its fault's input from the
 onset with the severity (:class:`FaultCase`), so one compiled model serves every case.
-What a model can inject comes from its parts' :class:`~ema_casadi.components.Fault`
+What a model can inject comes from its parts' :class:`~ema_casadi.model.components.Fault`
 declarations (:func:`fault_kinds`); the monitors are its ``alarm`` outputs.
 
 Layout: ``_spec`` reads and checks the fault file; ``_run`` runs the cases and the
 healthy runs (through :mod:`ema_casadi.sweeps`); ``_result`` holds the table, the
-coverage and the files; ``_plot`` the figure.
+coverage and the files; the figure is drawn by ``plots._faults``.
 """
 
 from ._result import FaultResult

@@ -49,7 +49,19 @@ class FaultResult:
 
     @classmethod
     def from_runs(cls, spec, model, runs, info) -> FaultResult:
-        """Rows from the cases' runs (the first is the no-fault case)."""
+        """Rows from the cases' runs (the first is the no-fault case).
+
+        Parameters
+        ----------
+        spec : FaultSpec
+            The checked fault file.
+        model : Model
+            The model the cases ran on (its ``alarm`` outputs are the monitors).
+        runs : list of (SimResult or None, str or None)
+            Per case: the run (up to a failure) and the failure's reason.
+        info : dict
+            Wall time and the like, kept in :attr:`info`.
+        """
         monitors = model.outputs_of("alarm")
         ref = runs[0][0]
         rows = []
@@ -128,7 +140,7 @@ class FaultResult:
         path : str or Path
             The JSON file.
         """
-        from .._files import write_text
+        from .._util._files import write_text
 
         return write_text(path, json.dumps(self.summary(), indent=1, default=_plain) + "\n")
 
@@ -142,7 +154,7 @@ class FaultResult:
         path : str or Path, optional
             A PNG file to write.
         """
-        from ._plot import plot_coverage
+        from ..plots._faults import plot_coverage
 
         return plot_coverage(self, path)
 

@@ -7,8 +7,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from .._checks import describe, integer
-from ..params import Parameters
+from .._util._checks import describe, integer
+from ..model.params import Parameters
 from ._result import FaultResult
 from ._spec import FaultError, FaultSpec, load_faults, parse_faults
 
@@ -74,7 +74,7 @@ def run_faults(params: Parameters | None = None, faults=DEFAULT_FAULTS, *, varia
     progress : bool
         Progress on stderr (the healthy runs').
     """
-    from ..assembly import build_model
+    from ..model.assembly import build_model
 
     spec = _spec(params, faults, variants)
     healthy = integer(healthy, "healthy", FaultError, minimum=0)
@@ -127,7 +127,7 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance < 1):
         raise FaultError(f"tolerance: expected a fraction in [0, 1), got {tolerance!r}")
     v = {k: val for k, val in spec.variants.items() if k not in ("faults", "winding_short")}
-    from ..assembly import build_model
+    from ..model.assembly import build_model
 
     alarms = build_model(spec.params, v).outputs_of("alarm")
     sc = spec.scenario

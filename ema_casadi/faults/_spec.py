@@ -37,9 +37,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._checks import nearest, read_toml
-from ..components import REGISTRY, Fault
-from ..params import ParameterError, Parameters
+from .._util._checks import nearest, read_toml
+from ..model.components import REGISTRY, Fault
+from ..model.params import ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 
 __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults", "fault_kinds", "fault_variants"]
@@ -118,7 +118,17 @@ class FaultSpec:
 
 def fault_variants(params: Parameters, given: dict | None = None, sensor: str | None = None) -> dict:
     """The variant choice of a fault run: the parameter set's and ``given`` with
-    ``faults``, ``monitors`` and the PMSM's ``winding_short`` on (and ``sensor`` if given)."""
+    ``faults``, ``monitors`` and the PMSM's ``winding_short`` on (and ``sensor`` if given).
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set (its ``[model]`` variants).
+    given : dict, optional
+        Variant choices on top (``--variant``).
+    sensor : str, optional
+        The sensor variant (``ideal`` or ``real``).
+    """
     v = {**params.variants, **(given or {}), "faults": "on", "monitors": "on"}
     if sensor is not None:
         v["sensor"] = sensor
@@ -129,8 +139,14 @@ def fault_variants(params: Parameters, given: dict | None = None, sensor: str | 
 
 def fault_kinds(variants: dict) -> dict:
     """Fault kind -> {target or None: Fault} that a model of ``variants`` can inject
-    (from its parts' declarations)."""
-    from ..components import parts_for, validate_variants
+    (from its parts' declarations).
+
+    Parameters
+    ----------
+    variants : dict
+        A variant choice (completed with the defaults).
+    """
+    from ..model.components import parts_for, validate_variants
 
     parts, _ = parts_for(validate_variants(variants))
     out: dict = {}
@@ -222,7 +238,7 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
     """The parameter set with the fault file's [monitor] values (checked like a file's)."""
     from dataclasses import fields
 
-    from ..params import GROUPS
+    from ..model.params import GROUPS
 
     if not isinstance(table, dict):
         raise FaultError(f"{src} [monitor]: expected a table")

@@ -4,9 +4,9 @@ injected at the break), the roots of L_N = -1 with their stability, refinement, 
 harmonic balance with the higher harmonics (:func:`harmonic_balance`), the confirming
 long simulation (:func:`cycle_of`) and the Nichols chart."""
 
+from ..plots._limitcycle import plot_nichols
 from ._df import DescribingFunction, break_response, cycle_of, describing_function, predict, refine
 from ._hb import harmonic_balance, harmonic_orders
-from ._plot import plot_nichols
 from ._setup import LOOP_SETUPS, confirm_cycle, setup
 
 __all__ = ["DescribingFunction", "break_response", "cycle_of", "describing_function", "predict", "refine",

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..assembly import Model
+from ..model.assembly import Model
 from ._df import _periodic_runner
 
 __all__ = ["harmonic_balance", "harmonic_orders"]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..assembly import Model
-from ..components import REGISTRY
+from ..model.assembly import Model
+from ..model.components import REGISTRY
 
 #: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner:
 #: every loop a registered part declares (a model has its own in ``model.loops``).

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import instance
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import instance
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._common import _LIFT, OperatingPointError, _eval
 from ._trim import (
     OperatingPoint,

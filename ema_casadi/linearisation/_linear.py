@@ -6,9 +6,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._checks import describe, instance
-from .._kwargs import check_keywords, keywords_of
-from ..assembly import Model
+from .._util._checks import describe, instance
+from .._util._kwargs import check_keywords, keywords_of
+from ..model.assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
 

@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import instance, integer, number, vector
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._common import _LIFT, BACKLASH_POLICIES, FRICTION_POLICIES, LinearizationError, OperatingPointError, _eval
 
 

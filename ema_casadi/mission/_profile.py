@@ -11,8 +11,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._checks import read_toml
-from ..params import Parameters
+from .._util._checks import read_toml
+from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
 __all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "NODE_LIMITS",

@@ -11,8 +11,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._files import write_text
-from ..components.thermal import NODES, network
+from .._util._files import write_text
+from ..model.components.thermal import NODES, network
 from ._profile import Mission
 
 __all__ = ["MissionResult"]
@@ -313,6 +313,6 @@ class MissionResult:
         title : str
             Figure title (default the mission's name).
         """
-        from ._plot import plot_mission
+        from ..plots._mission import plot_mission
 
         return plot_mission(self, path, title)

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..components.thermal import NODES
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.components.thermal import NODES
+from ..model.params import Parameters
 from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, simulate
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult

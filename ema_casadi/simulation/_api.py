@@ -31,9 +31,9 @@ import warnings
 
 import numpy as np
 
-from .._checks import describe, instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import describe, instance, integer, number, vector
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import _input_signals
@@ -91,7 +91,7 @@ def simulate(
     Parameters
     ----------
     model : Model
-        From :func:`~ema_casadi.assembly.build_model`.
+        From :func:`~ema_casadi.model.assembly.build_model`.
     t_end : float
         End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str

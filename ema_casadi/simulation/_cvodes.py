@@ -9,8 +9,8 @@ import time
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..compiled import BufferCall
+from .._util._compiled import BufferCall
+from .._util._interrupts import check as check_interrupt
 from ._envelope import RunFailed, captured_stderr, integrator_failure, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import _result, progress_bar

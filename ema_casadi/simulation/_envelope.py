@@ -1,7 +1,7 @@
 """The physical-envelope monitor of every run (SPEC §7: no silent garbage).
 
 A run is *failed*, never a result, when a state or output leaves the envelope its
-part declares (:meth:`~ema_casadi.assembly.Model.envelope`: the rod beyond the stroke
+part declares (:meth:`~ema_casadi.model.assembly.Model.envelope`: the rod beyond the stroke
 with end stops off, a current above 3 x I_max, a speed above 3 x the no-load
 speed, ...), when a value is not finite, or when the integrator gives up (CVODES
 ``CV_TOO_MUCH_WORK``, ``CV_CONV_FAILURE``, ``CV_ERR_FAILURE``, ``CV_ILL_INPUT``, ...).

@@ -14,7 +14,7 @@ samples of switched powers is not).
 
 The step is rolled out like the RK4 rollout (:mod:`._rk4`): ``fold`` over ``k`` periods
 per kept sample, ``mapaccum`` over the samples of a chunk, compiled and cached with
-:func:`~ema_casadi.compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
+:func:`~ema_casadi._util._compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
 kept (``resolve``): its start, its states and its leg states, for plots of the switched
 waveforms (a step plot, ``steps-post``).
 
@@ -31,9 +31,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..assembly import Model
-from ..compiled import BufferCall, compile_keyed
+from .._util._compiled import BufferCall, compile_keyed
+from .._util._interrupts import check as check_interrupt
+from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import SimResult, SimulationError, _result, progress_bar

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_with
+from .._util._files import write_with
 
 __all__ = ["SimulationError", "SimResult", "step_response_metrics", "hunting_metrics", "progress_bar"]
 
@@ -33,7 +33,7 @@ class SimResult:
     info : dict
         Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
     unit_table : dict
-        Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
+        Signal name -> SI unit (the model's :attr:`~ema_casadi.model.assembly.Model.units`).
     kinds : dict
         Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
     """

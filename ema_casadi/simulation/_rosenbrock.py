@@ -21,8 +21,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..compiled import compile_source, inline_min_max
+from .._util._compiled import compile_source, inline_min_max
+from .._util._interrupts import check as check_interrupt
 from ._cvodes import _check, _check_inputs, _outputs, _partial
 from ._envelope import RunFailed, monitor_for
 from ._result import _result, progress_bar

@@ -57,9 +57,9 @@ period maps and the settling loop of ``_kernels``; the result is a
 ``_plot`` draws the Bode plot and ``_studies`` writes the paper's figures.
 """
 
+from ..plots._sinestream import plot_bode
 from ._kernels import coefficients, harmonics, hybrid_available
 from ._parse import parse_amplitudes, parse_freqs, parse_loads
-from ._plot import plot_bode
 from ._result import FIELDS, FreqRespError, FreqResponse
 from ._run import sine_stream
 from ._studies import PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ, paper_fig14a, paper_fig14b, run_study

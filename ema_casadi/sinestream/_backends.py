@@ -7,7 +7,7 @@ pool stops submitting, cancels the pending points and does not wait for the batc
 running points see the stop flag at their next period. Dask futures are cancelled.
 
 A remote scheduler that does not answer is not waited for forever: the connection and
-the wait for a first worker are bounded (:mod:`ema_casadi._parallel`, shared with the
+the wait for a first worker are bounded (:mod:`ema_casadi._util._parallel`, shared with the
 sweeps).
 """
 
@@ -18,8 +18,8 @@ import math
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-from .._parallel import cores as _cores
-from .._parallel import dask_map
+from .._util._parallel import cores as _cores
+from .._util._parallel import dask_map
 from ..simulation import progress_bar
 from ._kernels import _settle, _stepper
 from ._result import FreqRespError

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .. import _interrupts
-from ..assembly import Model, build_model
-from ..compiled import BufferCall
-from ..params import ParameterError, Parameters
+from .._util import _interrupts
+from .._util._compiled import BufferCall
+from ..model.assembly import Model, build_model
+from ..model.params import ParameterError, Parameters
 from ..signals import Signal
 from ..simulation import STEPS_PER_CALL, RunFailed, simulate
 from ..simulation._envelope import Monitor, captured_stderr, integrator_failure

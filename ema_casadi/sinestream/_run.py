@@ -10,10 +10,10 @@ import time
 import casadi as ca
 import numpy as np
 
-from .._checks import describe, instance, vector
-from ..assembly import Model
-from ..components import validate_variants
-from ..params import Parameters
+from .._util._checks import describe, instance, vector
+from ..model.assembly import Model
+from ..model.components import validate_variants
+from ..model.params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
 from ._kernels import _Settle, _stepper, hybrid_available

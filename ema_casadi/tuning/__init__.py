@@ -148,11 +148,11 @@ exponential, soft minimum), ``_callbacks`` (the spectral abscissa with its gradi
 closed loop as a function of the gains), ``_constraints`` (the constraint groups),
 ``_problem`` (:class:`TuningProblem`, the Opti problem), ``_solve`` (:func:`tune`,
 :class:`TuneResult`), ``_report`` (texts), ``_verify`` (:func:`verify`,
-:func:`step_metrics`), ``_plot`` (:func:`plot_tuning`).
+:func:`step_metrics`), ``_figures`` (:func:`plot_tuning`, drawn in ``plots``).
 """
 
 from ._callbacks import spectral_abscissa
-from ._plot import plot_tuning
+from ._figures import plot_tuning
 from ._problem import TuningProblem
 from ._report import describe_constraint
 from ._requirements import (

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..assembly import Model
-from ..params import Parameters
+from ..model.assembly import Model
+from ..model.params import Parameters
 
 #: Tunable gains (flat parameter names, SPEC §3 symbols).
 GAINS = ("K_x", "K_i_x", "K_p_w", "T_i_w", "K_p_i", "K_i_i")

@@ -1,4 +1,4 @@
-"""FMU, C and CasADi exports of the nonlinear model (ema_casadi.fmu, SPEC §4.7).
+"""FMU, C and CasADi exports of the nonlinear model (ema_casadi.export.fmu, SPEC §4.7).
 
 Reference scenario: a 1 mm step of x_cmd at 0.01 s, every other input at its default,
 0.2 s. Tolerances, each from a measurement on this machine (factor in brackets):
@@ -19,7 +19,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ema_casadi import Signal, compiled, fmu, simulate
+from ema_casadi import Signal, simulate
+from ema_casadi._util import _compiled as compiled
+from ema_casadi.export import fmu
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy.validation import validate_fmu  # noqa: E402
@@ -325,7 +327,7 @@ def test_casadi_folder_round_trip(model_cache, tmp_path):
 
 def test_failed_build_leaves_nothing(model_cache, tmp_path, monkeypatch):
     """A compiler failure (or an interrupt) mid-build: no FMU, no temporary files."""
-    from ema_casadi.fmu import _cs
+    from ema_casadi.export.fmu import _cs
 
     def broken(*a, **k):
         raise KeyboardInterrupt

@@ -7,7 +7,7 @@ import importlib
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import _files
+from ema_casadi._util import _files
 from ema_casadi.cli import main
 
 M = str(REFERENCE)

@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
-from ema_casadi.components import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VariantError, validate_variants
 from ema_casadi.linearisation import flight_point
+from ema_casadi.model.components import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VariantError, validate_variants
 
 K_I_X = 400.0  # 1/s^2
 LOADS = [pytest.param(0.0, id="rest"), pytest.param(15e3, id="15kN")]

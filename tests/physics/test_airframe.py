@@ -11,10 +11,10 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi.aircraft import aircraft_point, ideal_loop
-from ema_casadi.components.airframe import B747_A, B747_B, FT
 from ema_casadi.frequency import freqresp
 from ema_casadi.limitcycle import describing_function, refine
 from ema_casadi.linearisation import linear_model, loop_model, operating_point
+from ema_casadi.model.components.airframe import B747_A, B747_B, FT
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import pytest
 import ema_casadi as ema
 from conftest import REFERENCE
 from ema_casadi.cli import main
-from ema_casadi.components import MARGIN, REGISTRY
+from ema_casadi.model.components import MARGIN, REGISTRY
 from ema_casadi.simulation import Monitor, RunFailed, SimulationError
 from ema_casadi.simulation._envelope import integrator_failure
 

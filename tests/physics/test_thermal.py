@@ -185,7 +185,7 @@ def test_old_files_load_and_tables_round_trip(tmp_path, params):
     k_e) loads with the SPEC values; a set written back reads back the same, tables
     included; a table travels as TABLE_MAX flat entries, padded."""
     from conftest import REFERENCE
-    from ema_casadi.params import TABLE_MAX
+    from ema_casadi.model.params import TABLE_MAX
 
     new_keys = ("C_th_inv", "R_th_inv", "alpha_psi", "T_ref", "T_eta", "eta_T", "feedback_R", "feedback_psi",
                 "feedback_eta", "T_max_w", "k_h", "k_e")
@@ -212,7 +212,7 @@ def test_cavity_temperature_signals():
 def test_a_loss_routed_nowhere_is_an_assembly_error(params, monkeypatch):
     """A part whose loss heats no node cannot be built with the thermal network (its
     heat would vanish); without the network it does not matter."""
-    from ema_casadi.components import REGISTRY, endstop
+    from ema_casadi.model.components import REGISTRY, endstop
 
     class Leaky(endstop.Elastic):
         heat = {}

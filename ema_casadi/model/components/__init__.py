@@ -1,0 +1,52 @@
+"""Components: one module per family, each variant a *part* (SPEC §2).
+
+controller (ECU outer loops), sensor (what the ECU reads), motor (with its current controller),
+inverter (power electronics), ballscrew (drive-train mechanics), friction, endstop,
+thermal, supply, faults (fault injection), monitors (the ECU's fault detection). A part declares its
+states, inputs, outputs, parameters and loops next to its equations
+(:mod:`~ema_casadi.model.components._part`); :data:`REGISTRY` maps every variant key and value
+to its part; :mod:`ema_casadi.model.assembly` composes the chosen parts by signal name.
+"""
+
+from . import (
+    airframe,
+    ballscrew,
+    controller,
+    endstop,
+    faults,
+    friction,
+    inverter,
+    monitors,
+    motor,
+    sensor,
+    supply,
+    thermal,
+)
+from ._part import (
+    HEAT_NODES,
+    INPUT_KINDS,
+    MARGIN,
+    OUTPUT_KINDS,
+    AssemblyError,
+    Bound,
+    Bus,
+    Fault,
+    Hold,
+    Input,
+    Loop,
+    Output,
+    Part,
+    State,
+    der,
+    heat_signal,
+)
+from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
+
+__all__ = [
+    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "monitors", "motor", "sensor",
+    "supply", "thermal",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "AssemblyError", "Bound", "Bus", "Fault", "Hold", "Input", "Loop",
+    "Output", "Part", "State", "der",
+    "HEAT_NODES", "heat_signal",
+    "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
+]

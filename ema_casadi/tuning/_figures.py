@@ -1,0 +1,74 @@
+"""The before/after curves of a tuning (closed-loop and loop-transfer Bode, nonlinear
+step), computed here and drawn by :mod:`ema_casadi.plots._tuning`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..frequency import bode, closed_loop, frequency_grid
+from ..linearisation import loop_model, operating_point
+from ..model.assembly import Model
+from ..model.params import Parameters
+from ..plots._tuning import draw_bode, draw_step
+from ._requirements import _load_label
+from ._solve import TuneResult
+from ._verify import step_metrics
+
+__all__ = ["plot_tuning"]
+
+
+def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, folder,
+                reference: Parameters | None = None) -> list:
+    """Bode plots (closed loop x_rod/x_cmd and the three loop transfers, first load case)
+    and the nonlinear step (no load) before and after, optionally with a reference gain
+    set; PNGs ``tune_bode.png`` and ``tune_step.png`` written atomically.
+
+    Parameters
+    ----------
+    result : TuneResult
+        The tuning; its nonlinear steps are reused where it has them.
+    model : Model
+        The assembled model.
+    params_before : Parameters
+        The parameter set with the start gains.
+    folder : str or Path
+        Existing folder the PNGs are written into.
+    reference : Parameters, optional
+        A further gain set drawn dotted.
+
+    Returns
+    -------
+    list of Path
+        The two PNG files.
+    """
+    folder = Path(folder)
+    sets = {"before": (params_before, "--"), "after": (result.params, "-")}
+    if reference is not None:
+        sets["reference"] = (reference, ":")
+    f = frequency_grid(0.1, 1e4, 60)
+    F = result.loads[0]
+    titles = ["closed loop x_rod/x_cmd"] + [f"L, {n} loop (others closed)" for n in model.loops]
+    curves = {}
+    for lbl, (ps, ls) in sets.items():
+        op = operating_point(model, f_ext=F, p=ps.vector())
+        systems = [closed_loop(model, op)] + [loop_model(model, n, op) for n in model.loops]
+        curves[lbl] = (ls, [bode(sys_, f) for sys_ in systems])
+    bode_png = draw_bode(f, curves, titles, f"gain tuning ({result.objective}), linearised at {_load_label(F)}",
+                         folder / "tune_bode.png")
+    return [bode_png, draw_step(_steps(result, model, sets), folder / "tune_step.png")]
+
+
+def _steps(result, model, sets) -> dict:
+    """``{label: (line style, nonlinear step)}``, reusing the tuning's own steps."""
+    steps, amp = {}, None
+    for lbl, (ps, ls) in sets.items():
+        key = {"before": "verification_before", "after": "verification_after"}.get(lbl)
+        nl = getattr(result, key).get("nonlinear_step") if key else None
+        if nl is None:
+            done = [getattr(result, k)["nonlinear_step"] for k in ("verification_after", "verification_before")
+                    if getattr(result, k).get("nonlinear_step")]
+            amp = amp or (done[0]["amp_m"] if done else 1e-3)
+            nl = step_metrics(model, ps, amp)
+        amp = nl["amp_m"]
+        steps[lbl] = (ls, nl)
+    return steps
