@@ -210,7 +210,7 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
                      scenario={}, metrics={}, seed=seed, samples=samples)
     spec.runs = _expand(spec)
     _check_runs(spec, src)
-    spec.scenario = _scenario(_table(data, "scenario", src), params, src)
+    spec.scenario = _scenario(_table(data, "scenario", src), params, src, vspec)
     spec.metrics = check_metrics(spec, metrics, src, SweepError)
     return spec
 
@@ -388,7 +388,7 @@ def _shown(values: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" for k, v in values.items())
 
 
-def _scenario(table: dict, params: Parameters, src: str) -> dict:
+def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
     _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
     where = f"{src} [scenario]"
     out = {"duration": _num(where, table, "duration", False) or 1.0, "solver": table.get("solver", "cvodes"),
@@ -408,13 +408,17 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
     inputs = table.get("inputs", {})
     if not isinstance(inputs, dict):
         raise SweepError(f"{where} inputs: expected a table input = signal, got {inputs!r}")
-    from ..model.assembly import build_model
+    from ..model.components import parts_for
 
-    model = build_model(params)
+    # the inputs of the swept models' parts (a fault input with faults = on, ...)
+    info = {}
+    for combo in itertools.product(*(variants or {k: [v] for k, v in params.variants.items()}).values()):
+        parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
+        info.update({i.name: i for part in parts for i in part.inputs})
     for name, value in inputs.items():
-        if name in ("x_cmd", "f_ext") or name not in model.input_info:
-            raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, model.inputs)}")
-        sig[name] = _signal(f"{where} inputs {name}", value, model.input_info[name].kind, None, stroke, T)
+        if name in ("x_cmd", "f_ext") or name not in info:
+            raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
+        sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
     out["signals"] = sig
     return out
 

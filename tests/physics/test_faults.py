@@ -205,3 +205,45 @@ def test_no_false_alarm_over_1000_healthy_runs(params):
     h = healthy_runs(spec, 1000, jobs=2)
     assert h["failed"] == 0, h["first_failure"]
     assert h["false_alarms"] == 0, h["by_monitor"]
+
+
+def test_a_fault_drives_a_sweep(params):
+    # a fault is an input of the one model, so a sweep can run it over tolerances: the
+    # stuck rod sensor at 0.05 s is caught by the cross-check in every run (threads,
+    # jobs=1: the rows are the same whichever runs them)
+    from ema_casadi.sweeps import parse_sweep, sweep
+
+    data = {"sweep": {"seed": 3, "samples": 3},
+            "variants": {"faults": "on", "monitors": "on"},
+            "parameters": {"F_seal": {"distribution": "uniform", "low": 0.8, "high": 1.2, "relative": True}},
+            "scenario": {"duration": 0.15, "x_cmd": "ramp:40mm/s", "solver": "rk4", "dt": 1e-5, "dt_out": 1e-3,
+                         "zoh": True, "inputs": {"stuck_x": "step:1@0.05"}},
+            "metrics": {"peak": {"signals": ["latch_cross", "latch_jam"]}}}
+    res = sweep(parse_sweep(data, params), jobs=1)
+    assert [r["status"] for r in res.rows] == ["ok"] * 3
+    assert all(r["peak_latch_cross"] >= 0.5 and r["peak_latch_jam"] < 0.5 for r in res.rows)
+
+
+@pytest.mark.parametrize("monitor", ["oc", "ot"])
+def test_monitor_latches_its_confirmation_time_after_its_condition(params, monitor):
+    # thresholds set where this run crosses them: over-current at 0.3 I_max under a
+    # 15 kN load step (7.7 A held), over-temperature at 19.99 degC with the winding
+    # warming from 20 degC; the latch comes t_conf after the condition first holds
+    # (continuously from then on), within one output sample (0.1 ms) and the latch's
+    # own 0.07 ms
+    model = ema.build_model(params.replace(**QUIET), {"monitors": "on", "sensor": "real", "thermal": "lumped"})
+    p = model.p(k_oc=0.3, t_oc=0.01) if monitor == "oc" else model.p(T_ot=19.99, t_ot=0.05)
+    r = ema.simulate(model, 0.2, x_cmd=0.0, f_ext="step:15kN@0.05", zoh=True, dt=1e-5, dt_out=1e-4, p=p)
+    P = model.pdict(p)
+    if monitor == "oc":
+        cond = np.hypot(r["i_d_s"], r["i_q_s"]) > P.k_oc * P.I_max
+        t_conf = P.t_oc
+    else:
+        cond = r["T_w"] > P.T_ot
+        t_conf = P.t_ot
+    i0 = np.argmax(cond)
+    assert cond.any() and cond[i0:].all()
+    t_latch = _first(r.t, r[f"latch_{monitor}"] >= 0.5)
+    assert r.t[i0] + t_conf - 1e-4 <= t_latch <= r.t[i0] + t_conf + 2e-4
+    others = [n for n in model.outputs_of("alarm") if n != f"latch_{monitor}"]
+    assert all(r[n].max() < 0.5 for n in others)
