@@ -29,7 +29,8 @@ class FaultResult:
     rows : list of dict
         One per case: ``case``, ``kind``, ``target``, ``onset_s``, ``severity``,
         ``unit``, ``status``, ``reason``, ``peak_deviation_m`` (max |x_rod - x_rod of
-        the no-fault run| from the onset), ``detected_<monitor>_s`` (delay from the
+        the no-fault run| from the onset; in the aircraft loop also ``peak_theta_dev``,
+        rad, and ``peak_n_z_dev``, -), ``detected_<monitor>_s`` (delay from the
         onset to the latch, None if not detected; for the no-fault case the time of a
         false alarm), ``first_monitor``.
     runs : list
@@ -79,6 +80,10 @@ class FaultResult:
             after = res.t[:n] >= t0
             dev = np.abs(res["x_rod"][:n] - ref["x_rod"][:n])[after]
             row["peak_deviation_m"] = float(dev.max()) if dev.size else math.nan
+            for name in ("theta", "n_z"):  # the aircraft loop's pitch and load-factor excursions
+                if name in res.columns():
+                    d = np.abs(res[name][:n] - ref[name][:n])[after]
+                    row[f"peak_{name}_dev"] = float(d.max()) if d.size else math.nan
             det = {}
             for m in monitors:
                 t = _first(res.t, res[m] >= 0.5)
@@ -92,7 +97,8 @@ class FaultResult:
     @property
     def columns(self) -> list[str]:
         """The table's columns, in order."""
-        return ["case", "kind", "target", "onset_s", "severity", "unit", "status", "peak_deviation_m",
+        extra = [c for c in ("peak_theta_dev", "peak_n_z_dev") if self.rows and c in self.rows[0]]
+        return ["case", "kind", "target", "onset_s", "severity", "unit", "status", "peak_deviation_m", *extra,
                 *(f"detected_{m}_s" for m in self.monitors), "first_monitor", "reason"]
 
     def coverage(self) -> dict:

@@ -32,13 +32,32 @@ def _spec(params, faults, variants) -> FaultSpec:
     raise FaultError(f"faults: expected a fault file, a dict or a FaultSpec, got {describe(faults)}")
 
 
-def _one(model, spec: FaultSpec, case, pv):
+def _start(model, spec: FaultSpec):
+    """(parameter vector, initial state or None, fixed inputs): the aircraft loop starts
+    from the trim of the whole loop at its flight condition, its attitude command on
+    top of the trim's."""
+    sc = spec.scenario
+    if sc["condition"] is None:
+        return model.p(), None, dict(sc["signals"])
+    from ..aircraft import aircraft_point, condition_overrides
+    from ..signals import constant
+
+    pv = model.p(**condition_overrides(sc["condition"]))
+    op = aircraft_point(model, sc["condition"])
+    fixed = {n: float(v) for n, v in op.policy.get("trim_free", {}).items()}
+    sig = dict(sc["signals"])
+    sig["theta_cmd"] = sig["theta_cmd"] + constant(float(op.u[model.inputs.index("theta_cmd")]))
+    return pv, op.x, {**fixed, **sig}
+
+
+def _one(model, spec: FaultSpec, case, start):
     from ..simulation import RunFailed, simulate
 
     sc = spec.scenario
+    pv, x0, signals = start
     try:
-        res = simulate(model, sc["duration"], dt=sc["dt"], dt_out=sc["dt_out"], zoh=True, p=pv,
-                       **sc["signals"], **case.signals())
+        res = simulate(model, sc["duration"], dt=sc["dt"], dt_out=sc["dt_out"], zoh=True, p=pv, x0=x0,
+                       **signals, **case.signals())
         return res, None
     except RunFailed as exc:
         return exc.result, exc.reason
@@ -80,10 +99,10 @@ def run_faults(params: Parameters | None = None, faults=DEFAULT_FAULTS, *, varia
     healthy = integer(healthy, "healthy", FaultError, minimum=0)
     t0 = time.perf_counter()
     model = build_model(spec.params, spec.variants)
-    pv = model.p()
-    _one(model, spec, spec.cases[0], pv)  # compile once before the threads share the model
+    start = _start(model, spec)
+    first = _one(model, spec, spec.cases[0], start)  # compiled once before the threads share the model
     with ThreadPoolExecutor(2, thread_name_prefix="ema-faults") as pool:
-        runs = list(pool.map(lambda c: _one(model, spec, c, pv), spec.cases))
+        runs = [first, *pool.map(lambda c: _one(model, spec, c, start), spec.cases[1:])]
     info = {"model_variants": spec.variants, "cases": len(spec.cases), "wall_time": time.perf_counter() - t0}
     result = FaultResult.from_runs(spec, model, runs, info)
     if healthy:
@@ -126,6 +145,8 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     tolerance = h["tolerance"] if tolerance is None else tolerance
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance < 1):
         raise FaultError(f"tolerance: expected a fraction in [0, 1), got {tolerance!r}")
+    if spec.scenario["condition"] is not None:
+        raise FaultError("healthy runs: not in the aircraft loop (they run the actuator's scenario)")
     v = {k: val for k, val in spec.variants.items() if k not in ("faults", "winding_short")}
     from ..model.assembly import build_model
 

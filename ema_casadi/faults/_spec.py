@@ -22,6 +22,12 @@ Layout (TOML, SI units; ``models/faults_reference.toml`` is the reference)::
     [monitor]                 # optional: thresholds over the parameter file's
     t_jam = { value = 0.02, unit = "s" }
 
+In the aircraft loop (``airframe = "transport"`` or ``"b747"``, ``condition`` a flight
+condition of :data:`~ema_casadi.aircraft.CONDITIONS`) the flight-control law provides
+the rod command, so the scenario gives ``theta_cmd`` (added to the trim's attitude;
+bare numbers in deg) and optionally a gust ``w_g`` (m/s) instead of ``x_cmd``; every
+run starts from the trim of the whole loop.
+
     [healthy]                 # optional: the healthy runs (--healthy-runs) of the scenario
     duration = 0.3            # s (default the scenario's)
     dt = 1.5625e-5            # s (default the scenario's)
@@ -46,7 +52,7 @@ __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults"
 
 _TABLES = ("scenario", "fault", "monitor", "healthy")
 _HEALTHY = ("duration", "dt", "dt_out", "tolerance")
-_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor")
+_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor", "airframe", "condition", "theta_cmd", "w_g")
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
 
@@ -194,15 +200,20 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
         raise FaultError(f"{src} [scenario]: expected a table")
     _known(f"{src} [scenario]", scenario, _SCENARIO, "key")
     sensor = scenario.get("sensor")
-    if sensor is not None and sensor not in REGISTRY["sensor"]:
-        raise FaultError(f"{src} [scenario] sensor: '{sensor}' unknown; choose one of {', '.join(REGISTRY['sensor'])}")
+    for key in ("sensor", "airframe"):
+        value = scenario.get(key)
+        if value is not None and value not in REGISTRY[key]:
+            raise FaultError(f"{src} [scenario] {key}: '{value}' unknown{nearest(str(value), REGISTRY[key])}; "
+                             f"choose one of {', '.join(REGISTRY[key])}")
     params = _monitor(data.get("monitor", {}), params, src)
     v = fault_variants(params, variants, sensor)
+    if scenario.get("airframe") is not None:
+        v["airframe"] = scenario["airframe"]
     try:
         kinds = fault_kinds(v)
     except ParameterError as exc:
         raise FaultError(f"{src}: {exc}") from None
-    sc = _scenario(scenario, params, src)
+    sc = _scenario(scenario, params, src, v.get("airframe", "none") != "none")
     faults = data.get("fault", [])
     if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
         raise FaultError(f"{src} [[fault]]: expected an array of tables")
@@ -272,15 +283,33 @@ def _positive(where, value, default=None) -> float:
     return float(value)
 
 
-def _scenario(table: dict, params: Parameters, src: str) -> dict:
+def _scenario(table: dict, params: Parameters, src: str, aircraft: bool = False) -> dict:
     where = f"{src} [scenario]"
     out = {"duration": _positive(f"{where} duration", table.get("duration"), 0.6),
-           "dt": _positive(f"{where} dt", table.get("dt"), 1e-5)}
+           "dt": _positive(f"{where} dt", table.get("dt"), 1e-5), "condition": None}
     out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), _whole(1e-4, out["dt"]))
+    if aircraft:
+        from ..aircraft import CONDITIONS
+
+        if "x_cmd" in table:
+            raise FaultError(f"{where} x_cmd: in the aircraft loop the flight-control law commands the rod; "
+                             "give theta_cmd (and w_g) instead")
+        cond = out["condition"] = table.get("condition", "cruise_sl")
+        if cond not in CONDITIONS:
+            raise FaultError(f"{where} condition: '{cond}' unknown{nearest(str(cond), CONDITIONS)}; choose one of "
+                             f"{', '.join(CONDITIONS)}")
+        inputs = (("theta_cmd", "angle", "deg"), ("w_g", None, None), ("f_ext", "force", "N"))
+    else:
+        for key in ("condition", "theta_cmd", "w_g"):
+            if key in table:
+                raise FaultError(f"{where} {key}: only with an airframe (airframe = \"transport\" or \"b747\")")
+        inputs = (("x_cmd", "length", "mm"), ("f_ext", "force", "N"))
     sig, text = {}, {}
-    for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
+    for key, kind, bare in inputs:
         value = table.get(key, 0)
         text[key] = value
+        if key == "w_g":  # a speed in m/s: parsed as a plain number of its unit
+            kind, bare = "dimensionless", None
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise FaultError(f"{where} {key}: expected a signal such as \"step:1mm@0.01\", got {value!r}")
         try:

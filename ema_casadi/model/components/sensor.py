@@ -80,7 +80,7 @@ class Ideal(Part):
 
     family, value = "sensor", "ideal"
     doc = "perfect sensors: the ECU reads the true rod position, speed and currents"
-    outputs = _sensed("aux")
+    outputs = _sensed("signal")
 
     def signals(self):
         return {
