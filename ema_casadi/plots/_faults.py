@@ -42,11 +42,11 @@ def plot_coverage(result, path=None):
                                       for c, r in zip(cases, result.rows, strict=True)])
     ax.set_title("detection delay after the onset (ms); - not detected")
     ref = result.runs[0]
-    for row, res in zip(result.rows[1:], result.runs[1:], strict=True):
+    for label, res in zip(cases[1:], result.runs[1:], strict=True):
         if res is None:
             continue
         n = min(len(res.t), len(ref.t))
-        bx.plot(res.t[:n], 1e3 * (res["x_rod"][:n] - ref["x_rod"][:n]), lw=1, label=row["case"])
+        bx.plot(res.t[:n], 1e3 * (res["x_rod"][:n] - ref["x_rod"][:n]), lw=1, label=label)
     bx.set_xlabel("time (s)")
     bx.set_ylabel("x_rod - x_rod without fault (mm)")
     bx.set_title("rod transient")
