@@ -72,6 +72,8 @@ def test_run_faults_api_returns_rows_and_a_figure(params):
     ('[[fault]]\nkind = "supply"\nseverity = 1.5\n', "severity: 1.5 1 is outside the range"),
     ('[monitor]\nt_jam = { value = 20, unit = "ms" }\n', "t_jam: unit 'ms' is not the expected SI unit 's'"),
     ('[[fault]]\nkind = "jam"\nonst = 0.1\n', "unknown key 'onst' (did you mean 'onset'?)"),
+    ('[scenario]\nairframe = "transport"\nx_cmd = "1mm"\n', "x_cmd: in the aircraft loop the flight-control law"),
+    ('[scenario]\nairframe = "transport"\ncondition = "cruise"\n', "'cruise' unknown (did you mean 'cruise_sl'?)"),
 ])
 def test_bad_fault_files_exit_2_in_one_line_and_write_nothing(tmp_path, text, says):
     out = tmp_path / "out"
@@ -99,3 +101,15 @@ def test_list_names_every_kind_and_monitor():
             "wear_backlash"} <= set(r["kinds"])
     assert set(r["kinds"]["stuck"]) == {"x_s", "omega_s", "i_q_s"}
     assert r["monitors"] == ["latch_track", "latch_jam", "latch_cross", "latch_oc", "latch_ot"]
+
+
+def test_faults_in_the_aircraft_loop_report_pitch_and_load_factor(params):
+    # a jam 0.3 s into a 1 deg attitude step at sea-level cruise: the surface freezes,
+    # so the attitude falls behind the no-fault flight; the jam monitor catches it
+    res = ema.run_faults(params, {"scenario": {"duration": 1.0, "airframe": "transport", "condition": "cruise_sl",
+                                               "theta_cmd": "step:1deg@0.1", "dt": 2e-5},
+                                  "fault": [{"kind": "jam", "onset": 0.3}]})
+    none, jam = res.rows
+    assert none["peak_theta_dev"] == 0.0 and none["first_monitor"] is None
+    assert jam["peak_theta_dev"] > 1e-3 and jam["peak_n_z_dev"] > 0.01  # rad, g (measured 0.2 deg, 0.1 g)
+    assert jam["detected_latch_jam_s"] is not None

@@ -247,3 +247,14 @@ def test_monitor_latches_its_confirmation_time_after_its_condition(params, monit
     assert r.t[i0] + t_conf - 1e-4 <= t_latch <= r.t[i0] + t_conf + 2e-4
     others = [n for n in model.outputs_of("alarm") if n != f"latch_{monitor}"]
     assert all(r[n].max() < 0.5 for n in others)
+
+
+def test_noise_fault_adds_noise_of_its_sigma(faulty, params):
+    # extra noise of sigma 0.1 mm on the (ideal) rod sensor from 0.05 s, held at the
+    # position-loop rate: x_s - x_rod has that standard deviation (400 samples at 2 kHz:
+    # 3.5 % standard error, 12 % allowed)
+    sigma = 1e-4
+    r = ema.simulate(faulty, 0.25, x_cmd="step:1mm@0.01", noise_x=f"step:{sigma}@0.05", dt=1e-5, dt_out=5e-4)
+    e = (r["x_s"] - r["x_rod"])[r.t > 0.05]
+    assert np.all((r["x_s"] - r["x_rod"])[r.t < 0.05] == 0)
+    assert np.std(e) == pytest.approx(sigma, rel=0.12)
