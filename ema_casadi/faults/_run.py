@@ -37,8 +37,8 @@ def _start(model, spec: FaultSpec):
     from the trim of the whole loop at its flight condition, its attitude command on
     top of the trim's."""
     sc = spec.scenario
-    if sc["condition"] is None:
-        return model.p(), None, dict(sc["signals"])
+    if sc["condition"] is None:  # inputs the model lacks (a segment's T_amb without thermal) are left out
+        return model.p(), None, {k: v for k, v in sc["signals"].items() if k in model.inputs}
     from ..aircraft import aircraft_point, condition_overrides
     from ..signals import constant
 

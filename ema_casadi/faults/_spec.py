@@ -22,6 +22,10 @@ Layout (TOML, SI units; ``models/faults_reference.toml`` is the reference)::
     [monitor]                 # optional: thresholds over the parameter file's
     t_jam = { value = 0.02, unit = "s" }
 
+A mission segment as the scenario: ``mission = "models/mission_regional.toml"`` and
+``segment = "<name>"`` take the segment's command and load (and, with
+``thermal = lumped``, its cavity temperature); ``duration`` defaults to the segment's.
+
 In the aircraft loop (``airframe = "transport"`` or ``"b747"``, ``condition`` a flight
 condition of :data:`~ema_casadi.aircraft.CONDITIONS`) the flight-control law provides
 the rod command, so the scenario gives ``theta_cmd`` (added to the trim's attitude;
@@ -52,7 +56,8 @@ __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults"
 
 _TABLES = ("scenario", "fault", "monitor", "healthy")
 _HEALTHY = ("duration", "dt", "dt_out", "tolerance")
-_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor", "airframe", "condition", "theta_cmd", "w_g")
+_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor", "airframe", "condition", "theta_cmd", "w_g",
+             "mission", "segment")
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
 
@@ -304,6 +309,8 @@ def _scenario(table: dict, params: Parameters, src: str, aircraft: bool = False)
             if key in table:
                 raise FaultError(f"{where} {key}: only with an airframe (airframe = \"transport\" or \"b747\")")
         inputs = (("x_cmd", "length", "mm"), ("f_ext", "force", "N"))
+    if "mission" in table or "segment" in table:
+        return _segment(table, params, out, where)
     sig, text = {}, {}
     for key, kind, bare in inputs:
         value = table.get(key, 0)
@@ -318,6 +325,31 @@ def _scenario(table: dict, params: Parameters, src: str, aircraft: bool = False)
         except SignalError as exc:
             raise FaultError(f"{where} {key}: {exc}") from None
     out["signals"], out["text"] = sig, text
+    return out
+
+
+def _segment(table: dict, params: Parameters, out: dict, where: str) -> dict:
+    """The scenario of one segment of a mission file (its command, load, cavity)."""
+    from ..mission import MissionError, load_mission
+
+    for key in ("x_cmd", "f_ext", "condition", "theta_cmd", "w_g"):
+        if key in table:
+            raise FaultError(f"{where} {key}: the mission segment gives the scenario's signals")
+    if not isinstance(table.get("mission"), str) or not isinstance(table.get("segment"), str):
+        raise FaultError(f"{where}: give both mission (a mission file) and segment (one of its segment names)")
+    try:
+        mission = load_mission(table["mission"], params)
+    except MissionError as exc:
+        raise FaultError(f"{where} mission: {exc}") from None
+    names = {seg.name: seg for seg in mission.segments}
+    seg = names.get(table["segment"])
+    if seg is None:
+        raise FaultError(f"{where} segment: '{table['segment']}' unknown{nearest(table['segment'], names)}; the "
+                         f"mission has {', '.join(names)}")
+    if "duration" not in table:
+        out["duration"] = float(seg.duration)
+    out["signals"] = {"x_cmd": seg.x_cmd, "f_ext": seg.f_ext, "T_amb": seg.T_amb}
+    out["text"] = {k: seg.text.get(k, "0") for k in ("x_cmd", "f_ext")}
     return out
 
 

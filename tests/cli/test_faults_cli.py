@@ -74,6 +74,8 @@ def test_run_faults_api_returns_rows_and_a_figure(params):
     ('[[fault]]\nkind = "jam"\nonst = 0.1\n', "unknown key 'onst' (did you mean 'onset'?)"),
     ('[scenario]\nairframe = "transport"\nx_cmd = "1mm"\n', "x_cmd: in the aircraft loop the flight-control law"),
     ('[scenario]\nairframe = "transport"\ncondition = "cruise"\n', "'cruise' unknown (did you mean 'cruise_sl'?)"),
+    (f'[scenario]\nmission = "{ROOT / "models" / "mission_regional.toml"}"\nsegment = "cruize"\n',
+     "segment: 'cruize' unknown (did you mean 'cruise'?)"),
 ])
 def test_bad_fault_files_exit_2_in_one_line_and_write_nothing(tmp_path, text, says):
     out = tmp_path / "out"
@@ -113,3 +115,14 @@ def test_faults_in_the_aircraft_loop_report_pitch_and_load_factor(params):
     assert none["peak_theta_dev"] == 0.0 and none["first_monitor"] is None
     assert jam["peak_theta_dev"] > 1e-3 and jam["peak_n_z_dev"] > 0.01  # rad, g (measured 0.2 deg, 0.1 g)
     assert jam["detected_latch_jam_s"] is not None
+
+
+def test_a_mission_segment_is_a_scenario(params):
+    # the approach segment of the reference mission (its command and load: -6 mm, a
+    # 3 mm 0.4 Hz sine, -10 kN), cut to 1.5 s, with the rod sensor stuck at 1 s while
+    # the rod moves: the cross-check catches it
+    res = ema.run_faults(params, {"scenario": {"mission": str(ROOT / "models" / "mission_regional.toml"),
+                                               "segment": "approach", "duration": 1.5},
+                                  "fault": [{"kind": "stuck", "target": "x_s", "onset": 1.0}]})
+    assert res.spec.scenario["text"]["x_cmd"] != 0 and res.rows[0]["first_monitor"] is None
+    assert res.rows[1]["detected_latch_cross_s"] is not None
