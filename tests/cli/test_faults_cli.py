@@ -41,9 +41,11 @@ def _ema(*args):
 
 def test_faults_writes_table_summary_figure(tmp_path):
     out = tmp_path / "out"
-    proc = _ema(REFERENCE, _write(tmp_path, SMALL), "--out", out, "--json")
+    proc = _ema(REFERENCE, _write(tmp_path, SMALL), "--out", out, "--json", "--healthy-runs", "3", "--jobs", "1")
     assert proc.returncode == 0, proc.stderr
     r = json.loads(proc.stdout)
+    h = r["healthy_runs"]  # three noisy runs with +-5 % tolerances through the sweep engine
+    assert h["runs"] == 3 and h["failed"] == 0 and h["false_alarms"] == 0
     assert [row["case"] for row in r["rows"]] == ["none", "jam", "stuck x_s", "stuck x_s"]
     assert r["false_alarms_no_fault"] == []
     jam, stuck = r["rows"][1], r["rows"][2]
