@@ -58,9 +58,12 @@ def test_faults_writes_table_summary_figure(tmp_path):
 
 
 def test_run_faults_api_returns_rows_and_a_figure(params):
-    res = ema.run_faults(params, {"scenario": {"duration": 0.2, "x_cmd": "ramp:40mm/s"},
-                                  "fault": [{"kind": "loss", "target": "x_s", "onset": 0.05}]})
-    assert len(res.rows) == 2 and res.rows[1]["kind"] == "loss"
+    study = {"scenario": {"duration": 0.2, "x_cmd": "ramp:40mm/s", "sensor": "real"},
+             "fault": [{"kind": "loss", "target": "x_s", "onset": 0.05}, {"kind": "jam", "onset": 0.05}]}
+    res = ema.run_faults(params, study)
+    again = ema.run_faults(params, study)  # the cases run on two threads: the same rows, bit for bit
+    assert res.rows == again.rows
+    assert len(res.rows) == 3 and res.rows[1]["kind"] == "loss"
     # the rod sensor reads 0 while the rod is at 2 mm: the cross-check catches it
     assert res.rows[1]["detected_latch_cross_s"] is not None
     fig = res.plot()
