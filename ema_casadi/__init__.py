@@ -22,7 +22,8 @@ from importlib.util import find_spec
 
 # Names are imported on first use (PEP 562): ``import ema_casadi.cli`` stays light, so
 # the ``ema`` command installs its SIGINT/SIGTERM handlers before CasADi, SciPy and
-# matplotlib load (SPEC §7: Ctrl-C during start-up is an interrupt, not a traceback).
+# matplotlib load (the reliability contract, docs: reliability: Ctrl-C during start-up is an
+# interrupt, not a traceback).
 _EXPORTS = {
     ".model": ("AssemblyError", "Model", "build_model", "ParameterError", "Parameters", "load_parameters"),
     ".model.components": ("DEFAULT_VARIANTS", "REGISTRY", "VARIANTS"),

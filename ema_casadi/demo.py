@@ -133,7 +133,7 @@ def _frequency(model, out: Path, written: list) -> dict:
 
 def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool) -> dict:
     """The paper's Fig. 14a (amplitudes) and 14b (loads) by sine stream, with the
-    SPEC §5 readings: flatness at small amplitude, rate limiting at 10 %, load phase."""
+    predictions of the reference set (docs: physics): flatness at small amplitude, rate limiting at 10 %, load phase."""
     from .sinestream import paper_fig14a, paper_fig14b
 
     res = {}
@@ -234,7 +234,7 @@ def _write_summary(summary: dict, out: Path) -> None:
               f"against 20 kN for 60 ms (`pwm_vs_averaged.png`): rod {pw['rod_difference_m'] * 1e6:.2f} um apart; "
               f"inverter losses {pw['inverter_losses_J']['pwm']:.3f} J / {pw['inverter_losses_J']['averaged']:.3f} J, "
               f"input {pw['energy_in_J']['pwm']:.2f} J / {pw['energy_in_J']['averaged']:.2f} J.", ""]
-    lines += ["## Small signal (Coulomb friction and backlash off, SPEC §4.2 policy)", "",
+    lines += ["## Small signal (Coulomb friction and backlash off, small-signal policy)", "",
               "| f_ext | -3 dB bandwidth (Hz) | 1 Hz | 2 Hz | 5 Hz | 10 Hz |", "|---|---|---|---|---|---|"]
     for load, c in summary["small_signal"]["closed_loop"].items():
         cells = [f"{v['mag_db']:.2f} dB / {v['phase_deg']:.1f}°" for v in c["at_hz"].values()]

@@ -1,4 +1,4 @@
-"""The README's hunting case by describing function: the PI position loop (K_i_x = 3000
+"""The hunting case (docs: aircraft) by describing function: the PI position loop (K_i_x = 3000
 1/s^2) with hybrid (Karnopp) friction, predicted from the nonlinear open loop at a
 break and checked against the long simulation of studies/hunting.py's scenario (1 mm
 step, held; the cycle measured over the second half of the run).

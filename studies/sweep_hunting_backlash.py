@@ -1,4 +1,4 @@
-"""Hunting and 1 mm step overshoot over backlash x seal friction x stiffness (issue 15).
+"""Hunting and 1 mm step overshoot over backlash x seal friction x stiffness.
 
 The sweep ``models/sweep_hunting_backlash.toml``: backlash B from 0.02 to 0.5 mm (10
 log-spaced values) x 100 Monte Carlo draws of the seal friction F_seal (150 N +-50 %,

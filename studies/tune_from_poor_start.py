@@ -1,4 +1,4 @@
-"""Gain tuning from a deliberately poor start (SPEC §4.6, issue 6).
+"""Gain tuning from a deliberately poor start (docs: tune).
 
 Every gain of the reference set (models/cesa_ema.toml) is multiplied by 0.2 (K_x,
 K_p_w, K_p_i, K_i_i; the speed loop's integral time T_i_w is kept, so its integral

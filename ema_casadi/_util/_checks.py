@@ -1,4 +1,4 @@
-"""Argument checks of the public entry points (SPEC §7).
+"""Argument checks of the public entry points (the reliability contract, docs: reliability).
 
 A wrong type or value handed to a public function is reported as the toolkit's own
 exception type (the caller passes it: ``SimulationError``, ``OperatingPointError``, ...)

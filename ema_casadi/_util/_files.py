@@ -1,4 +1,4 @@
-"""The one atomic writer of the toolkit (SPEC §7: nothing half-written, ever).
+"""The one atomic writer of the toolkit (the reliability contract, docs: reliability: nothing half-written, ever).
 
 Every file the toolkit writes goes through :func:`atomic_path` (or the small helpers
 on top of it): the content is written to a temporary name beside the target and

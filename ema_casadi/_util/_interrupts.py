@@ -1,4 +1,4 @@
-"""Ctrl-C and SIGTERM (SPEC §7): a run stops within about a second, leaving nothing.
+"""Ctrl-C and SIGTERM (the reliability contract, docs: reliability): a run stops within about a second, leaving nothing.
 
 The ``ema`` command line installs :func:`handling` first thing. On the first SIGINT
 or SIGTERM its handler records the signal and raises :class:`Interrupted` in the main

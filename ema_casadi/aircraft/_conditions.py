@@ -1,4 +1,4 @@
-"""Flight conditions of AIRCRAFT.md §1 and §4: airspeed, altitude, configuration, gains."""
+"""Flight conditions of the aircraft loop (docs: aircraft): airspeed, altitude, configuration, gains."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ _FT = 0.3048
 _LANDING = {"C_L0": 1.0, "C_D0": 0.08, "C_m0": -0.20, "dC_D": 0.02, "dC_m": -0.05,
             "K_q": 2.0, "K_th": 4.0, "K_ith": 1.0}
 #: Condition name -> flat parameter values (SI): trim airspeed V_0 and altitude h_0 of
-#: the transport, its configuration (AIRCRAFT.md §1 table) and the flight-control gains
+#: the transport, its configuration (Stevens & Lewis's table) and the flight-control gains
 #: (§4). The 747 (linear, Mach 0.8 at 40 000 ft) reads only the gains.
 CONDITIONS = {
     "cruise_sl": {"V_0": 500 * _FT, "h_0": 0.0},

@@ -1,5 +1,5 @@
 """The aircraft loop at the actuator-command break: ideal and linearised-EMA loop
-transfers, margins (frequency.margins) and the equivalent time delay (SPEC §4.8)."""
+transfers, margins (frequency.margins) and the equivalent time delay (docs: aircraft)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Pitch responses of the aircraft loop with the nonlinear EMA: theta_cmd steps and a
-vertical 1-cosine gust (SPEC §4.8)."""
+vertical 1-cosine gust (docs: aircraft)."""
 
 from __future__ import annotations
 

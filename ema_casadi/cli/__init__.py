@@ -1,4 +1,4 @@
-"""The ``ema`` command line (SPEC §6).
+"""The ``ema`` command line (docs: cli).
 
 Each subcommand lives in its own module of this package and defines ``COMMAND``
 (name), ``ORDER`` (position in ``--help``), ``HELP`` (one line), ``add_arguments(parser)``
@@ -7,7 +7,7 @@ and ``run(args) -> dict`` (the ``--json`` result) plus optionally ``report(resul
 file. Every command takes the model file as first argument, ``--variant KEY=VALUE``
 (repeatable) and ``--json``.
 
-Exit status and stderr (SPEC §7), always one line, never a traceback:
+Exit status and stderr (the reliability contract, docs: reliability), always one line, never a traceback:
 
 - 0: done;
 - 2: a mistake in a file, key, flag or value (checked before any work, outputs
@@ -103,7 +103,7 @@ def _variant_help() -> str:
 
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
-                   help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
+                   help=f"parameter file (TOML, docs: physics); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
                    help=_variant_help())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
@@ -221,6 +221,12 @@ def build_parser():
         mod.add_arguments(p)
         mods[mod.COMMAND] = mod
     return parser, mods
+
+
+def get_parser():
+    """The ``ema`` argument parser with every subcommand (for the documentation's CLI
+    reference, built by sphinx-argparse; :func:`main` parses with the same parser)."""
+    return build_parser()[0]
 
 
 def join_negative_values(argv: list[str], parser) -> list[str]:

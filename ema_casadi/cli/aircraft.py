@@ -1,4 +1,4 @@
-"""The aircraft - flight control - actuator loop (SPEC §4.8): trim at a flight condition,
+"""The aircraft - flight control - actuator loop (docs: aircraft): trim at a flight condition,
 margins at the actuator-command break with an ideal actuator and with the linearised
 EMA, the equivalent time delay the EMA adds (phase-matched over 0.1-10 rad/s,
 MIL-STD-1797A style), and pitch responses with the nonlinear EMA (a theta_cmd step and

@@ -12,8 +12,10 @@ co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets i
 internal step, default 1e-5 s), c (a
 folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
 casadi (a folder: serialised Functions and their layout) when --out is a folder.
-Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
-          ema export --format fmu-cs --variant friction=hybrid --out ema_cs.fmu
+Examples::
+
+    ema export --format mat --f-ext 10kN --out ema_lin.mat
+    ema export --format fmu-cs --variant friction=hybrid --out ema_cs.fmu
 """
 
 from __future__ import annotations

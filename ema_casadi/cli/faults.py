@@ -1,4 +1,4 @@
-"""Fault studies (SPEC §4.13): every case of a fault file on one model, the ECU's
+"""Fault studies (docs: faults): every case of a fault file on one model, the ECU's
 detection per monitor, the rod's transient, the coverage matrix.
 
 FAULTS.toml holds the [scenario] (command, load, duration, sensors) and [[fault]] tables

@@ -1,8 +1,8 @@
-"""Sweeps and Monte Carlo (SPEC §4.11): parameters on a grid or drawn from distributions,
+"""Sweeps and Monte Carlo (docs: sweeps): parameters on a grid or drawn from distributions,
 metrics of the registry per run, one row per run.
 
 SPEC.toml describes the sweep ([sweep] seed and samples, [variants], [parameters],
-[scenario], [metrics]); the format is in the README ("Sweeps and Monte Carlo") and in
+[scenario], [metrics]); the format is in the docs (sweeps) and in
 models/sweep_hunting_backlash.toml. The runs go to --jobs local workers (processes, or
 threads with --threads) or to a Dask scheduler (--scheduler); the rows are the same bit
 for bit whichever runs them. --out writes the table (run, swept variants and

@@ -1,4 +1,4 @@
-"""Export of the linearised and the nonlinear model (SPEC §4.7).
+"""Export of the linearised and the nonlinear model (docs: exports).
 
 Linear model (:func:`save_linear` / :func:`load_linear`), with the signal names, their
 units and the operating point:

@@ -1,4 +1,4 @@
-"""Fault studies (SPEC §4.13): faults injected on a scenario, the ECU's detection.
+"""Fault studies (docs: faults): faults injected on a scenario, the ECU's detection.
 
 Usage::
 

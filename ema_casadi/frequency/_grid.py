@@ -1,5 +1,5 @@
 """Frequency grids for the linear analyses, and the refusal of grids the machine
-cannot hold (SPEC §7: work refused up front with the estimate)."""
+cannot hold (the reliability contract, docs: reliability: work refused up front with the estimate)."""
 
 from __future__ import annotations
 

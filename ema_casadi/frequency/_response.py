@@ -1,4 +1,4 @@
-"""Frequency response and stability margins of the linearised model (SPEC §4.3-4.4).
+"""Frequency response and stability margins of the linearised model (docs: linearise-margins).
 
 Everything here works on NumPy ``A, B, C, D`` (a :class:`~ema_casadi.linearisation.LinearModel`
 or a ``control.StateSpace`` - both carry those attributes), so margins come without
@@ -64,7 +64,7 @@ __all__ = [
     "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes", "check_points", "MAX_FREQ_POINTS",
 ]
 
-REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # SPEC §4.4 requirement template
+REQUIREMENT = {"gm_db": 6.0, "pm_deg": 45.0}  # the usual requirement template
 
 #: What ``**op_kwargs`` may name: the keywords of :func:`~ema_casadi.linearisation.operating_point`.
 _OP_KEYWORDS = keywords_of(operating_point)

@@ -1,4 +1,4 @@
-"""Limit cycles by describing function at a loop break (SPEC §4.9): the first-harmonic
+"""Limit cycles by describing function at a loop break (docs: aircraft): the first-harmonic
 response L_N(A, w) of the nonlinear open loop (loop opened by its break flag, the sine
 injected at the break), the roots of L_N = -1 with their stability, refinement, the
 harmonic balance with the higher harmonics (:func:`harmonic_balance`), the confirming

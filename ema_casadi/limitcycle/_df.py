@@ -1,4 +1,4 @@
-"""Describing function of a nonlinear open loop at a break, and its limit cycles (SPEC §4.9).
+"""Describing function of a nonlinear open loop at a break, and its limit cycles (docs: aircraft).
 
 L_N(A, w): the loop is opened with its break flag (``loop_x``, ``loop_a``, ...), the
 injection is the operating-point value of the measurement plus A cos(w t) (a cosine,

@@ -1,4 +1,4 @@
-"""Harmonic balance: a describing-function root refined with the higher harmonics (SPEC §4.9).
+"""Harmonic balance: a describing-function root refined with the higher harmonics (docs: aircraft).
 
 The describing function balances the first harmonic only: the injection at the break is
 A cos(w t) and the root is where the open loop returns it, L_N(A, w) = -1. In a

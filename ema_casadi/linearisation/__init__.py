@@ -1,4 +1,4 @@
-"""Operating points and exact linearisation (SPEC §4.2).
+"""Operating points and exact linearisation (docs: linearise-margins).
 
 An operating point (trim) is a state ``x`` at which the model is at rest for given
 inputs: ``f(x, u, p) = 0`` with ``u = (x_cmd, f_ext, eta, 0, 0, 0)``. Optionally the

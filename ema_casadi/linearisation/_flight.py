@@ -1,4 +1,4 @@
-"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (SPEC §4.8).
+"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (docs: aircraft).
 
 The airframe part declares what its trim solves for (``trim_free``: the throttle and
 the attitude command) and which states it fixes (``trim_fix``: airspeed and altitude

@@ -1,4 +1,4 @@
-"""Flight missions through the thermal network (SPEC §4.10): temperatures, losses and
+"""Flight missions through the thermal network (docs: missions): temperatures, losses and
 energy per part and per segment, peaks against limits.
 
 A mission is a TOML file of segments run back to back on the full model (thermal =
@@ -18,8 +18,8 @@ lumped, hybrid friction, iron loss on, compiled RK4 at 1e-4 s)::
     [[segment]]
     name = "pre-flight check"
     duration = 90.0                # s (or "90s")
-    x_cmd = "step:70mm@2+step:-140mm@8+step:70mm@14"   # SPEC §6 signal, bare numbers mm
-    f_ext = "1kN"                  # SPEC §6 signal, bare numbers N; positive pushes the rod in
+    x_cmd = "step:70mm@2+step:-140mm@8+step:70mm@14"   # signal syntax (docs: simulate), bare numbers mm
+    f_ext = "1kN"                  # signal syntax (docs: simulate), bare numbers N; positive pushes the rod in
     T_amb = 40.0                   # cavity, degC: a number, a signal, or [start, end]
                                    # for a linear change over the segment
 

@@ -329,7 +329,7 @@ def _check_envelope(where: str, seg: Segment, params: Parameters) -> None:
         raise MissionError(f"{where} x_cmd: reaches {x[k] * 1e3:.4g} mm at {t[k]:.4g} s, beyond the stroke "
                            f"+-{stroke * 1e3:.4g} mm")
     # the force the current limit holds at standstill, where the screw-nut factor sits at
-    # the middle of its blend, (1/eta + eta_inv)/2 (README: 54.5 kN)
+    # the middle of its blend, (1/eta + eta_inv)/2 (docs: linearise-margins, 54.5 kN)
     g = 0.5 / params.screw.eta + 0.5 * params.screw.eta_inv
     F_hold = params.motor.I_max * params.K_t * 2 * math.pi / params.screw.p / g
     f = seg.f_ext(t)

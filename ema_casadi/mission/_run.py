@@ -20,10 +20,10 @@ from ._result import MissionResult
 
 __all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT"]
 
-#: The full model's step (s): the hybrid friction's (README "Hybrid (Karnopp) friction").
+#: The full model's step (s): the hybrid friction's (docs: friction-and-endstops).
 FULL_DT = 1e-4
 #: The fast path's step (s): the same model at twice the step. On the reference mission
-#: its temperatures differ from the full model's by at most 0.16 K (README "Missions");
+#: its temperatures differ from the full model's by at most 0.16 K (docs: missions);
 #: RK4 stays stable (the 1.42 kHz drive-train mode at |lambda h| = 1.8 < 2.8).
 FAST_DT = 2e-4
 

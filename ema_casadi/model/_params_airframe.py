@@ -1,7 +1,8 @@
-"""The ``[airframe]`` parameter table (SPEC §2.8, ../shared/AIRCRAFT.md), SI inside.
+"""The ``[airframe]`` parameter table (docs: physics), SI inside.
 
 Read by the airframe parts (``airframe = "transport" | "b747"``): the Stevens & Lewis
-medium transport (AIRCRAFT.md §1, converted from US units with ft = 0.3048 m,
+medium transport (Stevens & Lewis, Aircraft Control and Simulation, 2nd ed., §3.6,
+converted from US units with ft = 0.3048 m,
 slug = 14.5939 kg, lbf = 4.44822 N, coefficients per rad), the elevator surface and horn
 (§3), the pitch flight-control law (§4) and the flight condition trimmed for. Every
 key has its default, so parameter files without the table load unchanged.

@@ -1,4 +1,4 @@
-"""The switched split of an assembled model (issue 11): for a part with ``switched``
+"""The switched split of an assembled model (the switched PWM bridge uses it): for a part with ``switched``
 signals (the PWM bridge's leg states), the held plant with those signals as an input,
 ``f_switched(x, u, p, h, s)``, and the part's carrier-period ``schedule(x, u, p, h)``
 (see :class:`~ema_casadi.model.assembly.Model`). Private to :mod:`ema_casadi.model.assembly`."""

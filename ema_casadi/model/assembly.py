@@ -1,4 +1,4 @@
-"""Assembly: composes the chosen parts into one model (SPEC §2).
+"""Assembly: composes the chosen parts into one model (docs: physics).
 
 :func:`build_model` looks every variant key up in the registry
 (:data:`~ema_casadi.model.components.REGISTRY`), collects what the parts declare (states,
@@ -23,7 +23,8 @@ For sampled (zero-order-hold) control the same wiring is also exposed split in t
 :attr:`Model.holds`) and ``sample(x, u, p, h, flags)`` (one ECU update of the loops
 whose flag is 1; flags in :attr:`Model.loops` order).
 
-The physical envelope (SPEC §7): parts declare a :class:`~ema_casadi.model.components.Bound`
+The physical envelope (the reliability contract, docs: reliability): parts declare a
+:class:`~ema_casadi.model.components.Bound`
 on the states and outputs they bring, and named envelope limits (the rod's
 ``overtravel``) that another part may widen (the end stop does);
 :meth:`Model.envelope` evaluates them for a parameter vector, and every simulation
@@ -438,7 +439,7 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     params : Parameters
         Parameter set; its ``variants`` are the defaults.
     variants : dict, optional
-        Overrides, e.g. ``{"motor": "dc", "screw": "rigid"}`` (SPEC §6). Unknown keys or
+        Overrides, e.g. ``{"motor": "dc", "screw": "rigid"}`` (docs: cli). Unknown keys or
         values raise :class:`~ema_casadi.model.params.ParameterError` listing the allowed ones.
     """
     if not isinstance(params, Parameters):

@@ -1,4 +1,4 @@
-"""Parameter sets: TOML file -> typed, validated, SI-unit objects (SPEC §3).
+"""Parameter sets: TOML file -> typed, validated, SI-unit objects (docs: physics).
 
 A parameter file holds one table per group (``[screw]``, ``[friction]``, ``[motor]``,
 ``[power]``, ``[control]``, ``[thermal]``, ``[actuator]``) and an optional ``[model]``
@@ -8,7 +8,7 @@ unit the schema names::
     [screw]
     p = { value = 5.0e-3, unit = "m" }   # lead per revolution
 
-Names are the SPEC's symbols. Inside the toolkit the parameters travel as one flat
+Names are the physics reference's symbols. Inside the toolkit the parameters travel as one flat
 numeric vector (:meth:`Parameters.vector`) so that the assembled CasADi Function takes
 them as an input: changing a value never rebuilds a model.
 """
@@ -74,7 +74,7 @@ class Actuator:
 
 @dataclass(frozen=True)
 class Screw:
-    """Ballscrew (SPEC §2.4)."""
+    """Ballscrew (docs: physics)."""
 
     p: float = _p("m", POS, "lead, rod travel per screw revolution (m)")
     eta: float = _p("1", FRAC, "direct efficiency, motor drives the load (-)")
@@ -88,7 +88,7 @@ class Screw:
 
 @dataclass(frozen=True)
 class Friction:
-    """Friction (SPEC §2.5)."""
+    """Friction (docs: physics)."""
 
     F_seal: float = _p("N", NONNEG, "seal friction force (N)")
     C_bear: float = _p("m", NONNEG, "thrust-bearing torque per axial load (m)")
@@ -102,7 +102,7 @@ class Friction:
 
 @dataclass(frozen=True)
 class Motor:
-    """PMSM, rotor dq frame, amplitude-invariant (SPEC §2.3)."""
+    """PMSM, rotor dq frame, amplitude-invariant (docs: physics)."""
 
     pp: float = _p("1", INT, "pole pairs (-)")
     psi: float = _p("Wb", POS, "permanent-magnet flux linkage (Wb)")
@@ -120,7 +120,7 @@ class Motor:
 
 @dataclass(frozen=True)
 class Power:
-    """Inverter and supply (SPEC §2.2)."""
+    """Inverter and supply (docs: physics)."""
 
     V_dc: float = _p("V", POS, "DC-link (supply) voltage (V); MIL-STD-704F normal range 250-280 V")
     k_v: float = _p("1", FRAC, "voltage-limit factor on V_dc/sqrt(3) (-)")
@@ -140,7 +140,7 @@ class Power:
 
 @dataclass(frozen=True)
 class Control:
-    """Cascade controller (SPEC §2.1)."""
+    """Cascade controller (docs: physics)."""
 
     K_p_i: float = _p("V/A", POS, "current-loop proportional gain (V/A)")
     K_i_i: float = _p("V/(A*s)", POS, "current-loop integral gain (V/(A s))")
@@ -156,7 +156,7 @@ class Control:
 
 @dataclass(frozen=True)
 class Thermal:
-    """Lumped thermal network (SPEC §2.6, §3)."""
+    """Lumped thermal network (docs: physics)."""
 
     C_th_w: float = _p("J/K", POS, "winding heat capacity (J/K)")
     R_th_ws: float = _p("K/W", POS, "winding-to-stator thermal resistance (K/W)")
@@ -180,7 +180,7 @@ class Thermal:
 
 @dataclass(frozen=True)
 class EndStop:
-    """Stroke end stops (SPEC §2.7), used by ``endstop = "elastic"``."""
+    """Stroke end stops (docs: physics), used by ``endstop = "elastic"``."""
 
     k_stop: float = _p("N/m", POS, "end-stop stiffness (N/m)")
     d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
@@ -195,8 +195,8 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
-    "airframe": Airframe,  # optional table, every key defaulted
-    "sensor": Sensor,  # optional tables, every key defaulted
+    "airframe": Airframe,  # the aircraft loop: optional table, every key defaulted
+    "sensor": Sensor,  # sensors, faults, monitors: optional tables, every key defaulted
     "fault": FaultModel,
     "monitor": Monitor,
 }
@@ -257,7 +257,7 @@ class Parameters:
     # -- flat view ---------------------------------------------------------------
     @staticmethod
     def names() -> list[str]:
-        """Flat parameter names (SPEC symbols), then the loop-closure flags. A table
+        """Flat parameter names (the physics reference's symbols), then the loop-closure flags. A table
         parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
         out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
@@ -466,7 +466,7 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     Parameters
     ----------
     path : str or Path
-        TOML parameter file (SPEC §3 layout).
+        TOML parameter file (the layout of models/cesa_ema.toml).
     variants : dict, optional
         Variant overrides on top of the file's ``[model]`` table.
 

@@ -1,5 +1,5 @@
 """Input signals: the signal algebra (:class:`Signal`, step, ramp, sine, chirp,
-constant), CSV tables and the SPEC §6 text syntax (:func:`parse_signal`).
+constant), CSV tables and the text syntax of the command line (:func:`parse_signal`; docs: simulate).
 
 The modules import one way: ``_signal`` (the algebra and quantities) <- ``_tables``
 (CSV tables) <- ``_parse`` (the text syntax, which may name a table).

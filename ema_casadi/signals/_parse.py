@@ -1,4 +1,4 @@
-"""Parsing the SPEC §6 signal syntax (a sum of terms, CSV tables included) into a
+"""Parsing the signal syntax of the command line (docs: simulate; a sum of terms, CSV tables included) into a
 :class:`~ema_casadi.signals.Signal`."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ __all__ = ["parse_signal"]
 
 def parse_signal(text: str | float | Signal, kind: str = "length", bare: str | None = None,
                  stroke: float | None = None, duration: float | None = None) -> Signal:
-    """Parse the SPEC §6 signal syntax into a :class:`Signal` in SI units.
+    """Parse the signal syntax of the command line (docs: simulate) into a :class:`Signal` in SI units.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Input signals (SPEC §6 syntax): step, ramp, sine, chirp, constant, CSV table.
+"""Input signals (the command line's syntax, docs: simulate): step, ramp, sine, chirp, constant, CSV table.
 
 A :class:`Signal` is a sum of terms. Each term evaluates on a NumPy time grid (for the
 fixed-step rollout, which feeds precomputed input samples to the compiled step) and
@@ -22,7 +22,7 @@ Amplitudes take unit suffixes: ``1mm``, ``250um``, ``0.01m``, ``0.5%`` (of the s
 ``0.5s``. A bare number is read in the quantity's default unit, which the CLI states
 (mm for positions, N for forces).
 
-Tables (SPEC §6 Files) are UTF-8 (a byte-order mark is accepted) and in SI units
+Tables (the file layout, docs: simulate) are UTF-8 (a byte-order mark is accepted) and in SI units
 unless the header names another unit: the CLI's "bare numbers are mm" rule is for flag
 values only, never for a file. Layout: a header row whose first column is the time,
 named ``time`` or ``t``; an optional ``Unit:`` row under it (the MATLAB Simulation

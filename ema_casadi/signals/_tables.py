@@ -1,4 +1,4 @@
-"""Signal tables (SPEC §6 Files): CSV files read as :class:`~ema_casadi.signals.Signal`
+"""Signal tables (the file layout, docs: simulate): CSV files read as :class:`~ema_casadi.signals.Signal`
 tables, UTF-8 (a byte-order mark accepted), SI unless a header names a unit; the
 time column ``time`` or ``t``, an optional ``Unit:`` row (the MATLAB Simulation Data
 Inspector layout), a column selector ``FILE.csv:COLUMN``. Used by
@@ -18,7 +18,7 @@ import numpy as np
 from .._util._checks import read_text_file
 from ._signal import _NUM, _UNITS, SI_UNIT, Signal, SignalError
 
-#: Names the time column of a table may have (SPEC §6: ``time``; ``t`` accepted).
+#: Names the time column of a table may have (the file layout: ``time``; ``t`` accepted).
 TIME_NAMES = ("time", "t")
 _HEADER_CELL = re.compile(r"^\s*(.*?)\s*(?:\[([^\]]*)\])?\s*$")
 

@@ -1,4 +1,4 @@
-"""Time simulation of an assembled model (SPEC §4.1).
+"""Time simulation of an assembled model (docs: simulate).
 
 Three solvers share the model's one CasADi Function:
 

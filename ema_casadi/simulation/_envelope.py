@@ -1,4 +1,4 @@
-"""The physical-envelope monitor of every run (SPEC §7: no silent garbage).
+"""The physical-envelope monitor of every run (the reliability contract, docs: reliability: no silent garbage).
 
 A run is *failed*, never a result, when a state or output leaves the envelope its
 part declares (:meth:`~ema_casadi.model.assembly.Model.envelope`: the rod beyond the stroke

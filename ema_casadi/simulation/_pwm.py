@@ -1,4 +1,4 @@
-"""Carrier-synchronous simulation of a switched model (a PWM bridge, issue 11).
+"""Carrier-synchronous simulation of a switched model (a PWM bridge).
 
 One compiled step advances one carrier period T = 1/f_sw: the ECU samples at its start
 (and at the valley T/2 for double update: the current loop at 2 f_sw), the model's

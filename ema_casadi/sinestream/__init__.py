@@ -1,4 +1,4 @@
-"""Nonlinear frequency response by sine stream (SPEC §4.5), like Simulink's ``frestimate``.
+"""Nonlinear frequency response by sine stream (docs: sine-stream), like Simulink's ``frestimate``.
 
 For every point of a grid (variant, load, amplitude, frequency) the nonlinear model is
 driven by ``x_cmd = A sin(2 pi f t)`` under a constant external force ``f_ext`` until it

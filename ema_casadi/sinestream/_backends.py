@@ -2,7 +2,7 @@
 thread has its own call buffers on the one integrator), or chunks of points on a Dask
 distributed cluster (optional dependency). Both return index -> point dict.
 
-Interrupts (SPEC §7): on Ctrl-C/SIGTERM (or any exception in the waiting thread) the
+Interrupts (the reliability contract, docs: reliability): on Ctrl-C/SIGTERM (or any exception in the waiting thread) the
 pool stops submitting, cancels the pending points and does not wait for the batch:
 running points see the stop flag at their next period. Dask futures are cancelled.
 

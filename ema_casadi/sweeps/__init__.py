@@ -1,4 +1,4 @@
-"""Sweeps and Monte Carlo (SPEC §4.11): any parameters on a grid or drawn from
+"""Sweeps and Monte Carlo (docs: sweeps): any parameters on a grid or drawn from
 distributions, any metric of the registry per run, on local cores or a Dask cluster,
 one row per run, resumable after an interruption or a crash.
 

@@ -290,7 +290,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
 
 def _quiet_resource_tracker() -> None:
     """Start multiprocessing's resource tracker without its warnings: after an interrupt
-    the ``ema`` process ends at once (SPEC §7) and the tracker would otherwise print
+    the ``ema`` process ends at once (the reliability contract, docs: reliability) and the tracker would otherwise print
     "leaked semaphore objects" on the terminal after the one line."""
     import os
     from multiprocessing import resource_tracker

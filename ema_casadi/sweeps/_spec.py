@@ -1,6 +1,6 @@
 """The sweep description (TOML): checked whole before any run, expanded into runs.
 
-Format (README "Sweeps and Monte Carlo"; ``models/sweep_hunting_backlash.toml`` is a
+Format (docs: sweeps; ``models/sweep_hunting_backlash.toml`` is a
 complete example)::
 
     [sweep]
@@ -18,7 +18,7 @@ complete example)::
 
     [scenario]                  # the simulation every run makes (when a metric needs it)
     duration = 4.0
-    x_cmd = "step:1mm@0.01"     # SPEC §6 signals; bare numbers mm (x_cmd), N (f_ext)
+    x_cmd = "step:1mm@0.01"     # signal syntax (docs: simulate); bare numbers mm (x_cmd), N (f_ext)
     solver = "rk4"
     dt = 1e-4
 

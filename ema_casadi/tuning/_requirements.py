@@ -12,7 +12,7 @@ import numpy as np
 from ..model.assembly import Model
 from ..model.params import Parameters
 
-#: Tunable gains (flat parameter names, SPEC §3 symbols).
+#: Tunable gains (flat parameter names, the physics reference's symbols).
 GAINS = ("K_x", "K_i_x", "K_p_w", "T_i_w", "K_p_i", "K_i_i")
 OBJECTIVES = ("bandwidth", "tracking")
 

@@ -1,4 +1,4 @@
-"""Issue 4: export of the linear model (.mat/.npz/.json round trips) and of the
+"""Export of the linear model (.mat/.npz/.json round trips) and of the
 nonlinear model (serialised CasADi Function, generated C code)."""
 
 import json

@@ -1,4 +1,4 @@
-"""The physical-envelope monitor (SPEC §7: no silent garbage).
+"""The physical-envelope monitor (the reliability contract, docs: reliability: no silent garbage).
 
 Parts declare the envelope of what they bring; every run is checked against it, and
 a run that leaves it, goes non-finite or whose integrator fails is *failed* (API:

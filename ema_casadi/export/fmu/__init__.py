@@ -1,4 +1,4 @@
-"""Exports of the nonlinear model for other tools: FMUs, C, CasADi (SPEC §4.7).
+"""Exports of the nonlinear model for other tools: FMUs, C, CasADi (docs: exports).
 
 ``fmu-me`` (:func:`export_fmu_me`)
     FMI 3.0 model exchange of the continuous (smooth-friction) model through CasADi's

@@ -1,4 +1,4 @@
-"""Whole-or-nothing outputs: an FMU archive, an export folder (SPEC §7).
+"""Whole-or-nothing outputs: an FMU archive, an export folder (the reliability contract, docs: reliability).
 
 Files go through :mod:`ema_casadi._util._files`; a folder is assembled in a temporary folder
 beside the target and moved into place at the end (:func:`ema_casadi._util._files.atomic_dir`). An existing

@@ -1,4 +1,4 @@
-"""Components: one module per family, each variant a *part* (SPEC §2).
+"""Components: one module per family, each variant a *part* (docs: physics).
 
 controller (ECU outer loops), sensor (what the ECU reads), motor (with its current controller),
 inverter (power electronics), ballscrew (drive-train mechanics), friction, endstop,

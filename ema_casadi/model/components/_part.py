@@ -45,7 +45,7 @@ OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
 
-#: Thermal nodes a loss can heat (SPEC §2.6): every ``loss`` output names one in its
+#: Thermal nodes a loss can heat (docs: physics): every ``loss`` output names one in its
 #: part's :attr:`Part.heat`, and the assembly sums them into :func:`heat_signal` per node.
 HEAT_NODES = ("winding", "housing", "screw", "inverter")
 
@@ -88,7 +88,7 @@ def der(name: str) -> str:
 class Bound:
     """The physical envelope of one signal: ``|value| <= limit(E)``.
 
-    A run whose signal leaves it is reported as failed, never as a result (SPEC §7).
+    A run whose signal leaves it is reported as failed, never as a result (the reliability contract, docs: reliability).
     Bounds are generous (a few times what the actuator can do), so they catch
     garbage — a rod running away, a current no winding survives — not a demanding
     but physical manoeuvre.
@@ -114,7 +114,7 @@ class State:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     roles : tuple of str
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
@@ -153,7 +153,7 @@ class Input:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     kind : str
         Its quantity for the signal parser, one of :data:`INPUT_KINDS`.
     default : float or str
@@ -187,7 +187,7 @@ class Output:
     Attributes
     ----------
     name, unit, doc : str
-        Name (SPEC symbol), SI unit, one-line meaning.
+        Name (the physics reference's symbol), SI unit, one-line meaning.
     kind : str
         One of :data:`OUTPUT_KINDS`.
     bound : Bound, optional

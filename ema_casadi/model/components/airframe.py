@@ -1,16 +1,16 @@
-"""Airframe, elevator surface and pitch flight-control law: the outer loop (SPEC §2.8).
+"""Airframe, elevator surface and pitch flight-control law: the outer loop (docs: physics).
 
-``airframe = "none" | "transport" | "b747"`` (data: ../shared/AIRCRAFT.md, SI inside):
+``airframe = "none" | "transport" | "b747"`` (data: Stevens & Lewis and Bryson, docs: aircraft; SI inside):
 
 ``transport``
-    The Stevens & Lewis medium transport, nonlinear longitudinal (AIRCRAFT.md §1):
+    The Stevens & Lewis medium transport (Aircraft Control and Simulation, 2nd ed., §3.6), nonlinear longitudinal:
     states V_T, alpha, theta, q, h; inputs throttle ``delta_t`` and the vertical gust
     ``w_g`` (m/s, up positive, an angle-of-attack increment w_g/V_T on the aerodynamics).
 ``b747``
-    The Bryson 747 at Mach 0.8, 40 000 ft, linear (AIRCRAFT.md §2): states u, w, q,
+    The Bryson 747 (Control of Spacecraft and Aircraft, 1994) at Mach 0.8, 40 000 ft, linear: states u, w, q,
     theta (deviations); the gust adds to w in the aerodynamic (w) column.
 
-Both drive the elevator from the rod through the horn (AIRCRAFT.md §3): exact crank
+Both drive the elevator from the rod through the horn (an engineering estimate, docs: aircraft): exact crank
 kinematics L(delta) = sqrt(a^2 + r^2 - 2 a r cos(phi_0 + delta)), x = L(delta) - L(0),
 with the rod perpendicular to the horn at neutral (cos phi_0 = r/a), so the effective
 arm r_e = dx/d delta = a r sin(phi_0 + delta)/L is r at neutral. The hinge moment
@@ -20,7 +20,7 @@ positive, like f_ext); the surface inertia moves with the rod as the mass J_e/r_
 (``masses``), and the rod also feels its velocity term (1/2) dm/dx v^2 (Lagrange with a
 position-dependent mass).
 
-The flight-control law (AIRCRAFT.md §4), pitch-attitude hold with rate damping:
+The flight-control law (docs: aircraft), pitch-attitude hold with rate damping:
 delta_cmd = K_q q + K_th (theta - theta_cmd) + z, dz/dt = K_ith (theta - theta_cmd),
 then x_cmd = r sin(delta_cmd) clamped to the stroke. It closes the loop ``aircraft``
 with its break at the actuator command: x_cmd = loop_a x_cmd_fcs + d_fcs, so with an
@@ -40,12 +40,12 @@ __all__ = [
 ]
 
 FT = 0.3048
-#: Stevens & Lewis atmosphere (AIRCRAFT.md §1) in SI: rho0 (kg/m^3), lapse (1/m),
+#: Stevens & Lewis atmosphere in SI: rho0 (kg/m^3), lapse (1/m),
 #: exponent, temperature at sea level and above 35 000 ft (K), gas constant (J/(kg K))
 RHO0, LAPSE, EXPO = 2.377e-3 * 14.593902937206364 / FT**3, 0.703e-5 / FT, 4.14
 T0, T_TROP, H_TROP, R_AIR = 519 / 1.8, 390 / 1.8, 35000 * FT, 1716.3 * FT**2 * 1.8
 
-#: Bryson 747 (AIRCRAFT.md §2), states u, w (m/s), q (rad/s), theta (rad); input delta_e (rad)
+#: Bryson 747 (Control of Spacecraft and Aircraft, 1994), states u, w (m/s), q (rad/s), theta (rad); input delta_e (rad)
 B747_U0 = 774 * FT
 B747_H = 40000 * FT
 _A_US = ((-0.003, 0.039, 0.0, -32.2), (-0.065, -0.319, 774.0, 0.0),
@@ -103,7 +103,7 @@ def crank_stroke(delta, P):
 
 
 def hinge_moment(qbar, alpha, delta, P):
-    """Hinge moment H (N m, positive trailing edge down), AIRCRAFT.md §3.
+    """Hinge moment H (N m, positive trailing edge down): the engineering estimate of docs: aircraft.
 
     Parameters
     ----------
@@ -120,7 +120,7 @@ def hinge_moment(qbar, alpha, delta, P):
 
 
 def pitch_law(q, theta, theta_cmd, z, P):
-    """Pitch-attitude hold with rate damping (AIRCRAFT.md §4), in rad.
+    """Pitch-attitude hold with rate damping (docs: aircraft), in rad.
 
     Returns (delta_cmd (rad), dz/dt (rad/s)).
 
@@ -136,7 +136,7 @@ def pitch_law(q, theta, theta_cmd, z, P):
 
 
 def transport_rates(V, alpha, theta, q, h, delta_t, delta_e, w_g, P):
-    """The medium transport's state rates (AIRCRAFT.md §1 in SI) and the load factor.
+    """The medium transport's state rates (Stevens & Lewis, in SI) and the load factor.
 
     Returns (dV, dalpha, dtheta, dq, dh, n_z, qbar, alpha_aero).
 
@@ -245,7 +245,7 @@ _AC_PARAMS = ("S_w", "c_w", "m_ac", "I_yy", "T_stat", "dT_dV", "z_E", "C_L_a", "
 
 
 class Transport(_Airframe):
-    """Stevens & Lewis medium transport, nonlinear longitudinal (AIRCRAFT.md §1)."""
+    """Stevens & Lewis medium transport, nonlinear longitudinal (Aircraft Control and Simulation, 2nd ed., §3.6)."""
 
     value = "transport"
     doc = "Stevens & Lewis medium transport, nonlinear longitudinal, pitch-attitude hold"
@@ -269,7 +269,7 @@ class Transport(_Airframe):
 
 
 class B747(_Airframe):
-    """Bryson's Boeing 747 at Mach 0.8, 40 000 ft, linear longitudinal (AIRCRAFT.md §2)."""
+    """Bryson's Boeing 747 at Mach 0.8, 40 000 ft, linear longitudinal (Control of Spacecraft and Aircraft, 1994)."""
 
     value = "b747"
     doc = "Boeing 747, Mach 0.8 at 40 000 ft, linear longitudinal (Bryson), pitch-attitude hold"

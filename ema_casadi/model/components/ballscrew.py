@@ -1,4 +1,4 @@
-"""Ballscrew / reductor (SPEC §2.4): ``rigid`` one-mass and ``elastic`` two-mass."""
+"""Ballscrew / reductor (docs: physics): ``rigid`` one-mass and ``elastic`` two-mass."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ __all__ = [
 #: Width (W) over which the screw-nut efficiency switches between the direct and the
 #: inverse value as the transmitted power changes sign. An exact switch makes a
 #: sliding mode that stalls variable-step solvers while a load is held at standstill;
-#: blending over ~0.1 W moves reference trajectories by < 0.25 um (STACK_NOTES).
+#: blending over ~0.1 W moves reference trajectories by < 0.25 um (measured).
 P_BLEND = 0.1
 
 
@@ -140,7 +140,7 @@ def held_force(P):
     return 1.5 * P.pp * P.psi * P.I_max / (P.p / (2 * math.pi) * P.eta_inv)
 
 
-# ---- physical envelope (SPEC §7): what a run may do before it is garbage -------------
+# ---- physical envelope (docs: reliability): what a run may do before it is garbage ------
 #: How far the rod may pass the stroke without end stops (m): a real rod would hit
 #: its housing there, so a model rod beyond it is running away. The end-stop part
 #: widens this ``overtravel`` limit by the stops' own deflection.
@@ -189,7 +189,7 @@ _PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
 
 
 class Elastic(Part):
-    """Two-mass screw (SPEC §2.4): nut and rod coupled by the dead-zone spring (eq. 2)
+    """Two-mass screw (docs: physics): nut and rod coupled by the dead-zone spring (eq. 2)
     with contact damping; the rod carries the friction contact."""
 
     family, value = "screw", "elastic"
@@ -241,7 +241,7 @@ def _shaft(b, J):
 
 
 class Rigid(Part):
-    """One-mass screw (SPEC §2.4, eq. 1): the rod follows the shaft; backlash acts on
+    """One-mass screw (docs: physics, eq. 1): the rod follows the shaft; backlash acts on
     the position signal only, as a play operator; friction acts on the shaft."""
 
     family, value = "screw", "rigid"

@@ -1,4 +1,4 @@
-"""Electronic control unit: cascade position -> velocity -> current (SPEC §2.1).
+"""Electronic control unit: cascade position -> velocity -> current (docs: physics).
 
 Each loop is a PI (or P) law with an output clamp and back-calculation anti-windup:
 the integrator state ``z`` is kept in output units and is driven back by the clamp
@@ -119,7 +119,7 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None):
     """Current PI of the 1-phase (dc-equivalent) motor -> winding voltage (V).
 
     Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
-    (the power-invariant equivalent of SPEC §2.3), plus back-EMF feed-forward
+    (the power-invariant equivalent, docs: physics), plus back-EMF feed-forward
     K_e*omega, the counterpart of FOC decoupling. Returns (v, z_i_dot).
 
     Parameters
@@ -195,7 +195,7 @@ def _omega_max(P):
 
 
 class PositionP(Part):
-    """ECU outer loops: P position loop (rate-limited) and PI speed loop (SPEC §2.1)."""
+    """ECU outer loops: P position loop (rate-limited) and PI speed loop (docs: physics)."""
 
     family, value = "controller", "P"
     doc = "position P loop -> speed PI loop -> current command"

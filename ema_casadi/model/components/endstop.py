@@ -1,4 +1,4 @@
-"""Stroke end stops (SPEC §2.7): the rod is limited to |x_rod| <= stroke.
+"""Stroke end stops (docs: physics): the rod is limited to |x_rod| <= stroke.
 
 The stop touches the rod's mechanical motion (``x_rod_mech``, ``v_rod_mech`` of the
 screw part: the rod itself for the elastic screw, the nut for the rigid one, whose

@@ -1,4 +1,4 @@
-"""Friction on the rod (SPEC §2.5). Forces in N, velocities in m/s; positive friction
+"""Friction on the rod (docs: physics). Forces in N, velocities in m/s; positive friction
 opposes positive velocity. With the rigid screw the same laws act on the shaft, with
 the rod velocity v = omega p/(2 pi) and the force referred back through p/(2 pi).
 

@@ -1,4 +1,4 @@
-"""Power electronics (SPEC §2.2).
+"""Power electronics (docs: physics).
 
 ``ideal`` (averaged): the controller's voltage reaches the windings unchanged (the
 voltage limit is applied by the current controller). Its losses are the averaged
@@ -136,7 +136,7 @@ class Ideal(Part):
         }
 
 
-# ---- the switched bridge (issue 11) -------------------------------------------------
+# ---- the switched bridge -------------------------------------------------
 SQRT3 = 3**0.5
 LEGS = ("a", "b", "c")
 
@@ -261,7 +261,7 @@ def half_period(edges, rising, T_half):
 
 class Pwm(Part):
     """Three-phase two-level bridge, carrier-based SVPWM, regular-sampled symmetric PWM
-    (issue 11, SPEC §2.2). 3-phase motor only.
+    (docs: pwm). 3-phase motor only.
 
     The leg states ``s_a, s_b, s_c`` (1: upper device on) are *switched* signals: in
     the continuous model (trim, linearisation, CVODES) they are the duty cycles, i.e.

@@ -1,4 +1,4 @@
-"""Motors (SPEC §2.3): the 1-phase dc equivalent and the 3-phase PMSM in the rotor
+"""Motors (docs: physics): the 1-phase dc equivalent and the 3-phase PMSM in the rotor
 dq frame (amplitude-invariant), and the shaft.
 
 The winding resistance and the magnet flux are the signals ``R_w`` and ``psi_m`` of
@@ -6,7 +6,7 @@ the bus: the thermal part provides them (the parameters R and psi with ``thermal
 "off"``, functions of the winding and housing temperatures with ``"lumped"``). The
 controller keeps the nominal R and psi (the ECU does not know the temperature).
 
-Iron loss (SPEC §2.6, option ``iron_loss = "on"``) is a drag torque on the shaft,
+Iron loss (docs: physics, option ``iron_loss = "on"``) is a drag torque on the shaft,
 T_fe = P_fe / omega, folded into the shaft torque ``T_m``, so the energy balance
 closes with P_fe as one more loss; with ``"off"`` (the reference file's default) P_fe
 is 0 and the equations are those without iron loss.
@@ -246,7 +246,7 @@ def _iron(opt):
 
 
 class Pmsm(Part):
-    """3-phase PMSM in the rotor dq frame with FOC current control (SPEC §2.1, §2.3).
+    """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics).
 
     With the option ``winding_short = "on"`` it also carries the turn-to-turn short
     (:func:`winding_short`): the state ``i_f``, the fault input ``mu_short`` and the
@@ -318,7 +318,7 @@ class Pmsm(Part):
 
 
 class Dc(Part):
-    """1-phase dc-equivalent motor with a simple current PI (SPEC §2.3)."""
+    """1-phase dc-equivalent motor with a simple current PI (docs: physics)."""
 
     family, value = "motor", "dc"
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"

@@ -1,4 +1,4 @@
-"""The 270 V supply (issue 11; SPEC §2.2, §3 power rows).
+"""The 270 V supply (docs: physics, the power rows of the parameter table).
 
 The inverters draw the power ``P_bridge`` (winding power + their own losses) from the
 DC link; the supply provides the DC-link voltage ``v_dc`` the controller measures (its

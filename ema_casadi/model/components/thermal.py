@@ -1,4 +1,4 @@
-"""Thermal network (SPEC §2.6): ``thermal = "off" | "lumped"``.
+"""Thermal network (docs: physics): ``thermal = "off" | "lumped"``.
 
 The thermal part is the one that provides the temperature-dependent quantities the
 physics reads by name, so the motor and the screw never ask which variant is chosen:
