@@ -15,7 +15,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "nearest"]
+__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "closest", "nearest"]
 
 
 def describe(value) -> str:
@@ -90,8 +90,9 @@ def choice(value, name: str, options, error: type) -> str:
     return value
 
 
-def nearest(name: str, options) -> str:
-    """`` (did you mean 'X'?)`` for the option closest to ``name``, or ``""``.
+def closest(name: str, options, cutoff: float = 0.0) -> str | None:
+    """The option closest to ``name`` (difflib's ratio at least ``cutoff``), or None: the
+    one did-you-mean of the package.
 
     Parameters
     ----------
@@ -99,9 +100,27 @@ def nearest(name: str, options) -> str:
         What was given.
     options : iterable of str
         What is allowed.
+    cutoff : float
+        Least similarity (0..1) for a suggestion; 0 always suggests one.
     """
-    match = difflib.get_close_matches(name, list(options), n=1, cutoff=0.0)
-    return f" (did you mean '{match[0]}'?)" if match else ""
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=cutoff)
+    return match[0] if match else None
+
+
+def nearest(name: str, options, cutoff: float = 0.0) -> str:
+    """`` (did you mean 'X'?)`` for the option closest to ``name`` (:func:`closest`), or ``""``.
+
+    Parameters
+    ----------
+    name : str
+        What was given.
+    options : iterable of str
+        What is allowed.
+    cutoff : float
+        Least similarity (0..1) for a suggestion.
+    """
+    match = closest(name, options, cutoff)
+    return f" (did you mean '{match}'?)" if match else ""
 
 
 def decode_utf8(data: bytes, path, error: type) -> str:

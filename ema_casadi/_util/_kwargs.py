@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
-import difflib
 import inspect
+
+from ._checks import closest
 
 __all__ = ["check_keywords", "keywords_of"]
 
@@ -38,6 +39,6 @@ def check_keywords(func: str, kwargs, allowed, *, fixed=(), error: type = TypeEr
             continue
         if key in fixed:
             raise error(f"{func}() sets '{key}' itself; it passes on only {', '.join(allowed)}")
-        close = difflib.get_close_matches(key, allowed, n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else f"; it takes {', '.join(allowed)}"
+        close = closest(key, allowed, cutoff=0.6)
+        hint = f"; did you mean '{close}'?" if close else f"; it takes {', '.join(allowed)}"
         raise error(f"{func}() got an unexpected keyword argument '{key}'{hint}")

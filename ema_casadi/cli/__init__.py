@@ -92,20 +92,32 @@ def positionals(model: str, second: str | None, default: str) -> tuple[str, str]
     return model, second
 
 
-def _variant_help() -> str:
-    """The --variant help, from the registry (first value of each key its default)."""
-    from ..model.components import OPTIONS, REGISTRY
+class _VariantHelp:
+    """The ``--variant`` help, generated from the registry when it is shown (importing
+    the parts at every start-up would cost ~0.2 s): every key and option with its values."""
 
-    keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
-    opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
-    return f"variant choice, repeatable: {keys}; options {opts}"
+    def __str__(self) -> str:
+        from ..model.components import OPTIONS, REGISTRY
+
+        keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
+        opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
+        return f"variant choice, repeatable: {keys}; options {opts}"
+
+    def __mod__(self, params) -> str:  # argparse expands %(default)s-style fields
+        return str(self) % params
+
+    def __contains__(self, text: str) -> bool:
+        return text in str(self)
+
+    def strip(self) -> str:
+        return str(self).strip()
 
 
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
                    help=f"parameter file (TOML, docs: physics); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help=_variant_help())
+                   help=_VariantHelp())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 

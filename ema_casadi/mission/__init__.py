@@ -41,13 +41,13 @@ CSV (1 s rows, temperatures in degC, mean powers per row), the figure and the su
 from ._demo import SHORT_MISSION, demo_mission
 from ._profile import (
     MISSION_VARIANTS,
-    NODE_LIMITS,
     Mission,
     MissionError,
     Piecewise,
     Ramp,
     Segment,
     load_mission,
+    node_limits,
     parse_mission,
 )
 from ._result import MissionResult
@@ -55,6 +55,6 @@ from ._run import FAST_DT, FULL_DT, MissionFailed, run_mission
 
 __all__ = [
     "Mission", "Segment", "Piecewise", "Ramp", "MissionError", "MissionFailed", "MissionResult",
-    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "NODE_LIMITS", "FULL_DT", "FAST_DT",
+    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "node_limits", "FULL_DT", "FAST_DT",
     "SHORT_MISSION", "demo_mission",
 ]

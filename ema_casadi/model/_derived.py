@@ -1,14 +1,15 @@
 """Functions the assembly derives from the parts' declarations besides ``f``: the
 sampled-ECU split (``f_held`` and ``sample``) and the hybrid parts' discrete map
-(``project``). Used by :func:`ema_casadi.model.assembly.build_model` only."""
+(``project``); and :class:`Contract`, the parts' declarations for the analyses merged
+(a base of the Model). Used by :mod:`ema_casadi.model.assembly` only."""
 
 from __future__ import annotations
 
 import casadi as ca
 
-from .components import der
+from .components import POLICIES, AssemblyError, der
 
-__all__ = ["zoh_split", "projection"]
+__all__ = ["zoh_split", "projection", "Contract"]
 
 
 def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
@@ -53,3 +54,78 @@ def projection(parts, bus, x, u, p):
     stick = sticks[0] if len(sticks) == 1 else (ca.SX(0) if not sticks else ca.logic_or(*sticks))
     x_next = ca.vertcat(*[resets.get(n, sym) for n, sym in now.x.items()])
     return ca.Function("project", [x_prev, x, u, p], [x_next, stick], ["x_prev", "x", "u", "p"], ["x_next", "stick"])
+
+
+class Contract:
+    """What the model's parts declare for the analyses (the part contract), merged:
+    a base of :class:`~ema_casadi.model.assembly.Model` (it reads ``parts``, ``state_info``,
+    ``outputs`` and :meth:`pdict`)."""
+
+    def small_signal(self, **policies: str) -> dict[str, float]:
+        """The parameter overrides of small-signal policies, merged from the parts.
+
+        Raises :class:`~ema_casadi.model.components.AssemblyError` (a ValueError) with the
+        one-line reason of a part that refuses a policy value, or for an unknown one.
+
+        Parameters
+        ----------
+        **policies : str
+            Policy -> value (:data:`~ema_casadi.model.components.POLICIES`), e.g.
+            ``friction="off"``.
+        """
+        overrides: dict[str, float] = {}
+        for policy, value in policies.items():
+            allowed = POLICIES.get(policy)
+            if allowed is None or value not in allowed:
+                what = f"{policy} policy '{value}' unknown" if allowed else f"unknown policy '{policy}'"
+                raise AssemblyError(f"{what}; choose one of {', '.join(allowed or POLICIES)}")
+            for part in self.parts:
+                declared = part.small_signal.get(policy, {}).get(value, {})
+                if isinstance(declared, str):
+                    raise AssemblyError(declared)
+                overrides.update(declared)
+        return overrides
+
+    @property
+    def freezes(self) -> tuple:
+        """What the linearisation freezes (:class:`~ema_casadi.model.components.Freeze`), from the parts."""
+        return tuple(fz for part in self.parts for fz in part.freeze)
+
+    @property
+    def trim_limits(self) -> tuple:
+        """The saturations a trim keeps inactive (:class:`~ema_casadi.model.components.Limit`)."""
+        return tuple(lim for part in self.parts for lim in part.trim_limits)
+
+    def limit_values(self, p=None) -> dict[str, float]:
+        """Each trim limit's value (SI) by name (``current``: A, ``rod_speed``: m/s, ...).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        return {lim.name: float(lim.limit(P)) for lim in self.trim_limits}
+
+    @property
+    def gains(self) -> tuple:
+        """The tunable gains of the model's parts (:class:`~ema_casadi.model.components.Gain`), outer loop first."""
+        return tuple(g for part in self.parts for g in part.gains)
+
+    def rest_states(self, p=None) -> dict[str, str]:
+        """Memory states the trim holds at a signal: state -> signal (their ``rest``
+        rule, where it applies for the parameter vector).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        return {n: s.rest for n, s in self.state_info.items()
+                if s.rest is not None and (s.rest_when is None or bool(s.rest_when(P)))}
+
+    @property
+    def memory_states(self) -> tuple[str, ...]:
+        """States that may be neutral modes of a linearisation (:attr:`State.memory`)."""
+        return tuple(n for n, s in self.state_info.items() if s.memory)

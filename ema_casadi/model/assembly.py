@@ -46,6 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
+from ._derived import Contract
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
 from ._switched import switched_split
@@ -59,7 +60,7 @@ _SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ 
 
 
 @dataclass
-class Model:
+class Model(Contract):
     """An assembled EMA model.
 
     Attributes

@@ -84,6 +84,8 @@ class Screw:
     C: float = _p("N/m", POS, "drive-train axial stiffness (N/m)")
     c_c: float = _p("N*s/m", NONNEG, "contact damping, acts only in contact (N s/m)")
     B: float = _p("m", NONNEG, "backlash, total gap (m)")
+    P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
+                        default=0.1)
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,9 @@ class Friction:
     r_start: float = _p("1", POS, "breakaway ratio F_start/F_r (-)")
     v_s: float = _p("m/s", POS, "smoothing velocity of the smooth variant (m/s)")
     eps: float = _p("m/s", POS, "stick dead band of the hybrid variant (m/s)")
-    v_st: float = _p("m/s", POS, "Stribeck velocity of the optional hump (m/s)")
+    v_st: float = _p("m/s", POS, "Stribeck velocity of the optional hump and of the LuGre curve (m/s)")
+    sigma_0: float = _p("N/m", POS, "LuGre bristle stiffness: pre-sliding deflection F/sigma_0 (N/m)", default=1.0e7)
+    sigma_1: float = _p("N*s/m", NONNEG, "LuGre bristle damping (N s/m)", default=5.0e3)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,6 @@ Inspector layout), a column selector ``FILE.csv:COLUMN``. Used by
 from __future__ import annotations
 
 import csv
-import difflib
 import io
 import math
 import re
@@ -15,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._util._checks import read_text_file
+from .._util._checks import nearest, read_text_file
 from ._signal import _NUM, _UNITS, SI_UNIT, Signal, SignalError
 
 #: Names the time column of a table may have (the file layout: ``time``; ``t`` accepted).
@@ -112,8 +111,7 @@ def _read_table(path: Path, column: str | None, kind: str, stroke: float | None)
         j = 1
     else:
         if column not in signals:
-            near = difflib.get_close_matches(column, signals, n=1)
-            hint = f" (did you mean '{near[0]}'?)" if near else f"; columns: {', '.join(signals[:8])}"
+            hint = nearest(column, signals, cutoff=0.6) or f"; columns: {', '.join(signals[:8])}"
             raise SignalError(f"{path}: no column '{column}'{hint}")
         j = names.index(column)
     where = f"{path}: column '{names[j]}'"

@@ -56,15 +56,15 @@ def _update(model: Model, pv) -> bool:
     """Double update (ECU at peak and valley) when the current loop samples at 2 f_sw,
     single when at f_sw; other rates are refused."""
     names = model.param_names
-    f_sw = pv[names.index(model.carrier)]
+    f_carrier = pv[names.index(model.carrier)]
     inner = list(model.loops.values())[-1]
-    ratio = pv[names.index(inner.rate)] / f_sw
+    ratio = pv[names.index(inner.rate)] / f_carrier
     if abs(ratio - 1) < 1e-9:
         return False
     if abs(ratio - 2) < 1e-9:
         return True
     raise SimulationError(f"the {inner.name} loop samples at {inner.rate} = {pv[names.index(inner.rate)]:g} Hz; "
-                          f"the PWM bridge needs {model.carrier} = {f_sw:g} Hz (single update) or twice it "
+                          f"the PWM bridge needs {model.carrier} = {f_carrier:g} Hz (single update) or twice it "
                           f"(double update)")
 
 
@@ -235,15 +235,15 @@ class _Grid:
     sub-interval, update mode."""
 
     def __init__(self, model, pv, t_end, dt, dt_out):
-        f_sw = pv[model.param_names.index(model.carrier)]
-        self.T = 1 / f_sw
-        periods = t_end * f_sw
+        f_carrier = pv[model.param_names.index(model.carrier)]
+        self.T = 1 / f_carrier
+        periods = t_end * f_carrier
         self.periods = round(periods)
         if self.periods < 1 or abs(self.periods - periods) > _WHOLE * max(periods, 1):
             raise SimulationError(f"t_end {t_end:g} s is not a whole number of carrier periods 1/{model.carrier} = "
                                   f"{self.T * 1e6:g} us ({periods:.6g}); the switched model steps period by period")
         self.resolve = dt_out is None
-        k = 1 if dt_out is None else max(1, round(dt_out * f_sw))
+        k = 1 if dt_out is None else max(1, round(dt_out * f_carrier))
         self.k = math.gcd(min(k, self.periods), self.periods)
         self.k_req = min(k, self.periods)
         self.n = max(1, math.ceil(0.5 * self.T / dt - 1e-9))

@@ -38,8 +38,10 @@ def _run_local(tasks, params, build, settle, keep, progress, jobs) -> dict:
         _, step = _stepper(v, params, *build)
         return idx, _settle(step, x0, pa, pa[-3], pa[-2], settle, keep, stop)
 
-    parallel = [t for t in tasks if t[1]["friction"] != "hybrid"]
-    serial = [t for t in tasks if t[1]["friction"] == "hybrid"]
+    # a hybrid model (a part with a discrete map) is stepped through simulate(), serially
+    hybrid = [_stepper(t[1], params, *build)[0].hybrid for t in tasks]
+    parallel = [t for t, h in zip(tasks, hybrid, strict=True) if not h]
+    serial = [t for t, h in zip(tasks, hybrid, strict=True) if h]
     done = 0
     progress_bar(0.0, progress, "freqresp")
     if parallel:

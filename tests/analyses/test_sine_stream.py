@@ -198,9 +198,6 @@ def test_paper_fig14_api_writes_table_and_figure(params, tmp_path):
 
 # ---- hybrid friction (the reference set's predictions: smooth and hybrid agree within 0-5 Hz) -----------------
 def test_hybrid_friction_agrees_with_smooth(params):
-    ok, why = fr.hybrid_available(params)
-    if not ok:
-        pytest.skip(why)
     r = fr.sine_stream(params, [pct(2)], [1.0, 5.0],
                        variants={"smooth": {"friction": "smooth"}, "hybrid": {"friction": "hybrid"}})
     s, h = r.curve(variant="smooth"), r.curve(variant="hybrid")

@@ -11,6 +11,11 @@ submodels):
 - control :class:`Loop` entries it closes and the controller outputs it :class:`Hold`\\ s
   between ECU samples,
 - contributions to summed signals (stored energy, the load on the rod),
+- what the analyses need to know about it (the part contract):
+  its small-signal policies (:attr:`Part.small_signal`), what the linearisation freezes
+  (:class:`Freeze`), the saturations a trim must keep inactive (:class:`Limit`), how a
+  memory state is trimmed (:attr:`State.rest`, :class:`Seed`), the gains a tuner may
+  move (:class:`Gain`),
 - the physical envelope of what it brings: a :class:`Bound` on a state, input or output
   (``|value| <= bound(P)``), and named envelope ``limits`` that other parts may widen
   (the end stop widens the rod's ``overtravel``); every simulation is checked
@@ -31,8 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
+from ._contract import POLICIES, Freeze, Gain, Limit, Node, Seed, node_outflow
+
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Fault", "Part", "Bus", "AssemblyError", "der",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
+    "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
@@ -133,6 +141,23 @@ class State:
         For controller integrators: the loop whose ECU sample period integrates it.
     bound : Bound, optional
         Its physical envelope (None: only checked to be finite).
+    rest : str, optional
+        A memory element without restoring dynamics of its own (a play, a friction
+        bristle): the trim holds it at the value of this signal (one more trim equation,
+        the state equal to the signal, and the state set exactly to it after); the
+        signal is an output of the model.
+    rest_when : callable, optional
+        ``rest_when(P) -> bool``: when the ``rest`` rule applies (default always; the
+        play only without backlash, where its edges meet).
+    neutral : bool
+        The state may be a neutral mode of a linearisation (nothing restores it: a
+        memory state, or a position only a memory element reads). Default: a state
+        with a ``rest`` rule.
+    seed : Seed, optional
+        Where the trim starts this state (:class:`Seed`).
+    node : Node, optional
+        For a temperature: the thermal node it is (:class:`Node`: name, heat capacity,
+        rated temperature); its part provides :func:`node_outflow` of it.
     """
 
     name: str
@@ -144,6 +169,16 @@ class State:
     travel: Callable | None = None
     loop: str | None = None
     bound: Bound | None = None
+    rest: str | None = None
+    rest_when: Callable | None = None
+    neutral: bool = False
+    seed: Seed | None = None
+    node: Node | None = None
+
+    @property
+    def memory(self) -> bool:
+        """True when the state may be a neutral mode (``neutral`` or a ``rest`` rule)."""
+        return self.neutral or self.rest is not None
 
 
 @dataclass(frozen=True)
@@ -330,10 +365,19 @@ class Part:
     switched: ClassVar[tuple] = ()
     #: The parameter giving the carrier frequency (Hz) of :meth:`schedule`.
     carrier: ClassVar[str | None] = None
-    #: Parameter values the small-signal (linear) analyses set, whatever their policy:
-    #: non-smooth effects a part writes so that these values remove them (a sensor's
-    #: quantisation step 0 gives slope exactly 1).
+    #: Small-signal policies (:data:`POLICIES`): policy -> value -> the parameter
+    #: overrides it applies (``{"friction": {"off": {"F_seal": 0.0}}}``), or a one-line
+    #: reason (str) when this part refuses that value.
     small_signal: ClassVar[dict] = {}
+    #: What the linearisation freezes (:class:`Freeze`).
+    freeze: ClassVar[tuple] = ()
+    #: Saturations a trim must keep inactive (:class:`Limit`).
+    trim_limits: ClassVar[tuple] = ()
+    #: Gains a tuner may move (:class:`Gain`), outer loop first.
+    gains: ClassVar[tuple] = ()
+    #: Named operating conditions (the airframe's flight conditions): name -> flat
+    #: parameter values (SI) that set it up.
+    conditions: ClassVar[dict] = {}
     #: The faults this part can inject (:class:`Fault`), each through one of its inputs.
     faults: ClassVar[tuple] = ()
 

@@ -46,7 +46,7 @@ REGISTRY: dict[str, dict[str, type]] = {
     "inverter": {"ideal": inverter.Ideal, "pwm": inverter.Pwm},
     "supply": {"ideal": supply.Ideal, "line": supply.Line},
     "screw": {"elastic": ballscrew.Elastic, "rigid": ballscrew.Rigid},
-    "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid},
+    "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid, "lugre": friction.LuGre},
     "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},
     "thermal": {"off": thermal.Off, "lumped": thermal.Lumped},
     "sensor": {"ideal": sensor.Ideal, "real": sensor.Real},

@@ -36,7 +36,7 @@ from ._part import Hold, Input, Loop, Output, Part, State, der
 
 __all__ = [
     "atmosphere", "crank", "crank_stroke", "hinge_moment", "pitch_law", "transport_rates",
-    "AIRCRAFT_LOOP", "B747_A", "B747_B", "B747_U0", "B747_H", "Transport", "B747",
+    "AIRCRAFT_LOOP", "B747_A", "B747_B", "B747_U0", "B747_H", "Transport", "B747", "CONDITIONS",
 ]
 
 FT = 0.3048
@@ -187,11 +187,24 @@ _PARAMS = ("r_horn", "a_pin", "S_c_e", "C_h0", "C_h_a", "C_h_d", "J_e", "K_q", "
            "stroke", "loop_a")
 
 
+_LANDING = {"C_L0": 1.0, "C_D0": 0.08, "C_m0": -0.20, "dC_D": 0.02, "dC_m": -0.05,
+            "K_q": 2.0, "K_th": 4.0, "K_ith": 1.0}
+#: Flight conditions: name -> flat parameter values (SI): trim airspeed V_0 and altitude
+#: h_0 of the transport, its configuration (Stevens & Lewis's table) and the flight-control
+#: gains (§4). The 747 (linear, Mach 0.8 at 40 000 ft) reads only the gains.
+CONDITIONS = {
+    "cruise_sl": {"V_0": 500 * FT, "h_0": 0.0},
+    "cruise_30k": {"V_0": 800 * FT, "h_0": 30000 * FT},
+    "landing": {"V_0": 250 * FT, "h_0": 0.0, **_LANDING},
+}
+
+
 class _Airframe(Part):
     """What both airframes share: surface, horn, hinge load and the flight-control law;
     a subclass provides ``_rates(b, delta)`` -> (state rates by name, qbar, alpha_aero, n_z)."""
 
     family = "airframe"
+    conditions = CONDITIONS
     inputs = _INPUTS
     outputs = _OUTPUTS
     loops = (AIRCRAFT_LOOP,)

@@ -6,19 +6,16 @@ import math
 
 import casadi as ca
 
-from ._part import MARGIN, Bound, Input, Output, Part, State, der
+from ._part import MARGIN, Bound, Input, Output, Part, Seed, State, der
 from .motor import no_load_speed, shaft
 
 __all__ = [
-    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force", "P_BLEND",
-    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA",
+    "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force",
+    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA", "held_at_rest",
 ]
 
-#: Width (W) over which the screw-nut efficiency switches between the direct and the
-#: inverse value as the transmitted power changes sign. An exact switch makes a
-#: sliding mode that stalls variable-step solvers while a load is held at standstill;
-#: blending over ~0.1 W moves reference trajectories by < 0.25 um (measured).
-P_BLEND = 0.1
+#: The efficiency switch's former fixed width (W), the default of ``P_blend``.
+_P_REF = 0.1
 
 
 def lead_ratio(P):
@@ -34,7 +31,13 @@ def lead_ratio(P):
 
 def efficiency_factor(F, omega, eta, P, eta_inv=None):
     """Factor g in T_load = (p/2 pi) F g: 1/eta when the motor drives the load
-    (F omega > 0), eta_inv when the load back-drives; blended over P_BLEND watts.
+    (F omega > 0), eta_inv when the load back-drives, switched on the transmitted power
+    q = F omega p/(2 pi) (W) with the weight w = (1 + tanh(q/P_blend))/2 of the driving
+    value: g = w/eta + (1 - w) eta_inv. ``P_blend`` (W, a parameter, 0.1 W on the
+    reference set) is the width of the switch; ``P_blend = 0`` is the exact switch
+    w = (1 + sign(q))/2 (w = 1/2 at q = 0). An exact switch makes a sliding mode on q = 0
+    while a load is held at standstill, which variable-step solvers pay for in steps
+    (``docs/guide/ecu-structure.md``); 0.1 W moves reference trajectories by < 0.25 um.
 
     Parameters
     ----------
@@ -45,12 +48,17 @@ def efficiency_factor(F, omega, eta, P, eta_inv=None):
     eta : SX
         Direct efficiency of the screw-nut (-).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``p``, m, and ``eta_inv``, -, unless given).
+        Parameter symbols by flat name (uses ``p``, m, ``P_blend``, W, and ``eta_inv``, -,
+        unless given).
     eta_inv : SX, optional
         Inverse efficiency of the screw-nut (-); default ``P.eta_inv``.
     """
     eta_inv = P.eta_inv if eta_inv is None else eta_inv
-    w = 0.5 * (1 + ca.tanh(F * omega * lead_ratio(P) / P_BLEND))
+    q = F * omega * lead_ratio(P)
+    # q/P_blend written (q/0.1)(0.1/P_blend): at the default 0.1 W the factor is 1 and the
+    # values and derivatives are those of the former constant 0.1 W, bit for bit (a plain
+    # q/P_blend reorders the derivative's products); the exact switch where P_blend = 0
+    w = 0.5 * (1 + ca.if_else(P.P_blend > 0, ca.tanh((q / _P_REF) * (_P_REF / P.P_blend)), ca.sign(q)))
     return w / eta + (1 - w) * eta_inv
 
 
@@ -155,17 +163,50 @@ _FORCE = Bound(lambda E: MARGIN * held_force(E), f"{MARGIN:g} x the largest forc
 _RINGING_ROD = Bound(lambda E: MARGIN * no_load_speed(E) * lead_ratio(E)
                      + MARGIN * held_force(E) / math.sqrt(E.C * E.M),
                      f"{MARGIN:g} x the no-load speed at the rod + its ringing under the largest load step")
-_LIMITS = {"overtravel": lambda P: OVERTRAVEL}
+def held_at_rest(P):
+    """Largest rod force the current limit holds at standstill, where the screw-nut
+    factor sits at the middle of its blend, (1/eta + eta_inv)/2: K_t I_max / ((p/2 pi) g)
+    (N; 54.5 kN on the reference set).
+
+    Parameters
+    ----------
+    P : SimpleNamespace
+        Parameter values by flat name (uses ``pp``, ``psi``, ``I_max``, ``p``, ``eta``, ``eta_inv``).
+    """
+    return 1.5 * P.pp * P.psi * P.I_max / (lead_ratio(P) * (0.5 / P.eta + 0.5 * P.eta_inv))
+
+
+#: Envelope limits: the overtravel, and the load the actuator holds at standstill
+#: (``held_load``: what a mission's load profile is checked against before it runs).
+_LIMITS = {"overtravel": lambda P: OVERTRAVEL, "held_load": held_at_rest}
 
 F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE)
 ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
 # declared by the thermal parts, which pass it on as eta_screw (or replace it by eta(T_s))
 
 
+#: Small-signal policy: backlash "off" closes the gap (dead zone and play have slope 1 at B = 0).
+_SMALL_SIGNAL = {"backlash": {"off": {"B": 0.0}}}
+#: Inside the gap the spring has no slope and a trim's Newton cannot find the contact:
+#: start from the backlash-free trim with the nut moved half the gap towards the flank
+#: that carries the screw force.
+def _inside_gap(P, y):
+    if P.B > 0 and abs(y["x_in"] - y["x_rod"]) < P.B / 2:
+        return (f"backlash kept: the operating point sits inside the {P.B * 1e6:.3g} um gap, so the linear "
+                "model has the rod decoupled from the screw; use backlash='off' or a load")
+    return None
+
+
+_GAP_SEED = Seed("backlash", lambda P, y: math.copysign(1.0, y["F_in"]) * (P.B / 2) / lead_ratio(P)
+                 if y["F_in"] != 0 else 0.0, warn=_inside_gap)
+
+
 def _shaft_states(contact: bool):
+    # with the rigid screw (contact at the shaft) only the play reads the shaft angle:
+    # without backlash at rest nothing restores it (a neutral mode)
     return (
         State("phi", "rad", "shaft angle", roles=("shaft_angle",), scale=lambda P: P.stroke / lead_ratio(P),
-              travel=lead_ratio, bound=_NUT_ANGLE),
+              travel=lead_ratio, bound=_NUT_ANGLE, neutral=contact, seed=_GAP_SEED),
         State("omega", "rad/s", "motor speed", roles=("shaft_speed",) + (("contact_velocity",) if contact else ()),
               scale=lambda P: P.v_max / lead_ratio(P), bound=_SPEED),
     )
@@ -185,7 +226,7 @@ def _outputs(rod_speed: Bound) -> tuple:
     )
 
 
-_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max")
+_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max", "P_blend")
 
 
 class Elastic(Part):
@@ -203,6 +244,7 @@ class Elastic(Part):
     inputs = (F_EXT,)
     outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
+    small_signal = _SMALL_SIGNAL
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS
@@ -247,12 +289,16 @@ class Rigid(Part):
     family, value = "screw", "rigid"
     doc = "one-mass: rod rigid on the shaft, backlash as a play on the position signal"
     states = _shaft_states(contact=True) + (
+        # without backlash the play rests anywhere: held exactly at the nut, where both edges
+        # act and the AD slope is 1 (a gap of -1e-17 at a shaft speed of +1e-16 selects 0)
         State("x_play", "m", "rod position after the backlash play", roles=("rod_position", "play"),
-              scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL),
+              scale=lambda P: P.stroke, travel=lambda P: 1.0, bound=_TRAVEL, rest="x_in",
+              rest_when=lambda P: P.B == 0),
     )
     inputs = (F_EXT,)
     outputs = _outputs(_ROD_SPEED)
     params = _PARAMS + ("B",)
+    small_signal = _SMALL_SIGNAL
     stored = ("E_kin",)
     loads = ("f_ext",)
     limits = _LIMITS

@@ -2,7 +2,7 @@
 opposes positive velocity. With the rigid screw the same laws act on the shaft, with
 the rod velocity v = omega p/(2 pi) and the force referred back through p/(2 pi).
 
-Two variants:
+Three variants:
 
 ``smooth`` (eq. 3)
     A continuous law, usable by any ODE solver and linearisable.
@@ -13,16 +13,27 @@ Two variants:
     small velocity keep it (creep); :func:`stick_entry` is the discrete part, applied
     by the integrator wrapper (:mod:`ema_casadi.simulation`), that zeroes the velocity
     when the rod enters the band and the stick condition holds.
+``lugre`` (Canudas de Wit, Olsson, Astrom and Lischinsky 1995)
+    A dynamic law with the bristle deflection z as a state:
+    dz/dt = v - sigma_0 |v| z / g(v), F = sigma_0 z + sigma_1 dz/dt + sigma_2 v, with the
+    Stribeck curve g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2). Mapped onto the parameters of
+    the other laws: F_c = F_r (the sliding level of eq. 7, seal plus load-dependent
+    bearing friction), F_s = r_start F_r (the breakaway force of eq. 8), v_s = v_st (the
+    Stribeck velocity), sigma_2 = c_v (the viscous coefficient); sigma_0 (bristle
+    stiffness) and sigma_1 (bristle damping) are its own. Continuous (no discrete map),
+    so every ODE solver and the linearisation serve it; it sticks (pre-sliding: a force
+    below breakaway deflects the bristles by F/sigma_0) and slips like the Karnopp law.
 """
 
 from __future__ import annotations
 
 import casadi as ca
 
-from ._part import Output, Part
+from ._part import Output, Part, State, der
 from .ballscrew import F_EXT
 
-__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "SHAPES", "Smooth", "Hybrid"]
+__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "stribeck_curve", "lugre_rate", "SHAPES", "Smooth",
+           "Hybrid", "LuGre"]
 
 SHAPES = ("tanh", "fermi")
 
@@ -169,6 +180,7 @@ class Smooth(Part):
     outputs = _OUT
     heat = {"P_friction": "screw", "P_viscous": "screw"}
     params = _PARAMS + ("v_s", "r_start", "v_st")
+    small_signal = {"friction": {"off": {"F_seal": 0.0, "C_bear": 0.0}}}
     options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
 
     def signals(self):
@@ -191,6 +203,12 @@ class Hybrid(Part):
     outputs = _OUT
     heat = Smooth.heat
     params = _PARAMS + ("eps", "r_start")
+    # the stick band closed too: the hybrid model then linearises exactly like the smooth one
+    small_signal = {"friction": {
+        "off": {"F_seal": 0.0, "C_bear": 0.0, "eps": 0.0},
+        "smooth": "friction policy 'smooth' linearises the smooth friction law; the hybrid (Karnopp) "
+                  "variant has no meaningful slope: use friction policy 'off'",
+    }}
 
     def signals(self):
         out = _common(None)
@@ -205,3 +223,89 @@ class Hybrid(Part):
         stick = stick_entry(prev["v_contact"], now["v_contact"], now["F_hold"], now["F_r"], now.P)
         name = now.state_name("contact_velocity")
         return {name: ca.if_else(stick, 0, now.x[name])}, stick
+
+
+# ---- LuGre ---------------------------------------------------------------------------
+#: Floor of the Stribeck curve (N) in the bristle rate: only a parameter set without any
+#: Coulomb friction (F_r = 0) reaches it, where the bristles then carry no force.
+G_MIN = 1e-9
+#: Contact velocity (m/s) below which the steady-state deflection z_ss is that at rest (0):
+#: a trim at rest leaves a velocity of round-off (~1e-20 m/s), of either sign.
+V_REST = 1e-12
+
+
+def stribeck_curve(v, F_r, P):
+    """The Stribeck curve g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2) with F_c = F_r,
+    F_s = r_start F_r, v_s = v_st (N): the steady-state LuGre friction without the
+    viscous part.
+
+    Parameters
+    ----------
+    v : SX
+        Velocity at the contact (m/s).
+    F_r : SX
+        Sliding level (eq. 7) (N).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``r_start``, ``v_st``).
+    """
+    return F_r * (1 + (P.r_start - 1) * ca.exp(-((v / P.v_st) ** 2)))
+
+
+def lugre_rate(v, z, g, P):
+    """Bristle rate dz/dt = v - sigma_0 |v| z / g(v) (m/s).
+
+    Parameters
+    ----------
+    v : SX
+        Velocity at the contact (m/s).
+    z : SX
+        Bristle deflection (m).
+    g : SX
+        The Stribeck curve at v (N), :func:`stribeck_curve`.
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``sigma_0``).
+    """
+    return v - P.sigma_0 * ca.fabs(v) * z / ca.fmax(g, G_MIN)
+
+
+class LuGre(Part):
+    """LuGre dynamic friction (Canudas de Wit et al. 1995): the bristle deflection z is a
+    state; steady sliding gives the Stribeck curve, a force below breakaway a pre-sliding
+    deflection F/sigma_0."""
+
+    family, value = "friction", "lugre"
+    doc = "LuGre: bristle state z, sigma_0 z + sigma_1 dz/dt + c_v v, Stribeck curve F_r..r_start F_r"
+    # at rest nothing restores z (dz/dt = v): the trim holds it at its steady state z_ss(v)
+    states = (State("z", "m", "LuGre bristle deflection", scale=lambda P: 1e-5, rest="z_ss"),)
+    inputs = (F_EXT,)
+    outputs = _OUT + (Output("z_ss", "m", "steady-state bristle deflection at the contact velocity", kind="aux"),)
+    heat = Smooth.heat
+    stored = ("E_bristle",)
+    params = _PARAMS + ("r_start", "v_st", "sigma_0", "sigma_1")
+    # off: no Coulomb friction and no bristles, viscous c_v only (as the other laws)
+    small_signal = {"friction": {"off": {"F_seal": 0.0, "C_bear": 0.0, "sigma_0": 0.0, "sigma_1": 0.0}}}
+
+    def signals(self):
+        def bristle(b):
+            P, z, zdot, v = b.P, b["z"], b[der("z")], b["v_contact"]
+            # the bristle force's power less what its spring stores: the dissipated part
+            return P.sigma_0 * z + P.sigma_1 * zdot, P.sigma_0 * z * (v - zdot) + P.sigma_1 * zdot * v
+
+        out = _common(None)
+        del out["P_friction"]  # provided with the bristle force
+        out["g_stribeck"] = lambda b: stribeck_curve(b["v_contact"], b["F_r"], b.P)
+        out[der("z")] = lambda b: lugre_rate(b["v_contact"], b["z"], b["g_stribeck"], b.P)
+        out[("F_c", "P_friction")] = bristle
+        out["F_friction"] = lambda b: b["F_c"] + b.P.c_v * b["v_contact"]
+        out["stick"] = lambda b: 0
+        out["F_net"] = lambda b: b["F_drive"] - b["F_friction"]
+        out["E_bristle"] = lambda b: 0.5 * b.P.sigma_0 * b["z"] ** 2
+        # steady-state deflection at the contact velocity, the trim's rest rule: g(v) sign(v)/sigma_0,
+        # 0 at rest (below V_REST: a trim at rest has a velocity of round-off, of either sign)
+        def z_ss(b):
+            v = b["v_contact"]
+            moving = ca.if_else(ca.fabs(v) > V_REST, ca.sign(v), 0)
+            return ca.if_else(b.P.sigma_0 > 0, b["g_stribeck"] * moving / b.P.sigma_0, 0)
+
+        out["z_ss"] = z_ss
+        return out

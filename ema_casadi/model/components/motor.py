@@ -14,10 +14,12 @@ is 0 and the equations are those without iron loss.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
 from . import controller
-from ._part import MARGIN, Bound, Fault, Hold, Input, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Fault, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm", "Dc",
            "CURRENT_LOOP", "CURRENT_BOUND"]
@@ -221,7 +223,7 @@ _COMMON_OUT = (
     Output("P_fe", "W", "iron loss, a drag torque on the shaft (0 unless iron_loss = on)", kind="loss"),
 )
 _HEAT = {"P_cu": "winding", "P_fe": "housing"}
-_OPTIONS = {"iron_loss": ("off", "on")}
+_OPTIONS = {"iron_loss": ("off", "on"), **controller.AW_OPTION}
 _SHORT = {"winding_short": ("off", "on")}
 _D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
 
@@ -245,6 +247,14 @@ def _iron(opt):
     return {("T_fe", "P_fe"): iron, "T_m": lambda b: b["T_em"] - b["T_fe"]}
 
 
+#: The voltage limit of the current controller (the linear-SVPWM circle), which a trim
+#: keeps inactive; lifted through k_v, not V_dc (V_dc also sets the switching losses,
+#: which heat the inverter node of a thermal network).
+_LIMITS = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
+                 lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
+_GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+
+
 class Pmsm(Part):
     """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics).
 
@@ -263,6 +273,8 @@ class Pmsm(Part):
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS | _SHORT
     heat = _HEAT
     loops = (CURRENT_LOOP,)
@@ -294,7 +306,7 @@ class Pmsm(Part):
             i_d, i_q = b["i_d_s"], b["i_q_s"]
             return controller.current_law_foc(
                 b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega_s"], b["z_d"], b["z_q"], b.P,
-                b["v_dc"]
+                b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]),
             )
 
         def plant(b):
@@ -325,6 +337,8 @@ class Dc(Part):
     inputs = (_D_I,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    trim_limits = _LIMITS
+    gains = _GAINS
     options = _OPTIONS
     heat = _HEAT
     loops = (CURRENT_LOOP,)
@@ -338,7 +352,7 @@ class Dc(Part):
     def signals(self):
         def current_law(b):
             v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega_s"], b["z_i"], b.P,
-                                                     b["v_dc"])
+                                                     b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]))
             return 0, v / 1.5, z_dot
 
         def plant(b):

@@ -20,7 +20,8 @@ expression for expression). ``real``:
   phase a), ``i_c = -i_a - i_b``, and transformed back with the resolver's angle.
 
 ``Q_q(v) = q round(v/q)`` is the quantiser (the identity for q = 0, which is what the
-small-signal analyses set: :attr:`~ema_casadi.model.components.Part.small_signal`). The
+small-signal analyses set by their default policy ``quantisation = "off"``:
+:attr:`~ema_casadi.model.components.Part.small_signal`). The
 noises ``n`` are unit white-noise inputs held at their loop's sample rate (a seeded
 sequence a time simulation fills, 0 for the linear analyses).
 """
@@ -117,7 +118,7 @@ class Real(Part):
     outputs = _sensed("signal") + (Output("theta_s", "rad", "resolver reading (quantised shaft angle)"),)
     params = ("k_g_x", "b_x", "sigma_x", "q_x", "tau_x", "N_theta", "sigma_theta", "k_g_i", "b_i", "sigma_i", "q_i",
               "seed", "f_s_w", "pp", "p", "stroke")
-    small_signal = {"q_x": 0.0, "N_theta": 0.0, "q_i": 0.0}
+    small_signal = {"quantisation": {"off": {"q_x": 0.0, "N_theta": 0.0, "q_i": 0.0}}}
     # the sampled ECU holds its speed estimate between speed-loop samples
     holds = (Hold("omega_s", "rad/s", "velocity"),)
 

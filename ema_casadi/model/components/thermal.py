@@ -44,7 +44,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..params import TABLE_MAX
-from ._part import Input, Output, Part, State, der, heat_signal
+from ._part import Freeze, Input, Node, Output, Part, State, der, heat_signal, node_outflow
 from .ballscrew import ETA
 
 __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
@@ -52,6 +52,10 @@ __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
 #: The temperature states: name -> (node, heat capacity parameter).
 NODES = {"T_w": ("winding", "C_th_w"), "T_h": ("housing", "C_th_h"), "T_s": ("screw", "C_th_s"),
          "T_inv": ("inverter", "C_th_inv")}
+#: The temperature each node is rated for (degC): the winding from the parameter file
+#: (T_max_w, its insulation class); the others typical values for a housing, a greased
+#: screw and an inverter heat sink.
+RATED = {"T_w": lambda P: P.T_max_w, "T_h": lambda P: 120.0, "T_s": lambda P: 120.0, "T_inv": lambda P: 100.0}
 
 T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0)
 
@@ -111,6 +115,13 @@ def network(T_w, T_h, T_s, T_inv, T_amb, Q_w, Q_h, Q_s, Q_inv, P):
             (Q_s - q_sh) * (1 / P.C_th_s), (Q_inv - q_ia) * (1 / P.C_th_inv), q_ha + q_ia)
 
 
+#: The linearisation freezes the screw-nut efficiency blend at its value g_screw = g at
+#: the point (1/eta = eta_inv = g): the blend switches over ~0.1 W and its slope at
+#: standstill would act as a fictitious shaft damping.
+_FREEZE = Freeze("g_screw", inputs={"eta": lambda g: 1.0 / g}, params={"eta_inv": lambda g: g},
+                 nominal=lambda P: 1.0 / P.eta)
+
+
 class Off(Part):
     """No thermal network: R, psi, eta_inv as in the parameter file, eta the input."""
 
@@ -118,6 +129,7 @@ class Off(Part):
     doc = "no thermal network: parameters at T_ref, the eta input drives the screw"
     inputs = (ETA,)
     params = ("R", "psi", "eta_inv")
+    freeze = (_FREEZE,)
 
     def signals(self):
         return {
@@ -129,7 +141,9 @@ class Off(Part):
 
 
 def _temperature(name, doc):
-    return State(name, "degC", doc, roles=("temperature",), x0=20.0, scale=lambda P: 100.0)
+    node, cap = NODES[name]
+    return State(name, "degC", doc, roles=("temperature",), x0=20.0, scale=lambda P: 100.0,
+                 node=Node(node, lambda P, cap=cap: getattr(P, cap), RATED[name]))
 
 
 class Lumped(Part):
@@ -151,16 +165,27 @@ class Lumped(Part):
         *(Output(heat_signal(node), "W", f"heat into the {node} node (the losses routed there)", kind="power")
           for node, _ in NODES.values()),
         Output("P_amb", "W", "heat to the ambient, from the housing and the inverter", kind="power"),
+        *(Output(node_outflow(node), "W", f"heat the {node} node passes on to its neighbours and the ambient",
+                 kind="power") for node, _ in NODES.values()),
         Output("E_th", "J", "heat stored in the network, sum of C_th (T - T_ref)", kind="energy"),
     )
     params = ("R", "psi", "eta", "eta_inv", "alpha_Cu", "alpha_psi", "T_ref", "feedback_R", "feedback_psi",
               "feedback_eta", "C_th_w", "R_th_ws", "C_th_h", "R_th_ha", "C_th_s", "R_th_sh", "C_th_inv",
-              "R_th_inv") + tuple(f"{n}_{i}" for n in ("T_eta", "eta_T") for i in range(TABLE_MAX))
+              "R_th_inv", "T_max_w") + tuple(f"{n}_{i}" for n in ("T_eta", "eta_T") for i in range(TABLE_MAX))
+    # frozen, the eta input drives the screw (the table eta(T_s) switched off)
+    freeze = (Freeze("g_screw", _FREEZE.inputs, {**_FREEZE.params, "feedback_eta": lambda g: 0.0},
+                     nominal=_FREEZE.nominal),)
 
     def signals(self):
         def rates(b):
             Q = (b[heat_signal(node)] for node, _ in NODES.values())
             return network(b["T_w"], b["T_h"], b["T_s"], b["T_inv"], b["T_amb"], *Q, b.P)
+
+        def outflows(b):
+            # heat input less C dT/dt: the network's rates with no heat input, times -C
+            T = (b[n] for n in NODES)
+            rates = network(*T, b["T_amb"], 0, 0, 0, 0, b.P)[:4]
+            return tuple(-getattr(b.P, c) * r for (_, c), r in zip(NODES.values(), rates, strict=True))
 
         def stored(b):
             P = b.P
@@ -178,4 +203,5 @@ class Lumped(Part):
             "eta_inv_screw": lambda b: b.P.eta_inv + b.P.feedback_eta * (b["eta_table"] - b.P.eta),
             (der("T_w"), der("T_h"), der("T_s"), der("T_inv"), "P_amb"): rates,
             "E_th": stored,
+            tuple(node_outflow(node) for node, _ in NODES.values()): outflows,
         }
