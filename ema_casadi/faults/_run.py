@@ -114,8 +114,9 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
                  tolerance: float | None = None, progress: bool = False) -> dict:
     """False alarms over ``n`` healthy runs of the fault file's scenario (its
     ``[healthy]`` duration and step), through the sweep engine: sensor noise (a seed
-    per run), friction (``F_seal``, ``C_bear``) and drive-train stiffness (``C``) drawn
-    uniformly within +-``tolerance``, no fault.
+    per run for every noise sequence) and the ``[healthy] vary`` parameters (the
+    reference file: friction ``F_seal``, ``C_bear`` and stiffness ``C``) drawn uniformly
+    within +-``tolerance``; no fault injection.
 
     Returns a dict: ``runs``, ``false_alarms`` (runs in which some monitor latched),
     ``by_monitor`` (latched runs per monitor), ``failed`` runs, ``wall_time`` and
@@ -141,27 +142,31 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
 
     n = integer(n, "n", FaultError, minimum=1)
     h = spec.healthy or {"duration": spec.scenario["duration"], "dt": spec.scenario["dt"],
-                         "dt_out": spec.scenario["dt_out"], "tolerance": HEALTHY_TOLERANCE}
+                         "dt_out": spec.scenario["dt_out"], "tolerance": HEALTHY_TOLERANCE, "vary": []}
     tolerance = h["tolerance"] if tolerance is None else tolerance
     if not (isinstance(tolerance, (int, float)) and 0 <= tolerance < 1):
         raise FaultError(f"tolerance: expected a fraction in [0, 1), got {tolerance!r}")
     if spec.scenario["condition"] is not None:
         raise FaultError("healthy runs: not in the aircraft loop (they run the actuator's scenario)")
-    v = {k: val for k, val in spec.variants.items() if k not in ("faults", "winding_short")}
     from ..model.assembly import build_model
 
-    alarms = build_model(spec.params, v).outputs_of("alarm")
-    sc = spec.scenario
+    v = spec.healthy_variants or spec.variants
+    model = build_model(spec.params, v)
+    alarms = model.outputs_of("alarm")
+    # a seed per run for every noise sequence (the parameters the noise inputs name)
+    seeds = sorted({i.seed for i in model.input_info.values() if i.noise is not None and i.seed})
     tol = {"distribution": "uniform", "low": 1 - tolerance, "high": 1 + tolerance, "relative": True}
     data = {
         "sweep": {"name": "healthy runs", "seed": int(seed), "samples": n},
         "variants": v,
-        "parameters": {"F_seal": tol, "C_bear": tol, "C": tol,
-                       "seed": {"distribution": "uniform", "low": 0.0, "high": 2.0**31}},
+        "parameters": {**{name: tol for name in h["vary"]},
+                       **{name: {"distribution": "uniform", "low": 0.0, "high": 2.0**31} for name in seeds}},
         "scenario": {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
-                     "zoh": True, **sc["text"]},
+                     "zoh": True, **spec.scenario["text"]},
         "metrics": {"peak": {"signals": list(alarms)}},
     }
+    if not data["parameters"]:
+        raise FaultError("healthy runs: nothing varies (no noise inputs, no [healthy] vary parameters)")
     sw = parse_sweep(data, spec.params, f"{spec.source} (healthy runs)")
     res = sweep(sw, jobs=jobs, progress=progress)
     ok = [r for r in res.rows if r["status"] == "ok"]

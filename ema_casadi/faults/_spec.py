@@ -35,7 +35,8 @@ run starts from the trim of the whole loop.
     [healthy]                 # optional: the healthy runs (--healthy-runs) of the scenario
     duration = 0.3            # s (default the scenario's)
     dt = 1.5625e-5            # s (default the scenario's)
-    tolerance = 0.05          # +- relative on F_seal, C_bear, C
+    tolerance = 0.05          # +- relative (uniform) on the parameters of vary
+    vary = ["F_seal", "C_bear", "C"]
 
 Every [[fault]] gives kind x onset x severity cases; the no-fault case is always run.
 """
@@ -55,9 +56,8 @@ from ..signals import Signal, SignalError, parse_signal
 __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults", "fault_kinds", "fault_variants"]
 
 _TABLES = ("scenario", "fault", "monitor", "healthy")
-_HEALTHY = ("duration", "dt", "dt_out", "tolerance")
-_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "sensor", "airframe", "condition", "theta_cmd", "w_g",
-             "mission", "segment")
+_HEALTHY = ("duration", "dt", "dt_out", "tolerance", "vary")
+_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "condition", "theta_cmd", "w_g", "mission", "segment")
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
 
@@ -114,7 +114,10 @@ class FaultSpec:
         ``duration``, ``dt``, ``dt_out`` (s), ``signals`` (input -> Signal) and ``text``
         (input -> the file's value).
     healthy : dict
-        The healthy runs' ``duration``, ``dt``, ``dt_out`` (s) and ``tolerance`` (-).
+        The healthy runs' ``duration``, ``dt``, ``dt_out`` (s), ``tolerance`` (-) and
+        ``vary`` (the parameters drawn within it).
+    healthy_variants : dict
+        The variant choice of the healthy runs (no fault injection).
     cases : list of FaultCase
         The no-fault case first, then every fault case.
     """
@@ -125,11 +128,13 @@ class FaultSpec:
     scenario: dict
     cases: list = field(default_factory=list)
     healthy: dict = field(default_factory=dict)
+    healthy_variants: dict = field(default_factory=dict)
 
 
-def fault_variants(params: Parameters, given: dict | None = None, sensor: str | None = None) -> dict:
-    """The variant choice of a fault run: the parameter set's and ``given`` with
-    ``faults``, ``monitors`` and the PMSM's ``winding_short`` on (and ``sensor`` if given).
+def fault_variants(params: Parameters, given: dict | None = None, chosen: dict | None = None) -> dict:
+    """The variant choice of a fault run: the parameter set's, ``given`` and ``chosen``
+    (the fault file's) with ``faults`` and ``monitors`` on, and every option of the
+    chosen parts that adds fault kinds switched on (the PMSM's ``winding_short``).
 
     Parameters
     ----------
@@ -137,15 +142,36 @@ def fault_variants(params: Parameters, given: dict | None = None, sensor: str | 
         The parameter set (its ``[model]`` variants).
     given : dict, optional
         Variant choices on top (``--variant``).
-    sensor : str, optional
-        The sensor variant (``ideal`` or ``real``).
+    chosen : dict, optional
+        Variant choices of the fault file's ``[scenario]`` (``sensor``, ``airframe``).
     """
-    v = {**params.variants, **(given or {}), "faults": "on", "monitors": "on"}
-    if sensor is not None:
-        v["sensor"] = sensor
-    if v.get("motor", "pmsm") == "pmsm":
-        v["winding_short"] = "on"
+    from ..model.components import REGISTRY, validate_variants
+
+    v = validate_variants({**params.variants, **(given or {}), **(chosen or {}), "faults": "on", "monitors": "on"})
+    for key, values in REGISTRY.items():
+        cls = values[v[key]]
+        for opt, allowed in cls.options.items():
+            for value in allowed[1:]:
+                if cls({**{o: v[o] for o in cls.options}, opt: value}).faults and not cls(
+                        {o: v[o] for o in cls.options}).faults:
+                    v[opt] = value
     return v
+
+
+def healthy_variants(params: Parameters, given: dict | None = None, chosen: dict | None = None) -> dict:
+    """The variant choice of the healthy runs: as :func:`fault_variants` without the
+    fault injection (its inputs would be 0): the monitors on.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set (its ``[model]`` variants).
+    given, chosen : dict, optional
+        Variant choices on top (``--variant``, the fault file's ``[scenario]``).
+    """
+    from ..model.components import validate_variants
+
+    return validate_variants({**params.variants, **(given or {}), **(chosen or {}), "monitors": "on"})
 
 
 def fault_kinds(variants: dict) -> dict:
@@ -203,22 +229,17 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     scenario = data.get("scenario", {})
     if not isinstance(scenario, dict):
         raise FaultError(f"{src} [scenario]: expected a table")
-    _known(f"{src} [scenario]", scenario, _SCENARIO, "key")
-    sensor = scenario.get("sensor")
-    for key in ("sensor", "airframe"):
-        value = scenario.get(key)
-        if value is not None and value not in REGISTRY[key]:
-            raise FaultError(f"{src} [scenario] {key}: '{value}' unknown{nearest(str(value), REGISTRY[key])}; "
-                             f"choose one of {', '.join(REGISTRY[key])}")
+    _known(f"{src} [scenario]", scenario, (*_SCENARIO, *REGISTRY), "key")
+    # variant keys in the scenario (sensor, airframe, ...) choose the model
+    chosen = {k: val for k, val in scenario.items() if k in REGISTRY}
     params = _monitor(data.get("monitor", {}), params, src)
-    v = fault_variants(params, variants, sensor)
-    if scenario.get("airframe") is not None:
-        v["airframe"] = scenario["airframe"]
     try:
+        v = fault_variants(params, variants, chosen)
         kinds = fault_kinds(v)
+        hv = healthy_variants(params, variants, chosen)
     except ParameterError as exc:
-        raise FaultError(f"{src}: {exc}") from None
-    sc = _scenario(scenario, params, src, v.get("airframe", "none") != "none")
+        raise FaultError(f"{src} [scenario]: {exc}") from None
+    sc = _scenario(scenario, params, src, _aircraft(v))
     faults = data.get("fault", [])
     if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
         raise FaultError(f"{src} [[fault]]: expected an array of tables")
@@ -226,10 +247,18 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     for k, entry in enumerate(faults):
         cases += _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"])
     return FaultSpec(source=src, params=params, variants=v, scenario=sc, cases=cases,
-                     healthy=_healthy(data.get("healthy", {}), sc, src))
+                     healthy=_healthy(data.get("healthy", {}), sc, src, params), healthy_variants=hv)
 
 
-def _healthy(table, sc: dict, src: str) -> dict:
+def _aircraft(variants: dict) -> bool:
+    """Whether the model flies: a part commands the attitude (``theta_cmd`` is an input)."""
+    from ..model.components import parts_for
+
+    parts, _ = parts_for(variants)
+    return any(i.name == "theta_cmd" for part in parts for i in part.inputs)
+
+
+def _healthy(table, sc: dict, src: str, params: Parameters) -> dict:
     where = f"{src} [healthy]"
     if not isinstance(table, dict):
         raise FaultError(f"{where}: expected a table")
@@ -241,6 +270,14 @@ def _healthy(table, sc: dict, src: str) -> dict:
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1:
         raise FaultError(f"{where} tolerance: expected a fraction in [0, 1), got {tol!r}")
     out["tolerance"] = float(tol)
+    vary = table.get("vary", [])
+    names = params.as_dict()
+    if not isinstance(vary, list) or not all(isinstance(n, str) for n in vary):
+        raise FaultError(f"{where} vary: expected a list of parameter names, got {vary!r}")
+    for n in vary:
+        if n not in names:
+            raise FaultError(f"{where} vary: unknown parameter '{n}'{nearest(n, names)}")
+    out["vary"] = list(vary)
     return out
 
 

@@ -37,7 +37,7 @@ class Sensor:
     b_i: float = _d("A", _REAL, "phase-current sensor offset, phase a (A)", 0.0)
     sigma_i: float = _d("A", _NONNEG, "phase-current noise, standard deviation per current-loop sample (A)", 0.05)
     q_i: float = _d("A", _NONNEG, "phase-current quantisation step (A): 12 bit over +-2 I_max", 4 * 24.0 / 4096)
-    seed: float = _d("1", _NONNEG, "seed of the sensor-noise sequences (a whole number)", 0.0)
+    noise_seed: float = _d("1", _NONNEG, "seed of the sensor-noise sequences (a whole number)", 0.0)
 
 
 @dataclass(frozen=True)

@@ -63,8 +63,8 @@ def _as_signal(value, name: str, kind: str) -> Signal:
 def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | None = None) -> dict:
     """Every model input that is driven (given, or not an injection) as a Signal, by
     name; the quantity kind of each input selects its units. Undriven noise inputs get
-    their seeded sequence over [0, t_end] (:func:`noise_signal`; the parameter
-    ``seed``, the sample rate of the input's loop)."""
+    their seeded sequence over [0, t_end] (:func:`noise_signal`; the seed from the
+    parameter the input names, the sample rate of the input's loop)."""
     check_keywords("simulate", given, model.inputs)
     P = model.pdict(pv)
     sig = {}
@@ -74,7 +74,8 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | Non
             continue
         if value is None and inp.noise is not None and t_end is not None:
             # built here from checked numbers (Signal.table checks them): no second check
-            sig[name] = noise_signal(int(P.seed), name, float(getattr(P, model.loops[inp.noise].rate)), t_end)
+            seed = int(getattr(P, inp.seed)) if inp.seed else 0
+            sig[name] = noise_signal(seed, name, float(getattr(P, model.loops[inp.noise].rate)), t_end)
             continue
         if value is None:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default

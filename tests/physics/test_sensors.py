@@ -70,7 +70,7 @@ def test_resolver_quantisation_steps_the_speed_estimate(real, params):
 
 def test_noise_is_seeded_and_reproducible(params):
     model = ema.build_model(params, {"sensor": "real"})
-    runs = [ema.simulate(model, 0.05, x_cmd="step:1mm", zoh=True, dt=1e-5, p=model.p(seed=s)) for s in (3, 3, 4)]
+    runs = [ema.simulate(model, 0.05, x_cmd="step:1mm", zoh=True, dt=1e-5, p=model.p(noise_seed=s)) for s in (3, 3, 4)]
     assert np.array_equal(runs[0]["x_s"], runs[1]["x_s"])  # same seed, same run, bit for bit
     assert np.array_equal(runs[0]["i_q"], runs[1]["i_q"])
     assert not np.array_equal(runs[0]["x_s"], runs[2]["x_s"])

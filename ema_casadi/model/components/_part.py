@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
 
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
@@ -200,9 +200,11 @@ class Input:
     noise : str, optional
         A unit white-noise input: the name of the loop (:class:`Loop`) at whose sample
         rate it is held. A time simulation that does not drive it fills it with a seeded
-        sample-and-hold sequence of standard normal values (the parameter ``seed``; one
-        stream per input name), so a run is reproducible bit for bit; the linear
-        analyses see its default, 0.
+        sample-and-hold sequence of standard normal values (the parameter named by
+        ``seed``; one stream per input name), so a run is reproducible bit for bit; the
+        linear analyses see its default, 0.
+    seed : str, optional
+        For a noise input: the parameter giving the seed of its sequence.
     """
 
     name: str
@@ -213,6 +215,7 @@ class Input:
     injection: bool = False
     bound: Bound | None = None
     noise: str | None = None
+    seed: str | None = None
 
 
 @dataclass(frozen=True)
@@ -279,42 +282,6 @@ class Hold:
     name: str
     unit: str
     loop: str
-
-
-@dataclass(frozen=True)
-class Fault:
-    """A fault a part can inject: the model input that activates it.
-
-    The input is 0 (healthy) unless driven; a fault schedule drives it from the onset
-    on with the severity (a step, or a ramp to it), so one model serves every case.
-
-    Attributes
-    ----------
-    kind : str
-        The fault kind (``jam``, ``free_run``, ``bias`` ...).
-    input : str
-        The model input that carries the fault's severity (0 when healthy).
-    unit : str
-        The severity's SI unit (what the input's value means).
-    lo, hi : float
-        The severity's allowed range (SI), inclusive.
-    doc : str
-        One line: what the fault does and what its severity is.
-    target : str, optional
-        The signal the fault acts on (sensor faults: the sensed signal), or None.
-    rate : bool
-        The severity is a rate (``unit`` per second): the input ramps from the onset
-        (a drift) instead of stepping to the severity.
-    """
-
-    kind: str
-    input: str
-    unit: str
-    lo: float
-    hi: float
-    doc: str
-    target: str | None = None
-    rate: bool = False
 
 
 class Part:

@@ -73,7 +73,7 @@ def _sensor_inputs() -> tuple:
             Input(f"loss_{tag}", "1", "dimensionless", f"fault: {target} lost, reads 0 (0..1)"),
             Input(f"noise_{tag}", unit, kind, f"fault: standard deviation of extra noise on {target}"),
             Input(f"n_fault_{tag}", "1", "dimensionless", f"unit white noise of the {target} noise fault",
-                  noise=loop),
+                  noise=loop, seed="noise_seed"),
         ]
     return tuple(out)
 

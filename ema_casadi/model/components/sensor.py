@@ -109,15 +109,18 @@ class Real(Part):
               scale=lambda P: P.stroke / _lead(P), travel=_lead, loop="velocity"),
     )
     inputs = (
-        Input("n_x", "1", "dimensionless", "LVDT noise, unit white (held at the position-loop rate)", noise="position"),
+        Input("n_x", "1", "dimensionless", "LVDT noise, unit white (held at the position-loop rate)",
+              noise="position", seed="noise_seed"),
         Input("n_theta", "1", "dimensionless", "resolver noise, unit white (held at the speed-loop rate)",
-              noise="velocity"),
-        Input("n_i_a", "1", "dimensionless", "phase-a current-sensor noise, unit white", noise="current"),
-        Input("n_i_b", "1", "dimensionless", "phase-b current-sensor noise, unit white", noise="current"),
+              noise="velocity", seed="noise_seed"),
+        Input("n_i_a", "1", "dimensionless", "phase-a current-sensor noise, unit white", noise="current",
+              seed="noise_seed"),
+        Input("n_i_b", "1", "dimensionless", "phase-b current-sensor noise, unit white", noise="current",
+              seed="noise_seed"),
     )
     outputs = _sensed("signal") + (Output("theta_s", "rad", "resolver reading (quantised shaft angle)"),)
     params = ("k_g_x", "b_x", "sigma_x", "q_x", "tau_x", "N_theta", "sigma_theta", "k_g_i", "b_i", "sigma_i", "q_i",
-              "seed", "f_s_w", "pp", "p", "stroke")
+              "noise_seed", "f_s_w", "pp", "p", "stroke")
     small_signal = {"quantisation": {"off": {"q_x": 0.0, "N_theta": 0.0, "q_i": 0.0}}}
     # the sampled ECU holds its speed estimate between speed-loop samples
     holds = (Hold("omega_s", "rad/s", "velocity"),)
