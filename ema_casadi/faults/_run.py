@@ -56,7 +56,7 @@ def _one(model, spec: FaultSpec, case, start):
     sc = spec.scenario
     pv, x0, signals = start
     try:
-        res = simulate(model, sc["duration"], dt=sc["dt"], dt_out=sc["dt_out"], zoh=True, p=pv, x0=x0,
+        res = simulate(model, sc["duration"], solver="rk4", dt=sc["dt"], dt_out=sc["dt_out"], zoh=True, p=pv, x0=x0,
                        **signals, **case.signals())
         return res, None
     except RunFailed as exc:

@@ -7,7 +7,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
-from ._base import save  # sets the Agg backend before pyplot is imported
+from ._base import finish, save  # sets the Agg backend before pyplot is imported
 
 __all__ = ["plot_bode", "plot_loop_margins"]
 
@@ -41,8 +41,8 @@ def _mark_margins(ax_m, ax_p, bode: dict, m) -> None:
                    + ("" if m.stable else " (closed loop UNSTABLE)"), fontsize=9)
 
 
-def plot_bode(curves, path: str | Path, *, title: str = "", margins=None,
-              mag_label: str = "magnitude (dB)", linear_magnitude: bool = False) -> Path:
+def plot_bode(curves, path: str | Path | None = None, *, title: str = "", margins=None,
+              mag_label: str = "magnitude (dB)", linear_magnitude: bool = False):
     """Bode plot of one or more curves.
 
     Parameters
@@ -91,7 +91,7 @@ def plot_bode(curves, path: str | Path, *, title: str = "", margins=None,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
 def plot_loop_margins(loops: dict, path: str | Path, *, title: str = "") -> Path:

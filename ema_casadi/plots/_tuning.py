@@ -8,7 +8,7 @@ from pathlib import Path
 __all__ = ["draw_bode", "draw_step"]
 
 
-def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) -> Path:
+def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path | None = None):
     """One column per system (closed loop, then each loop transfer), gain over phase.
 
     Parameters
@@ -27,7 +27,7 @@ def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) ->
     """
     import matplotlib.pyplot as plt
 
-    from ._base import save  # first: it selects the Agg backend
+    from ._base import finish  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, len(titles), figsize=(17, 7), sharex=True, squeeze=False)
     for lbl, (ls, bodes) in curves.items():
@@ -45,10 +45,10 @@ def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) ->
     ax[0, 0].legend(fontsize=8)
     fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
-def draw_step(steps: dict, path: str | Path) -> Path:
+def draw_step(steps: dict, path: str | Path | None = None):
     """Rod position and q-axis current of nonlinear steps, one line per gain set.
 
     Parameters
@@ -61,7 +61,7 @@ def draw_step(steps: dict, path: str | Path) -> Path:
     """
     import matplotlib.pyplot as plt
 
-    from ._base import save  # first: it selects the Agg backend
+    from ._base import finish  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     amp = None
@@ -79,4 +79,4 @@ def draw_step(steps: dict, path: str | Path) -> Path:
         a.legend(fontsize=8)
     ax[0].set_title(f"nonlinear {amp * 1e3:g} mm step (full model, no load)", fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)

@@ -4,6 +4,7 @@ step), computed here and drawn by :mod:`ema_casadi.plots._tuning`."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..frequency import bode, closed_loop, frequency_grid
 from ..linearisation import loop_model, operating_point
@@ -11,8 +12,10 @@ from ..model.assembly import Model
 from ..model.params import Parameters
 from ..plots._tuning import draw_bode, draw_step
 from ._requirements import _load_label
-from ._solve import TuneResult
 from ._verify import step_metrics
+
+if TYPE_CHECKING:
+    from ._solve import TuneResult
 
 __all__ = ["plot_tuning"]
 
@@ -31,17 +34,17 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         The assembled model.
     params_before : Parameters
         The parameter set with the start gains.
-    folder : str or Path
-        Existing folder the PNGs are written into.
+    folder : str or Path or None
+        Existing folder the PNGs are written into; None: return the two figures.
     reference : Parameters, optional
         A further gain set drawn dotted.
 
     Returns
     -------
-    list of Path
-        The two PNG files.
+    list of Path or of matplotlib.figure.Figure
+        The two PNG files (or, without a folder, the figures).
     """
-    folder = Path(folder)
+    folder = None if folder is None else Path(folder)
     sets = {"before": (params_before, "--"), "after": (result.params, "-")}
     if reference is not None:
         sets["reference"] = (reference, ":")
@@ -54,8 +57,8 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         systems = [closed_loop(model, op)] + [loop_model(model, n, op) for n in model.loops]
         curves[lbl] = (ls, [bode(sys_, f) for sys_ in systems])
     bode_png = draw_bode(f, curves, titles, f"gain tuning ({result.objective}), linearised at {_load_label(F)}",
-                         folder / "tune_bode.png")
-    return [bode_png, draw_step(_steps(result, model, sets), folder / "tune_step.png")]
+                         None if folder is None else folder / "tune_bode.png")
+    return [bode_png, draw_step(_steps(result, model, sets), None if folder is None else folder / "tune_step.png")]
 
 
 def _steps(result, model, sets) -> dict:

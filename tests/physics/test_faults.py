@@ -13,6 +13,8 @@ import pytest
 import ema_casadi as ema
 
 QUIET = dict(sigma_x=0.0, sigma_theta=0.0, sigma_i=0.0)
+#: RK4 at 10 us (the runs' accuracy was measured with it), a sample per 0.1 ms
+RK4 = dict(dt=1e-5, dt_out=1e-4, solver="rk4")
 
 
 @pytest.fixture(scope="module")
@@ -34,14 +36,14 @@ def test_healthy_inputs_leave_the_trajectory_alone(faulty, model_cache):
     # jam anchor and the stuck memories follow their signals and act on nothing);
     # 1e-12 m is the regression tests' tolerance for a reordered sum
     kw = dict(x_cmd="step:1mm@0.01", dt=1e-5, dt_out=1e-4)
-    a = ema.simulate(faulty, 0.1, **kw)
-    b = ema.simulate(model_cache(), 0.1, **kw)
+    a = ema.simulate(faulty, 0.1, **kw, solver="rk4")
+    b = ema.simulate(model_cache(), 0.1, **kw, solver="rk4")
     assert np.max(np.abs(a["x_rod"] - b["x_rod"])) < 1e-12
 
 
 def test_jam_stops_the_rod_at_its_onset_position(faulty, params):
     t_on, v = 0.1, 0.04  # s, m/s: the rod moving at half its rate limit
-    r = ema.simulate(faulty, 0.3, x_cmd=f"ramp:{v}", a_jam=f"step:1@{t_on}", dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(faulty, 0.3, x_cmd=f"ramp:{v}", a_jam=f"step:1@{t_on}", **RK4)
     i_on = np.searchsorted(r.t, t_on)
     x_on = r["x_rod"][i_on]
     # the anchor is the rod's position at the onset (it followed the rod exactly)
@@ -66,7 +68,7 @@ def test_free_run_rod_accelerates_as_the_force_balance(faulty, params):
     # M_eff dv/dt = -(F - F_r) - c v, M_eff = M + J_rot/(lead^2 eta_inv),
     # c = c_v + b_m/(lead^2 eta_inv). 2 % is the acceptance bound (3e-5 measured).
     F, t_on = 10e3, 0.05
-    r = ema.simulate(faulty, 0.1, x_cmd=0.0, f_ext=F, a_open=f"step:1@{t_on}", dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(faulty, 0.1, x_cmd=0.0, f_ext=F, a_open=f"step:1@{t_on}", **RK4)
     i1, i2 = np.searchsorted(r.t, [t_on + 5e-3, t_on + 30e-3])
     v = r["v_rod"]
     a = (v[i2] - v[i1]) / (r.t[i2] - r.t[i1])
@@ -84,7 +86,7 @@ def test_undervoltage_caps_the_speed(faulty, params):
     # half the link lost: the voltage limit k_v (V_dc/2)/sqrt(3) caps the no-load speed
     # at omega = v_lim/(pp psi) less the R i_q drop (i_q from the measured run), well
     # below the 80 mm/s rate limit; 2 % covers the friction current's drop estimate
-    r = ema.simulate(faulty, 0.4, x_cmd="ramp:0.08", a_supply="step:0.5@0.05", dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(faulty, 0.4, x_cmd="ramp:0.08", a_supply="step:0.5@0.05", **RK4)
     P = params
     w = r["omega"][-1000:].mean()
     v_lim = P.power.k_v * 0.5 * P.power.V_dc / math.sqrt(3)
@@ -97,7 +99,7 @@ def test_undervoltage_caps_the_speed(faulty, params):
 
 def test_position_bias_fault_shifts_the_held_rod(faulty):
     b = 2e-4  # m, a bias step at 0.1 s while the rod holds 1 mm
-    r = ema.simulate(faulty, 0.4, x_cmd="step:1mm@0.01", bias_x=f"step:{b}@0.1", dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(faulty, 0.4, x_cmd="step:1mm@0.01", bias_x=f"step:{b}@0.1", **RK4)
     assert r["x_rod"][-1] == pytest.approx(1e-3 - b, abs=1e-8)  # ideal sensor: no quantisation
 
 
@@ -107,7 +109,7 @@ def _first(t, flag):
 
 def test_jam_monitor_latches_within_its_confirmation_time(watched, params):
     t_on = 0.1
-    r = ema.simulate(watched, 0.3, x_cmd="ramp:0.04", a_jam=f"step:1@{t_on}", zoh=True, dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(watched, 0.3, x_cmd="ramp:0.04", a_jam=f"step:1@{t_on}", zoh=True, **RK4)
     M = params.monitor
     cond = (np.abs(r["i_q_s"]) >= M.k_jam_i * params.motor.I_max) & (np.abs(r["omega_s"]) < M.w_jam)
     t_cond = _first(r.t, cond)
@@ -120,7 +122,7 @@ def test_jam_monitor_latches_within_its_confirmation_time(watched, params):
 
 def test_stuck_position_sensor_is_caught_by_the_cross_check(watched, params):
     t_on = 0.1
-    r = ema.simulate(watched, 0.2, x_cmd="sine:5mm@2", stuck_x=f"step:1@{t_on}", zoh=True, dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(watched, 0.2, x_cmd="sine:5mm@2", stuck_x=f"step:1@{t_on}", zoh=True, **RK4)
     M = params.monitor
     F = 1.5 * params.motor.pp * params.motor.psi * r["i_q_s"] / _lead(params)
     cond = np.abs(r["x_in_s"] - r["x_s"]) > params.screw.B / 2 + np.abs(F) / params.screw.C + M.e_cross
@@ -136,7 +138,7 @@ def test_a_latched_monitor_switches_the_bridge_off(watched, params):
     # exceeds the link: the screw spring, released, spins the rotor back beyond the
     # no-load speed for a few ms (the diodes brake it)
     p = watched.p(react_jam=1.0)
-    r = ema.simulate(watched, 0.3, x_cmd="ramp:0.04", a_jam="step:1@0.1", zoh=True, dt=1e-5, dt_out=1e-4, p=p)
+    r = ema.simulate(watched, 0.3, x_cmd="ramp:0.04", a_jam="step:1@0.1", zoh=True, p=p, **RK4)
     t_latch = _first(r.t, r["latch_jam"] >= 0.5)
     after = r.t > t_latch + 2e-3
     assert np.all(r["bridge_off"][after] == 1)
@@ -149,7 +151,7 @@ def test_a_latched_monitor_switches_the_bridge_off(watched, params):
 def test_healthy_noisy_run_trips_nothing(params):
     model = ema.build_model(params, {"faults": "on", "monitors": "on", "sensor": "real"})
     r = ema.simulate(model, 0.5, x_cmd="step:5mm@0.01+sine:1mm@3@0.2", f_ext="step:10kN@0.1", zoh=True, dt=1e-5,
-                     dt_out=1e-4)
+                     dt_out=1e-4, solver="rk4")
     for name in model.outputs_of("alarm"):
         assert r[name].max() < 0.5, name
 
@@ -164,7 +166,7 @@ def test_winding_short_current_and_loss_match_the_closed_form(params):
     # through, which moves the loss by 0.6 % (measured; 2 % is the acceptance bound)
     model = ema.build_model(params, {"winding_short": "on", "thermal": "lumped"})
     mu, kw = 0.1, dict(x_cmd="ramp:0.04", dt=1e-5, dt_out=1e-5)
-    r = ema.simulate(model, 0.6, mu_short=f"step:{mu}@0.1", **kw)
+    r = ema.simulate(model, 0.6, mu_short=f"step:{mu}@0.1", **kw, solver="rk4")
     th = params.motor.pp * r["phi"]
     k = th >= th[r.t > 0.3][0]
     k &= th < th[k][0] + 2 * np.pi * ((th[-1] - th[k][0]) // (2 * np.pi))
@@ -178,7 +180,7 @@ def test_winding_short_current_and_loss_match_the_closed_form(params):
     # the winding node heats by the short's loss (and the braking current's extra copper
     # loss), against the same run without the short: within 2 % (0.3 % leaks to the
     # housing over 0.5 s, R_th_ws C_th_w = 90 s)
-    r0 = ema.simulate(model, 0.6, **kw)
+    r0 = ema.simulate(model, 0.6, **kw, solver="rk4")
     Q = np.trapezoid(r["P_short"] + r["P_cu"] - r0["P_cu"], r.t) / params.thermal.C_th_w
     assert r["T_w"][-1] - r0["T_w"][-1] == pytest.approx(Q, rel=0.02)
 
@@ -188,7 +190,7 @@ def test_wear_grows_the_friction_at_its_rate(faulty, params):
     # saturated: v/v_s = 400): the Coulomb loss is F_seal (1 + 2 (t - 0.1)) |v|;
     # 1e-6 relative covers tanh(400) = 1 - 1e-347 and the sampled velocity
     rate, t_on = 2.0, 0.1
-    r = ema.simulate(faulty, 0.3, x_cmd="ramp:0.04", wear_f=ema.Signal.ramp(rate, t_on), dt=1e-5, dt_out=1e-4)
+    r = ema.simulate(faulty, 0.3, x_cmd="ramp:0.04", wear_f=ema.Signal.ramp(rate, t_on), **RK4)
     k = r.t > 0.15
     F_r = params.friction.F_seal * (1 + rate * (r.t[k] - t_on))
     assert np.allclose(r["P_friction"][k], F_r * np.abs(r["v_rod"][k]), rtol=1e-6)
@@ -233,7 +235,7 @@ def test_monitor_latches_its_confirmation_time_after_its_condition(params, monit
     # own 0.07 ms
     model = ema.build_model(params.replace(**QUIET), {"monitors": "on", "sensor": "real", "thermal": "lumped"})
     p = model.p(k_oc=0.3, t_oc=0.01) if monitor == "oc" else model.p(T_ot=19.99, t_ot=0.05)
-    r = ema.simulate(model, 0.2, x_cmd=0.0, f_ext="step:15kN@0.05", zoh=True, dt=1e-5, dt_out=1e-4, p=p)
+    r = ema.simulate(model, 0.2, x_cmd=0.0, f_ext="step:15kN@0.05", zoh=True, p=p, **RK4)
     P = model.pdict(p)
     if monitor == "oc":
         cond = np.hypot(r["i_d_s"], r["i_q_s"]) > P.k_oc * P.I_max
@@ -254,7 +256,8 @@ def test_noise_fault_adds_noise_of_its_sigma(faulty, params):
     # position-loop rate: x_s - x_rod has that standard deviation (400 samples at 2 kHz:
     # 3.5 % standard error, 12 % allowed)
     sigma = 1e-4
-    r = ema.simulate(faulty, 0.25, x_cmd="step:1mm@0.01", noise_x=f"step:{sigma}@0.05", dt=1e-5, dt_out=5e-4)
+    r = ema.simulate(faulty, 0.25, x_cmd="step:1mm@0.01", noise_x=f"step:{sigma}@0.05", dt=1e-5, dt_out=5e-4,
+                     solver="rk4")
     e = (r["x_s"] - r["x_rod"])[r.t > 0.05]
     assert np.all((r["x_s"] - r["x_rod"])[r.t < 0.05] == 0)
     assert np.std(e) == pytest.approx(sigma, rel=0.12)
