@@ -1,7 +1,9 @@
 """Fault studies (docs: faults): every case of a fault file on one model, the ECU's
 detection per monitor, the rod's transient, the coverage matrix.
 
-FAULTS.toml holds the [scenario] (command, load, duration, sensors) and [[fault]] tables
+MODEL.toml comes first, FAULTS.toml second (or by --faults); without them the packaged
+reference set and fault table run. FAULTS.toml holds the [scenario] (command, load,
+duration, sensors) and [[fault]] tables
 (kind, target, onset, severity, ramp; onsets and severities may be lists); its format is
 in the guide ("Faults, sensors and monitors") and in models/faults_reference.toml. The
 model carries every fault kind and the monitors (faults = on, monitors = on, and the
@@ -20,25 +22,29 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from . import UserError, _jsonable, positionals
+from .._util._resources import REFERENCE_FAULTS
+from . import UserError, _jsonable, add_progress, progress_of, second_file
 
 COMMAND = "faults"
-DEFAULT_FAULTS = "models/faults_reference.toml"
+DEFAULT_FAULTS = REFERENCE_FAULTS
+DEFAULT_OUT = "out/faults"
 ORDER = 13
 HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detection per monitor, coverage"
 
 
 def add_arguments(p):
     p.add_argument("faults", metavar="FAULTS.toml", nargs="?", default=None,
-                   help=f"fault file (scenario, fault cases); default {DEFAULT_FAULTS} (a single file named is "
-                        "the fault file)")
-    p.add_argument("--out", default="out", metavar="DIR",
-                   help="folder for <file>.csv, <file>.json and <file>.png (created); default out/")
+                   help=f"fault file (scenario, fault cases), after MODEL.toml; default: the packaged {DEFAULT_FAULTS}")
+    p.add_argument("--faults", dest="faults_file", default=None, metavar="FAULTS.toml",
+                   help="the fault file by name (with or without MODEL.toml)")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help=f"folder for <file>.csv, <file>.json and <file>.png (created); default {DEFAULT_OUT}")
     p.add_argument("--healthy-runs", type=int, default=0, metavar="N",
                    help="false alarms over N healthy runs (noise, +-5 %% friction and stiffness); default 0")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers of the healthy runs")
     p.add_argument("--seed", type=int, default=1, help="seed of the healthy runs' draws; default 1")
     p.add_argument("--list", action="store_true", help="print the fault kinds and monitors of the model and exit")
+    add_progress(p)
 
 
 def _check(args) -> Path:
@@ -49,10 +55,9 @@ def _check(args) -> Path:
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    if not out.exists() and not out.parent.exists():
-        raise UserError(f"--out {out}: folder {out.parent} does not exist")
+    for folder in (out, *out.parents):
+        if folder.exists() and not folder.is_dir():
+            raise UserError(f"--out {out}: {folder} exists and is not a folder")
     return out
 
 
@@ -71,17 +76,19 @@ def run(args) -> dict:
     from ..model.params import load_parameters
 
     out = _check(args)
-    args.model, args.faults = positionals(args.model, args.faults, DEFAULT_FAULTS)
+    args.faults = second_file(args, args.faults, args.faults_file, flag="--faults", what="fault", key="fault",
+                              default=DEFAULT_FAULTS)
     params = load_parameters(args.model)
     if args.list:
         return _listing(params, dict(args.variant))
     try:
         spec = load_faults(args.faults, params, dict(args.variant))
-        res = run_faults(faults=spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed)
+        res = run_faults(faults=spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
+                         progress=progress_of(args))
     except FaultError as exc:
         raise UserError(str(exc)) from None
     stem = Path(args.faults).stem
-    out.mkdir(exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     paths = [res.to_csv(out / f"{stem}.csv"), res.to_json(out / f"{stem}.json"), res.plot(out / f"{stem}.png")]
     summary = res.summary()
     summary["written"] = [str(p) for p in (paths[0], paths[1], out / f"{stem}.png")]

@@ -4,7 +4,7 @@ Usage::
 
     import ema_casadi as ema
     params = ema.load_parameters("models/cesa_ema.toml")
-    res = ema.run_faults(params, "models/faults_reference.toml", healthy=100)
+    res = ema.run_faults(params)      # the packaged reference table; healthy=100 adds false alarms
     res.rows                 # per case: detection delay per monitor, peak deviation
     res.plot("coverage.png") # coverage matrix + transients (a Figure)
 

@@ -8,14 +8,15 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .._util._checks import describe, integer
+from .._util._resources import REFERENCE_FAULTS, packaged_file
 from ..model.params import Parameters
 from ._result import FaultResult
 from ._spec import FaultError, FaultSpec, load_faults, parse_faults
 
 __all__ = ["run_faults", "healthy_runs", "DEFAULT_FAULTS", "HEALTHY_TOLERANCE"]
 
-#: The reference fault file.
-DEFAULT_FAULTS = "models/faults_reference.toml"
+#: The reference fault file (packaged; ``models/faults_reference.toml`` in the repository).
+DEFAULT_FAULTS = REFERENCE_FAULTS
 #: Relative tolerance (uniform, +-) on friction and stiffness in the healthy runs.
 HEALTHY_TOLERANCE = 0.05
 
@@ -23,6 +24,8 @@ HEALTHY_TOLERANCE = 0.05
 def _spec(params, faults, variants) -> FaultSpec:
     if isinstance(faults, FaultSpec):
         return faults
+    if faults is None:
+        faults = packaged_file(REFERENCE_FAULTS)
     if not isinstance(params, Parameters):
         raise FaultError(f"params: expected Parameters (from load_parameters), got {describe(params)}")
     if isinstance(faults, dict):
@@ -63,7 +66,7 @@ def _one(model, spec: FaultSpec, case, start):
         return exc.result, exc.reason
 
 
-def run_faults(params: Parameters | None = None, faults=DEFAULT_FAULTS, *, variants: dict | None = None,
+def run_faults(params: Parameters | None = None, faults=None, *, variants: dict | None = None,
                healthy: int = 0, jobs: int | None = None, seed: int = 1, progress: bool = False) -> FaultResult:
     """Run every case of a fault file on one model and measure the ECU's detection.
 
@@ -79,8 +82,9 @@ def run_faults(params: Parameters | None = None, faults=DEFAULT_FAULTS, *, varia
     ----------
     params : Parameters, optional
         The parameter set (its [monitor] thresholds); not needed with a FaultSpec.
-    faults : str, Path, dict or FaultSpec
-        The fault file (default the reference table), its dict, or a checked spec.
+    faults : str, Path, dict or FaultSpec, optional
+        The fault file, its dict, or a checked spec; default the packaged reference
+        table (:data:`DEFAULT_FAULTS`).
     variants : dict, optional
         Variant choices on top of the parameter set's.
     healthy : int

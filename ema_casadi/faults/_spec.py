@@ -291,6 +291,7 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
     """The parameter set with the fault file's [monitor] values (checked like a file's)."""
     from dataclasses import fields
 
+    from ..model._param_units import raw_value
     from ..model.params import GROUPS
 
     if not isinstance(table, dict):
@@ -300,12 +301,8 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
     for key, raw in table.items():
         if key not in meta:
             raise FaultError(f"{src} [monitor]: unknown threshold '{key}'{nearest(key, meta)}")
-        unit = meta[key]["unit"]
-        if not isinstance(raw, dict) or set(raw) != {"value", "unit"}:
-            raise FaultError(f'{src} [monitor] {key}: expected {{ value = <number>, unit = "{unit}" }}, got {raw!r}')
-        if raw["unit"] != unit:
-            raise FaultError(f"{src} [monitor] {key}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
-        values[key] = raw["value"]
+        # as in a parameter file: the SI unit or one the flags accept for the quantity
+        values[key] = raw_value(f"{src} [monitor] {key}", raw, meta[key]["unit"], FaultError)
     try:
         return params.replace(**values) if values else params
     except ParameterError as exc:

@@ -75,7 +75,7 @@ def test_run_faults_api_returns_rows_and_a_figure(params):
     ('[[fault]]\nkind = "stuck"\ntarget = "x_rodd"\n', "unknown target 'x_rodd' (did you mean 'x_s'?)"),
     ('[scenario]\nduration = 0.5\n[[fault]]\nkind = "jam"\nonset = 0.7\n', "onset: 0.7 s is outside the run"),
     ('[[fault]]\nkind = "supply"\nseverity = 1.5\n', "severity: 1.5 1 is outside the range"),
-    ('[monitor]\nt_jam = { value = 20, unit = "ms" }\n', "t_jam: unit 'ms' is not the expected SI unit 's'"),
+    ('[monitor]\nt_jam = { value = 20, unit = "m" }\n', "t_jam: unit 'm' is not the expected SI unit 's'"),
     ('[[fault]]\nkind = "jam"\nonst = 0.1\n', "unknown key 'onst' (did you mean 'onset'?)"),
     ('[scenario]\nairframe = "transport"\nx_cmd = "1mm"\n', "x_cmd: in the aircraft loop the flight-control law"),
     ('[scenario]\nairframe = "transport"\ncondition = "cruise"\n', "'cruise' unknown (did you mean 'cruise_sl'?)"),
@@ -92,11 +92,12 @@ def test_bad_fault_files_exit_2_in_one_line_and_write_nothing(tmp_path, text, sa
 
 
 def test_a_threshold_in_the_wrong_unit_in_the_parameter_file_exits_2(tmp_path):
-    text = (ROOT / "models" / "cesa_ema.toml").read_text() + '\n[monitor]\ne_track = { value = 1, unit = "mm" }\n'
+    # a length in seconds (a convertible unit, 1 mm, would be accepted and converted)
+    text = (ROOT / "models" / "cesa_ema.toml").read_text() + '\n[monitor]\ne_track = { value = 1, unit = "s" }\n'
     model = _write(tmp_path, text, "m.toml")
     proc = _ema(model, _write(tmp_path, SMALL), "--out", tmp_path / "out")
     assert proc.returncode == 2
-    assert len(proc.stderr.strip().splitlines()) == 1 and "[monitor] e_track: unit 'mm'" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "[monitor] e_track: unit 's'" in proc.stderr
     assert not (tmp_path / "out").exists()
 
 

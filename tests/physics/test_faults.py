@@ -203,7 +203,7 @@ def test_no_false_alarm_over_1000_healthy_runs(params):
     from conftest import ROOT
     from ema_casadi.faults import DEFAULT_FAULTS, healthy_runs, load_faults
 
-    spec = load_faults(ROOT / DEFAULT_FAULTS, params)
+    spec = load_faults(ROOT / "models" / DEFAULT_FAULTS, params)
     h = healthy_runs(spec, 1000, jobs=2)
     assert h["failed"] == 0, h["first_failure"]
     assert h["false_alarms"] == 0, h["by_monitor"]
