@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["Sensor", "FaultModel", "Monitor"]
+__all__ = ["Sensor", "FaultModel", "Monitor", "FaultTables", "FAULT_GROUPS"]
 
 
 def _d(unit: str, check: str, doc: str, default: float):
@@ -74,3 +74,17 @@ class Monitor:
     react_cross: float = _d("1", _FLAG, "1: a latched cross-check switches the bridge off", 0.0)
     react_oc: float = _d("1", _FLAG, "1: a latched over-current monitor switches the bridge off", 0.0)
     react_ot: float = _d("1", _FLAG, "1: a latched over-temperature monitor switches the bridge off", 0.0)
+
+
+#: The tables of this module by name (entries of ``params.GROUPS``).
+FAULT_GROUPS = {"sensor": Sensor, "fault": FaultModel, "monitor": Monitor}
+
+
+@dataclass(frozen=True, kw_only=True)
+class FaultTables:
+    """The groups of this module as fields of :class:`~ema_casadi.model.params.Parameters`
+    (keyword-only, defaulted: a parameter file without the tables loads unchanged)."""
+
+    sensor: Sensor = field(default_factory=Sensor)
+    fault: FaultModel = field(default_factory=FaultModel)
+    monitor: Monitor = field(default_factory=Monitor)

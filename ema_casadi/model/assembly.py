@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
-from ._derived import Contract
+from ._derived import Contract, modify
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
 from ._switched import switched_split
@@ -378,9 +378,7 @@ def _declarations(parts):
         loads += part.loads
         masses += part.masses
         heat.update(part.heat)
-    for part in parts:
-        for name, fn in part.modify().items():
-            _modify(providers, name, fn, part)
+    modify(parts, providers)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
     providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
     providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
@@ -393,25 +391,6 @@ def _declarations(parts):
     inputs = {n: i for n, i in inputs.items() if n not in providers}
     ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
     return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
-
-
-def _modify(providers, name, fn, part):
-    """Wrap the provider of ``name`` so that ``fn(bus, value)`` replaces its value
-    (:meth:`~ema_casadi.model.components.Part.modify`)."""
-    if name not in providers:
-        raise AssemblyError(f"{part.family}={part.value} modifies '{name}', which no part provides")
-    key, prov = providers[name]
-
-    def wrapped(b):
-        val = prov(b)
-        if not isinstance(key, tuple):
-            return fn(b, val)
-        vals = list(val)
-        vals[key.index(name)] = fn(b, vals[key.index(name)])
-        return tuple(vals)
-
-    for n in key if isinstance(key, tuple) else (key,):
-        providers[n] = (key, wrapped)
 
 
 def _heat(bus, node, heat, outputs):

@@ -28,7 +28,7 @@ from .._util._files import write_text
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
-from ._params_faults import FaultModel, Monitor, Sensor
+from ._params_faults import FAULT_GROUPS, FaultTables
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -201,10 +201,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
-    "airframe": Airframe,  # the aircraft loop: optional table, every key defaulted
-    "sensor": Sensor,  # sensors, faults, monitors: optional tables, every key defaulted
-    "fault": FaultModel,
-    "monitor": Monitor,
+    "airframe": Airframe, **FAULT_GROUPS,  # the aircraft loop, sensors, faults, monitors: optional tables
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
@@ -228,7 +225,7 @@ def _variant_table(model, src: str) -> dict[str, str]:
 
 
 @dataclass(frozen=True)
-class Parameters:
+class Parameters(FaultTables):
     """A complete, validated parameter set in SI units.
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
@@ -258,9 +255,6 @@ class Parameters:
     thermal: Thermal
     endstop: EndStop
     airframe: Airframe = Airframe()
-    sensor: Sensor = Sensor()
-    fault: FaultModel = FaultModel()
-    monitor: Monitor = Monitor()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
     missing: tuple = ()
