@@ -39,6 +39,7 @@ _EXPORTS = {
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
+    ".identification": ("IdentificationError", "IdentResult", "identify"),
     ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
@@ -72,5 +73,6 @@ __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream",
     "Requirements", "TuneError", "TuneResult", "tune",
     "SweepError", "SweepResult", "load_sweep", "sweep",
+    "IdentificationError", "IdentResult", "identify",
     "FaultError", "FaultResult", "load_faults", "run_faults",
 ]
