@@ -29,6 +29,7 @@ from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
 from ._params_faults import FAULT_GROUPS, FaultTables
+from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -343,10 +344,8 @@ class Parameters(FaultTables):
             for f in fields(cls):
                 val = getattr(getattr(self, g), f.name)
                 val = f"[{', '.join(repr(float(v)) for v in val)}]" if f.metadata.get("table") else repr(val)
-                lines.append(
-                    f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
-                    f'  # {f.metadata["doc"]}'
-                )
+                lines.append(f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
+                             f'  # {f.metadata["doc"]}')
         return write_text(path, "\n".join(lines) + "\n")
 
     # -- derived quantities used across the toolkit --------------------------------
@@ -448,8 +447,8 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
     if "thermal" not in missing:
         _check_eta_table(src, groups["thermal"], s)
+    check_relations(src, groups, ParameterError, missing)
     return Parameters(**groups, variants=merged, source=src, missing=tuple(missing))
-
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
