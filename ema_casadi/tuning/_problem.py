@@ -13,6 +13,7 @@ from ..frequency import bandwidth, closed_loop
 from ..linearisation import LinearizationError, jacobian_function, operating_point
 from ..params import Parameters
 from ._callbacks import spectral_abscissa
+from ._cascade import OUTER_OPEN, dense_checks, noise_gain_bound, noise_group, outer_open_groups
 from ._closed_loop import _LOOP_ORDER, _ClosedLoop
 from ._constraints import (
     _SHARED,
@@ -47,6 +48,11 @@ _PENALTY = 1e3
 #: one-load reference tune failed); 0.3 keeps a margin below the failing step and
 #: takes the fewest iterations from gains x 0.2 over 0/15/30 kN (44, was 52).
 _THETA_MAX = 0.3
+#: Grid (Hz) of the loop-separation test, 40 per decade: conservative by at most one
+#: step (a factor 1.06 on the separation; on the 14-per-decade margin grid it would be
+#: 1.18, which the reference gains' 3.18 between the position and velocity crossovers
+#: would fail at separation 3). The crossovers it tests lie in 1 Hz - 1 kHz (outer).
+_SEPARATION_GRID = np.logspace(0, 3, 121)
 #: a normalised constraint (soft minimum of a group) at or above -_FEAS_TOL holds
 _FEAS_TOL = 1e-6
 
@@ -114,6 +120,7 @@ class TuningProblem:
         self._bandwidth_variable(objective)
         self._loop = _ClosedLoop(model, jacobian_function(model), self._scaling, self.cases)
         self._S = _sensitivity_function(len(self._loop.keep), 3)
+        self._S1 = _sensitivity_function(len(self._loop.keep), 1)
         self._S_grid = self._S.map(len(self.freqs))
         ise = [e for e in (self._add_case(op) for op in self.cases) if e is not None]
         self._objective(objective, ise)
@@ -212,11 +219,14 @@ class TuningProblem:
         A, loop_matrices, (b, Cs, ds) = self._loop.matrices(op)
         Ak = loop_matrices[0]
         A_eig = A[self._loop.keep_eig, self._loop.keep_eig]
-        j = self._same("frequency", [A_eig, *loop_matrices])
+        opened = {loop: self._loop.matrices(op, OUTER_OPEN[loop])[1] for loop in _LOOP_ORDER if OUTER_OPEN[loop]}
+        noise = self._loop.noise_matrices(op)
+        j = self._same("frequency", [A_eig, *loop_matrices, *[m for ms in opened.values() for m in ms],
+                                     *(noise or ())])
         if j is not None:
             self._share(_SHARED, j, F)
         else:
-            self._frequency_groups(op, len(self._signatures["frequency"]) - 1, A_eig, loop_matrices)
+            self._frequency_groups(op, len(self._signatures["frequency"]) - 1, A_eig, loop_matrices, opened, noise)
         j = self._same("step", [Ak, b])
         if j is None:
             self._trajectories.append(_step_states(Ak, b, req.step, req.t_step, self._loop.A_norm))
@@ -233,11 +243,26 @@ class TuningProblem:
         self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, self._names))
         return ise
 
-    def _frequency_groups(self, op, case, A_eig, loop_matrices):
-        """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints."""
+    def _frequency_groups(self, op, case, A_eig, loop_matrices, opened, noise):
+        """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints; the
+        cascade's (outer loops open: margins, unconditional stability, separation) and
+        the noise bound."""
         req, F = self.requirements, op.f_ext
-        G = self._S_grid(*loop_matrices, (2 * np.pi * self.freqs).reshape(1, -1))  # 2 x 3N
+        w = (2 * np.pi * self.freqs).reshape(1, -1)
+        G = self._S_grid(*loop_matrices, w)  # 2 x 3N
         self.groups.extend(_loop_groups(G, self.freqs, req, self._ref, F, case))
+        G_open = {"position": G} | {loop: self._S_grid(*m, w) for loop, m in opened.items()}
+        cfg = {"position": loop_matrices} | opened
+        sep = {}
+        if req.separation > 0:  # the outer loops on the separation grid, the inner ones s times higher
+            ws = (2 * np.pi * _SEPARATION_GRID).reshape(1, -1)
+            sep = {loop: (self._S.map(ws.shape[1])(*cfg[loop], ws) if loop != _LOOP_ORDER[-1] else None,
+                          self._S.map(ws.shape[1] - 1)(*cfg[loop], req.separation * ws[:, 1:])
+                          if loop != _LOOP_ORDER[0] else None) for loop in _LOOP_ORDER}
+        self.groups.extend(outer_open_groups(G_open, sep, self.freqs, _SEPARATION_GRID, req, F, case))
+        bound = noise_gain_bound(req, self._ref)
+        if noise is not None and bound is not None:
+            self.groups.append(noise_group(self._S1, noise, self.freqs, bound, F, case))
         self.groups.extend(_bandwidth_groups(self._S, loop_matrices, self._fb, self.freqs, req, F, case))
         cb = spectral_abscissa(A_eig.shape[0], f"spectral_abscissa_{len(self._callbacks)}")
         self._callbacks.append(cb)  # keep the callback alive as long as the problem
@@ -407,12 +432,15 @@ class TuningProblem:
         for case in range(len(self.cases)):
             for loop, S in self._sensitivities(case, f, theta).items():
                 out.extend(_dense_minima(f, 1 / S - 1, self.requirements, self._ref, loop))
+            L_open = {loop: 1 / self._sensitivities(case, f, theta, OUTER_OPEN[loop])[loop] - 1
+                      for loop in _LOOP_ORDER}
+            out.extend(dense_checks(f, L_open, self.requirements))
         new = [x for x in out if np.min(np.abs(np.log(self.freqs / x))) > 1e-6]
         return np.unique(np.array(new))
 
     # -- inspection ---------------------------------------------------------------
-    def _sensitivities(self, case: int, f: np.ndarray, theta: np.ndarray) -> dict:
-        _, loop_matrices, _ = self._loop.matrices(self.cases[case])
+    def _sensitivities(self, case: int, f: np.ndarray, theta: np.ndarray, opened=()) -> dict:
+        _, loop_matrices, _ = self._loop.matrices(self.cases[case], opened)
         G = self._S.map(len(f))(*loop_matrices, (2 * np.pi * f).reshape(1, -1))
         G = np.array(ca.Function("dense", [self._scaling.theta], [G])(theta))
         return {loop: 1 + G[0, j::3] + 1j * G[1, j::3] for j, loop in enumerate(_LOOP_ORDER)}
