@@ -30,7 +30,7 @@ from ..signals import SignalError, parse_quantity
 from . import UserError, check_output_dir, check_output_path, load
 
 #: The files --plot-dir receives (the folder is replaced whole: it may hold only these).
-PLOT_FILES = ("tune_bode.png", "tune_step.png")
+PLOT_FILES = ("tune_bode.png", "tune_step.png", "tune_cascade.png")
 
 COMMAND = "tune"
 ORDER = 7
@@ -81,9 +81,9 @@ def add_arguments(p):
                    help="nonlinear step simulated before and after (0 skips it); default 1mm")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="parameter file with the tuned gains")
     p.add_argument("--plot-dir", default=None, metavar="DIR",
-                   help="write tune_bode.png and tune_step.png (before/after) into the folder DIR, assembled "
-                        "beside it and moved into place; an existing DIR is replaced whole (refused if it holds "
-                        "other files)")
+                   help="write tune_bode.png, tune_step.png and tune_cascade.png (before/after) into the "
+                        "folder DIR, assembled beside it and moved into place; an existing DIR is replaced "
+                        "whole (refused if it holds other files)")
 
 
 def _length(text, flag, stroke):
@@ -177,10 +177,11 @@ def _fmt(v, spec):
 def _margin_text(m: dict) -> str:
     """Margins named for what they are: GM (the gain may rise by it), the gain-reduction
     margin (it may fall by it: only a conditionally stable loop has one) and PM."""
-    text = f"GM {_fmt(m['gm_up_db'], '.1f')} dB"
-    if math.isfinite(m["gm_down_db"]):
-        text += f", gain-reduction margin {m['gm_down_db']:.1f} dB"
-    return text + f", PM {_fmt(m['pm_deg'], '.1f')} deg"
+    up, down, pm = (float(m[k]) for k in ("gm_up_db", "gm_down_db", "pm_deg"))  # JSON may carry "inf"
+    text = f"GM {_fmt(up, '.1f')} dB"
+    if math.isfinite(down):
+        text += f", gain-reduction margin {down:.1f} dB"
+    return text + f", PM {_fmt(pm, '.1f')} deg"
 
 
 def report(r: dict) -> None:
@@ -201,7 +202,7 @@ def report(r: dict) -> None:
         from ..tuning import Requirements, describe_constraint
 
         rq = Requirements(**req)
-        print("limited by: " + "; ".join(describe_constraint(a, rq) for a in r["active"]))
+        print("limited by: " + "; ".join(dict.fromkeys(describe_constraint(a, rq) for a in r["active"])))
     print(f"  {'gain':6s} {'before':>12s} {'after':>12s}")
     for g, v in r["gains_after"].items():
         print(f"  {g:6s} {r['gains_before'][g]:12.5g} {v:12.5g}")

@@ -18,7 +18,8 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
                 reference: Parameters | None = None) -> list:
     """Bode plots (closed loop x_rod/x_cmd and the three loop transfers, first load case)
     and the nonlinear step (no load) before and after, optionally with a reference gain
-    set; PNGs ``tune_bode.png`` and ``tune_step.png`` written atomically.
+    set, and the cascade view (:func:`cascade_bode_figure`); PNGs ``tune_bode.png``,
+    ``tune_step.png`` and ``tune_cascade.png`` written atomically.
 
     Parameters
     ----------
@@ -42,8 +43,64 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
     sets = {"before": (params_before, "--"), "after": (result.params, "-")}
     if reference is not None:
         sets["reference"] = (reference, ":")
+    from ..plotting import save
+
+    cascade = cascade_bode_figure(model, {k: v[0] for k, v in sets.items()}, result.loads[0])
     return [_plot_bode(result, model, sets, folder / "tune_bode.png"),
-            _plot_step(result, model, sets, folder / "tune_step.png")]
+            _plot_step(result, model, sets, folder / "tune_step.png"),
+            save(cascade, folder / "tune_cascade.png")]
+
+
+def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None):
+    """Bode plots of every loop with its outer loops open (the cascade view), one
+    column per loop, for each gain set; the gain crossovers marked and the 0 dB and
+    -180 deg lines drawn.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    sets : dict
+        Label -> Parameters (the gain sets to compare).
+    f_ext : float
+        Load (N) of the operating point.
+    f : array_like, optional
+        Frequencies (Hz; default 0.1 Hz - 10 kHz).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    from ..frequency import margins
+
+    f = frequency_grid(0.1, 1e4, 60) if f is None else f
+    loops = list(model.loops)
+    fig, ax = plt.subplots(2, len(loops), figsize=(5 * len(loops), 6.5), sharex=True, squeeze=False)
+    for k, (lbl, ps) in enumerate(sets.items()):
+        op = operating_point(model, f_ext=f_ext, p=ps.vector())
+        for j, n in enumerate(loops):
+            L = loop_model(model, n, op, outer="open")
+            b, m = bode(L, f), margins(L)
+            fc = ", ".join(f"{c['f_hz']:.3g}" for c in m.gain_crossovers)
+            ax[0, j].semilogx(f, b["mag_db"], color=f"C{k}", label=f"{lbl}: crossover {fc} Hz, PM {m.pm_deg:.0f} deg")
+            ax[1, j].semilogx(f, b["phase_deg"], color=f"C{k}")
+            for c in m.gain_crossovers:
+                ax[0, j].plot(c["f_hz"], 0.0, "o", color=f"C{k}")
+    for j, n in enumerate(loops):
+        ax[0, j].set_title(f"L, {n} loop (outer loops open)", fontsize=9)
+        ax[0, j].axhline(0, color="k", lw=0.6)
+        ax[1, j].axhline(-180, color="k", lw=0.6)
+        ax[1, j].set_xlabel("frequency (Hz)")
+        ax[0, j].legend(fontsize=7)
+        for a in ax[:, j]:
+            a.grid(True, which="both", alpha=0.3)
+    ax[0, 0].set_ylabel("magnitude (dB)")
+    ax[1, 0].set_ylabel("phase (deg)")
+    fig.suptitle(f"the cascade view, linearised at {_load_label(f_ext)}", fontsize=10)
+    fig.tight_layout()
+    return fig
 
 
 def _plot_bode(result, model, sets, path):

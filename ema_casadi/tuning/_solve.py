@@ -251,7 +251,7 @@ def _result(model, params, loads, req, objective, start, out, verify_step, prob,
                     ver_after["nonlinear_step"] = step_metrics(model, params.replace(**gains), verify_step)
                 text = ("returning the best verified-feasible gains among its iterates ("
                         + _objective_text(objective, ver_after, J, ver_before, prob.main_objective(before_gains)) + ")")
-            groups = prob.groups_at(gains, f_b)
+            groups = prob.groups_at(gains, f_b, picked["zeta"] if picked is not None else None)
             violations = []
             success = ver_after["meets"]
             message = f"tuned (safety net): IPOPT {why}; from the verified-feasible start, {text}"

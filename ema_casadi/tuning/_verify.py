@@ -102,8 +102,9 @@ def _check_cascade(model, op, label, req, failures) -> dict:
         gain = out["noise_gain_A_per_m"] = float(np.max(np.abs(H)))
         bound = req.noise_gain_max(float(op.p[model.param_names.index("I_max")]))
         if bound is not None and gain > bound * (1 + 1e-4):
-            failures.append(f"{label}: current command moves {gain * req.sensor_noise:.3g} A on "
-                            f"{req.sensor_noise * 1e6:g} um of position-sensor noise > {bound * req.sensor_noise:.3g} A")
+            n = req.sensor_noise
+            failures.append(f"{label}: current command moves {gain * n:.3g} A on {n * 1e6:g} um of "
+                            f"position-sensor noise > {bound * n:.3g} A")
     return out
 
 
