@@ -143,6 +143,29 @@ class _HybridPeriods:
         return x1, y, None
 
 
+class _SwitchedPeriods(_HybridPeriods):
+    """Period-by-period stepping of a switched (PWM) model through :func:`simulate`,
+    carrier synchronous: each sine period is a whole number N = round(f_sw / f) of
+    carrier periods (the command's frequency f_sw / N, within 0.5/N of the asked one:
+    0.5 % at 30 Hz, 1e-5 at 0.1 Hz at 16 kHz), sampled at every carrier period's end
+    (N uniform samples over the whole period: the harmonics' grid)."""
+
+    def __init__(self, model: Model, samples: int, dt_max: float):
+        super().__init__(model, samples, dt_max)
+        self.i_sw = model.param_names.index(model.carrier)
+
+    def period(self, x0, pa):
+        p = pa[: self.npar]
+        A, freq, f_ext = pa[self.npar :]
+        f_sw = float(p[self.i_sw])
+        n = max(1, round(f_sw / freq))
+        res = simulate(self.model, n / f_sw, Signal.sine(A, f_sw / n), float(f_ext), p=p, x0=x0,
+                       dt=min(self.dt_max, 0.5 / f_sw), dt_out=1.0 / f_sw, solver="rk4")
+        x1 = np.array([res.states[name][-1] for name in self.model.states])
+        y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
+        return x1, y, None
+
+
 def coefficients(y: np.ndarray) -> np.ndarray:
     """Fourier coefficients c_0..c_(K/2) of sampled periodic signals, c_n = (2/K) sum_k
     y_k exp(-2 pi j n k/K), so that y = Re sum_n c_n exp(2 pi j n tau) (c_0 is twice the
@@ -278,7 +301,9 @@ def _stepper(variants: dict, params: Parameters, samples: int, rtol: float, atol
     with _STEPPERS_LOCK:
         if key not in _STEPPERS:
             model = build_model(params, variants)
-            if _is_hybrid(model):
+            if model.switched:
+                _STEPPERS[key] = (model, _SwitchedPeriods(model, samples, hybrid_dt))
+            elif _is_hybrid(model):
                 _STEPPERS[key] = (model, _HybridPeriods(model, samples, hybrid_dt))
             else:
                 _STEPPERS[key] = (model, _PeriodMap(model, samples, rtol, atol))
