@@ -24,6 +24,13 @@ OUTER_OPEN = {"position": (), "velocity": ("position",), "current": ("position",
 #: decades under its crossover (|L| > 100, phase near -90 deg): nothing to constrain;
 #: the verification checks every crossing from 0.01 Hz.
 _OPEN_F_MIN = {"current": 4.0}
+#: The optimiser's noise bound lies this far (relative) inside the requirement: its grid
+#: (14 per decade, refined at 100 per decade) and the verification's (100 per decade
+#: from 0.01 Hz) sample the peak at different frequencies; with the bound met exactly on
+#: the first the second found it exceeded by ~1e-4 on eight of the 32 variant-matrix
+#: tunes (all over 0/15/30 kN, the noise bound active), which the safety net then
+#: answered with the start gains.
+_NOISE_MARGIN = 2e-3
 #: Relative grids of the separation test around each gap frequency g (Hz): the outer
 #: loop's |L| <= 1 on g/sqrt(s) x _ABOVE, the inner one's |L| >= 1 on g sqrt(s) x _BELOW.
 _ABOVE = np.logspace(0, 1.5, 13)
@@ -128,8 +135,10 @@ def noise_group(S1: ca.Function, noise, freqs: np.ndarray, bound: float, F: floa
 
 
 def noise_gain_bound(req: Requirements, ref: dict) -> float | None:
-    """The bound (A/m) of :func:`noise_group` for the set's current limit I_max (A)."""
-    return req.noise_gain_max(float(ref["I_max"]))
+    """The bound (A/m) of :func:`noise_group` for the set's current limit I_max (A),
+    :data:`_NOISE_MARGIN` inside the requirement's."""
+    bound = req.noise_gain_max(float(ref["I_max"]))
+    return None if bound is None else bound * (1 - _NOISE_MARGIN)
 
 
 def dense_checks(L_open: dict, req: Requirements) -> list[float]:
