@@ -1,4 +1,4 @@
-"""Benchmark: the aircraft loop (issue 13 targets).
+"""Benchmark: the aircraft loop against its targets.
 
 Targets: margins of the whole aircraft loop (trim at the flight condition, the loop
 transfer at the actuator-command break with the linearised EMA, frequency.margins) in

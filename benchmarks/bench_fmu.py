@@ -1,11 +1,11 @@
-"""Benchmark: the FMU exports (ema_casadi.fmu).
+"""Benchmark: the FMU exports (ema_casadi.export.fmu).
 
 1. Build time of each FMU (every binary compiled in parallel: linux64, and win64 where
    MinGW-w64 is installed), from the assembled model to the written .fmu.
-2. The README's reference scenario (1 s; 1 mm step at 0.01 s, 0.375 mm 1 Hz sine added
+2. The reference scenario of bench_sim.py (1 s; 1 mm step at 0.01 s, 0.375 mm 1 Hz sine added
    from 0.5 s; pmsm + elastic + smooth, P position loop) run by FMPy through the FMUs
    against the toolkit itself: one timed run of each after one warm-up run (the ratio
-   the issue asks for), and the median of --repeat runs.
+   required), and the median of --repeat runs.
 
 - FMPy, co-simulation FMU: dt_internal 1e-5 s (its default) and 5e-6 s (smooth), 1e-4 s
   (hybrid friction), communication step 1 ms; the input table holds x_cmd every 1 ms
@@ -13,7 +13,7 @@
   communication step.
 - toolkit RK4: ``ema.simulate(rk4, dt=..., dt_out=1e-3)``, the same internal steps.
 - toolkit CVODES: ``ema.simulate(cvodes, rtol=3e-4, dt_out=1e-3)``, the toolkit's
-  fastest way on this scenario (README benchmark, 0.09 um).
+  fastest way on this scenario (docs: benchmarks, 0.09 um).
 - FMPy, model-exchange FMU: FMPy's CVode, rtol 1e-6, 1 ms output.
 
 Errors: max |x_rod - x_rod,ref| on the 1 ms grid against CVODES at rtol 1e-10 (hybrid:
@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi import Signal, fmu
+from ema_casadi import Signal
+from ema_casadi.export import fmu
 
 ROOT = Path(__file__).resolve().parent.parent
 T_END, DT_OUT, DT = 1.0, 1e-3, 1e-5

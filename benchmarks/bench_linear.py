@@ -1,4 +1,4 @@
-"""Benchmark: operating point, linearisation and margins (issue 4 targets).
+"""Benchmark: operating point, linearisation and margins against their targets.
 
 Targets: linearisation plus all three loops' margins under 50 ms once the model is
 built; ``ema margins --json`` from process start to exit under 3 s.

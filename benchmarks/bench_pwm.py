@@ -1,4 +1,4 @@
-"""Benchmark: the switched PWM bridge (issue 11), 1 s simulated at f_sw = 16 kHz with
+"""Benchmark: the switched PWM bridge, 1 s simulated at f_sw = 16 kHz with
 every switching instant resolved, against the averaged bridge and against motulator's
 carrier-comparison PWM drive simulation.
 

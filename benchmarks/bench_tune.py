@@ -1,4 +1,4 @@
-"""Benchmark: gain tuning over three load cases (issue 6 target: under 30 s).
+"""Benchmark: gain tuning over three load cases (target: under 30 s).
 
 The acceptance problem: every gain x 0.2 of the reference, loads 0, 15 and 30 kN,
 bandwidth objective, GM >= 6 dB, PM >= 45 deg, overshoot <= 5 %, current and voltage

@@ -1,5 +1,5 @@
 """NumPy transcription of the reference configuration (pmsm + elastic + smooth tanh
-friction + ideal inverter + P position loop, continuous ECU), written from SPEC §2
+friction + ideal inverter + P position loop, continuous ECU), written from the physics reference (docs: physics)
 independently of the CasADi assembly. It is the right-hand side handed to the peers
 (scipy ``solve_ivp``, python-control ``nlsys``) in the benchmarks, and
 ``tests/test_numpy_model.py`` checks it against ``model.f`` at random states.

@@ -22,15 +22,15 @@ from importlib.util import find_spec
 
 # Names are imported on first use (PEP 562): ``import ema_casadi.cli`` stays light, so
 # the ``ema`` command installs its SIGINT/SIGTERM handlers before CasADi, SciPy and
-# matplotlib load (SPEC §7: Ctrl-C during start-up is an interrupt, not a traceback).
+# matplotlib load (the reliability contract, docs: reliability: Ctrl-C during start-up is an
+# interrupt, not a traceback).
 _EXPORTS = {
-    ".assembly": ("AssemblyError", "Model", "build_model"),
-    ".components": ("DEFAULT_VARIANTS", "REGISTRY", "VARIANTS"),
+    ".model": ("AssemblyError", "Model", "build_model", "ParameterError", "Parameters", "load_parameters"),
+    ".model.components": ("DEFAULT_VARIANTS", "REGISTRY", "VARIANTS"),
     ".export": ("ExportError", "export_function", "load_linear", "save_linear"),
     ".frequency": ("bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins"),
     ".linearisation": ("LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer",
                        "operating_point"),
-    ".params": ("ParameterError", "Parameters", "load_parameters"),
     ".signals": ("Signal", "SignalError", "parse_signal"),
     ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate"),
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),

@@ -2,7 +2,7 @@
 margins, nonlinear frequency-response map; PNGs and ``summary.md``/``summary.json``.
 
 The output folder is assembled beside its place and moved in at the end
-(:func:`ema_casadi._files.atomic_dir`): it appears whole or not at all, also when the
+(:func:`ema_casadi._util._files.atomic_dir`): it appears whole or not at all, also when the
 run fails or is interrupted. An existing folder is replaced whole, and refused if it
 holds anything but :data:`DEMO_FILES` (so no other file is ever removed)."""
 
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._files import atomic_dir, check_folder, write_text
-from .assembly import build_model
-from .params import Parameters
+from ._util._files import atomic_dir, check_folder, write_text
+from .model.assembly import build_model
+from .model.params import Parameters
 from .signals import Signal
 from .simulation import simulate, step_response_metrics
 
@@ -54,7 +54,7 @@ def _step_summary(t: np.ndarray, y: np.ndarray, y_final: float, t_step: float, b
 
 
 def _simulations(model, out: Path, written: list) -> dict:
-    from .plotting import plot_simulation
+    from .plots._base import plot_simulation
 
     res = {}
     r = simulate(model, 0.15, Signal.step(1e-3, 0.01), solver="cvodes", dt=1e-4)
@@ -78,7 +78,7 @@ def _pwm_vs_averaged(params: Parameters, out: Path, written: list) -> dict:
     """The switched PWM bridge (every switching instant resolved, sampled ECU) against
     the averaged bridge (continuous ECU, CVODES): the rod driven at 40 mm/s against 20 kN
     for 60 ms."""
-    from .plot_pwm import plot_pwm_vs_averaged
+    from .plots._pwm import plot_pwm_vs_averaged
 
     pwm = build_model(params, {**params.variants, "inverter": "pwm", "motor": "pmsm"})
     avg = build_model(params, {**params.variants, "inverter": "ideal"})
@@ -99,7 +99,7 @@ def _frequency(model, out: Path, written: list) -> dict:
     """Small-signal Bode (no load and 30 kN), dynamic stiffness, margins of all loops."""
     from .frequency import bandwidth, bode, closed_loop, dynamic_stiffness, frequency_grid, loop_margins, modes
     from .linearisation import loop_model, operating_point
-    from .plot_frequency import plot_bode, plot_loop_margins
+    from .plots._frequency import plot_bode, plot_loop_margins
 
     f = frequency_grid(0.1, 3e3, 100)
     curves, res = [], {"closed_loop": {}}
@@ -133,7 +133,7 @@ def _frequency(model, out: Path, written: list) -> dict:
 
 def _nonlinear_maps(params: Parameters, out: Path, written: list, progress: bool) -> dict:
     """The paper's Fig. 14a (amplitudes) and 14b (loads) by sine stream, with the
-    SPEC §5 readings: flatness at small amplitude, rate limiting at 10 %, load phase."""
+    predictions of the reference set (docs: physics): flatness at small amplitude, rate limiting at 10 %, load phase."""
     from .sinestream import paper_fig14a, paper_fig14b
 
     res = {}
@@ -170,7 +170,7 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
     out : str or Path
         Output folder: assembled beside it and moved into place at the end; an
         existing folder is replaced whole (refused, with
-        :class:`~ema_casadi._files.OutputPathError`, if it holds other files than
+        :class:`~ema_casadi._util._files.OutputPathError`, if it holds other files than
         :data:`DEMO_FILES`).
     progress : bool
         Print a line per stage.
@@ -234,7 +234,7 @@ def _write_summary(summary: dict, out: Path) -> None:
               f"against 20 kN for 60 ms (`pwm_vs_averaged.png`): rod {pw['rod_difference_m'] * 1e6:.2f} um apart; "
               f"inverter losses {pw['inverter_losses_J']['pwm']:.3f} J / {pw['inverter_losses_J']['averaged']:.3f} J, "
               f"input {pw['energy_in_J']['pwm']:.2f} J / {pw['energy_in_J']['averaged']:.2f} J.", ""]
-    lines += ["## Small signal (Coulomb friction and backlash off, SPEC §4.2 policy)", "",
+    lines += ["## Small signal (Coulomb friction and backlash off, small-signal policy)", "",
               "| f_ext | -3 dB bandwidth (Hz) | 1 Hz | 2 Hz | 5 Hz | 10 Hz |", "|---|---|---|---|---|---|"]
     for load, c in summary["small_signal"]["closed_loop"].items():
         cells = [f"{v['mag_db']:.2f} dB / {v['phase_deg']:.1f}°" for v in c["at_hz"].values()]

@@ -1,9 +1,10 @@
 """Limit cycles of the aircraft pitch loop against actuator backlash (wear), with hybrid
 (Karnopp) friction: predicted by describing function at the actuator-command break and
 checked by a long simulation, against the +-0.02 g residual-oscillation criterion
-(MIL-F-8785C §3.2.2.1.3, AIRCRAFT.md §5).
+(MIL-F-8785C §3.2.2.1.3).
 
-Set-up: the 747 (linear airframe, AIRCRAFT.md §2; its trim is at zero hinge moment, so the
+Set-up: the 747 (linear airframe after Bryson, Control of Spacecraft and Aircraft, 1994;
+its trim is at zero hinge moment, so the
 surface is not preloaded onto one flank), the rigid screw, whose backlash is a play on the
 fed-back rod position: the surface moves with the nut, the sensor through the play, so the
 wear sits between the surface and the actuator's position loop, where the loop cannot
@@ -36,9 +37,9 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 from ema_casadi.limitcycle import break_response, cycle_of, describing_function, harmonic_balance, refine, setup
-from ema_casadi.plotting import plt, save
+from ema_casadi.plots._base import plt, save
 
 ROOT = Path(__file__).resolve().parent.parent
 AMPS = np.geomspace(0.01, 1.0, 7)  # at the actuator command, times B (the cycle scales with the gap)
@@ -56,7 +57,7 @@ def run_b(model, B, t_end, dt):
     for c in df.cycles:
         c = refine(model, "aircraft", c, **kw)
         _, amp = break_response(model, "aircraft", c["amplitude"], c["freq_hz"], signals=SHOWN, **kw)
-        hb = harmonic_balance(model, "aircraft", c, iterations=6, **kw)["harmonic_balance"]  # see the README
+        hb = harmonic_balance(model, "aircraft", c, iterations=6, **kw)["harmonic_balance"]  # see docs: aircraft
         cycles.append({**c, **{f"{n}_amplitude": v for n, v in amp.items()}, "harmonic_balance": hb})
     t_df = time.perf_counter() - t0
     res = s["confirm"](t_end, dt)

@@ -48,8 +48,8 @@ from pathlib import Path
 
 import ema_casadi as ema
 from ema_casadi import Signal
-from ema_casadi._files import write_text
-from ema_casadi.plotting import plt, save
+from ema_casadi._util._files import write_text
+from ema_casadi.plots._base import plt, save
 from ema_casadi.simulation import hunting_metrics
 
 ROOT = Path(__file__).resolve().parent.parent

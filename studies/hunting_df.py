@@ -1,4 +1,4 @@
-"""The README's hunting case by describing function: the PI position loop (K_i_x = 3000
+"""The hunting case (docs: aircraft) by describing function: the PI position loop (K_i_x = 3000
 1/s^2) with hybrid (Karnopp) friction, predicted from the nonlinear open loop at a
 break and checked against the long simulation of studies/hunting.py's scenario (1 mm
 step, held; the cycle measured over the second half of the run).
@@ -35,7 +35,7 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import Signal
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, harmonic_orders, plot_nichols, refine
 from ema_casadi.signals import parse_list
 

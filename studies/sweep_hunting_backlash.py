@@ -1,4 +1,4 @@
-"""Hunting and 1 mm step overshoot over backlash x seal friction x stiffness (issue 15).
+"""Hunting and 1 mm step overshoot over backlash x seal friction x stiffness.
 
 The sweep ``models/sweep_hunting_backlash.toml``: backlash B from 0.02 to 0.5 mm (10
 log-spaced values) x 100 Monte Carlo draws of the seal friction F_seal (150 N +-50 %,
@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 import ema_casadi as ema
-from ema_casadi._files import write_text
-from ema_casadi.plotting import plt, save
+from ema_casadi._util._files import write_text
+from ema_casadi.plots._base import plt, save
 from ema_casadi.sweeps import SweepError, parse_sweep, sweep
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""Run a sweep on a SLURM cluster through dask-jobqueue (README "Sweeps on a cluster").
+"""Run a sweep on a SLURM cluster through dask-jobqueue (docs: sweeps).
 
 Builds a ``dask_jobqueue.SLURMCluster`` (each SLURM job one Dask worker process with
 ``--cores`` threads), asks for ``--jobs`` jobs, runs the sweep on its scheduler and

@@ -1,4 +1,4 @@
-"""Gain tuning from a deliberately poor start (SPEC §4.6, issue 6).
+"""Gain tuning from a deliberately poor start (docs: tune).
 
 Every gain of the reference set (models/cesa_ema.toml) is multiplied by 0.2 (K_x,
 K_p_w, K_p_i, K_i_i; the speed loop's integral time T_i_w is kept, so its integral
@@ -35,7 +35,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import linearisation as lz
 from ema_casadi import tuning as T
-from ema_casadi._files import write_text
+from ema_casadi._util._files import write_text
 
 ROOT = Path(__file__).resolve().parent.parent
 LOADS = (0.0, 15e3, 30e3)

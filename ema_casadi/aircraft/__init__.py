@@ -1,4 +1,4 @@
-"""The aircraft - flight control - actuator loop (SPEC §4.8): trim at a flight
+"""The aircraft - flight control - actuator loop (docs: aircraft): trim at a flight
 condition, loop transfers at the actuator-command break (ideal and linearised EMA),
 margins, the equivalent delay the EMA adds, and pitch responses with the nonlinear EMA."""
 

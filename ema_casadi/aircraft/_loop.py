@@ -1,5 +1,5 @@
 """The aircraft loop at the actuator-command break: ideal and linearised-EMA loop
-transfers, margins (frequency.margins) and the equivalent time delay (SPEC §4.8)."""
+transfers, margins (frequency.margins) and the equivalent time delay (docs: aircraft)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..assembly import Model
 from ..frequency import freqresp, margins
 from ..linearisation import LinearModel, OperatingPoint, flight_point, linear_model, loop_model
+from ..model.assembly import Model
 from ._conditions import condition_overrides
 
 __all__ = ["aircraft_point", "ideal_loop", "ema_loop", "equivalent_delay", "aircraft_margins", "AircraftMargins",

@@ -1,5 +1,5 @@
 """Pitch responses of the aircraft loop with the nonlinear EMA: theta_cmd steps and a
-vertical 1-cosine gust (SPEC §4.8)."""
+vertical 1-cosine gust (docs: aircraft)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from ..assembly import Model
 from ..linearisation import OperatingPoint
+from ..model.assembly import Model
 from ..signals import Signal, constant
 from ..simulation import simulate, step_response_metrics
 from ._conditions import condition_overrides

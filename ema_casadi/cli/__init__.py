@@ -1,4 +1,4 @@
-"""The ``ema`` command line (SPEC §6).
+"""The ``ema`` command line (docs: cli).
 
 Each subcommand lives in its own module of this package and defines ``COMMAND``
 (name), ``ORDER`` (position in ``--help``), ``HELP`` (one line), ``add_arguments(parser)``
@@ -7,7 +7,7 @@ and ``run(args) -> dict`` (the ``--json`` result) plus optionally ``report(resul
 file. Every command takes the model file as first argument, ``--variant KEY=VALUE``
 (repeatable) and ``--json``.
 
-Exit status and stderr (SPEC §7), always one line, never a traceback:
+Exit status and stderr (the reliability contract, docs: reliability), always one line, never a traceback:
 
 - 0: done;
 - 2: a mistake in a file, key, flag or value (checked before any work, outputs
@@ -18,7 +18,7 @@ Exit status and stderr (SPEC §7), always one line, never a traceback:
 - 130 / 143: interrupted by SIGINT (Ctrl-C) / SIGTERM, within about a second.
 
 Outputs are written atomically and committed together at the end of the command
-(:func:`ema_casadi._files.transaction`): an error, a failed run or an interrupt leaves
+(:func:`ema_casadi._util._files.transaction`): an error, a failed run or an interrupt leaves
 no output and no temporary file.
 
 Importing this package costs next to nothing (``sys`` and the signal module): what
@@ -33,7 +33,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from .. import _interrupts
+from .._util import _interrupts
 
 _interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
 
@@ -53,10 +53,10 @@ class UserError(ValueError):
 
 
 def _user_errors() -> tuple:
-    from .. import _files
+    from .._util import _files
     from ..export import ExportError
     from ..linearisation import LinearizationError
-    from ..params import ParameterError
+    from ..model.params import ParameterError
     from ..signals import SignalError
     from ..simulation import SimulationError
 
@@ -92,21 +92,39 @@ def positionals(model: str, second: str | None, default: str) -> tuple[str, str]
     return model, second
 
 
+class _VariantHelp:
+    """The ``--variant`` help, generated from the registry when it is shown (importing
+    the parts at every start-up would cost ~0.2 s): every key and option with its values."""
+
+    def __str__(self) -> str:
+        from ..model.components import OPTIONS, REGISTRY
+
+        keys = ", ".join(f"{k}={'|'.join(v)}" for k, v in REGISTRY.items())
+        opts = ", ".join(f"{k}={'|'.join(v)}" for k, v in OPTIONS.items())
+        return f"variant choice, repeatable: {keys}; options {opts}"
+
+    def __mod__(self, params) -> str:  # argparse expands %(default)s-style fields
+        return str(self) % params
+
+    def __contains__(self, text: str) -> bool:
+        return text in str(self)
+
+    def strip(self) -> str:
+        return str(self).strip()
+
+
 def add_common(p) -> None:
     p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
-                   help=f"parameter file (TOML, SPEC §3); default {DEFAULT_MODEL}")
+                   help=f"parameter file (TOML, docs: physics); default {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
-                   help="variant choice, repeatable: controller=P|PI, motor=pmsm|dc, inverter=ideal|pwm, "
-                        "supply=ideal|line, screw=elastic|rigid, friction=smooth|hybrid, endstop=off|elastic, "
-                        "thermal=off|lumped, airframe=none|transport|b747; options friction_shape=tanh|fermi, "
-                        "stribeck=off|on, iron_loss=off|on")
+                   help=_VariantHelp())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
 
 
 def load(args):
     """(Parameters, Model) from the common arguments."""
-    from ..assembly import build_model
-    from ..params import load_parameters
+    from ..model.assembly import build_model
+    from ..model.params import load_parameters
 
     variants = dict(args.variant)
     params = load_parameters(args.model, variants)
@@ -149,7 +167,7 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...], flag: str) ->
     """
     from pathlib import Path
 
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -175,7 +193,7 @@ def check_output_dir(path: str | None, names, flag: str) -> Path | None:
     flag : str
         The flag, for the message (``"--out"``).
     """
-    from .. import _files
+    from .._util import _files
 
     if path is None:
         return None
@@ -215,6 +233,12 @@ def build_parser():
         mod.add_arguments(p)
         mods[mod.COMMAND] = mod
     return parser, mods
+
+
+def get_parser():
+    """The ``ema`` argument parser with every subcommand (for the documentation's CLI
+    reference, built by sphinx-argparse; :func:`main` parses with the same parser)."""
+    return build_parser()[0]
 
 
 def join_negative_values(argv: list[str], parser) -> list[str]:
@@ -312,7 +336,7 @@ class _Stop:
             sys.stderr = self.stderr
 
     def report(self, signum) -> int:
-        from .. import _files
+        from .._util import _files
 
         with self._once:
             if not self.reported:
@@ -347,7 +371,7 @@ def _run(argv, stop) -> int:
     """Parse, run the command in one output transaction, report; the exit status."""
     import json
 
-    from .. import _files
+    from .._util import _files
     from ..simulation import RunFailed
 
     parser, mods = build_parser()

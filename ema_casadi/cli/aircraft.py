@@ -1,4 +1,4 @@
-"""The aircraft - flight control - actuator loop (SPEC §4.8): trim at a flight condition,
+"""The aircraft - flight control - actuator loop (docs: aircraft): trim at a flight condition,
 margins at the actuator-command break with an ideal actuator and with the linearised
 EMA, the equivalent time delay the EMA adds (phase-matched over 0.1-10 rad/s,
 MIL-STD-1797A style), and pitch responses with the nonlinear EMA (a theta_cmd step and
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 
-from .._files import atomic_dir
+from .._util._files import atomic_dir
 from . import UserError, check_output_dir, load
 
 COMMAND = "aircraft"
@@ -74,11 +74,13 @@ def run(args) -> dict:
         out[c] = r
     written = []
     if plot_dir is not None:
-        from ._aircraft_plot import plot_condition
+        from ..plots._aircraft import plot_condition
 
         with atomic_dir(plot_dir) as tmp:
             for c, (am, st, gu) in plots.items():
-                written += [str(plot_dir / w.name) for w in plot_condition(model, c, am, st, gu, tmp)]
+                figs = plot_condition(_loop_curves(model, c, am), c, am.delay["tau_s"], st, gu,
+                                      model.variants["friction"], tmp)
+                written += [str(plot_dir / w.name) for w in figs]
     return {"model": args.model, "variants": model.variants, "airframe": args.airframe,
             "requirement": {"gm_db": 6.0, "pm_deg": 45.0}, "conditions": out,
             "wall_time_s": time.perf_counter() - t0, "written": written}
@@ -100,3 +102,13 @@ def report(r: dict) -> None:
                   f"|d n_z| {g['n_z_dev']:.3f}, |d theta| {math.degrees(g['theta_dev_rad']):.2f} deg")
     for w in r["written"]:
         print(f"wrote {w}")
+
+
+def _loop_curves(model, condition, am) -> dict:
+    """The aircraft loop's Bode with an ideal actuator and with the EMA, and their margins."""
+    from ..aircraft import aircraft_point, ema_loop, ideal_loop
+    from ..frequency import bode, frequency_grid
+
+    f = frequency_grid(1e-3, 100.0, 100)
+    op = aircraft_point(model, condition)
+    return {"ideal": (bode(ideal_loop(model, op), f), am.ideal), "EMA": (bode(ema_loop(model, op), f), am.ema)}

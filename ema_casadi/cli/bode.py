@@ -79,7 +79,7 @@ def run(args) -> dict:
         extra["margins"] = lm.as_dict()
     written = []
     if plot is not None:
-        from ..plot_frequency import plot_bode
+        from ..plots._frequency import plot_bode
 
         stiff = args.kind == "stiffness"
         written.append(str(plot_bode(dict(b, label=label), plot, margins=lm, linear_magnitude=stiff,

@@ -6,14 +6,16 @@ Nonlinear model f(x, u, p) -> (xdot, y): --format casadi (serialised CasADi Func
 read back with casadi.Function.load) or c (generated C code NAME.c + NAME.h) when
 --out names a .casadi / .c file; they write a sidecar FILE.json naming the entries
 of x, u, p and y.
-Nonlinear model for other tools (ema_casadi.fmu): --format fmu-me (FMI 3.0 model
+Nonlinear model for other tools (ema_casadi.export.fmu): --format fmu-me (FMI 3.0 model
 exchange, smooth friction), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
 co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets its
 internal step, default 1e-5 s), c (a
 folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
 casadi (a folder: serialised Functions and their layout) when --out is a folder.
-Examples: ema export --format mat --f-ext 10kN --out ema_lin.mat
-          ema export --format fmu-cs --variant friction=hybrid --out ema_cs.fmu
+Examples::
+
+    ema export --format mat --f-ext 10kN --out ema_lin.mat
+    ema export --format fmu-cs --variant friction=hybrid --out ema_cs.fmu
 """
 
 from __future__ import annotations
@@ -48,15 +50,14 @@ def add_arguments(p):
 
 
 def _model_export(args) -> bool:
-    """Formats of ema_casadi.fmu; c and casadi unless --out names the single file."""
+    """Formats of ema_casadi.export.fmu; c and casadi unless --out names the single file."""
     if args.format in MODEL_FORMATS and args.format not in FUNCTION_FORMATS:
         return True
     return args.format in FUNCTION_FORMATS and not (args.out and Path(args.out).suffix == SUFFIX[args.format])
 
 
 def _run_model_export(args) -> dict:
-    from .. import fmu
-    from ..export import ExportError, export_model
+    from ..export import ExportError, export_model, fmu
 
     out = args.out or fmu.DEFAULTS[args.format]
     try:
@@ -84,7 +85,7 @@ def run(args) -> dict:
     default = ("ema_lin" if linear else "ema_f") + SUFFIX[args.format]
     out = check_output_path(args.out or default, (SUFFIX[args.format],), "--out")
     if not linear:  # the header and the sidecar beside it must be writable too
-        from ..export import sidecar_path
+        from ..export._linear import sidecar_path
 
         for extra in [out.with_suffix(".h")] * (args.format == "c") + [sidecar_path(out)]:
             check_output_path(str(extra), (extra.suffix,), "--out")

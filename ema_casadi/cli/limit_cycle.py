@@ -1,4 +1,4 @@
-"""Limit cycles by describing function at a loop break (SPEC §4.9), then the confirming
+"""Limit cycles by describing function at a loop break (docs: aircraft), then the confirming
 long simulation. The nonlinear open loop (loop opened with its break flag) is driven at
 the break by a sine of each amplitude and frequency; L_N(A, f) is its first-harmonic
 response; a limit cycle is a root of L_N = -1 (stable when the loop gain falls through

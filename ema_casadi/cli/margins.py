@@ -53,7 +53,8 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..frequency import REQUIREMENT, loop_margins
+    from ..frequency import loop_margins
+    from ..frequency._response import REQUIREMENT
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     check_window(args, per_decade=200)
@@ -65,7 +66,7 @@ def run(args) -> dict:
     if plot is not None:
         from ..frequency import bode, frequency_grid
         from ..linearisation import loop_model
-        from ..plot_frequency import plot_loop_margins
+        from ..plots._frequency import plot_loop_margins
 
         f = frequency_grid(args.fmin, args.fmax, 100)
         curves = {k: (bode(loop_model(model, k, op, outer=args.outer), f), m) for k, m in res.items()}

@@ -1,9 +1,9 @@
-"""A flight mission through the thermal network (SPEC §4.10): temperatures, losses and
+"""A flight mission through the thermal network (docs: missions): temperatures, losses and
 energy per part and per segment, peaks against the limits stated in the mission file.
 
 MISSION.toml holds [[segment]] tables (duration, x_cmd, f_ext, T_amb) run back to back
 on the full model (thermal = lumped, hybrid friction, iron loss on; compiled RK4 at
---dt); the format is in the README ("Missions") and in models/mission_regional.toml.
+--dt); the format is in the docs (missions) and in models/mission_regional.toml.
 Writes OUT/<mission>.csv (1 s rows: temperatures in degC, mean losses in W),
 OUT/<mission>.png (temperatures and losses, segments shaded) and
 OUT/<mission>_summary.json. Progress on stderr (--quiet: none).
@@ -38,7 +38,7 @@ def add_arguments(p):
     p.add_argument("--dt", type=float, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
     p.add_argument("--fast", action="store_true",
                    help=f"the fast path: the same model at {FAST_DT:g} s, about twice as fast (worst temperature "
-                        "difference to the full model 0.16 K on models/mission_regional.toml, README)")
+                        "difference to the full model 0.16 K on models/mission_regional.toml; docs: missions)")
     p.add_argument("--dt-out", type=float, default=0.01,
                    help="spacing of the kept samples the energies are integrated from (s); default 0.01")
     p.add_argument("--csv-dt", type=float, default=1.0, help="row spacing of the CSV (s); default 1")
@@ -64,7 +64,7 @@ def _check(args) -> Path:
 
 def run(args) -> dict:
     from ..mission import MissionError, MissionFailed, load_mission, run_mission
-    from ..params import load_parameters
+    from ..model.params import load_parameters
 
     out = _check(args)
     args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
@@ -85,7 +85,7 @@ def run(args) -> dict:
     res.to_csv(paths["csv"], dt=args.csv_dt)
     res.plot(paths["png"])
     summary["written"] = [str(p) for p in paths.values()]
-    from .._files import write_text
+    from .._util._files import write_text
 
     write_text(paths["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary

@@ -121,12 +121,12 @@ def run(args) -> dict:
         writer = {".csv": table.to_csv, ".mat": table.to_mat, ".npz": table.to_npz}[out.suffix.lower()]
         written.append(str(writer(out)))
     if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
-        from ..plot_pwm import plot_switched
+        from ..plots._pwm import plot_switched
 
         full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=None, **others)
         written.append(str(plot_switched(full, plot)))
     elif plot is not None:
-        from ..plotting import plot_simulation
+        from ..plots._base import plot_simulation
 
         written.append(str(plot_simulation(res, plot)))
     info = res.info

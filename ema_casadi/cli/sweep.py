@@ -1,8 +1,8 @@
-"""Sweeps and Monte Carlo (SPEC §4.11): parameters on a grid or drawn from distributions,
+"""Sweeps and Monte Carlo (docs: sweeps): parameters on a grid or drawn from distributions,
 metrics of the registry per run, one row per run.
 
 SPEC.toml describes the sweep ([sweep] seed and samples, [variants], [parameters],
-[scenario], [metrics]); the format is in the README ("Sweeps and Monte Carlo") and in
+[scenario], [metrics]); the format is in the docs (sweeps) and in
 models/sweep_hunting_backlash.toml. The runs go to --jobs local workers (processes, or
 threads with --threads) or to a Dask scheduler (--scheduler); the rows are the same bit
 for bit whichever runs them. --out writes the table (run, swept variants and
@@ -46,7 +46,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..params import load_parameters
+    from ..model.params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep
 
     args.model, args.spec = positionals(args.model, args.spec, DEFAULT_SPEC)
@@ -60,7 +60,7 @@ def run(args) -> dict:
         raise UserError("--scheduler runs on the cluster's workers: give it or --jobs/--threads, not both")
     if args.resume and out is None:
         raise UserError("--resume needs --out (the table whose journal holds the finished rows)")
-    from ..components import validate_variants
+    from ..model.components import validate_variants
 
     given = dict(args.variant)
     params = load_parameters(args.model, given)  # the sweep file's [variants] go on top

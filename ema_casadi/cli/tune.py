@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .._files import atomic_dir
+from .._util._files import atomic_dir
 from ..signals import SignalError, parse_quantity
 from . import UserError, check_output_dir, check_output_path, load
 

@@ -1,12 +1,12 @@
-"""Limit cycles by describing function at a loop break (SPEC §4.9): the first-harmonic
+"""Limit cycles by describing function at a loop break (docs: aircraft): the first-harmonic
 response L_N(A, w) of the nonlinear open loop (loop opened by its break flag, the sine
 injected at the break), the roots of L_N = -1 with their stability, refinement, the
 harmonic balance with the higher harmonics (:func:`harmonic_balance`), the confirming
 long simulation (:func:`cycle_of`) and the Nichols chart."""
 
+from ..plots._limitcycle import plot_nichols
 from ._df import DescribingFunction, break_response, cycle_of, describing_function, predict, refine
 from ._hb import harmonic_balance, harmonic_orders
-from ._plot import plot_nichols
 from ._setup import LOOP_SETUPS, confirm_cycle, setup
 
 __all__ = ["DescribingFunction", "break_response", "cycle_of", "describing_function", "predict", "refine",

@@ -1,4 +1,4 @@
-"""Describing function of a nonlinear open loop at a break, and its limit cycles (SPEC §4.9).
+"""Describing function of a nonlinear open loop at a break, and its limit cycles (docs: aircraft).
 
 L_N(A, w): the loop is opened with its break flag (``loop_x``, ``loop_a``, ...), the
 injection is the operating-point value of the measurement plus A cos(w t) (a cosine,
@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..assembly import Model
+from ..model.assembly import Model
 from ..signals import Signal, constant
 from ..simulation import simulate
 from ..sinestream import coefficients
@@ -142,9 +142,14 @@ class DescribingFunction:
     L: np.ndarray
     cycles: list = field(default_factory=list)
 
+    @property
+    def answered(self) -> np.ndarray:
+        """Where ``L`` is a response, not round-off (:func:`answered` on the grid)."""
+        return answered(self.L)
+
     def as_dict(self) -> dict:
         """JSON-ready: gain (dB) and phase (deg) on the grid, None where there was no answer."""
-        ok = answered(self.L)
+        ok = self.answered
         gain = np.where(ok, 20 * np.log10(np.where(ok, np.abs(self.L), 1.0)), np.nan)
         phase = np.where(ok, np.degrees(np.angle(self.L)), np.nan)
         return {"loop": self.loop, "amplitudes": self.amplitudes.tolist(), "freqs_hz": self.freqs.tolist(),

@@ -1,4 +1,4 @@
-"""Harmonic balance: a describing-function root refined with the higher harmonics (SPEC §4.9).
+"""Harmonic balance: a describing-function root refined with the higher harmonics (docs: aircraft).
 
 The describing function balances the first harmonic only: the injection at the break is
 A cos(w t) and the root is where the open loop returns it, L_N(A, w) = -1. In a
@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..assembly import Model
+from ..model.assembly import Model
 from ._df import _periodic_runner
 
 __all__ = ["harmonic_balance", "harmonic_orders"]

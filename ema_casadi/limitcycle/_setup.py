@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..assembly import Model
+from ..model.assembly import Model
 from ..signals import Signal
 from ..simulation import simulate
 from ._df import cycle_of

@@ -1,4 +1,4 @@
-"""Operating points and exact linearisation (SPEC §4.2).
+"""Operating points and exact linearisation (docs: linearise-margins).
 
 An operating point (trim) is a state ``x`` at which the model is at rest for given
 inputs: ``f(x, u, p) = 0`` with ``u = (x_cmd, f_ext, eta, 0, 0, 0)``. Optionally the
@@ -65,10 +65,10 @@ from ._common import (
 )
 from ._flight import flight_point
 from ._linear import LinearModel, linear_model, linearize, loop_model, loop_transfer
-from ._trim import OperatingPoint, operating_point
+from ._trim import OperatingPoint, operating_point, small_signal_point
 
 __all__ = [
     "LOOPS", "OUTER", "FRICTION_POLICIES", "BACKLASH_POLICIES", "LinearizationError", "OperatingPointError",
     "OperatingPoint", "LinearModel", "operating_point", "linear_model", "linearize", "loop_model",
-    "loop_transfer", "signal_outputs", "jacobian_function", "flight_point",
+    "loop_transfer", "signal_outputs", "jacobian_function", "flight_point", "small_signal_point",
 ]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..assembly import Model
-from ..components import REGISTRY
+from ..model.assembly import Model
+from ..model.components import POLICIES, REGISTRY
 
 #: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner:
 #: every loop a registered part declares (a model has its own in ``model.loops``).
@@ -14,8 +14,9 @@ LOOPS = {
     lp.name: (lp.flag, lp.injection, lp.measured)
     for values in REGISTRY.values() for cls in values.values() for lp in cls.loops
 }
-FRICTION_POLICIES = ("off", "smooth")
-BACKLASH_POLICIES = ("off", "keep")
+#: Small-signal policies (the parts declare what each value sets)
+FRICTION_POLICIES = POLICIES["friction"]
+BACKLASH_POLICIES = POLICIES["backlash"]
 OUTER = ("closed", "open")
 
 # saturation limits are lifted by this factor while solving the trim

@@ -1,4 +1,4 @@
-"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (SPEC §4.8).
+"""Trim of the whole aircraft loop: airframe, flight-control law and actuator (docs: aircraft).
 
 The airframe part declares what its trim solves for (``trim_free``: the throttle and
 the attitude command) and which states it fixes (``trim_fix``: airspeed and altitude
@@ -16,15 +16,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import instance
-from ..assembly import Model
-from ..params import Parameters
-from ._common import _LIFT, OperatingPointError, _eval
+from .._util._checks import instance
+from ..model.assembly import Model
+from ..model.params import Parameters
+from ._common import OperatingPointError, _eval
 from ._trim import (
     OperatingPoint,
     _check_limits,
-    _efficiency_factor,
+    _consistent,
     _freeze_efficiency,
+    _frozen_values,
+    _hold_at_rest,
+    _lifted,
     _policy_vector,
     _row_scale,
 )
@@ -51,19 +54,20 @@ def _newton(model, x, u, p, free, fix, size, tol, max_iter):
     ix = [model.index(n) for n in fix]
     vals = np.array(list(fix.values()))
 
-    ip = [model.index(n) for n in model.states_with("play")]
-    k_in = model.yindex("x_in") if ip else None
+    rest = model.rest_states(p)
+    ip = [model.index(n) for n in rest]
+    k_in = [model.yindex(sig) for sig in rest.values()]
 
     def residual(x, u):
-        # a play without backlash rests anywhere (its rate is zero at rest): held at the nut
+        # a memory state (a play without backlash rests anywhere): held at its rest signal
         xdot, y, A, B, C, D = _eval(model, x, u, p)
-        r = np.concatenate([xdot.ravel(), x[ix] - vals, x[ip] - (y.ravel()[k_in] if ip else 0.0)])
+        r = np.concatenate([xdot.ravel(), x[ix] - vals, x[ip] - y.ravel()[k_in]])
         scale = np.concatenate([_row_scale(A, B, x, u, 0.0, size), np.abs(vals) + size[ix], size[ip]])
         Jp = np.zeros((len(ip), model.nx + len(iu)))
         for row, j in enumerate(ip):
-            Jp[row, : model.nx] = -C[k_in]
+            Jp[row, : model.nx] = -C[k_in[row]]
             Jp[row, j] += 1.0
-            Jp[row, model.nx:] = -D[k_in, iu]
+            Jp[row, model.nx:] = -D[k_in[row], iu]
         return r, r / np.where(scale > 0, scale, 1.0), A, B, Jp
 
     r, rs, A, B, Jp = residual(x, u)
@@ -86,7 +90,7 @@ def _newton(model, x, u, p, free, fix, size, tol, max_iter):
             if np.all(np.isfinite(rs_n)) and np.max(np.abs(rs_n)) < max(rel, 1e-300) * (1 - 1e-4 * lam) or lam < 0.1:
                 break
         x, u, r, rs, A, B, Jp = x_n, u_n, r_n, rs_n, A_n, B_n, Jp_n
-    rows = [*(f"d{n}/dt" for n in model.states), *fix, *(model.states_with("play"))]
+    rows = [*(f"d{n}/dt" for n in model.states), *fix, *rest]
     worst = rows[int(np.argmax(np.abs(rs)))]
     raise OperatingPointError(f"the flight trim did not converge (relative residual {float(np.max(np.abs(rs))):.2g}"
                               f" in {worst})")
@@ -96,13 +100,13 @@ def _frozen_trim(model, x, u, p_trim, free, fix, size, tol, max_iter):
     """Newton with the efficiency blend frozen at g, g updated until consistent (as
     operating_point). Returns (x, u, g, relative residual)."""
     iu = [model.inputs.index(n) for n in free]
-    g = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
+    g = _frozen_values(model, _eval(model, x, u, p_trim)[1].ravel())
     for _ in range(10):
         u_f, p_f = _freeze_efficiency(model, u, p_trim, g)
         x, u_f, rel = _newton(model, x, u_f, p_f, free, fix, size, tol, max_iter)
         u[iu] = u_f[iu]
-        g_new = _efficiency_factor(model, _eval(model, x, u, p_trim)[1].ravel())
-        if abs(g_new - g) <= 1e-13 * abs(g):
+        g_new = _frozen_values(model, _eval(model, x, u, p_trim)[1].ravel())
+        if _consistent(g_new, g):
             break
         g = g_new
     return x, u, g, rel
@@ -137,9 +141,7 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
         pv[names.index(loop.flag)] = 1.0
     p_pol, overrides = _policy_vector(model, pv, "off", "off")
     free, fix = _spec(model, p_pol)
-    p_trim = p_pol.copy()
-    for k in ("I_max", "v_max", "k_v"):
-        p_trim[names.index(k)] *= _LIFT
+    p_trim = _lifted(model, p_pol)
     size = model.full_scale(p_pol)
     x = model.x0()
     for n, v in fix.items():
@@ -149,10 +151,9 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
     for load in np.linspace(0.0, float(f_ext), 4) if f_ext else (0.0,):  # an extra load by continuation
         u[model.inputs.index("f_ext")] = load
         x, u, g, rel = _frozen_trim(model, x, u, p_trim, free, fix, size, tol, max_iter)
-    for play in model.states_with("play"):
-        # the play without backlash exactly at the nut, where both edges act (AD slope 1),
-        # as operating_point does; the airframe fixes the shaft angle through the surface
-        x[model.index(play)] = _eval(model, x, u, p_trim)[1].ravel()[model.yindex("x_in")]
+    # memory states exactly at their rest signal, as operating_point does (the play at the
+    # nut, where both edges act: AD slope 1); the airframe fixes the shaft angle through the surface
+    x = _hold_at_rest(model, x, u, p_trim)
     y = _eval(model, x, u, p_pol)[1].ravel()
     _check_limits(model, y, p_pol, float(y[model.yindex("F_load_rod")]) if "F_load_rod" in model.outputs else 0.0,
                   0.0)
@@ -160,7 +161,8 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
     x_cmd = float(y[model.yindex("x_cmd")])
     return OperatingPoint(
         x=x, u=u, y=y, p=p_pol, x_cmd=x_cmd, f_ext=float(u[model.inputs.index("f_ext")]), v_rod=0.0,
-        xdot=np.zeros(model.nx), policy={"friction": "off", "backlash": "off", "overrides": overrides, "g_eff": g,
+        xdot=np.zeros(model.nx), policy={"friction": "off", "backlash": "off", "overrides": overrides,
+                                         "g_eff": next(iter(g.values()), None),
                                          "trim_free": {n: float(u[model.inputs.index(n)]) for n in free},
                                          "trim_fix": fix},
         states=model.states, inputs=model.inputs, outputs=model.outputs, param_names=model.param_names,

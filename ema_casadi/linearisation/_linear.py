@@ -6,9 +6,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._checks import describe, instance
-from .._kwargs import check_keywords, keywords_of
-from ..assembly import Model
+from .._util._checks import describe, instance
+from .._util._kwargs import check_keywords, keywords_of
+from ..model.assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
 
@@ -146,10 +146,10 @@ def linear_model(
             uu[model.inputs.index(loop.injection)] = op.output(loop.measured)
     _, _, A, B, C, D = _eval(model, op.x, u_lin, p_lin)
     if op.policy.get("g_eff") is not None:
-        # the eta column of the frozen model is that of the fake efficiency: take the real one
-        k = model.inputs.index("eta")
+        # the columns of the inputs a freeze sets are those of the fake values: take the real ones
         _, _, _, B_t, _, D_t = _eval(model, op.x, u_true, p_true)
-        B[:, k], D[:, k] = B_t[:, k], D_t[:, k]
+        for k in sorted({model.inputs.index(n) for fz in model.freezes for n in fz.inputs}):
+            B[:, k], D[:, k] = B_t[:, k], D_t[:, k]
     ii = [model.inputs.index(n) for n in inputs]
     oo = [model.outputs.index(n) for n in outputs]
     lin = LinearModel(

@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
-from ._common import _LIFT, BACKLASH_POLICIES, FRICTION_POLICIES, LinearizationError, OperatingPointError, _eval
+from .._util._checks import instance, integer, number, vector
+from ..model.assembly import AssemblyError, Model
+from ..model.params import Parameters
+from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
 
 
 @dataclass
@@ -97,25 +97,22 @@ class OperatingPoint:
 
 
 def _policy_vector(model: Model, p: np.ndarray, friction: str, backlash: str) -> tuple[np.ndarray, dict]:
-    if friction not in FRICTION_POLICIES:
-        raise LinearizationError(f"friction policy '{friction}' unknown; choose one of {', '.join(FRICTION_POLICIES)}")
-    if backlash not in BACKLASH_POLICIES:
-        raise LinearizationError(f"backlash policy '{backlash}' unknown; choose one of {', '.join(BACKLASH_POLICIES)}")
-    if friction == "smooth" and model.hybrid:
-        raise LinearizationError(
-            "friction policy 'smooth' linearises the smooth friction law; the hybrid (Karnopp) "
-            "variant has no meaningful slope: use friction policy 'off'"
-        )
-    overrides = {}
-    if backlash == "off":
-        overrides["B"] = 0.0
-    if friction == "off":
-        overrides.update(F_seal=0.0, C_bear=0.0, eps=0.0)
+    """The parameter vector with the small-signal policies the parts declare applied."""
+    try:
+        fr = model.small_signal(friction=friction)
+        overrides = {**model.small_signal(backlash=backlash), **fr}
+    except AssemblyError as exc:
+        raise LinearizationError(str(exc)) from None
+    return _with(model, p, overrides), overrides
+
+
+def _with(model: Model, p: np.ndarray, values: dict) -> np.ndarray:
+    """A copy of the parameter vector ``p`` with ``values`` (name -> SI value) set."""
     names = list(model.param_names)
     p = np.array(p, dtype=float)
-    for k, v in overrides.items():
+    for k, v in values.items():
         p[names.index(k)] = v
-    return p, overrides
+    return p
 
 
 def _along_travel(model: Model, p: np.ndarray, length: float) -> np.ndarray:
@@ -131,10 +128,21 @@ def _row_scale(A, B, x, u, target, size):
     return np.abs(A) @ (size + np.abs(x)) + np.abs(B) @ np.abs(u) + np.abs(target)
 
 
+def _rest_rows(model: Model, rest: dict, x, y, C):
+    """Residual and Jacobian rows of the memory states held at a signal (their ``rest``
+    rule, ``rest``: state -> signal): x_s - y_signal = 0."""
+    r = np.array([x[model.index(n)] - y[model.yindex(sig)] for n, sig in rest.items()])
+    J = np.zeros((len(rest), model.nx))
+    for row, (n, sig) in enumerate(rest.items()):
+        J[row] = -C[model.yindex(sig)]
+        J[row, model.index(n)] += 1.0
+    return r, J, [model.index(n) for n in rest]
+
+
 def _newton(model, x, u, p, target, size, tol, max_iter):
-    """Least-squares Newton on f(x) = target. Minimum-norm steps leave directions the
-    equations do not fix (e.g. the rigid screw's shaft angle inside the play, a P
-    position loop's unused integrator) at the initial guess.
+    """Least-squares Newton on f(x) = target and the rest rules of memory states.
+    Minimum-norm steps leave directions the equations do not fix (e.g. a P position
+    loop's unused integrator) at the initial guess.
 
     Convergence: every row's residual below ``tol`` times the size of its terms at
     full scale (each state sized by its unit's full-scale value: stroke, rate limit,
@@ -142,62 +150,111 @@ def _newton(model, x, u, p, target, size, tol, max_iter):
     is judged against what the row can carry, not against round-off.
     """
     rel = np.inf
+    rest = model.rest_states(p)
     for _ in range(max_iter):
-        xdot, _y, A, B, _C, _D = _eval(model, x, u, p)
-        r = xdot.ravel() - target
-        scale = _row_scale(A, B, x, u, target, size)
+        if rest:  # each iterate with its memory states exactly at their signal (an edge of a play)
+            x = _hold_at_rest(model, x, u, p, rest)
+        xdot, y, A, B, C, _D = _eval(model, x, u, p)
+        r_rest, J_rest, i_rest = _rest_rows(model, rest, x, y.ravel(), C)
+        r = np.concatenate([xdot.ravel() - target, r_rest])
+        scale = np.concatenate([_row_scale(A, B, x, u, target, size), size[i_rest] + np.abs(x[i_rest])])
         rel = float(np.max(np.abs(r) / np.where(scale > 0, scale, 1.0)))
         if rel < tol:
             return x, rel, True
-        dx = np.linalg.lstsq(A, -r, rcond=1e-13)[0]
+        dx = np.linalg.lstsq(np.vstack([A, J_rest]), -r, rcond=1e-13)[0]
         if not np.all(np.isfinite(dx)):
             break
         x = x + dx
     return x, rel, False
 
 
-def _efficiency_factor(model: Model, y) -> float:
-    """The screw-nut factor g (T_load = g F p/2pi) at the point: the screw part's
-    output ``g_screw``."""
-    return float(y[model.yindex("g_screw")])
+def _hold_at_rest(model: Model, x, u, p, rest: dict | None = None):
+    """The memory states set exactly to their rest signal (``rest``: state -> signal,
+    default the model's at ``p``)."""
+    rest = model.rest_states(p) if rest is None else rest
+    if not rest:
+        return x
+    x = x.copy()
+    y = _eval(model, x, u, p)[1].ravel()
+    for n, sig in rest.items():
+        x[model.index(n)] = y[model.yindex(sig)]
+    return x
+
+
+def _frozen_values(model: Model, y) -> dict[str, float]:
+    """The values at the point of the outputs the parts' freezes read (``g_screw``)."""
+    return {fz.signal: float(y[model.yindex(fz.signal)]) for fz in model.freezes}
+
+
+def _lifted(model: Model, p: np.ndarray) -> np.ndarray:
+    """p with every trim limit lifted (its ``lift`` parameters times _LIFT)."""
+    names = list(model.param_names)
+    p = np.array(p, dtype=float)
+    for lim in model.trim_limits:
+        for k in lim.lift:
+            p[names.index(k)] *= _LIFT
+    return p
 
 
 def _check_limits(model: Model, op_y: np.ndarray, p: np.ndarray, f_ext: float, v_rod: float):
-    names = model.param_names
-    pv = dict(zip(names, p, strict=False))
+    """OperatingPointError naming the first trim limit the point reaches."""
+    P = model.pdict(p)
     y = dict(zip(model.outputs, op_y, strict=False))
     where = f"at f_ext = {f_ext / 1e3:.4g} kN" + (f", v_rod = {v_rod * 1e3:.4g} mm/s" if v_rod else "")
-    i_need, I_max = abs(y["i_cmd"]), pv["I_max"]
-    if i_need >= I_max * (1 - 1e-9):
-        est = f" (about {abs(f_ext) * I_max / i_need / 1e3:.3g} kN is the most it can hold here)" if f_ext else ""
-        raise OperatingPointError(
-            f"no operating point with unsaturated current {where}: it needs i_q = {i_need:.3g} A, "
-            f"above the current limit I_max = {I_max:.3g} A{est}"
-        )
-    w_max = 2 * math.pi * pv["v_max"] / pv["p"]
-    if abs(y["omega_cmd"]) >= w_max * (1 - 1e-9):
-        raise OperatingPointError(
-            f"no operating point below the rate limit {where}: the speed command "
-            f"{abs(y['omega_cmd']) * pv['p'] / (2 * math.pi) * 1e3:.4g} mm/s reaches "
-            f"v_max = {pv['v_max'] * 1e3:.4g} mm/s"
-        )
-    v_lim = pv["k_v"] * pv["V_dc"] / math.sqrt(3)
-    v_dq = math.hypot(y["v_d"], y["v_q"])
-    if v_dq >= v_lim * (1 - 1e-9):
-        raise OperatingPointError(
-            f"no operating point below the voltage limit {where}: it needs |v_dq| = {v_dq:.4g} V, "
-            f"above k_v V_dc/sqrt(3) = {v_lim:.4g} V"
-        )
+    for lim in model.trim_limits:
+        need, top = float(lim.value(y, P)), float(lim.limit(P))
+        if need >= top * (1 - 1e-9):
+            est = ""
+            if lim.holds_load and f_ext:
+                est = f" (about {abs(f_ext) * top / need / 1e3:.3g} kN is the most it can hold here)"
+            k, unit, g = lim.scale, lim.unit, f".{lim.digits}g"
+            raise OperatingPointError(
+                f"no operating point within the {lim.what} {where}: it needs {lim.symbol} = {need * k:{g}} {unit}, "
+                f"above the {lim.what} {lim.why} = {top * k:{g}} {unit}{est}"
+            )
 
 
-def _freeze_efficiency(model: Model, u, p, g):
-    """Inputs and parameters that make the efficiency blend the constant g: 1/eta = eta_inv = g
-    (and the thermal network's eta(T_s) switched off, so that the eta input drives the screw)."""
-    u, p = u.copy(), p.copy()
-    u[model.inputs.index("eta")] = 1.0 / g
-    p[model.param_names.index("eta_inv")] = g
-    p[model.param_names.index("feedback_eta")] = 0.0
-    return u, p
+def _freeze_efficiency(model: Model, u, p, frozen: dict):
+    """Inputs and parameters that make the blends the parts freeze constant at the
+    ``frozen`` values (signal -> value; the screw-nut factor g: 1/eta = eta_inv = g)."""
+    u = u.copy()
+    values = {}
+    for fz in model.freezes:
+        v = frozen[fz.signal]
+        for name, fn in fz.inputs.items():
+            u[model.inputs.index(name)] = fn(v)
+        values.update({name: fn(v) for name, fn in fz.params.items()})
+    return u, _with(model, p, values)
+
+
+def small_signal_point(model: Model, u, p, friction: str = "off", backlash: str = "off"):
+    """Inputs and parameters of a small-signal model without an operating point (a
+    guess): the policies applied (the parts' overrides) and, with friction ``off``, the
+    blends the parts freeze held at their nominal values (the screw-nut factor driving
+    the load, 1/eta). Returns (u, p).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    u, p : array_like
+        Inputs and parameter vector (SI).
+    friction, backlash : str
+        Small-signal policies (:data:`~ema_casadi.model.components.POLICIES`).
+    """
+    q, _ = _policy_vector(model, p, friction, backlash)
+    u = np.array(u, dtype=float)
+    fz = model.freezes if friction == "off" and all(f.nominal for f in model.freezes) else ()
+    if not fz:
+        return u, q
+    # the nominal value is that of the inputs at their defaults: only the parameters are set
+    P = model.pdict(q)
+    values = {name: fn(float(f.nominal(P))) for f in fz for name, fn in f.params.items()}
+    return u, _with(model, q, values)
+
+
+def _consistent(new: dict, old: dict) -> bool:
+    return all(abs(new[k] - old[k]) <= 1e-13 * abs(old[k]) for k in old)
 
 
 def _trim(model, x, u, p, target, size, tol, max_iter):
@@ -211,15 +268,15 @@ def _trim(model, x, u, p, target, size, tol, max_iter):
     Returns (x, y, residual), x None when not converged.
     """
     y = _eval(model, x, u, p)[1].ravel()
-    g = _efficiency_factor(model, y)
+    g = _frozen_values(model, y)
     rel = np.inf
     for _ in range(10):
         x, rel, ok = _newton(model, x, *_freeze_efficiency(model, u, p, g), target, size, tol, max_iter)
         if not ok:
             return None, None, rel
         y = _eval(model, x, u, p)[1].ravel()
-        g_new = _efficiency_factor(model, y)
-        if abs(g_new - g) <= 1e-13 * abs(g):
+        g_new = _frozen_values(model, y)
+        if _consistent(g_new, g):
             return x, y, rel
         g = g_new
     return None, None, rel
@@ -282,18 +339,16 @@ def operating_point(
             "and the blend width, not only on the physics",
             stacklevel=2,
         )
-    eta_v = float(pv[model.param_names.index("eta")] if eta is None else eta)
-    u = model.u(pv, x_cmd=x_cmd, f_ext=f_ext, eta=eta_v)
+    u = model.u(pv, x_cmd=x_cmd, f_ext=f_ext, **({} if eta is None else {"eta": eta}))
     target = _along_travel(model, p_pol, v_rod)
     x, y, rel = _solve(model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter)
     policy = {"friction": friction, "backlash": backlash, "overrides": overrides, "g_eff": None}
     u_lin, p_lin = u, p_pol
-    if friction == "off":
-        g = _efficiency_factor(model, y)
-        u_lin, p_lin = _freeze_efficiency(model, u, p_pol, g)
-        policy["g_eff"] = g
-    if backlash == "keep":
-        _warn_backlash_gap(model, y, p_pol)
+    if friction == "off" and model.freezes:
+        frozen = _frozen_values(model, y)
+        u_lin, p_lin = _freeze_efficiency(model, u, p_pol, frozen)
+        policy["g_eff"] = next(iter(frozen.values()))
+    _warn_seeds(model, y, p_pol, {"friction": friction, "backlash": backlash})
     return OperatingPoint(
         x=x, u=u, y=y, p=p_pol, x_cmd=float(x_cmd), f_ext=float(f_ext), v_rod=float(v_rod),
         xdot=target, policy=policy, states=model.states, inputs=model.inputs,
@@ -336,31 +391,30 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
     return pv
 
 
+def _seeded(model: Model, x, u, p_trim, target, size, tol, max_iter):
+    """The starting state moved by the parts' seeds (:class:`~ema_casadi.model.components.Seed`):
+    where a policy's ``off`` overrides change the parameters (a backlash gap), trim with
+    them first, then move each seeded state by its offset from that point."""
+    P = model.pdict(p_trim)
+    for name, s in model.state_info.items():
+        if s.seed is None:
+            continue
+        off = model.small_signal(**{s.seed.policy: "off"})
+        if all(getattr(P, k) == v for k, v in off.items()):
+            continue
+        x0, y0, _ = _trim(model, x, u, _with(model, p_trim, off), target, size, tol, max_iter)
+        if x0 is not None:
+            x = x0
+            x[model.index(name)] += s.seed.offset(P, dict(zip(model.outputs, y0, strict=True)))
+    return x
+
+
 def _solve(model: Model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter):
     """Trim with the saturations lifted, then the point checked against them.
     Returns (x, y, relative residual)."""
-    names = list(model.param_names)
-    p_trim = p_pol.copy()
-    # the voltage limit is lifted through k_v, not V_dc: V_dc also sets the switching losses
-    # (which heat the inverter node of a thermal network)
-    for k in ("I_max", "v_max", "k_v"):
-        p_trim[names.index(k)] *= _LIFT
+    p_trim = _lifted(model, p_pol)
     size = model.full_scale(p_pol)
-    x = _along_travel(model, p_pol, x_cmd)
-    shaft = model.state_with("shaft_angle")
-    per_rad = model.travel(p_pol)[shaft]
-    B_gap = p_pol[names.index("B")]
-    if B_gap > 0:
-        # inside the gap the spring has no slope and Newton cannot find the contact: start
-        # from the backlash-free trim with the nut moved half the gap towards the flank
-        # that carries the screw force
-        p0 = p_trim.copy()
-        p0[names.index("B")] = 0.0
-        x0, y0, _ = _trim(model, x, u, p0, target, size, tol, max_iter)
-        if x0 is not None:
-            F_in = y0[model.yindex("F_in")]
-            x = x0
-            x[model.index(shaft)] += np.sign(F_in) * (B_gap / 2) / per_rad
+    x = _seeded(model, _along_travel(model, p_pol, x_cmd), u, p_trim, target, size, tol, max_iter)
     x, y_lifted, rel = _trim(model, x, u, p_trim, target, size, tol, max_iter)
     if x is None:
         raise OperatingPointError(
@@ -368,14 +422,7 @@ def _solve(model: Model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter):
             f"v_rod = {v_rod * 1e3:.4g} mm/s (relative residual {rel:.2g})"
         )
     _check_limits(model, y_lifted, p_pol, f_ext, v_rod)
-    for play in model.states_with("play") if B_gap == 0 else ():
-        # A play without backlash (rigid screw): the shaft angle is not fixed by the trim
-        # (only the play output is fed back). Put the nut exactly at the rod - the model's
-        # own x_in, so the gap is exactly 0 - where both edges of the play act and the AD
-        # slope is 1; a gap of -1e-17 with a shaft speed of +1e-16 would select a slope of 0.
-        i_phi, i_play = model.index(shaft), model.index(play)
-        x[i_phi] = x[i_play] / per_rad
-        x[i_play] = _eval(model, x, u, p_trim)[1].ravel()[model.yindex("x_in")]
+    x = _hold_at_rest(model, x, u, p_trim)
     xdot, y, A, B = _eval(model, x, u, p_pol)[:4]
     xdot, y = xdot.ravel(), y.ravel()
     scale = _row_scale(A, B, x, u, target, size)
@@ -384,14 +431,13 @@ def _solve(model: Model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter):
     return x, y, rel
 
 
-def _warn_backlash_gap(model: Model, y, p):
-    B = p[model.param_names.index("B")]
-    if B <= 0:
-        return
-    gap = y[model.yindex("x_in")] - y[model.yindex("x_rod")]
-    if abs(gap) < B / 2:
-        warnings.warn(
-            f"backlash kept: the operating point sits inside the {B * 1e6:.3g} um gap, so the linear "
-            "model has the rod decoupled from the screw; use backlash='off' or a load",
-            stacklevel=3,
-        )
+def _warn_seeds(model: Model, y, p, policies: dict):
+    """The warnings of the seeds whose policy is not ``off`` at this point (the nut
+    inside the backlash gap: the linear model has the rod decoupled from the screw)."""
+    P = model.pdict(p)
+    yd = dict(zip(model.outputs, y, strict=True))
+    for s in model.state_info.values():
+        if s.seed is not None and s.seed.warn is not None and policies.get(s.seed.policy) != "off":
+            text = s.seed.warn(P, yd)
+            if text:
+                warnings.warn(text, stacklevel=3)

@@ -1,4 +1,4 @@
-"""Flight missions through the thermal network (SPEC §4.10): temperatures, losses and
+"""Flight missions through the thermal network (docs: missions): temperatures, losses and
 energy per part and per segment, peaks against limits.
 
 A mission is a TOML file of segments run back to back on the full model (thermal =
@@ -18,8 +18,8 @@ lumped, hybrid friction, iron loss on, compiled RK4 at 1e-4 s)::
     [[segment]]
     name = "pre-flight check"
     duration = 90.0                # s (or "90s")
-    x_cmd = "step:70mm@2+step:-140mm@8+step:70mm@14"   # SPEC §6 signal, bare numbers mm
-    f_ext = "1kN"                  # SPEC §6 signal, bare numbers N; positive pushes the rod in
+    x_cmd = "step:70mm@2+step:-140mm@8+step:70mm@14"   # signal syntax (docs: simulate), bare numbers mm
+    f_ext = "1kN"                  # signal syntax (docs: simulate), bare numbers N; positive pushes the rod in
     T_amb = 40.0                   # cavity, degC: a number, a signal, or [start, end]
                                    # for a linear change over the segment
 
@@ -41,13 +41,13 @@ CSV (1 s rows, temperatures in degC, mean powers per row), the figure and the su
 from ._demo import SHORT_MISSION, demo_mission
 from ._profile import (
     MISSION_VARIANTS,
-    NODE_LIMITS,
     Mission,
     MissionError,
     Piecewise,
     Ramp,
     Segment,
     load_mission,
+    node_limits,
     parse_mission,
 )
 from ._result import MissionResult
@@ -55,6 +55,6 @@ from ._run import FAST_DT, FULL_DT, MissionFailed, run_mission
 
 __all__ = [
     "Mission", "Segment", "Piecewise", "Ramp", "MissionError", "MissionFailed", "MissionResult",
-    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "NODE_LIMITS", "FULL_DT", "FAST_DT",
+    "load_mission", "parse_mission", "run_mission", "MISSION_VARIANTS", "node_limits", "FULL_DT", "FAST_DT",
     "SHORT_MISSION", "demo_mission",
 ]

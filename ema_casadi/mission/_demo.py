@@ -6,7 +6,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from ..params import Parameters
+from ..model.params import Parameters
 from ._profile import parse_mission
 from ._run import run_mission
 

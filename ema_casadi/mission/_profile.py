@@ -3,25 +3,40 @@ package docstring)."""
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
-from .._checks import read_toml
-from ..params import Parameters
+from .._util._checks import nearest, read_toml
+from ..model.components import REGISTRY, VariantError, parts_for, validate_variants
+from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
-__all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "NODE_LIMITS",
+__all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission", "Piecewise", "Ramp", "node_limits",
            "MISSION_VARIANTS"]
 
-#: Temperature limits (degC) a mission is judged against when its file names none:
-#: the winding from the parameter file (T_max_w, insulation class); the others are
-#: typical values for a housing, a greased screw and an inverter heat sink.
-NODE_LIMITS = {"T_h": 120.0, "T_s": 120.0, "T_inv": 100.0}
+#: Temperature state -> its thermal node, as the registered parts declare them
+#: (:class:`~ema_casadi.model.components.Node`: heat capacity and rated temperature).
+NODES = {s.name: s.node for values in REGISTRY.values() for cls in values.values() for s in cls.states
+         if s.node is not None}
+
+
+def node_limits(params: Parameters) -> dict[str, float]:
+    """Temperature limits (degC) a mission is judged against when its file names none:
+    each node's rated temperature as its part declares it (the winding's from the
+    parameter file, T_max_w).
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set.
+    """
+    P = SimpleNamespace(**params.as_dict())
+    return {n: float(node.limit(P)) for n, node in NODES.items()}
 
 #: The run's variants unless the mission file or the caller say otherwise.
 MISSION_VARIANTS = {"thermal": "lumped", "friction": "hybrid", "iron_loss": "on"}
@@ -257,8 +272,7 @@ class Ramp(Signal):
 
 
 def _nearest(name, options) -> str:
-    match = difflib.get_close_matches(name, sorted(options), n=1, cutoff=0.0)
-    return f" (did you mean '{match[0]}'?)" if match else ""
+    return nearest(name, sorted(options))
 
 
 def _keys(where: str, table: dict, allowed: set) -> None:
@@ -318,7 +332,19 @@ def _cavity(where: str, value, duration: float) -> Signal:
     return _signal(where, value, "temperature", "degC", None, duration)
 
 
-def _check_envelope(where: str, seg: Segment, params: Parameters) -> None:
+def _held_load(source: str, params: Parameters, variants: dict) -> float:
+    """The load (N) the mission's model holds at standstill: the envelope limit
+    ``held_load`` its parts declare (the screw: the current limit at the middle of the
+    efficiency blend)."""
+    try:
+        full = validate_variants({**params.variants, **MISSION_VARIANTS, **variants}, where=f"{source}: [model]")
+    except VariantError as exc:
+        raise MissionError(str(exc)) from None
+    P = SimpleNamespace(**params.as_dict())
+    return max(float(part.limits["held_load"](P)) for part in parts_for(full)[0] if "held_load" in part.limits)
+
+
+def _check_envelope(where: str, seg: Segment, params: Parameters, F_hold: float) -> None:
     """Commands within the stroke, loads within what the actuator holds, cavity
     temperatures in range: sampled over the segment before any simulation."""
     t = np.linspace(0.0, seg.duration, max(2, int(seg.duration * _SAMPLE_RATE) + 1))
@@ -328,10 +354,6 @@ def _check_envelope(where: str, seg: Segment, params: Parameters) -> None:
         k = int(np.argmax(np.abs(x)))
         raise MissionError(f"{where} x_cmd: reaches {x[k] * 1e3:.4g} mm at {t[k]:.4g} s, beyond the stroke "
                            f"+-{stroke * 1e3:.4g} mm")
-    # the force the current limit holds at standstill, where the screw-nut factor sits at
-    # the middle of its blend, (1/eta + eta_inv)/2 (README: 54.5 kN)
-    g = 0.5 / params.screw.eta + 0.5 * params.screw.eta_inv
-    F_hold = params.motor.I_max * params.K_t * 2 * math.pi / params.screw.p / g
     f = seg.f_ext(t)
     if np.max(np.abs(f)) > F_hold:
         k = int(np.argmax(np.abs(f)))
@@ -371,6 +393,7 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
     if not isinstance(raw, list) or not raw or not all(isinstance(s, dict) for s in raw):
         raise MissionError(f"{source}: expected one or more [[segment]] tables")
     stroke = params.actuator.stroke
+    held = _held_load(source, params, variants)
     segments = []
     for k, tab in enumerate(raw, 1):
         label = str(tab.get("name", f"segment {k}"))
@@ -390,7 +413,7 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
             T_amb=_cavity(f"{where} T_amb", tab["T_amb"], dur),
             text={key: tab.get(key, "0") for key in ("x_cmd", "f_ext", "T_amb")},
         )
-        _check_envelope(where, seg, params)
+        _check_envelope(where, seg, params, held)
         segments.append(seg)
     T_start = (_temperature(f"{source}: [mission] T_start", head["T_start"]) if "T_start" in head
                else float(segments[0].T_amb(np.array([0.0]))[0]))
@@ -402,9 +425,8 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
 def _limits(source: str, table, params: Parameters) -> dict:
     if not isinstance(table, dict):
         raise MissionError(f"{source}: [limits] must be a table of temperatures (degC)")
-    allowed = {"T_w", "T_h", "T_s", "T_inv"}
-    _keys(f"{source}: [limits]", table, allowed)
-    out = {"T_w": params.thermal.T_max_w, **NODE_LIMITS}
+    out = node_limits(params)
+    _keys(f"{source}: [limits]", table, set(out))
     out.update({k: _temperature(f"{source}: [limits] {k}", v) for k, v in table.items()})
     return out
 

@@ -11,8 +11,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._files import write_text
-from ..components.thermal import NODES, network
+from .._util._files import write_text
+from ..model.components import node_outflow
 from ._profile import Mission
 
 __all__ = ["MissionResult"]
@@ -49,6 +49,9 @@ class MissionResult:
         Loss -> the thermal node it heats.
     P : SimpleNamespace
         The parameter values of the run (SI, by flat name).
+    capacity : dict
+        Temperature state -> the heat capacity of its node (J/K), as the thermal part
+        declares it.
     info : dict
         ``dt``, ``dt_out`` (s), ``steps``, ``wall_time``, ``compile_time`` (s),
         ``mode_switches``, ``blocks``, ``variants``, ``model``.
@@ -63,6 +66,7 @@ class MissionResult:
     nodes: dict
     heat_of: dict
     P: SimpleNamespace
+    capacity: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     _cum: dict = field(default_factory=dict, repr=False)
 
@@ -105,16 +109,11 @@ class MissionResult:
         t0, t1 : float, optional
             Interval (s); default the whole mission.
         """
-        key = f"outflow:{state}"
-        if key not in self.series:
-            T = [self.series[n] for n in NODES]
-            rates = network(*T, self.series["T_amb"], 0.0, 0.0, 0.0, 0.0, self.P)[:4]
-            for n, rate in zip(NODES, rates, strict=True):
-                self.series[f"outflow:{n}"] = -getattr(self.P, NODES[n][1]) * np.asarray(rate, float)
+        key = node_outflow(self.nodes[state])  # kept by the run, as the thermal part provides it
         a = self.t[0] if t0 is None else t0
         b = self.t[-1] if t1 is None else t1
         T = self.series[state]
-        C = getattr(self.P, NODES[state][1])
+        C = self.capacity[state]
         return float(C * (np.interp(b, self.t, T) - np.interp(a, self.t, T)) + self.energy(key, a, b))
 
     def load_work(self, t0: float | None = None, t1: float | None = None) -> float:
@@ -313,6 +312,6 @@ class MissionResult:
         title : str
             Figure title (default the mission's name).
         """
-        from ._plot import plot_mission
+        from ..plots._mission import plot_mission
 
         return plot_mission(self, path, title)

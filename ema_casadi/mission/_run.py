@@ -11,19 +11,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..components.thermal import NODES
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.components import node_outflow
+from ..model.params import Parameters
 from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, simulate
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 
 __all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT"]
 
-#: The full model's step (s): the hybrid friction's (README "Hybrid (Karnopp) friction").
+#: The full model's step (s): the hybrid friction's (docs: friction-and-endstops).
 FULL_DT = 1e-4
 #: The fast path's step (s): the same model at twice the step. On the reference mission
-#: its temperatures differ from the full model's by at most 0.16 K (README "Missions");
+#: its temperatures differ from the full model's by at most 0.16 K (docs: missions);
 #: RK4 stays stable (the 1.42 kHz drive-train mode at |lambda h| = 1.8 < 2.8).
 FAST_DT = 2e-4
 
@@ -121,8 +121,10 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     temps = model.states_with("temperature")
     losses = model.outputs_of("loss")
     heat = tuple(n for n in model.outputs if n.startswith("P_heat_"))
+    nodes = {n: model.state_info[n].node for n in temps if model.state_info[n].node is not None}
+    flows = tuple(node_outflow(node.name) for node in nodes.values())
     x_mech = _rod_travel(model)
-    keep = tuple(dict.fromkeys((*temps, *losses, *heat, *KEPT, x_mech)))
+    keep = tuple(dict.fromkeys((*temps, *losses, *heat, *flows, *KEPT, x_mech)))
     wall0 = time.perf_counter()
     t, series, info = _simulate_blocks(model, mission, keep, _blocks(mission.duration, dt, dt_out, block),
                                        dt=dt, dt_out=dt_out, jit=jit, progress=progress)
@@ -131,7 +133,8 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     return MissionResult(
         mission=mission, t=t, series=series, units={n: model.units.get(n, "") for n in keep}, losses=losses,
         owners={o: part.family for part in model.parts for o in (d.name for d in part.outputs) if o in losses},
-        nodes={n: NODES[n][0] if n in NODES else n for n in temps},
+        nodes={n: nodes[n].name if n in nodes else n for n in temps},
+        capacity={n: float(node.capacity(model.pdict())) for n, node in nodes.items()},
         heat_of={n: node for part in model.parts for n, node in part.heat.items() if n in losses},
         P=model.pdict(), info=info)
 

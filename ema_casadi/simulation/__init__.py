@@ -1,4 +1,4 @@
-"""Time simulation of an assembled model (SPEC §4.1).
+"""Time simulation of an assembled model (docs: simulate).
 
 Three solvers share the model's one CasADi Function:
 
@@ -44,13 +44,13 @@ Hybrid (stick-slip) friction is a hybrid system, and both solvers wrap it:
   ``mode_switches`` and ``switch_times``.
 
 Every run is checked against the model's physical envelope
-(:meth:`~ema_casadi.assembly.Model.envelope`, ``_envelope``): after every rollout chunk
+(:meth:`~ema_casadi.model.assembly.Model.envelope`, ``_envelope``): after every rollout chunk
 (RK4) or integrator segment (CVODES) the kept samples of every bounded state, output
 and input are compared with their bounds, and checked to be finite. A run that leaves
 the envelope, goes non-finite or whose integrator gives up raises :class:`RunFailed`
 with the reason, the time and the result up to the failure (``info["status"]`` is
 "failed" there, "completed" on a run that finished). The chunk loops also
-honour an interrupt (:mod:`ema_casadi._interrupts`) between chunks.
+honour an interrupt (:mod:`ema_casadi._util._interrupts`) between chunks.
 """
 
 

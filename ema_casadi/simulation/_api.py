@@ -1,7 +1,7 @@
 """``simulate()``: validate the request, plan the output grid, refuse work the machine
 cannot do, build the input signals, run a solver.
 
-Output grid (SPEC §7, no sample past the end): samples at 0, dt_out, 2 dt_out, ... and
+Output grid (no sample past the end, docs: reliability): samples at 0, dt_out, 2 dt_out, ... and
 at ``t_end`` itself; when dt_out does not divide t_end the last interval is shorter
 (t_end 0.25 s with dt_out 0.1 s gives 0, 0.1, 0.2, 0.25 s), and a dt_out longer than
 t_end gives the two samples 0 and t_end. RK4 takes fixed steps, so for ``rk4`` t_end
@@ -31,9 +31,9 @@ import warnings
 
 import numpy as np
 
-from .._checks import describe, instance, integer, number, vector
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import describe, instance, integer, number, vector
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import _input_signals
@@ -91,7 +91,7 @@ def simulate(
     Parameters
     ----------
     model : Model
-        From :func:`~ema_casadi.assembly.build_model`.
+        From :func:`~ema_casadi.model.assembly.build_model`.
     t_end : float
         End time (s); for ``rk4`` a whole number of steps ``dt``.
     x_cmd, f_ext, eta : Signal, float or str

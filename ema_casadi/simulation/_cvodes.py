@@ -9,9 +9,9 @@ import time
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..compiled import BufferCall
-from ._envelope import RunFailed, captured_stderr, integrator_failure, monitor_for
+from .._util._compiled import BufferCall
+from .._util._interrupts import check as check_interrupt
+from ._envelope import GaveUp, RunFailed, captured_stderr, integrator_failure, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import _result, progress_bar
 from ._rk4 import outputs_at
@@ -49,19 +49,13 @@ def _segment_integrator(model, sig, a: float, tout: np.ndarray, rtol: float, ato
 
 def _call(F, args, to_time=None, t_default=0.0):
     """Call a CVODES integrator; an integrator failure becomes ``(what, time)`` in the
-    raised :class:`_Gave_up`, with CasADi's printout kept off the terminal."""
+    raised :class:`GaveUp`, with CasADi's printout kept off the terminal."""
     with captured_stderr() as log:
         try:
             return F(*args)
         except RuntimeError as exc:
             check_interrupt()  # CasADi turns an interrupt inside the call into a RuntimeError
-            raise _GaveUp(*integrator_failure(exc, log.getvalue(), to_time, t_default)) from None
-
-
-class _GaveUp(Exception):
-    def __init__(self, what, time):
-        super().__init__(what)
-        self.what, self.time = what, time
+            raise GaveUp(*integrator_failure(exc, log.getvalue(), to_time, t_default)) from None
 
 
 def _check_inputs(monitor, model, sig, grid, X, Y):
@@ -124,7 +118,7 @@ def _simulate_cvodes(model, t_end, sig, pv, x0, dt_out, rtol, atol, progress):
         try:
             xf = _call(F, (xc, np.zeros((0, 1)), pv, np.zeros((0, len(tout))), *[np.zeros((0, 1))] * 3),
                        t_default=a)[0]
-        except _GaveUp as exc:
+        except GaveUp as exc:
             raise RunFailed(exc.what, exc.time, _partial(model, sig, grid, X, Y, done)) from None
         steps += int(F.stats().get("nsteps", 0))
         X[:, inside] = xf[:, : len(inside)]
@@ -234,7 +228,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
         try:
             out = _call(F, (x, nz, np.concatenate([pv, [t0, H]]), np.zeros((0, n)), nz, nz, nz),
                         lambda tau: t0 + H * tau, t0)
-        except _GaveUp as exc:
+        except GaveUp as exc:
             raise RunFailed(exc.what, exc.time, _partial(model, sig, grid, X, Y, gi)) from None
         stats["steps"] += int(F.stats().get("nsteps", 0))
         stats["calls"] += 1

@@ -1,7 +1,7 @@
-"""The physical-envelope monitor of every run (SPEC §7: no silent garbage).
+"""The physical-envelope monitor of every run (the reliability contract, docs: reliability: no silent garbage).
 
 A run is *failed*, never a result, when a state or output leaves the envelope its
-part declares (:meth:`~ema_casadi.assembly.Model.envelope`: the rod beyond the stroke
+part declares (:meth:`~ema_casadi.model.assembly.Model.envelope`: the rod beyond the stroke
 with end stops off, a current above 3 x I_max, a speed above 3 x the no-load
 speed, ...), when a value is not finite, or when the integrator gives up (CVODES
 ``CV_TOO_MUCH_WORK``, ``CV_CONV_FAILURE``, ``CV_ERR_FAILURE``, ``CV_ILL_INPUT``, ...).
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RunFailed", "Monitor", "Violation", "captured_stderr", "integrator_failure", "monitor_for"]
+__all__ = ["RunFailed", "GaveUp", "Monitor", "Violation", "captured_stderr", "integrator_failure", "monitor_for"]
 
 
 class RunFailed(Exception):
@@ -242,6 +242,16 @@ _FLAGS = {
     "CV_ILL_INPUT": "illegal input (typically a non-finite state or right-hand side)",
 }
 _T_RE = re.compile(r"At t\s*=\s*([-+0-9.eE]+)")
+
+
+class GaveUp(Exception):
+    """An integrator gave up (the one such exception of the package): ``what`` (one line)
+    and ``time``, the integrator's time where it did (s, or the normalised time of a
+    sine-stream period). Callers turn it into a failed run (:class:`RunFailed`, a failed point)."""
+
+    def __init__(self, what: str, time: float):
+        super().__init__(what)
+        self.what, self.time = what, time
 
 
 def integrator_failure(exc: BaseException, log: str, to_time=None, default_time: float = 0.0):

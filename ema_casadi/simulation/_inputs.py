@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import describe
-from .._kwargs import check_keywords
-from ..assembly import Model
+from .._util._checks import describe
+from .._util._kwargs import check_keywords
+from ..model.assembly import Model
 from ..signals import Signal, SignalError, constant, parse_signal
 
 

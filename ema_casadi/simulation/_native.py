@@ -19,7 +19,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ..compiled import compile_source, inline_min_max
+from .._util._compiled import compile_source, inline_min_max
 
 __all__ = ["NativeRollout", "native_rollout"]
 

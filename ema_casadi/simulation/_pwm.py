@@ -1,4 +1,4 @@
-"""Carrier-synchronous simulation of a switched model (a PWM bridge, issue 11).
+"""Carrier-synchronous simulation of a switched model (a PWM bridge).
 
 One compiled step advances one carrier period T = 1/f_sw: the ECU samples at its start
 (and at the valley T/2 for double update: the current loop at 2 f_sw), the model's
@@ -14,7 +14,7 @@ samples of switched powers is not).
 
 The step is rolled out like the RK4 rollout (:mod:`._rk4`): ``fold`` over ``k`` periods
 per kept sample, ``mapaccum`` over the samples of a chunk, compiled and cached with
-:func:`~ema_casadi.compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
+:func:`~ema_casadi._util._compiled.compile_keyed`. Without ``dt_out`` every sub-interval is
 kept (``resolve``): its start, its states and its leg states, for plots of the switched
 waveforms (a step plot, ``steps-post``).
 
@@ -31,9 +31,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..assembly import Model
-from ..compiled import BufferCall, compile_keyed
+from .._util._compiled import BufferCall, compile_keyed
+from .._util._interrupts import check as check_interrupt
+from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._result import SimResult, SimulationError, _result, progress_bar
@@ -63,15 +63,15 @@ def _update(model: Model, pv) -> bool:
     """Double update (ECU at peak and valley) when the current loop samples at 2 f_sw,
     single when at f_sw; other rates are refused."""
     names = model.param_names
-    f_sw = pv[names.index(model.carrier)]
+    f_carrier = pv[names.index(model.carrier)]
     inner = list(model.loops.values())[-1]
-    ratio = pv[names.index(inner.rate)] / f_sw
+    ratio = pv[names.index(inner.rate)] / f_carrier
     if abs(ratio - 1) < 1e-9:
         return False
     if abs(ratio - 2) < 1e-9:
         return True
     raise SimulationError(f"the {inner.name} loop samples at {inner.rate} = {pv[names.index(inner.rate)]:g} Hz; "
-                          f"the PWM bridge needs {model.carrier} = {f_sw:g} Hz (single update) or twice it "
+                          f"the PWM bridge needs {model.carrier} = {f_carrier:g} Hz (single update) or twice it "
                           f"(double update)")
 
 
@@ -242,15 +242,15 @@ class _Grid:
     sub-interval, update mode."""
 
     def __init__(self, model, pv, t_end, dt, dt_out):
-        f_sw = pv[model.param_names.index(model.carrier)]
-        self.T = 1 / f_sw
-        periods = t_end * f_sw
+        f_carrier = pv[model.param_names.index(model.carrier)]
+        self.T = 1 / f_carrier
+        periods = t_end * f_carrier
         self.periods = round(periods)
         if self.periods < 1 or abs(self.periods - periods) > _WHOLE * max(periods, 1):
             raise SimulationError(f"t_end {t_end:g} s is not a whole number of carrier periods 1/{model.carrier} = "
                                   f"{self.T * 1e6:g} us ({periods:.6g}); the switched model steps period by period")
         self.resolve = dt_out is None
-        k = 1 if dt_out is None else max(1, round(dt_out * f_sw))
+        k = 1 if dt_out is None else max(1, round(dt_out * f_carrier))
         self.k = math.gcd(min(k, self.periods), self.periods)
         self.k_req = min(k, self.periods)
         self.n = max(1, math.ceil(0.5 * self.T / dt - 1e-9))

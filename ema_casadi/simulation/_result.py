@@ -1,4 +1,4 @@
-"""Simulation results: named time series, step metrics, progress (SPEC §4.1)."""
+"""Simulation results: named time series, step metrics, progress (docs: simulate)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_with
+from .._util._files import write_with
 
 __all__ = ["SimulationError", "SimResult", "step_response_metrics", "hunting_metrics", "progress_bar"]
 
@@ -33,7 +33,7 @@ class SimResult:
     info : dict
         Run facts: solver, variants, ``t_end`` (s), ``wall_time`` (s), solver statistics.
     unit_table : dict
-        Signal name -> SI unit (the model's :attr:`~ema_casadi.assembly.Model.units`).
+        Signal name -> SI unit (the model's :attr:`~ema_casadi.model.assembly.Model.units`).
     kinds : dict
         Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
     """
@@ -94,7 +94,7 @@ class SimResult:
         return np.column_stack([self.t] + [self[c] for c in cols])
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the time series as CSV (SPEC §6 Files); atomic.
+        """Write the time series as CSV (the file layout, docs: simulate); atomic.
 
         The layout of MATLAB's Simulation Data Inspector: a header row ``time`` then one
         column per signal (:meth:`columns`), a second row ``Unit:`` followed by each
@@ -119,7 +119,7 @@ class SimResult:
         return write_with(path, write)
 
     def to_mat(self, path: str | Path, name: str = "ema_sim") -> Path:
-        """Write the time series as a MATLAB struct (SPEC §6 Files); atomic.
+        """Write the time series as a MATLAB struct (the file layout, docs: simulate); atomic.
 
         One struct variable ``name`` with the field ``time`` (s), one field per signal
         (:meth:`columns`, SI, column vectors) and ``units`` (a struct: signal name ->

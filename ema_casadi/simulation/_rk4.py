@@ -11,9 +11,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..assembly import Model
-from ..compiled import BufferCall, compile_function, compile_keyed
+from .._util._compiled import BufferCall, compile_function, compile_keyed
+from .._util._interrupts import check as check_interrupt
+from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, _input_matrix
 from ._native import native_rollout

@@ -5,7 +5,7 @@ The model's f, its Jacobian df/dx and df/du u' are generated as C by CasADi with
 parameters as an input, the hand-written driver (step, error norm, step-size
 controller, dense output, breakpoints, input signals) is appended, and the library is
 built once per model and cached on disk like the RK4 rollout. The input signals are
-passed as data (every SPEC §6 signal: constants, steps, ramps, sines, chirps, tables),
+passed as data (every signal of the command line: constants, steps, ramps, sines, chirps, tables),
 so one library serves every scenario, parameter value and tolerance. Python calls it
 through :mod:`ctypes` (the GIL is released during the call) in chunks of at most
 :data:`ATTEMPTS_PER_CALL` steps, checking the envelope and interrupts in between.
@@ -21,8 +21,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .._interrupts import check as check_interrupt
-from ..compiled import compile_source, inline_min_max
+from .._util._compiled import compile_source, inline_min_max
+from .._util._interrupts import check as check_interrupt
 from ._cvodes import _check, _check_inputs, _outputs, _partial
 from ._envelope import RunFailed, monitor_for
 from ._result import _result, progress_bar

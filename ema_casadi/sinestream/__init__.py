@@ -1,4 +1,4 @@
-"""Nonlinear frequency response by sine stream (SPEC §4.5), like Simulink's ``frestimate``.
+"""Nonlinear frequency response by sine stream (docs: sine-stream), like Simulink's ``frestimate``.
 
 For every point of a grid (variant, load, amplitude, frequency) the nonlinear model is
 driven by ``x_cmd = A sin(2 pi f t)`` under a constant external force ``f_ext`` until it
@@ -62,15 +62,15 @@ period maps and the settling loop of ``_kernels``; the result is a
 ``_plot`` draws the Bode plot and ``_studies`` writes the paper's figures.
 """
 
-from ._kernels import coefficients, harmonics, hybrid_available
+from ..plots._sinestream import plot_bode
+from ._kernels import coefficients, harmonics
 from ._parse import parse_amplitudes, parse_freqs, parse_loads
-from ._plot import plot_bode
 from ._result import FIELDS, FreqRespError, FreqResponse
 from ._run import sine_stream
 from ._studies import PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ, paper_fig14a, paper_fig14b, run_study
 
 __all__ = [
-    "FreqResponse", "FreqRespError", "sine_stream", "hybrid_available", "harmonics", "coefficients", "plot_bode",
+    "FreqResponse", "FreqRespError", "sine_stream", "harmonics", "coefficients", "plot_bode",
     "run_study", "paper_fig14a", "paper_fig14b", "parse_amplitudes", "parse_freqs", "parse_loads",
     "FIELDS", "PAPER_AMPLITUDES_PCT", "PAPER_LOADS", "PAPER_BAND", "PAPER_NFREQ",
 ]

@@ -2,12 +2,12 @@
 thread has its own call buffers on the one integrator), or chunks of points on a Dask
 distributed cluster (optional dependency). Both return index -> point dict.
 
-Interrupts (SPEC §7): on Ctrl-C/SIGTERM (or any exception in the waiting thread) the
+Interrupts (the reliability contract, docs: reliability): on Ctrl-C/SIGTERM (or any exception in the waiting thread) the
 pool stops submitting, cancels the pending points and does not wait for the batch:
 running points see the stop flag at their next period. Dask futures are cancelled.
 
 A remote scheduler that does not answer is not waited for forever: the connection and
-the wait for a first worker are bounded (:mod:`ema_casadi._parallel`, shared with the
+the wait for a first worker are bounded (:mod:`ema_casadi._util._parallel`, shared with the
 sweeps).
 """
 
@@ -18,8 +18,8 @@ import math
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-from .._parallel import cores as _cores
-from .._parallel import dask_map
+from .._util._parallel import cores as _cores
+from .._util._parallel import dask_map
 from ..simulation import progress_bar
 from ._kernels import _settle, _stepper
 from ._result import FreqRespError
@@ -38,8 +38,10 @@ def _run_local(tasks, params, build, settle, keep, progress, jobs) -> dict:
         _, step = _stepper(v, params, *build)
         return idx, _settle(step, x0, pa, pa[-3], pa[-2], settle, keep, stop)
 
-    parallel = [t for t in tasks if t[1]["friction"] != "hybrid"]
-    serial = [t for t in tasks if t[1]["friction"] == "hybrid"]
+    # a hybrid model (a part with a discrete map) is stepped through simulate(), serially
+    hybrid = [_stepper(t[1], params, *build)[0].hybrid for t in tasks]
+    parallel = [t for t, h in zip(tasks, hybrid, strict=True) if not h]
+    serial = [t for t, h in zip(tasks, hybrid, strict=True) if h]
     done = 0
     progress_bar(0.0, progress, "freqresp")
     if parallel:

@@ -14,13 +14,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .. import _interrupts
-from ..assembly import Model, build_model
-from ..compiled import BufferCall
-from ..params import ParameterError, Parameters
+from .._util import _interrupts
+from .._util._compiled import BufferCall
+from ..model.assembly import Model, build_model
+from ..model.params import Parameters
 from ..signals import Signal
 from ..simulation import STEPS_PER_CALL, RunFailed, simulate
-from ..simulation._envelope import Monitor, captured_stderr, integrator_failure
+from ..simulation._envelope import GaveUp, Monitor, captured_stderr, integrator_failure
 
 #: Largest contraction ratio assumed for a settling transient (also the value taken
 #: while only one period-to-period change is known).
@@ -77,18 +77,18 @@ class _PeriodMap:
         the integrator failed."""
         try:
             return self.period(x0, pa)[:2]
-        except _GaveUp:
+        except GaveUp:
             return np.full(self.nx, np.nan), np.full((2, self.K), np.nan)
 
     def period(self, x0, pa):
         """One period from x0: (x at its end, (2, K) samples, states/outputs/inputs at
-        the samples or None); an integrator failure is ``_GaveUp(what, tau)``."""
+        the samples or None); an integrator failure is ``GaveUp(what, tau)`` (CVODES's normalised time)."""
         with captured_stderr() as log:
             try:
                 out = self.call(x0, pa)
             except RuntimeError as exc:
                 _interrupts.check()
-                raise _GaveUp(*integrator_failure(exc, log.getvalue())) from None
+                raise GaveUp(*integrator_failure(exc, log.getvalue())) from None
         return out[0].ravel(), out[1], (out[2] if self.monitored else None)
 
     def first_outside(self, monitor: Monitor, z, freq, k):
@@ -97,14 +97,6 @@ class _PeriodMap:
         taus = (k - 1) + np.arange(1, self.K + 1) / self.K
         bad = monitor.first(taus / freq, z[: m.nx], z[m.nx : m.nx + m.ny], z[m.nx + m.ny :])
         return None if bad is None else (bad.what, bad.time)
-
-
-class _GaveUp(Exception):
-    """The period's integrator failed: ``what`` and CVODES's normalised time ``tau``."""
-
-    def __init__(self, what, tau):
-        super().__init__(what)
-        self.what, self.tau = what, tau
 
 
 class _HybridPeriods:
@@ -241,8 +233,8 @@ def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool, stop=None) -> dict:
             raise _interrupts.Interrupted(_interrupts.requested() or 2)
         try:
             x, y, z = step.period(x, pa)
-        except _GaveUp as exc:
-            return _failed(k, f"{exc.what} at t = {(k - 1 + exc.tau) / freq:.6g} s (period {k})")
+        except GaveUp as exc:
+            return _failed(k, f"{exc.what} at t = {(k - 1 + exc.time) / freq:.6g} s (period {k})")
         except RunFailed as exc:  # the hybrid points' simulate()
             return _failed(k, f"{exc.what} at t = {(k - 1) / freq + exc.time:.6g} s (period {k})")
         if z is not None:
@@ -312,27 +304,3 @@ def _stepper(variants: dict, params: Parameters, samples: int, rtol: float, atol
 
 def _is_hybrid(model: Model) -> bool:
     return model.hybrid
-
-
-def hybrid_available(params: Parameters) -> tuple[bool, str]:
-    """Whether the hybrid (stick-slip) friction variant can be simulated here, and why not.
-
-    Parameters
-    ----------
-    params : Parameters
-        Parameter set to build the hybrid-friction model from.
-
-    Returns
-    -------
-    ok : bool
-        True when the variant builds and has its stick projection.
-    why : str
-        One-line reason when ``ok`` is False, else ``""``.
-    """
-    try:
-        model = build_model(params, {"friction": "hybrid"})
-    except (ParameterError, ValueError) as exc:
-        return False, f"friction variant 'hybrid' is not available: {exc}"
-    if getattr(model, "project", None) is None:
-        return False, "friction variant 'hybrid' is accepted but has no stick projection (model.project) yet"
-    return True, ""

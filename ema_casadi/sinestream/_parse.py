@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import describe
+from .._util._checks import describe
 from ..signals import SignalError, parse_list, parse_range
 from ._result import FreqRespError
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._files import write_with
+from .._util._files import write_with
 from ..simulation import SimulationError
 
 #: Result fields per point, with units. ``status`` is ``converged``, ``not_converged``

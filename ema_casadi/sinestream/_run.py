@@ -10,13 +10,14 @@ import time
 import casadi as ca
 import numpy as np
 
-from .._checks import describe, instance, vector
-from ..assembly import Model
-from ..components import validate_variants
-from ..params import Parameters
+from .._util._checks import describe, instance, vector
+from ..linearisation import small_signal_point
+from ..model.assembly import Model
+from ..model.components import validate_variants
+from ..model.params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
-from ._kernels import _Settle, _stepper, hybrid_available
+from ._kernels import _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
 
@@ -81,7 +82,6 @@ def sine_stream(
     vset = _variant_set(params, variants)
     check_grid({"variants": len(vset), "loads": len(loads), "amplitudes": len(amplitudes), "freqs": len(freqs)},
                max_periods, jobs or _cores())
-    _check_hybrid(params, vset)
     pv = _param_vector(params, p)
     settle = _Settle(tol_db, tol_deg, max_periods)
     build = (samples, rtol, atol, hybrid_dt)
@@ -110,15 +110,6 @@ def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt,
             raise FreqRespError(f"{name}: expected a positive number, got {describe(v)}")
     if jobs is not None and (not isinstance(jobs, int) or jobs < 1):
         raise FreqRespError(f"jobs: expected a positive integer, got {jobs!r}")
-
-
-def _check_hybrid(params: Parameters, vset: dict) -> None:
-    """FreqRespError when a variant asks for hybrid friction and it is not available."""
-    for v in vset.values():
-        if v["friction"] == "hybrid":
-            ok, why = hybrid_available(params)
-            if not ok:
-                raise FreqRespError(why)
 
 
 def _param_vector(params: Parameters, p) -> np.ndarray:
@@ -164,16 +155,6 @@ def _tasks(params, vset, build, pv, loads, amplitudes, freqs) -> list:
     return tasks
 
 
-def _lin_params(model: Model, p: np.ndarray) -> np.ndarray:
-    """p with Coulomb friction, backlash and the efficiency switch removed."""
-    q = np.array(p, float)
-    names = model.param_names
-    for n, v in (("F_seal", 0.0), ("C_bear", 0.0), ("B", 0.0)):
-        q[names.index(n)] = v
-    q[names.index("eta_inv")] = 1.0 / q[names.index("eta")]
-    return q
-
-
 def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     """(i_load, i_amplitude, i_frequency) -> starting state (package docstring)."""
     nx = model.nx
@@ -183,8 +164,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     xdot = model.f(x, u, pp)[0]
     ju = model.inputs.index("x_cmd")
     jac = ca.Function("lin_jacobians", [x, u, pp], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)[:, ju]])
-    p_lin = _lin_params(model, p)
-    v_max = p[model.param_names.index("v_max")]
+    rate_limit = model.limit_values(p)["rod_speed"]
     # the rod's own travel: its position state, or the shaft angle where the rod
     # position is a play (the rigid screw)
     travel = model.travel(p)
@@ -198,7 +178,8 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
         x_rest, _ = step(np.zeros(nx), np.r_[p, 0.0, 1.0, load])
         if not np.all(np.isfinite(x_rest)):
             x_rest = np.zeros(nx)
-        uu = model.u(f_ext=load, eta=p[model.param_names.index("eta")])
+        # the small-signal model there: Coulomb friction and backlash off, the blends frozen
+        uu, p_lin = small_signal_point(model, model.u(p, f_ext=load), p)
         Ja, Jb = (np.asarray(m, float) for m in jac(x_rest, uu, p_lin))
         Jb = Jb.ravel()
         for jf, f in enumerate(freqs):
@@ -210,7 +191,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
             # rod speed amplitude of the linear response per unit command amplitude
             g_rod = abs(Xc[j_rod]) * per_unit
             for ia, A in enumerate(amplitudes):
-                scale = A * min(1.0, v_max / max(w * g_rod * A, 1e-300))
+                scale = A * min(1.0, rate_limit / max(w * g_rod * A, 1e-300))
                 guess = x_rest + scale * Xc.imag
                 # a guess outside the physical envelope (the linearised hybrid rod is
                 # stuck: its "response" drives the currents far beyond I_max) would

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._kwargs import check_keywords, keywords_of
-from ..params import Parameters
-from ._plot import plot_bode
+from .._util._kwargs import check_keywords, keywords_of
+from ..model.params import Parameters
+from ..plots._sinestream import plot_bode
 from ._run import sine_stream
 
 #: The paper's Fig. 14a amplitudes (% of the 75 mm stroke) and Fig. 14b loads (N).

@@ -1,4 +1,4 @@
-"""Sweeps and Monte Carlo (SPEC §4.11): any parameters on a grid or drawn from
+"""Sweeps and Monte Carlo (docs: sweeps): any parameters on a grid or drawn from
 distributions, any metric of the registry per run, on local cores or a Dask cluster,
 one row per run, resumable after an interruption or a crash.
 
@@ -12,7 +12,7 @@ Usage::
 Layout: ``_spec`` reads and checks the description and expands it into runs (grid x
 draws, per-sample seeds); ``_metrics`` is the metric registry (each metric is the
 toolkit's own analysis); ``_run`` runs the runs (this thread, a local pool of
-processes or threads, or Dask through :mod:`ema_casadi._parallel`, shared with the
+processes or threads, or Dask through :mod:`ema_casadi._util._parallel`, shared with the
 sine stream), with progress and the ETA; ``_journal`` keeps finished rows on disk
 while the sweep runs and writes the table; ``_result`` holds the table, the summary
 statistics, the sensitivities and the plot.

@@ -1,7 +1,7 @@
 """Rows on disk: the append-only journal of a sweep in progress and the final table.
 
 The table (``--out results.csv``) is written once, whole, by the one atomic writer
-(:mod:`ema_casadi._files`). While the sweep runs, every finished row is appended to
+(:mod:`ema_casadi._util._files`). While the sweep runs, every finished row is appended to
 its *journal* ``.results.csv.journal`` beside it (one JSON object per line, flushed
 and synced after each batch); the journal's first line names the sweep
 (:meth:`SweepSpec.fingerprint`). After an interruption or a crash the journal holds
@@ -147,7 +147,7 @@ def write_table(path, rows: list, columns: list, stage: bool = True) -> Path:
     stage : bool
         Defer the rename to the end of an open transaction (default).
     """
-    from .._files import write_with
+    from .._util._files import write_with
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8", newline="") as fh:

@@ -28,9 +28,13 @@ import math
 
 import numpy as np
 
-from .._checks import nearest
+from .._util._checks import nearest
 
-__all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics"]
+__all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "PointFailed"]
+
+
+class PointFailed(Exception):
+    """A metric whose analysis reported a failed point (the run is failed)."""
 
 _LOOP_FIELDS = (("gm_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"), ("disk_margin", "1"))
 
@@ -180,7 +184,7 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
     error : type
         The exception raised.
     """
-    from ..assembly import build_model
+    from ..model.assembly import build_model
     from ..simulation._api import check_run
 
     models = [build_model(spec.params, dict(v)) for v in sorted({r.variant for r in spec.runs})]
@@ -287,7 +291,6 @@ def _c_bandwidth(o, model, params, pv, res):
 
 def _c_sine(o, model, params, pv, res):
     from ..sinestream import sine_stream
-    from ._run import PointFailed
 
     fr = sine_stream(params, [o["amplitude"]], o["freqs"], [o["load"]], variants=dict(model.variants), p=pv, jobs=1)
     out = {}

@@ -134,7 +134,7 @@ class SweepResult:
         max_panels : int
             At most this many metrics and parameters are drawn.
         """
-        from ..plotting import plt, save
+        from ..plots._base import plt, save
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids

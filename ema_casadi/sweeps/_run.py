@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _interrupts
-from .._files import after_commit
-from .._parallel import cores, dask_map
+from .._util import _interrupts
+from .._util._files import after_commit
+from .._util._parallel import cores, dask_map
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
-from ._metrics import compute_metrics, metric_columns, needs_simulation, simulate_scenario
+from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
 from ._spec import SweepError, SweepSpec
 
 __all__ = ["sweep", "BACKENDS", "PointFailed"]
@@ -31,10 +31,6 @@ __all__ = ["sweep", "BACKENDS", "PointFailed"]
 BACKENDS = ("processes", "threads")
 #: Most runs per batch (a batch is journaled when it finishes).
 BATCH_MAX = 25
-
-
-class PointFailed(Exception):
-    """A metric whose analysis reported a failed point (the run is failed)."""
 
 
 # -- one run ---------------------------------------------------------------------
@@ -47,7 +43,7 @@ class _Worker:
         self.names = None
 
     def model(self, variant: tuple):
-        from ..assembly import build_model
+        from ..model.assembly import build_model
 
         if variant not in self.models:
             self.models[variant] = build_model(self.spec.params, dict(variant))
@@ -294,7 +290,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
 
 def _quiet_resource_tracker() -> None:
     """Start multiprocessing's resource tracker without its warnings: after an interrupt
-    the ``ema`` process ends at once (SPEC §7) and the tracker would otherwise print
+    the ``ema`` process ends at once (the reliability contract, docs: reliability) and the tracker would otherwise print
     "leaked semaphore objects" on the terminal after the one line."""
     import os
     from multiprocessing import resource_tracker

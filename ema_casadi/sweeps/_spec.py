@@ -1,6 +1,6 @@
 """The sweep description (TOML): checked whole before any run, expanded into runs.
 
-Format (README "Sweeps and Monte Carlo"; ``models/sweep_hunting_backlash.toml`` is a
+Format (docs: sweeps; ``models/sweep_hunting_backlash.toml`` is a
 complete example)::
 
     [sweep]
@@ -18,7 +18,7 @@ complete example)::
 
     [scenario]                  # the simulation every run makes (when a metric needs it)
     duration = 4.0
-    x_cmd = "step:1mm@0.01"     # SPEC §6 signals; bare numbers mm (x_cmd), N (f_ext)
+    x_cmd = "step:1mm@0.01"     # signal syntax (docs: simulate); bare numbers mm (x_cmd), N (f_ext)
     solver = "rk4"
     dt = 1e-4
 
@@ -47,9 +47,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import nearest, read_toml
-from ..components import VARIANTS, validate_variants
-from ..params import GROUPS, ParameterError, Parameters
+from .._util._checks import nearest, read_toml
+from ..model.components import VARIANTS, validate_variants
+from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 from ._metrics import METRICS, check_metrics
 
@@ -368,7 +368,7 @@ def _expand(spec: SweepSpec) -> list[Run]:
 def _check_runs(spec: SweepSpec, src: str) -> None:
     """Every run's values are a valid parameter set; every swept parameter is read by
     every model of the sweep."""
-    from ..assembly import build_model
+    from ..model.assembly import build_model
 
     for variant in {r.variant for r in spec.runs}:
         model = build_model(spec.params, dict(variant))
@@ -403,7 +403,7 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
     inputs = table.get("inputs", {})
     if not isinstance(inputs, dict):
         raise SweepError(f"{where} inputs: expected a table input = signal, got {inputs!r}")
-    from ..assembly import build_model
+    from ..model.assembly import build_model
 
     model = build_model(params)
     for name, value in inputs.items():

@@ -1,4 +1,4 @@
-"""Gain tuning of the cascade by nonlinear optimisation (SPEC §4.6).
+"""Gain tuning of the cascade by nonlinear optimisation (docs: tune).
 
 The free gains (any of ``K_x``, ``K_i_x``, ``K_p_w``, ``T_i_w``, ``K_p_i``, ``K_i_i``)
 are decision variables of one CasADi ``Opti`` problem solved by IPOPT. Every quantity
@@ -149,7 +149,7 @@ it, which the margin and overshoot constraints keep; the verification measures t
 true -3 dB frequency). ``tracking``: minimise the worst case's integrated squared
 error of the step (normalised by the step and 10 ms). Both add an effort term,
 1e-3 sum(log(gain/reference)^2): a pure bandwidth or squared-error objective drives
-gains to their bounds (STACK_NOTES).
+gains to their bounds (measured).
 
 Gains are scaled logarithmically, ``gain = reference * exp(theta)`` within
 ``reference * [1/100, 100]``; ``K_i_x`` may start at zero and is scaled linearly
@@ -173,15 +173,16 @@ Modules
 tunable gains), ``_kernels`` (numeric building blocks: sensitivities, matrix
 exponential, soft minimum), ``_callbacks`` (the spectral abscissa with its gradient),
 ``_scaling`` (gains as decision variables), ``_closed_loop`` (the reduced, balanced
-closed loop as a function of the gains), ``_constraints`` (the constraint groups), ``_cascade`` (the cascade's
-groups and the noise bound), ``_inspect`` (reading the problem back),
+closed loop as a function of the gains), ``_constraints`` (the constraint groups),
+``_cascade`` (the cascade's groups and the noise bound), ``_inspect`` (reading the
+problem back),
 ``_problem`` (:class:`TuningProblem`, the Opti problem), ``_solve`` (:func:`tune`,
 :class:`TuneResult`), ``_report`` (texts), ``_verify`` (:func:`verify`,
-:func:`step_metrics`), ``_plot`` (:func:`plot_tuning`).
+:func:`step_metrics`), ``_figures`` (:func:`plot_tuning`, drawn in ``plots``).
 """
 
 from ._callbacks import spectral_abscissa
-from ._plot import cascade_bode_figure, plot_tuning
+from ._figures import cascade_bode_figure, plot_tuning
 from ._problem import TuningProblem
 from ._report import describe_constraint
 from ._requirements import (

@@ -7,8 +7,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..assembly import Model
 from ..linearisation import LOOPS
+from ..model.assembly import Model
 from ._kernels import _reachable
 from ._requirements import TuneError
 from ._scaling import _GainScaling

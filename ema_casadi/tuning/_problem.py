@@ -8,10 +8,10 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..assembly import Model
 from ..frequency import bandwidth, closed_loop
 from ..linearisation import LinearizationError, jacobian_function, operating_point
-from ..params import Parameters
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ._callbacks import spectral_abscissa
 from ._cascade import (
     OUTER_OPEN,

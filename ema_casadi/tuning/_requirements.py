@@ -3,17 +3,43 @@ exclusion disk, and the validation of a request (one-line :class:`TuneError`).""
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..assembly import Model
-from ..params import Parameters
+from .._util._checks import nearest
+from ..model.assembly import Model
+from ..model.components import REGISTRY
+from ..model.params import Parameters
 
-#: Tunable gains (flat parameter names, SPEC §3 symbols).
-GAINS = ("K_x", "K_i_x", "K_p_w", "T_i_w", "K_p_i", "K_i_i")
+
+def _declared_gains() -> dict:
+    """Every gain a registered part declares (name -> Gain), in each part's order: a gain
+    new to the list goes right after the one before it in its part (outer loop first)."""
+    order: list = []
+    info: dict = {}
+    for values in REGISTRY.values():
+        for cls in values.values():
+            prev = None
+            for g in cls.gains:
+                if g.name not in info:
+                    info[g.name] = g
+                    order.insert(order.index(prev) + 1 if prev else len(order), g.name)
+                prev = g.name
+    return {n: info[n] for n in order}
+
+
+#: Tunable gains (flat parameter names), as the parts declare them: name -> Gain.
+GAIN_INFO = _declared_gains()
+#: Tunable gains (flat parameter names, the physics reference's symbols).
+GAINS = tuple(GAIN_INFO)
+
+
+def _where(gain: str) -> str:
+    """The variants whose parts declare a gain ("controller=PI")."""
+    return " or ".join(f"{k}={v}" for k, values in REGISTRY.items() for v, cls in values.items()
+                       if any(g.name == gain for g in cls.gains))
 OBJECTIVES = ("bandwidth", "tracking")
 
 
@@ -168,7 +194,7 @@ def default_free(model: Model) -> tuple[str, ...]:
     model : Model
         The assembled model; its parts declare the parameters they use.
     """
-    return tuple(g for g in GAINS if g in model.used_params)
+    return tuple(g.name for g in model.gains)
 
 
 def scaled_gains(params: Parameters, factor: float, free=None) -> dict[str, float]:
@@ -187,7 +213,7 @@ def scaled_gains(params: Parameters, factor: float, free=None) -> dict[str, floa
     """
     d = params.as_dict()
     names = [g for g in GAINS if free is None or g in free]
-    return {g: d[g] if g == "T_i_w" else factor * d[g] for g in names}
+    return {g: d[g] if GAIN_INFO[g].kind == "time" else factor * d[g] for g in names}
 
 
 def _load_label(f: float) -> str:
@@ -213,12 +239,9 @@ def _request(model: Model, params: Parameters, free, loads, start, freqs):
         raise TuneError("no free gain: name at least one of " + ", ".join(GAINS))
     for g in free:
         if g not in GAINS:
-            near = difflib.get_close_matches(g, GAINS, n=1)
-            raise TuneError(f"'{g}' is not a tunable gain{f' (did you mean {near[0]!r}?)' if near else ''}; "
-                            f"choose from {', '.join(GAINS)}")
-        if g not in model.used_params:
-            hint = " (K_i_x acts only with the PI position loop, variant controller=PI)" if g == "K_i_x" else ""
-            raise TuneError(f"{g} acts in no part of this model{hint}")
+            raise TuneError(f"'{g}' is not a tunable gain{nearest(g, GAINS)}; choose from {', '.join(GAINS)}")
+        if g not in {x.name for x in model.gains}:
+            raise TuneError(f"{g} acts in no part of this model (it acts only with {_where(g)})")
     if len(set(free)) != len(free):
         raise TuneError("a gain is named twice in free")
     loads = [float(f) for f in loads]

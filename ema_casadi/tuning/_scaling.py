@@ -8,7 +8,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from ._requirements import TuneError
+from ._requirements import GAIN_INFO, TuneError
 
 _BOUND = 100.0  # gains within reference * [1/_BOUND, _BOUND]
 
@@ -25,8 +25,9 @@ class _GainScaling:
         self.theta = opti.variable(len(free))
         self.log_scaled, exprs, theta0 = [], [], []
         for i, g in enumerate(free):
-            if g == "K_i_x" and ref[g] == 0.0:
-                s = self._linear_scale()
+            zero_scale = GAIN_INFO[g].zero_scale
+            if zero_scale is not None and ref[g] == 0.0:
+                s = self._linear_scale(g)
                 self.log_scaled.append(False)
                 exprs.append(s * self.theta[i])
                 theta0.append(start[g] / s)
@@ -43,8 +44,8 @@ class _GainScaling:
         self.theta0 = np.array(theta0)
         opti.set_initial(self.theta, self.theta0)
 
-    def _linear_scale(self) -> float:
-        return self.ref["K_x"] ** 2 / 4  # PI zero at K_x/4: the natural size of K_i_x
+    def _linear_scale(self, g: str) -> float:
+        return GAIN_INFO[g].zero_scale(self.ref)  # the part's natural size of the gain
 
     def p(self, names: list, base: np.ndarray) -> ca.MX:
         """The parameter vector ``base`` with the free gains replaced by their expressions."""
@@ -59,7 +60,7 @@ class _GainScaling:
 
     def theta_of(self, gains: dict) -> np.ndarray:
         """The variables that give these gains (SI, by name)."""
-        return np.array([math.log(gains[g] / self.ref[g]) if ls else gains[g] / self._linear_scale()
+        return np.array([math.log(gains[g] / self.ref[g]) if ls else gains[g] / self._linear_scale(g)
                          for g, ls in zip(self.free, self.log_scaled, strict=False)])
 
     def random_theta(self, rng: np.random.Generator) -> np.ndarray:

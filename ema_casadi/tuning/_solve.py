@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assembly import Model, build_model
-from ..params import Parameters
+from ..model.assembly import Model, build_model
+from ..model.params import Parameters
 from ._problem import TuningProblem
 from ._report import _message
 from ._requirements import Requirements, TuneError, _goal, _load_label, _request

@@ -9,10 +9,10 @@ import warnings
 
 import numpy as np
 
-from ..assembly import Model
 from ..frequency import LoopMargins, bandwidth, closed_loop, freqresp, margins
 from ..linearisation import LinearizationError, linear_model, loop_transfer, operating_point
-from ..params import Parameters
+from ..model.assembly import Model
+from ..model.params import Parameters
 from ..signals import Signal
 from ..simulation import simulate, step_response_metrics
 from ._requirements import Requirements, _load_label

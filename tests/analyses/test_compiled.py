@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ema_casadi import compiled
+from ema_casadi._util import _compiled as compiled
 
 
 def small_function(name="sq"):

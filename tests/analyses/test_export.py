@@ -1,4 +1,4 @@
-"""Issue 4: export of the linear model (.mat/.npz/.json round trips) and of the
+"""Export of the linear model (.mat/.npz/.json round trips) and of the
 nonlinear model (serialised CasADi Function, generated C code)."""
 
 import json
@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import compiled
 from ema_casadi import export as ex
 from ema_casadi import linearisation as lz
+from ema_casadi._util import _compiled as compiled
 from ema_casadi.cli import main
+from ema_casadi.export._linear import FORMAT_ID
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +56,7 @@ def test_mat_holds_matlab_cell_arrays_and_op_struct(lin, tmp_path):
 
 def test_json_is_plain_json(lin, tmp_path):
     d = json.loads(ex.save_linear(lin, tmp_path / "lin.json").read_text())
-    assert d["format"] == ex.FORMAT_ID
+    assert d["format"] == FORMAT_ID
     assert len(d["A"]) == len(d["state_names"]) and d["operating_point"]["f_ext"] == 12e3
 
 

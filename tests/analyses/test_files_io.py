@@ -1,4 +1,4 @@
-"""Files in and out (SPEC §6 Files): CSV and .mat time series, units in headers, SI by
+"""Files in and out (the file layout, docs: simulate): CSV and .mat time series, units in headers, SI by
 default, encodings; the output grid ends at t_end; negative flag values."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""FMU, C and CasADi exports of the nonlinear model (ema_casadi.fmu, SPEC §4.7).
+"""FMU, C and CasADi exports of the nonlinear model (ema_casadi.export.fmu, docs: exports).
 
 Reference scenario: a 1 mm step of x_cmd at 0.01 s, every other input at its default,
 0.2 s. Tolerances, each from a measurement on this machine (factor in brackets):
@@ -19,7 +19,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ema_casadi import Signal, compiled, fmu, simulate
+from ema_casadi import Signal, simulate
+from ema_casadi._util import _compiled as compiled
+from ema_casadi.export import fmu
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy.validation import validate_fmu  # noqa: E402
@@ -204,7 +206,7 @@ def test_co_simulation_follows_input_derivatives(cs):
 
 @NEEDS_CC
 def test_co_simulation_hybrid_hunting(model_cache, tmp_path):
-    """Hybrid friction through the FMU: the README's hunting case (PI, K_i_x = 3000 1/s^2,
+    """Hybrid friction through the FMU: the hunting case of docs: friction-and-endstops (PI, K_i_x = 3000 1/s^2,
     amplitude over 2-4 s) within 1 % of the toolkit's RK4 at the same step."""
     model = model_cache(friction="hybrid", controller="PI")
     info = fmu.export_fmu_cs(model, tmp_path / "ema_hyb.fmu")
@@ -215,7 +217,7 @@ def test_co_simulation_hybrid_hunting(model_cache, tmp_path):
     amp = 0.5 * np.ptp(res["x_rod"][res["time"] >= 2.0] - 1e-3)
     sel = ref.t >= 2.0
     amp_ref = 0.5 * np.ptp(ref["x_rod"][sel] - ref["x_cmd"][sel])
-    assert amp_ref > 2e-6  # it hunts (README: 3.30 um)
+    assert amp_ref > 2e-6  # it hunts (docs: 3.30 um)
     assert abs(amp / amp_ref - 1) < 0.01
     assert abs(res["mode_switches"][-1] - ref.info["mode_switches"]) <= 0.02 * ref.info["mode_switches"]
 
@@ -325,7 +327,7 @@ def test_casadi_folder_round_trip(model_cache, tmp_path):
 
 def test_failed_build_leaves_nothing(model_cache, tmp_path, monkeypatch):
     """A compiler failure (or an interrupt) mid-build: no FMU, no temporary files."""
-    from ema_casadi.fmu import _cs
+    from ema_casadi.export.fmu import _cs
 
     def broken(*a, **k):
         raise KeyboardInterrupt

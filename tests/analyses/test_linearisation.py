@@ -1,6 +1,6 @@
-"""Issue 4: operating points and exact linearisation.
+"""Operating points and exact linearisation.
 
-Tolerances are stated where used; analytic values come from SPEC §2-3.
+Tolerances are stated where used; analytic values come from the physics reference (docs: physics).
 """
 
 import math
@@ -110,7 +110,7 @@ def test_moving_point_is_a_relative_equilibrium(model_cache, params):
 def test_load_above_holding_limit_has_no_operating_point(model_cache, params, screw):
     """At rest the blend gives g = (1/eta + eta_inv)/2, so the 24 A current limit holds
     F_hold = K_t I_max / (r g) = 54.5 kN; just below it a trim exists, just above it the
-    trim reports the current limit. (The 46.9 kN stall of SPEC §5 is the load the motor
+    trim reports the current limit. (The 46.9 kN stall of the reference set, docs: physics, is the load the motor
     can still *push*: g = 1/eta plus seal and bearing friction; with the rod extending
     against the load, v_rod > 0, the limit is that one.)"""
     model = model_cache(screw=screw)
@@ -121,7 +121,7 @@ def test_load_above_holding_limit_has_no_operating_point(model_cache, params, sc
     lz.operating_point(model, 0.0, 0.999 * F_hold)
     with pytest.raises(lz.OperatingPointError, match=r"current limit I_max = 24 A"):
         lz.operating_point(model, 0.0, 1.001 * F_hold)
-    # extending against the load with friction kept: the SPEC's 46.9 kN stall
+    # extending against the load with friction kept: the 46.9 kN stall
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         lz.operating_point(model, 0.0, 46.5e3, 1e-3, friction="smooth")
@@ -144,7 +144,7 @@ def test_loop_break_by_flag_equals_closed_loop_identity(model_cache, loop):
     """Opening a loop by its flag gives the same L as the closed-loop identity: with the
     loop closed, the injection d reaches the measurement as T_d = -L/(1+L), so
     L = -T_d/(1+T_d). Two routes through the model, agreement to round-off (1e-8). The
-    aircraft loop (issue 13) on the transport, trimmed at its flight condition."""
+    aircraft loop on the transport, trimmed at its flight condition."""
     if loop == "aircraft":
         model = model_cache(airframe="transport")
         op = lz.flight_point(model)
@@ -238,7 +238,7 @@ def test_linear_closed_loop_equals_small_signal_sine_stream(model_cache, params)
 
 
 def test_reference_closed_loop_flat_and_spec_anchors(model_cache):
-    """Within 0.5 dB of flat up to 2 Hz; SPEC §5's small-signal anchors to the digits
+    """Within 0.5 dB of flat up to 2 Hz; the reference set's small-signal predictions (docs: physics) to the digits
     quoted there (0.01 dB, 0.06 deg); -3 dB near 20 Hz; drive-train mode near 1.42 kHz."""
     model = model_cache()
     T = fr.closed_loop(model)

@@ -1,4 +1,4 @@
-"""Issue 4: stability margins, disk margins, Bode, and the margins/bode CLI."""
+"""Stability margins, disk margins, Bode, and the margins/bode CLI."""
 
 import json
 import math
@@ -125,7 +125,7 @@ def test_margins_agree_with_python_control(reference):
 
 
 def test_reference_gains_meet_requirement(model_cache):
-    """SPEC §4.4 template GM >= 6 dB, PM >= 45 deg on all three loops, loop-at-a-time and
+    """The usual template GM >= 6 dB, PM >= 45 deg on all three loops, loop-at-a-time and
     with the outer loops open, unloaded and at the 30 kN operating load."""
     model = model_cache()
     for f_ext in (0.0, 30e3):
@@ -136,7 +136,7 @@ def test_reference_gains_meet_requirement(model_cache):
 
 
 def test_design_crossovers_with_outer_loops_open(model_cache):
-    """The cascade's design bandwidths (SPEC §3): current loop ~1 kHz (PM 90 deg: PI zero
+    """The cascade's design bandwidths (docs: physics): current loop ~1 kHz (PM 90 deg: PI zero
     cancels the R/L pole), speed loop ~40 Hz, position loop K_x/(2 pi) ~ 12 Hz."""
     m = fr.loop_margins(model_cache(), outer="open")
     assert m["current"].f_gc_hz == pytest.approx(1000, rel=0.02)

@@ -1,4 +1,4 @@
-"""Missions (SPEC §4.10): the reference mission's heat balance, exact node heats,
+"""Missions (docs: missions): the reference mission's heat balance, exact node heats,
 the mission file's checks, the piecewise signals, block continuation."""
 
 import tomllib

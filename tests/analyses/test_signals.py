@@ -1,4 +1,4 @@
-"""Signal syntax (SPEC §6) and the symbolic/NumPy forms agreeing."""
+"""Signal syntax (docs: simulate) and the symbolic/NumPy forms agreeing."""
 
 import casadi as ca
 import numpy as np
@@ -32,7 +32,7 @@ def test_forces_and_chirp():
 
 
 def test_csv_table(tmp_path):
-    # a table is SI whatever the flag's bare unit (SPEC §6 Files); a header may name one
+    # a table is SI whatever the flag's bare unit (the file layout, docs: simulate); a header may name one
     path = tmp_path / "cmd.csv"
     path.write_text("t,value\n0,0\n1,2e-3\n2,2e-3\n")
     s = parse_signal(str(path), "length", bare="mm")

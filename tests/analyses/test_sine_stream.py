@@ -1,4 +1,4 @@
-"""Sine-stream frequency response (SPEC §4.5, §5): linear limit, paper anchors, settling,
+"""Sine-stream frequency response (docs: sine-stream, physics): linear limit, paper anchors, settling,
 harmonics, table, parallel and distributed execution."""
 
 import math
@@ -52,7 +52,7 @@ def test_linear_limit_equals_ad_bode(params, model_cache):
     assert np.nanmax(c["distortion"]) < 2e-5
 
 
-# ---- paper anchors (SPEC §5) --------------------------------------------------------
+# ---- paper anchors (the reference set's predictions, docs: physics) -------------------
 def test_small_amplitudes_flat_to_6hz(params):
     """Fig. 14a: at 0.5-2 % of the stroke the magnitude stays within +-1 dB, 0.1-6 Hz."""
     r = fr.sine_stream(params, [pct(0.5), pct(1), pct(2)], [0.1, 0.5, 2.0, 4.0, 6.0])
@@ -196,11 +196,8 @@ def test_paper_fig14_api_writes_table_and_figure(params, tmp_path):
     assert resp.axes["amplitude"] == pytest.approx([pct(0.5)])
 
 
-# ---- hybrid friction (SPEC §5: smooth and hybrid agree within 0-5 Hz) -----------------
+# ---- hybrid friction (the reference set's predictions: smooth and hybrid agree within 0-5 Hz) -----------------
 def test_hybrid_friction_agrees_with_smooth(params):
-    ok, why = fr.hybrid_available(params)
-    if not ok:
-        pytest.skip(why)
     r = fr.sine_stream(params, [pct(2)], [1.0, 5.0],
                        variants={"smooth": {"friction": "smooth"}, "hybrid": {"friction": "hybrid"}})
     s, h = r.curve(variant="smooth"), r.curve(variant="hybrid")

@@ -1,4 +1,4 @@
-"""Sweeps and Monte Carlo (issue 15): the same rows whoever runs them, draws that do not
+"""Sweeps and Monte Carlo: the same rows whoever runs them, draws that do not
 depend on the sweep's size, failed runs as rows with their reason, and every metric of
 the registry equal to the toolkit's single analysis of that run.
 
@@ -168,7 +168,7 @@ def test_the_table_written_reads_back_and_resume_takes_it(params, tmp_path):
 
 
 def test_the_slurm_example_builds_its_cluster_and_job_script(capsys):
-    """studies/sweep_slurm.py (README): dask-jobqueue builds the SLURMCluster here
+    """studies/sweep_slurm.py (docs: sweeps): dask-jobqueue builds the SLURMCluster here
     without SLURM, and its batch script asks for what the flags say and starts a Dask
     worker of this Python on the cluster's scheduler."""
     pytest.importorskip("dask_jobqueue")

@@ -1,4 +1,4 @@
-"""Issue 6: gain tuning by nonlinear optimisation (CasADi Opti + IPOPT), SPEC §4.6.
+"""Gain tuning by nonlinear optimisation (CasADi Opti + IPOPT; docs: tune)
 
 The acceptance tests tune once from a deliberately poor start (every gain x 0.2 of the
 reference, T_i_w kept so K_i_w = K_p_w/T_i_w scales too) over 0, 15 and 30 kN and then

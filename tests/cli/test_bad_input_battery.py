@@ -1,4 +1,4 @@
-"""The bad-input battery (SPEC §7): every command, the parameter file, signals, signal
+"""The bad-input battery (docs: reliability): every command, the parameter file, signals, signal
 files and the Python API, each given one mistake.
 
 Every CLI case asserts exit status 2, exactly one line on stderr that names the
@@ -272,7 +272,7 @@ OUTPUTS = {
 }
 for case_id, (args, message) in OUTPUTS.items():
     add(f"simulate-{case_id}", Case("simulate", args, message))
-# the switched bridge (issue 11): rk4 only, whole carrier periods (62.5 us at 16 kHz)
+# the switched bridge: rk4 only, whole carrier periods (62.5 us at 16 kHz)
 PWM = {
     "pwm-cvodes": (["--variant", "inverter=pwm", "--solver", "cvodes"], ["--solver cvodes", "switches"]),
     "pwm-not-whole-periods": (["--variant", "inverter=pwm", "--t-end", "0.00101", "--dt", "1e-6"],
@@ -384,7 +384,7 @@ OWN = {
         "out-is-a-file": (["--out", "{tmp}/afile"], "--out"),
     },
 }
-OWN["aircraft"] = {  # issue 13
+OWN["aircraft"] = {  # the aircraft loop
     "condition-unknown": (["--condition", "cruise"], "--condition"),
     "t-end-negative": (["--t-end", "-1"], "--t-end"),
     "gust-time-zero": (["--gust-time", "0"], "--gust-time"),

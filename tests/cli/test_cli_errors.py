@@ -85,7 +85,7 @@ def test_simulate_writes_csv_with_named_columns(tmp_path, capsys):
     assert main(["simulate", str(REFERENCE), "--t-end", "0.02", "--out", str(out), "--json"]) == 0
     lines = out.read_text().splitlines()
     header, units = lines[0].split(","), lines[1].split(",")
-    # SPEC §6 Files: a time column named 'time', then a 'Unit:' row (MATLAB's SDI layout)
+    # the file layout (docs: simulate): a time column named 'time', then a 'Unit:' row (MATLAB's SDI layout)
     assert header[:4] == ["time", "x_cmd", "f_ext", "eta"]
     assert units[:4] == ["Unit:", "m", "N", "1"] and len(units) == len(header)
     assert "x_rod" in header and "i_q" in header and "P_cu" in header

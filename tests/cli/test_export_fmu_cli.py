@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import compiled
+from ema_casadi._util import _compiled as compiled
 from ema_casadi.cli import main
 
 

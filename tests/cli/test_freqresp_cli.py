@@ -19,7 +19,7 @@ def test_json_points_and_files(tmp_path, capsys):
     assert r["axes"]["amplitude"] == pytest.approx([0.375e-3, 2e-3])
     assert r["axes"]["load"] == [0.0, 1e4]
     pt = next(p for p in r["points"] if p["load_N"] == 0 and p["freq_Hz"] == 1.0 and p["amplitude_m"] == 2e-3)
-    # SPEC §5: flat to ~6 Hz at small amplitude, ~ -5 deg at 1 Hz
+    # the reference set's predictions: flat to ~6 Hz at small amplitude, ~ -5 deg at 1 Hz
     assert abs(pt["gain_db"]) < 0.2 and -7 < pt["phase_deg"] < -3 and pt["converged"]
     assert {"distortion", "i_q_amp", "i_q_phase_deg"} <= set(pt)
     rows = list(csv.DictReader(out.open()))

@@ -1,4 +1,4 @@
-"""SIGINT and SIGTERM (SPEC §7): every long command ends within about a second with exit
+"""SIGINT and SIGTERM (docs: reliability): every long command ends within about a second with exit
 status 130 / 143, one line on stderr, no traceback, and no file or temporary left —
 at several instants: during the start-up imports (0.3 s), the model build (1 s) and
 the run (2 s). Real subprocesses, ``python -m ema_casadi.cli``.

@@ -1,4 +1,4 @@
-"""Outputs (SPEC §7): checked for writability before any work, in every command, and
+"""Outputs (the reliability contract, docs: reliability): checked for writability before any work, in every command, and
 written whole or not at all — files through the one atomic writer, committed together
 at the end of a command; folders assembled beside their place and moved in."""
 
@@ -7,7 +7,7 @@ import importlib
 import pytest
 
 from conftest import REFERENCE
-from ema_casadi import _files
+from ema_casadi._util import _files
 from ema_casadi.cli import main
 
 M = str(REFERENCE)

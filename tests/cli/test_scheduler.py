@@ -1,4 +1,4 @@
-"""A remote Dask scheduler that does not answer (SPEC §7) is not waited for forever:
+"""A remote Dask scheduler that does not answer (the reliability contract, docs: reliability) is not waited for forever:
 the handshake and the wait for a worker are bounded, and the error names the address.
 The bounds are 10 s and 30 s; the tests set them to 1 s through the environment."""
 

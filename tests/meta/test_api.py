@@ -25,8 +25,8 @@ import pytest
 from numpydoc.docscrape import NumpyDocString
 
 import ema_casadi
-from ema_casadi.components import INPUT_KINDS, OPTIONS, OUTPUT_KINDS, REGISTRY
-from ema_casadi.params import Parameters
+from ema_casadi.model.components import INPUT_KINDS, OPTIONS, OUTPUT_KINDS, REGISTRY
+from ema_casadi.model.params import Parameters
 
 
 # -- the public API -----------------------------------------------------------------

@@ -3,7 +3,7 @@
 import argparse
 
 from ema_casadi.cli import DEFAULT_MODEL, add_common, positionals
-from ema_casadi.components import VARIANTS
+from ema_casadi.model.components import VARIANTS
 
 
 def test_the_variant_help_names_every_key_and_value():

@@ -1,6 +1,6 @@
-"""Issue 2 acceptance: the reference actuator's physics, at every screw fidelity.
+"""Acceptance: the reference actuator's physics, at every screw fidelity.
 
-Tolerances: each test states where its number comes from (SPEC §3/§5 analytic values,
+Tolerances: each test states where its number comes from (analytic values of the reference set,
 an independent solver, or a conservation law).
 """
 
@@ -27,7 +27,7 @@ def first_harmonic(t, y, f, periods=1):
 @pytest.mark.parametrize("screw", ["elastic", "rigid"])
 def test_stall_load_45kN_extends_52kN_cannot(model_cache, screw):
     # Stall at the 24 A limit: T = 1.5 pp psi I = 43.2 N m -> F_in = T (2 pi/p) eta =
-    # 48.9 kN = F_ext + F_r(F_ext) -> F_ext = 46.9 kN (SPEC §5). 45 kN is below, 52 kN above.
+    # 48.9 kN = F_ext + F_r(F_ext) -> F_ext = 46.9 kN (the stall, docs: physics). 45 kN is below, 52 kN above.
     model = model_cache(screw=screw)
     moved = {}
     for load in (45e3, 52e3):
@@ -101,11 +101,11 @@ def test_drive_train_mode_in_the_jacobian(params):
     f_modes = np.abs(lam[np.abs(lam.imag) > 0]) / (2 * np.pi)
     f_near = f_modes[np.argmin(np.abs(f_modes - f_expected))]
     assert f_near == pytest.approx(f_expected, rel=0.02)
-    assert f_expected == pytest.approx(1420, rel=0.01)  # SPEC §3 note
+    assert f_expected == pytest.approx(1420, rel=0.01)  # the reference set's note
 
 
 def test_rk4_and_cvodes_agree_on_the_reference_scenario(model_cache):
-    # SPEC reference scenario: 1 mm step at 0.01 s, 0.375 mm 1 Hz sine added from 0.5 s
+    # reference scenario: 1 mm step at 0.01 s, 0.375 mm 1 Hz sine added from 0.5 s
     model = model_cache()
     x_cmd = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
     ref = ema.simulate(model, 1.0, x_cmd, solver="cvodes", dt=1e-4, rtol=1e-10, atol=1e-12)

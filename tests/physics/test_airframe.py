@@ -1,5 +1,5 @@
 """Airframe transcription, the aircraft loop against an independent python-control
-computation, and the describing function against python-control (issue 13)."""
+computation, and the describing function against python-control."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi.aircraft import aircraft_point, ideal_loop
-from ema_casadi.components.airframe import B747_A, B747_B, FT
 from ema_casadi.frequency import freqresp
 from ema_casadi.limitcycle import describing_function, refine
 from ema_casadi.linearisation import linear_model, loop_model, operating_point
+from ema_casadi.model.components.airframe import B747_A, B747_B, FT
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,7 @@ def params():
 
 
 def test_transport_trim_matches_stevens_lewis(params):
-    # AIRCRAFT.md §1: throttle 0.2927, delta_e 2.461 deg, alpha 0.580 deg (published to 4
+    # Stevens & Lewis: throttle 0.2927, delta_e 2.461 deg, alpha 0.580 deg (published to 4
     # digits); measured relative errors 1.1e-4, 1.2e-4, 3.3e-4 (the rounding of the table)
     model = ema.build_model(params, {"airframe": "transport"})
     op = aircraft_point(model, "cruise_sl")
@@ -37,7 +37,7 @@ def test_transport_modes(params):
     # the airframe block (V, alpha, theta, q; elevator held, density frozen: the published
     # 4-state model) of the whole-loop Jacobian. Published: short period 2.11 rad/s,
     # zeta 0.55; phugoid 0.079 rad/s, zeta 0.063. Measured: 2.108 / 0.551 / 0.0787 / 0.0628
-    # (<= 0.4 %, the published rounding); the issue's tolerance 1 %.
+    # (<= 0.4 %, the published rounding); the stated tolerance 1 %.
     model = ema.build_model(params, {"airframe": "transport"})
     op = aircraft_point(model, "cruise_sl")
     lin = linear_model(model, op)
@@ -52,7 +52,7 @@ def test_transport_modes(params):
 def test_b747_ideal_loop_equals_python_control(params):
     # independent: the published matrices (US units), theta/delta_e, the law
     # K_q s + K_th + K_ith/s, the horn linear (x = r delta both ways); measured agreement
-    # 1e-9 dB / 1e-7 deg, asserted at the issue's 0.1 dB / 0.5 deg
+    # 1e-9 dB / 1e-7 deg, asserted at the required 0.1 dB / 0.5 deg
     model = ema.build_model(params, {"airframe": "b747"})
     op = aircraft_point(model, "cruise_sl")
     L = ideal_loop(model, op)
@@ -76,7 +76,7 @@ def test_backlash_describing_function_matches_python_control(params):
     # with L_lin the toolkit's linear loop (B = 0). The toolkit: L_N(A, w) from
     # simulations at the break, a coarse grid, then Newton. The amplitude compared is at
     # the nonlinearity's input, A_in = A_break |L_lin(jw)|. Measured: A_in 0.24 %, w 0.06 %
-    # off; asserted at the issue's 2 %.
+    # off; asserted at the required 2 %.
     model = ema.build_model(params, {"screw": "rigid", "controller": "PI"})
     B = 100e-6
     p = model.p(K_i_x=3000.0, F_seal=0.0, C_bear=0.0, eta=1.0, eta_inv=1.0, B=B)

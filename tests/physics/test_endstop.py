@@ -1,4 +1,4 @@
-"""Stroke end stops (SPEC §2.7): the elastic, damped, non-pulling stop at +-stroke."""
+"""Stroke end stops (docs: physics): the elastic, damped, non-pulling stop at +-stroke."""
 
 import math
 
@@ -49,7 +49,7 @@ def test_energy_balance_closes_over_an_impact(stop_models, screw):
     hits the stop. Power drawn = change of stored energy (the stop's spring included) +
     every declared loss (the stop's loss included) + work on the load. Measured: within
     1.1e-6 of the input energy (trapezoid error at 2 us spacing over the contact);
-    asserted within 1e-5 (x9; the issue asks 2e-4). Leaving out the stop's loss
+    asserted within 1e-5 (x9; the requirement is 2e-4). Leaving out the stop's loss
     (8.6e-4 / 2.0e-3 of the input) breaks it."""
     model = stop_models[screw]
     r = ema.simulate(model, 0.15, Signal.step(0.1), x0=_at(model, 0.07), solver="cvodes",

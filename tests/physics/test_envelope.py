@@ -1,4 +1,4 @@
-"""The physical-envelope monitor (SPEC §7: no silent garbage).
+"""The physical-envelope monitor (the reliability contract, docs: reliability: no silent garbage).
 
 Parts declare the envelope of what they bring; every run is checked against it, and
 a run that leaves it, goes non-finite or whose integrator fails is *failed* (API:
@@ -15,7 +15,7 @@ import pytest
 import ema_casadi as ema
 from conftest import REFERENCE
 from ema_casadi.cli import main
-from ema_casadi.components import MARGIN, REGISTRY
+from ema_casadi.model.components import MARGIN, REGISTRY
 from ema_casadi.simulation import Monitor, RunFailed, SimulationError
 from ema_casadi.simulation._envelope import integrator_failure
 

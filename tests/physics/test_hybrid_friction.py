@@ -1,4 +1,4 @@
-"""Hybrid (Karnopp stick-slip) friction, SPEC §2.5, and its integrator wrapper.
+"""Hybrid (Karnopp stick-slip) friction (docs: physics) and its integrator wrapper.
 
 The rod is "held" by a constant motor current: position and speed loops open at
 their loop breaks (the speed PI's integrator then holds the current command), the

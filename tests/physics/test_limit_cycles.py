@@ -1,4 +1,4 @@
-"""Limit cycles by describing function against long simulations (issue 13)."""
+"""Limit cycles by describing function against long simulations."""
 
 from __future__ import annotations
 
@@ -69,7 +69,7 @@ def test_pi_hunting_prediction_vs_simulation(params, screw, df_err):
     # Measured against the 6 s runs (first harmonic of x_rod over 3-6 s):
     #   rigid:   DF 8.03 um, 6.93 Hz (+23 %, +11 %); balanced 6.51 um, 6.23 Hz (-0.0 %, -0.1 %)
     #   elastic: DF 6.24 um, 6.02 Hz (+50 %, +26 %); balanced 4.20 um, 4.81 Hz (+1.0 %, +0.8 %)
-    # Asserted: the balanced cycle within 3 % (3 x the largest error measured; the issue asks
+    # Asserted: the balanced cycle within 3 % (3 x the largest error measured; the requirement is
     # 25 % / 10 %), and the first-harmonic root as far off as measured (within 5 points): the
     # single-harmonic balance is what the higher harmonics correct
     model, kw, sim = _hunting(params, screw)
@@ -90,8 +90,8 @@ def test_aircraft_backlash_prediction_vs_simulation(params, B, amp_sim, f_sim):
     # break, grid 0.01 B..B x 0.3..5 Hz. Measured: predicted 5.37 / 14.9 / 24.8 um at 1.48 / 1.51 /
     # 1.51 Hz against the 300 s runs' 5.84 / 16.7 / 27.6 um at 1.76 / 1.75 / 1.75 Hz (the simulated
     # values are checked here against their own run below): amplitude -8 / -11 / -10 % (asserted
-    # at the issue's 25 %), frequency -16 / -14 / -14 % (asserted at 18 %; the issue's 10 % is
-    # not met: the forced open loop has several periodic answers to one sine, see the README)
+    # at the required 25 %), frequency -16 / -14 / -14 % (asserted at 18 %; the required 10 % is
+    # not met: the forced open loop has several periodic answers to one sine, see docs: aircraft)
     from ema_casadi.limitcycle import setup
 
     model = ema.build_model(params, {"airframe": "b747", "friction": "hybrid", "screw": "rigid"})

@@ -1,4 +1,4 @@
-"""Issue 11 acceptance: the switched PWM bridge (inverter = "pwm").
+"""Acceptance: the switched PWM bridge (inverter = "pwm").
 
 The carrier-synchronous stepper integrates each sub-interval between two switching
 instants with RK4 at its own length; the switching instants come in closed form from
@@ -56,7 +56,7 @@ def test_switching_instants_exact_under_halved_step(pwm):
     # only the smooth dynamics between the exact switching instants are integrated:
     # halving the RK4 step bound inside every sub-interval (5 us -> 2.5 us) over the 1.5 mm
     # 1 Hz sine changes the rod by 1.8e-12 m and the phase current by 9.4e-9 A (measured;
-    # 4th-order: at 2.5 -> 1.25 us 2.5e-14 m); asserted < 1 nm, < 1 mA (the issue's bounds).
+    # 4th-order: at 2.5 -> 1.25 us 2.5e-14 m); asserted < 1 nm, < 1 mA (the stated bound).
     # Not switching effects, and not asserted: a 1 mm step whose nut crosses the 20 um
     # backlash gap puts the dead-zone spring's kink inside a step (first order: 1.8 nm at
     # 5 us, 0.9 nm at 2.5 us); held at rest against 10 kN the smooth friction's stiff mode
@@ -81,7 +81,7 @@ def _first_harmonic(t, y, f):
 def test_pwm_rod_response_matches_averaged(pwm, model_cache):
     # 1.5 mm (2 % of the stroke) 1 Hz sine, second period: the switched bridge against
     # the averaged one with the same sampled ECU. Measured: amplitude ratio - 1 = -1.5e-6,
-    # phase difference 7e-4 deg; asserted 2 % and 3 deg (the issue's bounds)
+    # phase difference 7e-4 deg; asserted 2 % and 3 deg (the stated bound)
     x_cmd = Signal.sine(1.5e-3, 1.0)
     sw = ema.simulate(pwm, 2.0, x_cmd, dt=5e-6, dt_out=1e-3)
     av = ema.simulate(model_cache(), 2.0, x_cmd, dt=5e-6, dt_out=1e-3, zoh=True)
@@ -95,7 +95,7 @@ def test_pwm_rod_response_matches_averaged(pwm, model_cache):
 def test_fundamental_of_switched_voltage_is_the_averaged_voltage(ramp_runs):
     # the synchronous-frame mean (over whole sub-intervals, 60 ms = 1.9 electrical periods)
     # of the Park transform of the switched phase voltages is their fundamental; against
-    # the averaged bridge's voltage. Measured ratio 0.999998; asserted 2 % (the issue's)
+    # the averaged bridge's voltage. Measured ratio 0.999998; asserted 2 % (the stated bound)
     r = ramp_runs[0.0]
     w, _, _ = _window(r)
     v = math.hypot(_wmean(r, w, "v_d"), _wmean(r, w, "v_q"))
@@ -165,7 +165,7 @@ def _device_formulas(I, V, phi, P):
 def test_device_losses_match_the_analytic_formulas(ramp_runs, pwm, model_cache):
     # steady sinusoidal currents (32 Hz, 10.3 A). Measured against the formulas: IGBT
     # -0.18 %, diode +1.0 %, switching +0.19 %; averaged bridge against switched total
-    # +0.15 %; asserted 3 %, 3 %, 3 %, 5 % (the issue's). The classic sine-PWM forms differ
+    # +0.15 %; asserted 3 %, 3 %, 3 %, 5 % (the stated bound). The classic sine-PWM forms differ
     # from the SVPWM integrals by +0.14 % (IGBT) and -0.35 % (diode)
     r = ramp_runs[0.0]
     w, i0, i1 = _window(r)
@@ -210,7 +210,7 @@ def test_energy_balance_at_the_input(model_cache, supply, scenario):
     # integrates its powers as quadratures in its own steps; the averaged one by trapezoid
     # at 5 us. Measured |residual| / int |P_dc|: averaged <= 7.6e-5, switched <= 1.44e-4 (both
     # RK4 on the 20 kN applied at t = 0 to the rod at rest, the smooth friction's stiff mode;
-    # <= 5e-9 on the reference scenario); asserted 0.5 % (the issue's bound). The scale
+    # <= 5e-9 on the reference scenario); asserted 0.5 % (the stated bound). The scale
     # int |P_dc| (12.3 J, 199 J) from the averaged run.
     t_end, x_cmd, load = SCENARIOS[scenario]
     av_model = model_cache(supply=supply)
@@ -244,7 +244,7 @@ def test_line_dip_on_a_30kN_acceleration(model_cache):
     # Hand calculation: dip = max h x (i_b at the peak time of h, 0.11 ms, less before),
     # max h = 0.340 Ohm for 0.1 Ohm, 20 uH, 200 uF (a 2.5 kHz resonance, zeta 0.16).
     # Measured 4.25 V against 4.55 V predicted (-7 %: the current still rises during the
-    # dip); asserted 10 % (the issue's bound)
+    # dip); asserted 10 % (the stated bound)
     model = model_cache(supply="line")
     P = model.pdict()
     r = ema.simulate(model, 0.03, Signal.step(5e-3, 0.02), 30e3, dt=5e-6, dt_out=5e-6)

@@ -15,7 +15,7 @@ import ema_casadi as ema
 from ema_casadi import RunFailed, Signal, SimulationError
 from ema_casadi.simulation import _rosenbrock
 
-#: the reference scenario of SPEC and benchmarks/bench_sim.py
+#: the reference scenario of benchmarks/bench_sim.py
 X_REF = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
 #: a shorter scenario for the variants: step, a sine from 0.2 s, a 20 kN load step at 0.3 s
 X_SHORT = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 2.0, 0.2)
@@ -32,7 +32,7 @@ def _rod_error(res, ref):
 
 def test_reference_scenario_within_0p1_um_at_the_benchmark_setting(model_cache):
     # the benchmark's setting (rtol 3e-4, atol 3e-7): measured 0.044 um with 276 steps
-    # (CVODES at the same tolerances: 0.088 um, 804 steps); the bound is the issue's
+    # (CVODES at the same tolerances: 0.088 um, 804 steps); the bound is the required
     # accuracy target, 2.3x the measured error
     model = model_cache()
     ref = _reference(model, 1.0, X_REF)

@@ -1,11 +1,11 @@
-"""The thermal network (SPEC §2.6, thermal = lumped): single node, feedbacks R(T),
+"""The thermal network (docs: physics, thermal = lumped): single node, feedbacks R(T),
 psi(T), eta(T), and the electrical energy balance with iron loss.
 
 Held-load tests use the smooth friction with CVODES and eta_inv = 1/eta, so that the
 screw-nut factor g = 1/eta whatever the blend between driving and back-driven says: the
 held current is then constant once the load step has settled (by ~5 s; measured
 constant to 1e-7 from 10 s on), and the feedback alone changes it. Each tolerance is
-the acceptance value of the issue; the measured deviation is stated beside it.
+the stated acceptance value; the measured deviation is stated beside it.
 """
 
 import numpy as np
@@ -107,7 +107,7 @@ def test_energy_balance_closes_with_thermal_network_and_iron(params, scenario):
     """Electrical input = change of stored energy + every loss (iron included) + work on
     the load, with thermal = lumped and iron_loss = on, within 2e-4 (measured 2.6e-7
     and 3.6e-6; the iron loss is 2 % and 1 % of the input),
-    on the README's reference scenario (1 s: 1 mm step at 0.01 s, 0.375 mm 1 Hz sine
+    on the reference scenario (1 s: 1 mm step at 0.01 s, 0.375 mm 1 Hz sine
     from 0.5 s) and on the loaded one of the thermal-off balance test. Leaving out the
     iron loss alone would break it."""
     model = ema.build_model(params, {"thermal": "lumped", "iron_loss": "on"})
@@ -182,10 +182,10 @@ def test_thermal_parameters_are_validated(tmp_path, case):
 
 def test_old_files_load_and_tables_round_trip(tmp_path, params):
     """A file without the keys added for the thermal model (C_th_inv ... T_max_w, k_h,
-    k_e) loads with the SPEC values; a set written back reads back the same, tables
+    k_e) loads with the reference values; a set written back reads back the same, tables
     included; a table travels as TABLE_MAX flat entries, padded."""
     from conftest import REFERENCE
-    from ema_casadi.params import TABLE_MAX
+    from ema_casadi.model.params import TABLE_MAX
 
     new_keys = ("C_th_inv", "R_th_inv", "alpha_psi", "T_ref", "T_eta", "eta_T", "feedback_R", "feedback_psi",
                 "feedback_eta", "T_max_w", "k_h", "k_e")
@@ -212,7 +212,7 @@ def test_cavity_temperature_signals():
 def test_a_loss_routed_nowhere_is_an_assembly_error(params, monkeypatch):
     """A part whose loss heats no node cannot be built with the thermal network (its
     heat would vanish); without the network it does not matter."""
-    from ema_casadi.components import REGISTRY, endstop
+    from ema_casadi.model.components import REGISTRY, endstop
 
     class Leaky(endstop.Elastic):
         heat = {}

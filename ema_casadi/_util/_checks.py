@@ -1,0 +1,195 @@
+"""Argument checks of the public entry points (the reliability contract, docs: reliability).
+
+A wrong type or value handed to a public function is reported as the toolkit's own
+exception type (the caller passes it: ``SimulationError``, ``OperatingPointError``, ...)
+with a one-line message that names the argument and says what was expected, instead
+of an ``AttributeError`` or a reshape error from deep inside. Each helper returns the
+value converted (a float, an int, a float array).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import numbers
+
+import numpy as np
+
+__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "closest", "nearest"]
+
+
+def describe(value) -> str:
+    """``"str 'abc'"``, ``"list [0, 0]"``: a value's type and a short repr for messages."""
+    text = repr(value)
+    if len(text) > 40:
+        text = text[:37] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+def number(value, name: str, error: type, *, unit: str = "", positive: bool = False,
+           nonneg: bool = False, finite: bool = True) -> float:
+    """``value`` as a float: a real number (not a bool, a string or an array), finite
+    unless ``finite`` is False, > 0 with ``positive``, >= 0 with ``nonneg``."""
+    u = f" ({unit})" if unit else ""
+    what = "a positive" if positive else ("a non-negative" if nonneg else "a")
+    fin = " finite" if finite else ""
+    if isinstance(value, np.ndarray) and value.shape == ():
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise error(f"{name}: expected {what}{fin} number{u}, got {describe(value)}")
+    v = float(value)
+    if (finite and not math.isfinite(v)) or math.isnan(v):
+        raise error(f"{name}: expected {what}{fin} number{u}, got {v}")
+    if (positive and not v > 0) or (nonneg and not v >= 0):
+        raise error(f"{name}: expected {what}{fin} number{u}, got {v:g}")
+    return v
+
+
+def integer(value, name: str, error: type, *, minimum: int | None = None) -> int:
+    """``value`` as an int (an integral number, not a bool), at least ``minimum``."""
+    at_least = f" >= {minimum}" if minimum is not None else ""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) \
+                and math.isfinite(float(value)) and float(value) == int(value):
+            value = int(value)
+        else:
+            raise error(f"{name}: expected an integer{at_least}, got {describe(value)}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise error(f"{name}: expected an integer{at_least}, got {value}")
+    return value
+
+
+def vector(value, name: str, error: type, size: int, what: str = "") -> np.ndarray:
+    """``value`` as a finite float vector of ``size`` entries (``what`` names them)."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f"{name}: expected {size} numbers{what}, got {describe(value)}") from None
+    if a.ndim > 1 and a.size == size and max(a.shape) == size:
+        a = a.ravel()  # a column or row vector
+    if a.shape != (size,):
+        raise error(f"{name}: expected {size} numbers{what}, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise error(f"{name}: non-finite entry at index {int(np.argmin(np.isfinite(a)))}")
+    return a
+
+
+def instance(value, cls, name: str, error: type, hint: str = ""):
+    """``value`` itself if it is a ``cls`` (a class or a tuple of classes)."""
+    if not isinstance(value, cls):
+        names = " or ".join(c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,)))
+        raise error(f"{name}: expected a {names}{hint}, got {describe(value)}")
+    return value
+
+
+def choice(value, name: str, options, error: type) -> str:
+    """``value`` if it is one of ``options`` (strings)."""
+    if not isinstance(value, str) or value not in options:
+        raise error(f"{name}: expected one of {', '.join(options)}, got {describe(value)}")
+    return value
+
+
+def closest(name: str, options, cutoff: float = 0.0) -> str | None:
+    """The option closest to ``name`` (difflib's ratio at least ``cutoff``), or None: the
+    one did-you-mean of the package.
+
+    Parameters
+    ----------
+    name : str
+        What was given.
+    options : iterable of str
+        What is allowed.
+    cutoff : float
+        Least similarity (0..1) for a suggestion; 0 always suggests one.
+    """
+    match = difflib.get_close_matches(name, list(options), n=1, cutoff=cutoff)
+    return match[0] if match else None
+
+
+def nearest(name: str, options, cutoff: float = 0.0) -> str:
+    """`` (did you mean 'X'?)`` for the option closest to ``name`` (:func:`closest`), or ``""``.
+
+    Parameters
+    ----------
+    name : str
+        What was given.
+    options : iterable of str
+        What is allowed.
+    cutoff : float
+        Least similarity (0..1) for a suggestion.
+    """
+    match = closest(name, options, cutoff)
+    return f" (did you mean '{match}'?)" if match else ""
+
+
+def decode_utf8(data: bytes, path, error: type) -> str:
+    """``data`` decoded as UTF-8 with an optional byte-order mark, or ``error`` naming
+    ``path``, the offending byte and its offset.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's content.
+    path : str or Path
+        The file, named in the message.
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise error(f"{path}: UTF-16 text; save the file as UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise error(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} on line {line}); "
+                    "save the file as UTF-8") from None
+
+
+def read_text_file(path, what: str, error: type) -> str:
+    """The text of an input file (UTF-8, a byte-order mark accepted), or ``error`` with
+    one line naming the file: missing, a folder, unreadable, not UTF-8.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the messages (``"parameter file"``).
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a folder, not a {what}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return decode_utf8(data, path, error)
+
+
+def read_toml(path, what: str, error: type) -> dict:
+    """An input TOML file as a dict, or ``error`` with one line naming the file (as
+    :func:`read_text_file`, or not valid TOML).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the messages (``"mission file"``).
+    error : type
+        Exception raised (the caller's toolkit type).
+    """
+    import tomllib
+
+    text = read_text_file(path, what, error)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: not valid TOML ({exc})") from None

@@ -1,0 +1,347 @@
+"""The one atomic writer of the toolkit (the reliability contract, docs: reliability: nothing half-written, ever).
+
+Every file the toolkit writes goes through :func:`atomic_path` (or the small helpers
+on top of it): the content is written to a temporary name beside the target and
+renamed into place, so a reader sees the old file or the whole new one. A folder of
+outputs is assembled the same way by :func:`atomic_dir`: built in a temporary folder
+beside the target and renamed into place at the end.
+
+A temporary file or folder is removed on any failure, including ``KeyboardInterrupt``
+and the CLI's SIGINT/SIGTERM handling; every one on disk is listed, so an interrupt
+that cannot unwind normally can still remove them (:func:`remove_temporaries`).
+
+Inside :func:`transaction` (the CLI runs every command in one) the renames are
+deferred to its end: the outputs of a command appear together, and a failure or an
+interrupt anywhere before that leaves none of them. Files written into a temporary
+folder of the writer (a folder being assembled, a :func:`scratch_dir`) are private
+and renamed at once.
+
+Before any work, :func:`check_file` and :func:`check_folder` tell whether a target
+can be written at all (a folder that exists and takes a file, no folder where a file
+is wanted, nothing below a regular file), by creating and removing a probe file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import threading
+from pathlib import Path
+
+__all__ = [
+    "atomic_path", "atomic_dir", "write_text", "write_with", "transaction", "scratch_dir", "remove_temporaries",
+    "check_file", "check_folder", "OutputPathError", "after_commit",
+]
+
+
+class OutputPathError(ValueError):
+    """An output path that cannot be written (one line, names the path)."""
+
+
+_lock = threading.RLock()
+#: temporary files and folders on disk now
+_live: set[Path] = set()
+#: staged renames of the open transaction, in order: (temporary, target, is_folder)
+_staged: list | None = None
+#: callables of the open transaction to run once its renames are done
+_after: list = []
+
+
+def _temp_name(path: Path, suffix: str = "") -> Path:
+    # process and thread: two threads writing the same target (a compiled library both
+    # build on a cold cache) must not share the temporary (one renamed it away first)
+    return path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp{suffix}")
+
+
+def _remove(p: Path) -> None:
+    """Remove a temporary file or folder (missing is fine) and forget it."""
+    with _lock:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+        _live.discard(p)
+
+
+def _commit(tmp: Path, target: Path, folder: bool) -> None:
+    """Rename ``tmp`` onto ``target``; a folder replaces an existing folder whole."""
+    with _lock:
+        if folder and target.is_dir():
+            old = target.with_name(f".{target.name}.{os.getpid()}.old")
+            os.rename(target, old)
+            try:
+                os.rename(tmp, target)
+            except BaseException:
+                os.rename(old, target)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, target)
+        _live.discard(tmp)
+
+
+def _in_temporary(target: Path) -> bool:
+    """True when ``target`` lies in a temporary folder of the writer (a folder being
+    assembled, a scratch folder): private, so its files need not wait."""
+    parents = set(Path(os.path.abspath(target)).parents)
+    return any(p.is_dir() and Path(os.path.abspath(p)) in parents for p in _live)
+
+
+def _finish(tmp: Path, target: Path, folder: bool) -> None:
+    """At the end of a successful write: stage the rename in the open transaction, or do it."""
+    with _lock:
+        if _staged is not None and not _in_temporary(target):
+            _staged.append((tmp, target, folder))
+            return
+    _commit(tmp, target, folder)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path, suffix: str = "", *, stage: bool = True):
+    """Yield a temporary path beside ``path``; on success rename it to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file.
+    suffix : str
+        Ending of the temporary name (e.g. ``".png"``, ``".npz"``) for writers that
+        choose the format by the file name.
+    stage : bool
+        Inside a :func:`transaction`, defer the rename to its end (default). Files the
+        toolkit reads back at once (the compiled-code cache) pass False.
+    """
+    path = Path(path)
+    tmp = _temp_name(path, suffix)
+    with _lock:
+        _live.add(tmp)
+    try:
+        yield tmp
+        if stage:
+            _finish(tmp, path, folder=False)
+        else:
+            _commit(tmp, path, folder=False)
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | Path):
+    """Yield an empty temporary folder beside ``path``; on success it becomes ``path``.
+
+    An existing folder ``path`` is replaced whole (callers decide beforehand, with
+    :func:`check_folder`, whether that is allowed). On failure the temporary folder and
+    everything in it are removed and ``path`` is untouched.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target folder.
+    """
+    path = Path(path)
+    tmp = _temp_name(path)
+    with _lock:
+        _live.add(tmp)
+    try:
+        tmp.mkdir()
+        yield tmp  # the files inside are private until the folder moves: not staged
+        _finish(tmp, path, folder=True)
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def transaction():
+    """Defer the renames of every atomic write inside to its end.
+
+    Each temporary file is complete when its writer returns; the renames happen
+    together when the block ends without an exception, and on an exception (an error,
+    an interrupt) every staged temporary is removed instead. Nested transactions join
+    the outer one.
+    """
+    global _staged
+    with _lock:
+        if _staged is not None:
+            outer = True
+        else:
+            outer, _staged = False, []
+    if outer:
+        yield
+        return
+    try:
+        yield
+    except BaseException:
+        with _lock:
+            staged, _staged = _staged, None
+            _after.clear()
+        for tmp, _, _ in staged:
+            _remove(tmp)
+        raise
+    with _lock:
+        staged, _staged = _staged, None
+        try:
+            for tmp, target, folder in staged:
+                try:
+                    _commit(tmp, target, folder)
+                except OSError as exc:
+                    raise OutputPathError(f"{target}: cannot write ({exc.strerror or exc})") from exc
+        except BaseException:
+            for tmp, _, _ in staged:
+                _remove(tmp)
+            _after.clear()
+            raise
+        todo = list(_after)
+        _after.clear()
+    for fn in todo:
+        fn()
+
+
+def after_commit(fn) -> None:
+    """Call ``fn()`` once the open :func:`transaction` has renamed its outputs into
+    place (not at all if it fails); at once outside a transaction. For what must
+    outlive a failed command and go with a successful one: the journal of a sweep is
+    removed only once its table is in place.
+
+    Parameters
+    ----------
+    fn : callable
+        Called without arguments.
+    """
+    with _lock:
+        if _staged is not None:
+            _after.append(fn)
+            return
+    fn()
+
+
+@contextlib.contextmanager
+def scratch_dir(near: str | Path | None = None):
+    """A private working folder, removed at the end of the block, on failure and on
+    interrupt; files written into it are not staged.
+
+    Parameters
+    ----------
+    near : str or Path, optional
+        Folder to create it in (default the system's temporary folder).
+    """
+    tmp = Path(tempfile.mkdtemp(prefix=".ema_casadi-", dir=near))
+    with _lock:
+        _live.add(tmp)
+    try:
+        yield tmp
+    finally:
+        _remove(tmp)
+
+
+def remove_temporaries() -> list[Path]:
+    """Remove every temporary file and folder the writer has on disk now (interrupt
+    handling); returns them."""
+    with _lock:
+        left = sorted(_live)
+        for p in left:
+            _remove(p)
+        return left
+
+
+def write_with(path: str | Path, write, suffix: str = "", *, stage: bool = True) -> Path:
+    """Call ``write(tmp_path)`` on a temporary file beside ``path``, then rename; returns ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file.
+    write : callable
+        ``write(tmp_path)`` writes the whole content to ``tmp_path``.
+    suffix : str
+        Ending of the temporary name (for writers that choose the format by it).
+    stage : bool
+        Defer the rename to the end of an open :func:`transaction` (default).
+    """
+    with atomic_path(path, suffix, stage=stage) as tmp:
+        write(tmp)
+    return Path(path)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target file.
+    text : str
+        The content.
+    """
+    return write_with(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+
+
+# -- checks before any work -----------------------------------------------------------
+def _probe(folder: Path, what: str) -> None:
+    """OutputPathError unless a file can be created in ``folder``."""
+    if not folder.exists():
+        up = next((q for q in folder.parents if q.exists()), None)
+        if up is not None and not up.is_dir():
+            raise OutputPathError(f"{what}: {up} is a file, not a folder")
+        raise OutputPathError(f"{what}: folder {folder} does not exist")
+    if not folder.is_dir():
+        raise OutputPathError(f"{what}: {folder} is a file, not a folder")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".ema-probe.", dir=folder)
+    except OSError as exc:
+        raise OutputPathError(f"{what}: cannot write in {folder} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(name)
+
+
+def check_file(path: str | Path, what: str | None = None) -> Path:
+    """Check that the file ``path`` can be written (before any work); returns it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output file.
+    what : str, optional
+        How to name it in the message (default the path), e.g. ``"--out run.csv"``.
+    """
+    path = Path(path)
+    what = what or str(path)
+    if path.is_dir():
+        raise OutputPathError(f"{what}: is a folder; expected a file name")
+    _probe(path.parent, what)
+    return path
+
+
+def check_folder(path: str | Path, names=(), what: str | None = None) -> Path:
+    """Check that the output folder ``path`` can be assembled beside and moved into
+    place (before any work); returns it.
+
+    An existing folder may be replaced only when it holds nothing but files of the
+    given ``names`` (an earlier run of the same command) or nothing at all; a folder
+    with anything else in it is refused, so no other file is ever removed.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output folder.
+    names : iterable of str
+        The files the command writes into it.
+    what : str, optional
+        How to name it in the message (default the path), e.g. ``"--out out"``.
+    """
+    path = Path(path)
+    what = what or str(path)
+    if path.exists() and not path.is_dir():
+        raise OutputPathError(f"{what}: exists and is not a folder")
+    _probe(path.parent, what)
+    if path.is_dir():
+        names = set(names)
+        foreign = sorted(p.name for p in path.iterdir() if p.name not in names or not p.is_file())
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+            raise OutputPathError(f"{what}: the folder exists and holds other files ({shown}); it would be "
+                                  "replaced whole: remove it or choose a new folder")
+    return path

@@ -1,0 +1,155 @@
+"""Ctrl-C and SIGTERM (the reliability contract, docs: reliability): a run stops within about a second, leaving nothing.
+
+The ``ema`` command line installs :func:`handling` first thing. On the first SIGINT
+or SIGTERM its handler records the signal and raises :class:`Interrupted` in the main
+thread (a ``BaseException``, like ``KeyboardInterrupt``, so ``except Exception`` does
+not swallow it). CasADi turns an exception raised inside one of its calls into a
+``RuntimeError`` ("rhs failed: KeyboardInterrupt"), so code that catches CasADi's
+errors asks :func:`check` first, and long loops (simulation chunks, sine-stream
+periods on worker threads, which never see signals) poll :func:`requested`.
+
+A signal that arrives before :func:`handling` — while the ``ema`` process is still
+importing its command line — is recorded by :func:`record_early` and replayed by
+:func:`replay_early` as soon as the handling starts.
+
+Some work cannot be interrupted from Python (IPOPT keeps iterating after a failed
+callback and the tuner then carries on): a watchdog started by the first signal
+ends the process ``grace`` seconds later with the same status, after the caller's
+``on_timeout`` has removed the temporary files.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+
+__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early"]
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+_received: int | None = None
+_early: int | None = None
+_watchdog = None
+_on_timeout = None
+_on_signal = None
+_grace = 1.0
+_cancel = threading.Event()
+
+
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM arrived; ``signum`` says which.
+
+    Parameters
+    ----------
+    signum : int
+        The signal number.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def exit_status(signum: int) -> int:
+    """The shell's status for a run ended by ``signum``: 128 + signum (130 SIGINT, 143 SIGTERM).
+
+    Parameters
+    ----------
+    signum : int
+        The signal number.
+    """
+    return 128 + int(signum)
+
+
+def requested() -> int | None:
+    """The signal number once SIGINT/SIGTERM arrived under :func:`handling`, else None."""
+    return _received
+
+
+def check() -> None:
+    """Raise :class:`Interrupted` if a signal arrived (call where CasADi may have eaten it)."""
+    if _received is not None:
+        raise Interrupted(_received)
+
+
+def record_early() -> None:
+    """In the ``ema`` process only (``python -m ema_casadi.cli`` or the ``ema`` script):
+    record SIGINT/SIGTERM from now until :func:`handling` takes over."""
+    argv = list(getattr(sys, "orig_argv", ()))
+    cli = "-m" in argv and argv[argv.index("-m") + 1 : argv.index("-m") + 2] == ["ema_casadi.cli"]
+    if not (cli or os.path.basename(sys.argv[0] if sys.argv else "") == "ema"):
+        return
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            if signal.getsignal(s) is not signal.SIG_IGN:  # ignored by the parent: stays ignored
+                signal.signal(s, _record)
+
+
+def _record(signum, frame):
+    global _early
+    if _early is None:
+        _early = signum
+
+
+def replay_early() -> None:
+    """Handle a signal :func:`record_early` kept (call first thing inside :func:`handling`)."""
+    global _early
+    if _early is not None:
+        signum, _early = _early, None
+        _handler(signum, None)
+
+
+def _handler(signum, frame):
+    global _received, _watchdog
+    if _received is not None:
+        return  # the first one is being handled: let the cleanup finish
+    _received = signum
+    if _on_signal is not None:
+        _on_signal(signum)
+    if _on_timeout is not None:
+        _watchdog = threading.Thread(target=_watch, args=(signum,), name="ema-interrupt-watchdog", daemon=True)
+        _watchdog.start()
+    raise Interrupted(signum)
+
+
+def _watch(signum):
+    if not _cancel.wait(_grace):
+        _on_timeout(signum)
+
+
+@contextlib.contextmanager
+def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
+    """Handle SIGINT and SIGTERM while the block runs (main thread only; elsewhere a no-op).
+
+    Parameters
+    ----------
+    on_timeout : callable, optional
+        ``on_timeout(signum)``, called on the watchdog thread when the block has not
+        ended ``grace`` seconds after the first signal; it is expected to clean up and
+        end the process. None: no watchdog.
+    grace : float
+        Seconds the run gets to unwind by itself (s).
+    on_signal : callable, optional
+        ``on_signal(signum)``, called in the handler on the first signal, before the
+        run is interrupted (e.g. to silence what the unwinding prints).
+    """
+    global _received, _on_timeout, _on_signal, _grace, _watchdog
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.getsignal(s) for s in SIGNALS}
+    _received, _watchdog, _on_timeout, _on_signal, _grace = None, None, on_timeout, on_signal, grace
+    _cancel.clear()
+    for s in SIGNALS:
+        if previous[s] is not signal.SIG_IGN:  # ignored by the parent (a background job): stays ignored
+            signal.signal(s, _handler)
+    try:
+        yield
+    finally:
+        _cancel.set()
+        for s, h in previous.items():
+            signal.signal(s, h)
+        _received, _on_timeout, _on_signal, _watchdog = None, None, None, None

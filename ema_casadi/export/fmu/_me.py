@@ -1,0 +1,197 @@
+"""FMI 3.0 model exchange through CasADi's DaeBuilder, with the fixes it needs.
+
+``DaeBuilder.export_fmu`` (CasADi >= 3.8) writes the C code of ``f`` with its forward
+and adjoint derivatives, an FMI 3.0 wrapper and a ``modelDescription.xml``. As written
+that FMU does not pass FMPy's validation and hides things an importer needs; this
+module applies, measured on CasADi 3.8.2:
+
+1. ``variableNamingConvention="flat"``, and the internal ``__assign__...`` helper
+   variables removed from the description (they are not legal structured names and
+   nothing references them);
+2. states visible and settable: causality ``output``, ``initial="exact"`` with the
+   model's initial state as start value (and out of ``InitialUnknowns``), nominal =
+   the declared full scale (also returned by ``fmi3GetNominalsOfContinuousStates``);
+3. event indicators: ``fmi3GetEventIndicators`` returns OK when there are none (CasADi
+   returns fmi3Fatal, which stops FMPy's solvers);
+4. units: every variable carries its SI unit and ``UnitDefinitions`` lists them with
+   their base-unit exponents (CasADi writes neither), descriptions from the parts.
+
+The binaries are compiled here (all platforms at once, see :mod:`._cbuild`), not by
+``compile_fmu``, so that the FMI headers shipped with this package are used and a win64
+DLL can be cross-compiled.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import casadi as ca
+
+from ..._util._files import scratch_dir
+from ...model.assembly import Model
+from .._errors import ExportError
+from ._cbuild import BuildClock, build_all, targets
+from ._layout import Layout, layout
+from ._pack import check_target, identifier, write_zip
+from ._units import derivative_unit, unit_definition
+
+__all__ = ["export_fmu_me"]
+
+_CWD_LOCK = threading.Lock()  # DaeBuilder.export_fmu writes into the working directory
+
+
+def _check(model: Model) -> None:
+    if model.hybrid:
+        raise ExportError(
+            f"friction={model.variants.get('friction')}: a model-exchange FMU cannot carry the hybrid "
+            "stick-slip map (it is a discrete projection, not an ODE); export it with --format fmu-cs")
+
+
+def _dae(model: Model, lay: Layout, name: str) -> ca.DaeBuilder:
+    """The DaeBuilder of ``f``: states, signal inputs, used parameters as tunable, outputs."""
+    dae = ca.DaeBuilder(name)
+    X = [dae.add(v.name, "output", "continuous", {"start": v.start}) for v in lay.states]
+    U = [ca.MX(float(val)) for val in lay.u_default]
+    for v in lay.inputs:
+        U[v.index] = dae.add(v.name, "input", "continuous", {"start": v.start})
+    P = [ca.MX(float(val)) for val in lay.p_default]
+    for v in lay.parameters:
+        P[v.index] = dae.add(v.name, "parameter", "tunable", {"start": v.start})
+    xdot, y = model.f(ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P))
+    for i, xi in enumerate(X):
+        dae.eq(dae.der(xi), xdot[i])
+    for v in lay.outputs:
+        dae.eq(dae.add(v.name, "output", "continuous", {}), y[v.index])
+    return dae
+
+
+@contextlib.contextmanager
+def _in_folder(folder):
+    with _CWD_LOCK:
+        cwd = os.getcwd()
+        os.chdir(folder)
+        try:
+            yield
+        finally:
+            os.chdir(cwd)
+
+
+def _patch(text: str, old: str, new: str, what: str) -> str:
+    if old not in text:
+        raise ExportError(f"CasADi {ca.__version__}: its FMU wrapper changed ({what} not found); "
+                          "this exporter is written for CasADi 3.8")
+    return text.replace(old, new)
+
+
+def _patch_wrapper(path: Path, lay: Layout) -> None:
+    text = path.read_text()
+    text = _patch(text, "  // No zero crossings\n  return fmi3Fatal;", "  // No zero crossings\n  return fmi3OK;",
+                  "fmi3GetEventIndicators")
+    nominals = ", ".join(repr(v.nominal) for v in lay.states)
+    text = _patch(text, "for (i = 0; i < nContinuousStates; ++i) nominals[i] = 1;",
+                  f"static const fmi3Float64 nom[N_X] = {{{nominals}}};\n"
+                  "  for (i = 0; i < nContinuousStates && i < N_X; ++i) nominals[i] = nom[i];",
+                  "fmi3GetNominalsOfContinuousStates")
+    path.write_text(text)
+
+
+def unit_definitions(units) -> ET.Element:
+    """``<UnitDefinitions>`` with one ``<Unit>`` (and its ``<BaseUnit>``) per unit."""
+    el = ET.Element("UnitDefinitions")
+    for u in sorted(set(units)):
+        ET.SubElement(ET.SubElement(el, "Unit", name=u), "BaseUnit", unit_definition(u))
+    return el
+
+
+def _fix_description(path: Path, lay: Layout, description: str) -> None:
+    """Apply fixes 1, 2 and 4 of the module docstring to the ``modelDescription.xml``."""
+    tree = ET.parse(path)
+    root = tree.getroot()
+    root.set("variableNamingConvention", "flat")
+    root.set("description", description)
+    root.set("generationTool", f"ema_casadi (CasADi {ca.__version__} DaeBuilder)")
+    states = {v.name: v for v in lay.states}
+    info = {v.name: v for v in (*lay.states, *lay.inputs, *lay.parameters, *lay.outputs)}
+    mv = root.find("ModelVariables")
+    units, state_vrs = [], set()
+    for var in list(mv):
+        name = var.get("name")
+        if name.startswith("__assign__"):
+            mv.remove(var)
+            continue
+        v = info.get(name)
+        if name.startswith("der(") and name[4:-1] in states:
+            var.set("unit", derivative_unit(states[name[4:-1]].unit))
+            var.set("description", f"time derivative of {name[4:-1]}")
+        elif v is not None:
+            var.set("unit", v.unit)
+            var.set("description", v.description)
+            if name in states:
+                state_vrs.add(var.get("valueReference"))
+                var.set("initial", "exact")
+                var.set("start", repr(v.start))
+                var.set("nominal", repr(v.nominal))
+        if var.get("unit"):
+            units.append(var.get("unit"))
+    ms = root.find("ModelStructure")
+    for el in list(ms):
+        if el.tag == "InitialUnknown" and el.get("valueReference") in state_vrs:
+            ms.remove(el)
+    kids = list(root)
+    pos = next(i for i, el in enumerate(kids) if el.tag == "ModelVariables")
+    root.insert(pos, ET.Element("DefaultExperiment", startTime="0.0", stopTime="1.0", tolerance="1e-06"))
+    first = next(i for i, el in enumerate(list(root)) if el.tag not in ("ModelExchange", "CoSimulation"))
+    root.insert(first, unit_definitions(units))
+    ET.indent(tree, space="    ")
+    tree.write(path, encoding="UTF-8", xml_declaration=True)
+
+
+def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict:
+    """Write an FMI 3.0 model-exchange FMU of the smooth (continuous) model.
+
+    Parameters
+    ----------
+    model : Model
+        An assembled model without a discrete map (``friction = "smooth"``); a hybrid
+        model raises :class:`~ema_casadi.export.ExportError`.
+    path : str or Path
+        The ``.fmu`` file; its stem (made a C identifier) is the model identifier.
+    platforms : sequence of str
+        ``linux64`` (required) and ``win64`` (built when MinGW-w64 is installed).
+
+    Returns
+    -------
+    dict
+        ``path``, ``model_identifier``, ``platforms`` built, ``build_time`` (wall),
+        ``build_cpu_time`` and ``compile_time`` (s) and the variable counts.
+    """
+    clock = BuildClock()
+    _check(model)
+    path = check_target(path, "file")
+    name = identifier(path.stem, "ema_me")
+    tgts = targets(platforms)
+    lay = layout(model)
+    dae = _dae(model, lay, name)
+    variants = ", ".join(f"{k}={v}" for k, v in sorted(model.variants.items()))
+    with scratch_dir(near=path.parent) as tmp:  # removed on an interrupt too
+        tmp = Path(tmp)
+        with _in_folder(tmp):
+            files = dae.export_fmu({"no_warning": True})
+        _patch_wrapper(tmp / f"{name}_wrap.c", lay)
+        _fix_description(tmp / "modelDescription.xml", lay, f"EMA (ema_casadi), model exchange: {variants}")
+        sources = [tmp / f"{name}.c", tmp / f"{name}_wrap.c"]
+        jobs = [(t, sources, tmp / f"{t.key}{t.suffix}") for t in tgts]
+        t_cc = build_all(jobs)
+        members = {arc: tmp / local for local, arc in files.items()}
+        members = {arc.removeprefix("./"): src for arc, src in members.items()}
+        for t, _, out in jobs:
+            members[f"binaries/{t.fmi3_dir}/{name}{t.suffix}"] = out
+        write_zip(path, members)
+    return {"path": path, "model_identifier": name, "fmi_version": "3.0", "kind": "model exchange",
+            "platforms": [t.key for t in tgts], "compile_time": t_cc, **clock.times(),
+            "states": len(lay.states), "inputs": [v.name for v in lay.inputs], "parameters": len(lay.parameters),
+            "outputs": len(lay.outputs) + len(lay.state_outputs)}

@@ -1,0 +1,24 @@
+"""Frequency domain: Bode, closed-loop responses, dynamic stiffness, bandwidth, modes
+and stability margins of the linearised model (``_response``), the margin arithmetic
+(``_margins``) and the frequency grid (``_grid``)."""
+
+from ._response import (
+    MAX_FREQ_POINTS,
+    LoopMargins,
+    bandwidth,
+    bode,
+    check_points,
+    closed_loop,
+    compliance,
+    dynamic_stiffness,
+    freqresp,
+    frequency_grid,
+    loop_margins,
+    margins,
+    modes,
+)
+
+__all__ = [
+    "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
+    "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes", "check_points", "MAX_FREQ_POINTS",
+]

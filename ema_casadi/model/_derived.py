@@ -1,0 +1,131 @@
+"""Functions the assembly derives from the parts' declarations besides ``f``: the
+sampled-ECU split (``f_held`` and ``sample``) and the hybrid parts' discrete map
+(``project``); and :class:`Contract`, the parts' declarations for the analyses merged
+(a base of the Model). Used by :mod:`ema_casadi.model.assembly` only."""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from .components import POLICIES, AssemblyError, der
+
+__all__ = ["zoh_split", "projection", "Contract"]
+
+
+def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
+    """The sampled-ECU split: ``f_held`` (plant with the controller outputs held and
+    the controller integrators frozen) and ``sample`` (one ECU update: each flagged
+    loop recomputes its held outputs and integrates its state by forward Euler over its
+    own sample period; loops run outer to inner, each seeing the outer loop's new value)."""
+    h = ca.SX.sym("h", len(holds))
+    held = {hd.name: h[i] for i, hd in enumerate(holds)}
+    frozen = {der(n): 0 for n in integrators}
+    dots_h, y_h = evaluate(bus(overrides={**held, **frozen}))
+    f_held = ca.Function("f_held", [x, u, p, h], [dots_h, y_h], ["x", "u", "p", "h"], ["xdot", "y"])
+
+    flags = ca.SX.sym("flags", len(loops))
+    flag = {name: flags[k] for k, name in enumerate(loops)}
+    wrap = {hd.name: (lambda b, val, hd=hd: ca.if_else(flag[hd.loop], val, held[hd.name])) for hd in holds}
+    bs = bus(wrap=wrap)
+    x_new = {n: X[n] for n in states}
+    for n in integrators:
+        loop = loops[states[n].loop]
+        x_new[n] = X[n] + flag[loop.name] * (1 / getattr(P, loop.rate)) * bs[der(n)]
+    sample = ca.Function(
+        "sample", [x, u, p, h, flags],
+        [ca.vertcat(*x_new.values()), ca.vertcat(*[bs[hd.name] for hd in holds])],
+        ["x", "u", "p", "h", "flags"], ["x_next", "h_next"],
+    )
+    return f_held, sample
+
+
+def projection(parts, bus, x, u, p):
+    """``project(x_prev, x, u, p) -> (x_next, stick)`` from the hybrid parts' maps; the
+    stick test uses the continuous model's signals at ``x_prev`` and ``x``."""
+    X_prev = {n: ca.SX.sym(n + "_prev") for n in bus().x}
+    x_prev = ca.vertcat(*X_prev.values())
+    now, prev = bus(), bus(X_prev)
+    resets, sticks = {}, []
+    for part in parts:
+        mapped = part.project(prev, now)
+        if mapped is not None:
+            resets.update(mapped[0])
+            sticks.append(mapped[1])
+    stick = sticks[0] if len(sticks) == 1 else (ca.SX(0) if not sticks else ca.logic_or(*sticks))
+    x_next = ca.vertcat(*[resets.get(n, sym) for n, sym in now.x.items()])
+    return ca.Function("project", [x_prev, x, u, p], [x_next, stick], ["x_prev", "x", "u", "p"], ["x_next", "stick"])
+
+
+class Contract:
+    """What the model's parts declare for the analyses (the part contract), merged:
+    a base of :class:`~ema_casadi.model.assembly.Model` (it reads ``parts``, ``state_info``,
+    ``outputs`` and :meth:`pdict`)."""
+
+    def small_signal(self, **policies: str) -> dict[str, float]:
+        """The parameter overrides of small-signal policies, merged from the parts.
+
+        Raises :class:`~ema_casadi.model.components.AssemblyError` (a ValueError) with the
+        one-line reason of a part that refuses a policy value, or for an unknown one.
+
+        Parameters
+        ----------
+        **policies : str
+            Policy -> value (:data:`~ema_casadi.model.components.POLICIES`), e.g.
+            ``friction="off"``.
+        """
+        overrides: dict[str, float] = {}
+        for policy, value in policies.items():
+            allowed = POLICIES.get(policy)
+            if allowed is None or value not in allowed:
+                what = f"{policy} policy '{value}' unknown" if allowed else f"unknown policy '{policy}'"
+                raise AssemblyError(f"{what}; choose one of {', '.join(allowed or POLICIES)}")
+            for part in self.parts:
+                declared = part.small_signal.get(policy, {}).get(value, {})
+                if isinstance(declared, str):
+                    raise AssemblyError(declared)
+                overrides.update(declared)
+        return overrides
+
+    @property
+    def freezes(self) -> tuple:
+        """What the linearisation freezes (:class:`~ema_casadi.model.components.Freeze`), from the parts."""
+        return tuple(fz for part in self.parts for fz in part.freeze)
+
+    @property
+    def trim_limits(self) -> tuple:
+        """The saturations a trim keeps inactive (:class:`~ema_casadi.model.components.Limit`)."""
+        return tuple(lim for part in self.parts for lim in part.trim_limits)
+
+    def limit_values(self, p=None) -> dict[str, float]:
+        """Each trim limit's value (SI) by name (``current``: A, ``rod_speed``: m/s, ...).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        return {lim.name: float(lim.limit(P)) for lim in self.trim_limits}
+
+    @property
+    def gains(self) -> tuple:
+        """The tunable gains of the model's parts (:class:`~ema_casadi.model.components.Gain`), outer loop first."""
+        return tuple(g for part in self.parts for g in part.gains)
+
+    def rest_states(self, p=None) -> dict[str, str]:
+        """Memory states the trim holds at a signal: state -> signal (their ``rest``
+        rule, where it applies for the parameter vector).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        return {n: s.rest for n, s in self.state_info.items()
+                if s.rest is not None and (s.rest_when is None or bool(s.rest_when(P)))}
+
+    @property
+    def memory_states(self) -> tuple[str, ...]:
+        """States that may be neutral modes of a linearisation (:attr:`State.memory`)."""
+        return tuple(n for n, s in self.state_info.items() if s.memory)

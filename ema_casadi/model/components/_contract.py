@@ -1,0 +1,167 @@
+"""What a part declares for the analyses beyond its equations (the part contract):
+small-signal policies, what the linearisation freezes, trim limits, trim seeds and
+tunable gains. The analyses read these through the model
+(:class:`~ema_casadi.model.assembly.Model`), never a part's parameter names.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow"]
+
+
+#: Small-signal policies of the linearisation: policy -> allowed values, first the
+#: default. A part states what each value sets (:attr:`Part.small_signal`).
+POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep")}
+
+
+@dataclass(frozen=True)
+class Limit:
+    """A saturation an operating point must keep inactive: ``value(y, P) < limit(P)``.
+
+    The trim lifts it (multiplies the ``lift`` parameters by a large factor), trims,
+    and refuses the point when the value reaches the limit (a load the current limit
+    cannot hold, a speed above the rate limit): evaluated like a :class:`Bound`.
+
+    Attributes
+    ----------
+    name : str
+        Short name (``current``, ``rod_speed``, ``voltage``): :meth:`Model.limit_values`.
+    what : str
+        For the message ("current limit").
+    symbol : str
+        The limited quantity in the message (``i_q``, ``|v_dq|``).
+    value : callable
+        ``value(y, P) -> float``: the quantity (SI, >= 0) from the outputs by name and
+        the numeric parameters.
+    limit : callable
+        ``limit(P) -> float``: its limit (SI).
+    why : str
+        The limit in the message ("I_max").
+    lift : tuple of str
+        Parameters whose product with a large factor lifts the saturation.
+    unit : str
+        Display unit of the message; ``scale`` converts SI to it.
+    scale : float
+        Display factor (1e3 for mm/s).
+    holds_load : bool
+        The message estimates the largest load held (value proportional to the load).
+    digits : int
+        Significant digits of the message's numbers.
+    """
+
+    name: str
+    what: str
+    symbol: str
+    value: Callable
+    limit: Callable
+    why: str
+    lift: tuple
+    unit: str
+    scale: float = 1.0
+    holds_load: bool = False
+    digits: int = 4
+
+
+@dataclass(frozen=True)
+class Freeze:
+    """What the linearisation freezes to make a blend constant: inputs and parameters set
+    from the value ``v`` of one output at the operating point (the screw-nut factor
+    ``g_screw``: ``eta = 1/v``, ``eta_inv = v``, the thermal efficiency feedback off).
+
+    Attributes
+    ----------
+    signal : str
+        The output whose value at the point fixes the freeze.
+    inputs, params : dict
+        Input / parameter name -> ``fn(v) -> value`` (SI).
+    nominal : callable, optional
+        ``nominal(P) -> v``: the value to freeze at without an operating point (a guess
+        of the small-signal model: the screw-nut factor driving the load, 1/eta), the
+        value the inputs give at their defaults: only ``params`` are then set.
+    """
+
+    signal: str
+    inputs: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+    nominal: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Seed:
+    """Where a trim starts a state that the equations cannot find by Newton (a position
+    inside a backlash gap, where the spring has no slope): trim first with the small-signal
+    ``policy`` at ``"off"``, then move the state by ``offset(P, y)`` from that point.
+
+    Attributes
+    ----------
+    policy : str
+        The policy (of :data:`POLICIES`) whose ``"off"`` overrides the first trim takes.
+    offset : callable
+        ``offset(P, y) -> float``: the shift (state units) from the numeric parameters
+        and the outputs of the first trim by name; 0 means no seed is needed.
+    warn : callable, optional
+        ``warn(P, y) -> str or None``: a warning about the trimmed point when the policy
+        is not ``off`` (the nut inside the gap: the rod decoupled from the screw).
+    """
+
+    policy: str
+    offset: Callable
+    warn: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Gain:
+    """A controller gain a tuner may move (a flat parameter name).
+
+    Attributes
+    ----------
+    name : str
+        The parameter.
+    loop : str
+        The loop it acts in.
+    kind : str
+        ``gain`` (scales with a gain factor) or ``time`` (an integral time, kept).
+    zero_scale : callable, optional
+        For a gain that may start at zero: ``zero_scale(ref) -> float``, its natural
+        size from the reference gains by name (then it is scaled linearly).
+    """
+
+    name: str
+    loop: str
+    kind: str = "gain"
+    zero_scale: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Node:
+    """The thermal node a temperature state is (:attr:`State.node`).
+
+    Attributes
+    ----------
+    name : str
+        The node (one of ``HEAT_NODES``: ``winding``, ``housing``, ...).
+    capacity : callable
+        ``capacity(P) -> float``: its heat capacity (J/K).
+    limit : callable
+        ``limit(P) -> float``: the temperature it is rated for (degC), what a mission is
+        judged against when its file names none.
+    """
+
+    name: str
+    capacity: Callable
+    limit: Callable
+
+
+def node_outflow(node: str) -> str:
+    """Bus name of the heat a thermal node passes on to its neighbours and the ambient (W):
+    its heat input less C dT/dt. A part with temperature states provides it per node.
+
+    Parameters
+    ----------
+    node : str
+        The node (``winding``, ``housing``, ``screw``, ``inverter``).
+    """
+    return f"P_out_{node}"

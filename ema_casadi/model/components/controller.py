@@ -1,0 +1,401 @@
+"""Electronic control unit: cascade position -> velocity -> current (docs: physics).
+
+Each loop is a PI (or P) law with an output limit and an anti-windup law, chosen by
+the option ``anti_windup`` (declared by the controller part for the position and speed
+loops and by the motor parts for the current loop; see ``docs/guide/ecu-structure.md``):
+
+``backcalc`` (default)
+    Back-calculation: the integrator state ``z`` (kept in output units) is driven back
+    by the limit excess at the rate K_i/K_p (tracking time = integral time),
+    z' = K_i e + (K_i/K_p)(u_sat - u).
+``clamping``
+    Conditional integration: the integrator stops while the output is limited and the
+    error drives it further into the limit, z' = K_i [e - g(d+) max(e, 0) - g(d-) min(e, 0)]
+    with the excess d = u - u_sat, d+ = max(d, 0), d- = max(-d, 0) and the gate
+    g(d) = s^2 (3 - 2 s), s = min(d/w, 1), a smooth switch over the band
+    w = AW_BAND u_lim (:func:`clamping_rate`).
+
+Both are continuous in the state, so variable-step solvers see no jump, and at an
+unsaturated operating point (d = 0 nearby) the anti-windup terms and their derivatives
+vanish: linearisations and margins are the same for both.
+
+The option ``limit_shape`` gives the form of the rate limit (position loop) and the
+current limit (speed loop): ``clip`` (default, a hard clip) or ``smooth`` (exactly linear
+up to (1 - LIMIT_KNEE) of the limit, then a quadratic knee reaching the limit at
+(1 + LIMIT_KNEE) of it: :func:`soft_clip`). The current loop's voltage limit is always
+the hard one (the linear-SVPWM circle of the FOC, a clip for the dc motor).
+
+Loop breaks (the paper's "Gain = 1" block): each loop's feedback is
+``loop_flag*measurement + d`` where ``d`` is an injection input. With the flag at 1 and
+``d = 0`` the loop is closed; with the flag at 0 the loop is open at that point and
+the response to ``d`` is minus the open-loop transfer L.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
+
+__all__ = [
+    "clamp", "soft_clip", "limit", "clamping_rate", "pi_law", "position_law", "velocity_law",
+    "current_law_simple", "current_law_foc",
+    "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP", "ANTI_WINDUP", "LIMIT_SHAPES", "AW_BAND",
+    "LIMIT_KNEE", "AW_OPTION",
+]
+
+SQRT3 = 3**0.5
+
+#: Anti-windup laws (option ``anti_windup``), first the default.
+ANTI_WINDUP = ("backcalc", "clamping")
+#: Forms of the rate and current limits (option ``limit_shape``), first the default.
+LIMIT_SHAPES = ("clip", "smooth")
+#: Width of the clamping gate as a fraction of the loop's output limit (-): the
+#: integrator is fully stopped once the excess u - u_sat reaches AW_BAND u_lim
+#: (0.24 A on the speed loop, 1.0 rad/s on the rate limit, 1.5 V on the voltage limit of
+#: the reference set).
+AW_BAND = 0.01
+#: Half-width of the smooth limit's knee as a fraction of the limit (-).
+LIMIT_KNEE = 0.05
+#: The option as the parts declare it.
+AW_OPTION = {"anti_windup": ANTI_WINDUP}
+
+
+def clamp(u, lo, hi):
+    """Saturate ``u`` to [lo, hi].
+
+    Parameters
+    ----------
+    u : SX
+        The value (any unit).
+    lo, hi : SX
+        The limits (the unit of ``u``).
+    """
+    return ca.fmin(ca.fmax(u, lo), hi)
+
+
+def soft_clip(u, lim, knee=LIMIT_KNEE):
+    """Smooth (C1) limit to +-lim: u itself for |u| <= (1 - knee) lim, the limit for
+    |u| >= (1 + knee) lim, a quadratic knee between: u - q(u - a) + q(-u - a) with
+    a = (1 - knee) lim, b = knee lim and q(r) = min(max(r, 0), 2b)^2 / (4b) + max(r - 2b, 0).
+
+    Parameters
+    ----------
+    u : SX
+        The value (any unit).
+    lim : SX
+        The limit (the unit of ``u``), positive.
+    knee : float
+        Half-width of the knee as a fraction of ``lim`` (-), positive.
+    """
+    a, b = (1 - knee) * lim, knee * lim
+
+    def q(r):
+        k = ca.fmin(ca.fmax(r, 0), 2 * b)
+        return k**2 / (4 * b) + ca.fmax(r - 2 * b, 0)
+
+    return u - q(u - a) + q(-u - a)
+
+
+def limit(u, lim, shape="clip"):
+    """The symmetric limit +-lim of ``shape`` (:data:`LIMIT_SHAPES`): :func:`clamp` or
+    :func:`soft_clip`.
+
+    Parameters
+    ----------
+    u : SX
+        The value (any unit).
+    lim : SX
+        The limit (the unit of ``u``).
+    shape : {"clip", "smooth"}
+        The form of the limit.
+    """
+    if shape == "clip":
+        return clamp(u, -lim, lim)
+    if shape == "smooth":
+        return soft_clip(u, lim)
+    raise ValueError(f"limit shape '{shape}' not one of {LIMIT_SHAPES}")
+
+
+def _gate(d, w):
+    """Smooth switch from 0 (d <= 0) to 1 (d >= w): s^2 (3 - 2 s), s = min(max(d, 0)/w, 1)."""
+    s = ca.fmin(ca.fmax(d, 0) / w, 1)
+    return s**2 * (3 - 2 * s)
+
+
+def clamping_rate(e, excess, K_i, w):
+    """Integrator rate of clamping anti-windup (conditional integration), output units/s:
+    K_i [e - g(d) max(e, 0) - g(-d) min(e, 0)] with d the limit excess u - u_sat and g
+    the gate :func:`_gate` of width ``w``: the integration that would drive the output
+    further into the limit is stopped, the one that brings it back is kept.
+
+    Parameters
+    ----------
+    e : SX
+        Control error (input unit).
+    excess : SX
+        u - u_sat, the amount by which the limit cuts the output (output unit).
+    K_i : SX
+        Integral gain (output unit per input unit and second).
+    w : SX
+        Width of the gate (output unit), positive.
+    """
+    return K_i * (e - _gate(excess, w) * ca.fmax(e, 0) - _gate(-excess, w) * ca.fmin(e, 0))
+
+
+def pi_law(e, z, K_p, K_i, u_lim, u_ff=0, anti_windup="backcalc", shape="clip"):
+    """PI with symmetric limit +-u_lim, feed-forward and anti-windup.
+
+    Returns (u_sat, u_unsat, z_dot). ``z`` is the integral part in output units.
+
+    Parameters
+    ----------
+    e : SX
+        Control error (input unit).
+    z : SX
+        Integral part (output unit).
+    K_p : SX
+        Proportional gain (output unit per input unit).
+    K_i : SX
+        Integral gain (output unit per input unit and second).
+    u_lim : SX
+        Output limit, symmetric (output unit).
+    u_ff : SX or float
+        Feed-forward added before the limit (output unit).
+    anti_windup : {"backcalc", "clamping"}
+        Back-calculation, z' = K_i e + (K_i/K_p)(u_sat - u), or clamping,
+        :func:`clamping_rate` with the band AW_BAND u_lim.
+    shape : {"clip", "smooth"}
+        The form of the limit (:func:`limit`).
+    """
+    u = K_p * e + z + u_ff
+    u_sat = limit(u, u_lim, shape)
+    if anti_windup == "backcalc":
+        z_dot = K_i * e + (K_i / K_p) * (u_sat - u)
+    elif anti_windup == "clamping":
+        z_dot = clamping_rate(e, u - u_sat, K_i, AW_BAND * u_lim)
+    else:
+        raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
+    return u_sat, u, z_dot
+
+
+def position_law(x_cmd, x_fb, z_x, P, integral: bool, anti_windup="backcalc", shape="clip"):
+    """Position loop on rod position (m) -> motor speed command omega_cmd (rad/s).
+
+    omega_cmd = (2 pi/p)(K_x e + K_i_x int e), clamped to the rate limit
+    omega_max = 2 pi v_max / p. Returns (omega_cmd, z_x_dot or None).
+
+    Parameters
+    ----------
+    x_cmd : SX
+        Commanded rod position (m).
+    x_fb : SX
+        Fed-back rod position (m).
+    z_x : SX or None
+        Integral part (rad/s); unused without ``integral``.
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``p``, ``v_max``, ``K_x``, ``K_i_x``).
+    integral : bool
+        PI (True) or P (False) law.
+    anti_windup : {"backcalc", "clamping"}
+        The PI's anti-windup law (:func:`pi_law`).
+    shape : {"clip", "smooth"}
+        The form of the rate limit (:func:`limit`).
+    """
+    k = 2 * ca.pi / P.p
+    e = x_cmd - x_fb
+    omega_max = k * P.v_max
+    if not integral:
+        return limit(k * P.K_x * e, omega_max, shape), None
+    w, _, z_dot = pi_law(e, z_x, k * P.K_x, k * P.K_i_x, omega_max, anti_windup=anti_windup, shape=shape)
+    return w, z_dot
+
+
+def velocity_law(omega_cmd, omega_fb, z_w, P, anti_windup="backcalc", shape="clip"):
+    """Speed PI (rad/s) -> current command (A, q axis), clamped to +-I_max.
+
+    Returns (i_cmd, z_w_dot).
+
+    Parameters
+    ----------
+    omega_cmd : SX
+        Speed command (rad/s).
+    omega_fb : SX
+        Fed-back motor speed (rad/s).
+    z_w : SX
+        Integral part (A).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``K_p_w``, ``T_i_w``, ``I_max``).
+    anti_windup : {"backcalc", "clamping"}
+        The PI's anti-windup law (:func:`pi_law`).
+    shape : {"clip", "smooth"}
+        The form of the current limit (:func:`limit`).
+    """
+    i_cmd, _, z_dot = pi_law(omega_cmd - omega_fb, z_w, P.K_p_w, P.K_p_w / P.T_i_w, P.I_max,
+                             anti_windup=anti_windup, shape=shape)
+    return i_cmd, z_dot
+
+
+def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None, anti_windup="backcalc"):
+    """Current PI of the 1-phase (dc-equivalent) motor -> winding voltage (V).
+
+    Gains are the PMSM q-axis gains x1.5 and the voltage limit 1.5*k_v*V_dc/sqrt(3)
+    (the power-invariant equivalent, docs: physics), plus back-EMF feed-forward
+    K_e*omega, the counterpart of FOC decoupling. Returns (v, z_i_dot).
+
+    Parameters
+    ----------
+    i_cmd : SX
+        Current command (A).
+    i_fb : SX
+        Fed-back winding current (A).
+    omega : SX
+        Motor speed (rad/s), for the back-EMF feed-forward.
+    z_i : SX
+        Integral part (V).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``K_p_i``, ``K_i_i``, ``k_v``, ``V_dc``).
+    v_dc : SX, optional
+        Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
+    anti_windup : {"backcalc", "clamping"}
+        The PI's anti-windup law (:func:`pi_law`).
+    """
+    K_e = 1.5 * P.pp * P.psi
+    v_lim = 1.5 * P.k_v * (P.V_dc if v_dc is None else v_dc) / SQRT3
+    v, _, z_dot = pi_law(i_cmd - i_fb, z_i, 1.5 * P.K_p_i, 1.5 * P.K_i_i, v_lim, u_ff=K_e * omega,
+                         anti_windup=anti_windup)
+    return v, z_dot
+
+
+def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=None, anti_windup="backcalc"):
+    """Field-oriented current control in the rotor dq frame -> (v_d, v_q) (V).
+
+    i_d* = 0; PI on i_d and i_q with back-EMF / cross-coupling decoupling
+    (v_d -= omega_e L_q i_q, v_q += omega_e (L_d i_d + psi)); the voltage vector is
+    scaled onto the linear-SVPWM circle |v_dq| <= k_v V_dc / sqrt(3).
+    Anti-windup per axis on the excess v_k_u - v_k of that axis: back-calculation, or
+    clamping (:func:`clamping_rate`, band AW_BAND times the circle's radius).
+    Returns (v_d, v_q, z_d_dot, z_q_dot).
+
+    Parameters
+    ----------
+    i_q_cmd : SX
+        q-current command (A).
+    i_d_fb, i_q_fb : SX
+        Fed-back d and q currents (A).
+    i_d, i_q : SX
+        The d and q currents for the decoupling terms (A).
+    omega : SX
+        Motor (mechanical) speed (rad/s).
+    z_d, z_q : SX
+        Integral parts (V).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``L_d``, ``L_q``, ``K_p_i``,
+        ``K_i_i``, ``k_v``, ``V_dc``).
+    v_dc : SX, optional
+        Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
+    anti_windup : {"backcalc", "clamping"}
+        The anti-windup law.
+    """
+    omega_e = P.pp * omega
+    e_d = 0 - i_d_fb
+    e_q = i_q_cmd - i_q_fb
+    v_d_u = P.K_p_i * e_d + z_d - omega_e * P.L_q * i_q
+    v_q_u = P.K_p_i * e_q + z_q + omega_e * (P.L_d * i_d + P.psi)
+    v_lim = P.k_v * (P.V_dc if v_dc is None else v_dc) / SQRT3
+    mag = ca.sqrt(v_d_u**2 + v_q_u**2 + 1e-12)
+    scale = ca.fmin(1, v_lim / mag)
+    v_d, v_q = scale * v_d_u, scale * v_q_u
+    if anti_windup == "clamping":
+        w = AW_BAND * v_lim
+        return (v_d, v_q, clamping_rate(e_d, v_d_u - v_d, P.K_i_i, w),
+                clamping_rate(e_q, v_q_u - v_q, P.K_i_i, w))
+    if anti_windup != "backcalc":
+        raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
+    w_aw = P.K_i_i / P.K_p_i
+    z_d_dot = P.K_i_i * e_d + w_aw * (v_d - v_d_u)
+    z_q_dot = P.K_i_i * e_q + w_aw * (v_q - v_q_u)
+    return v_d, v_q, z_d_dot, z_q_dot
+
+
+# ---- parts --------------------------------------------------------------------------
+POSITION_LOOP = Loop("position", flag="loop_x", injection="d_x", measured="x_rod", rate="f_s_x")
+VELOCITY_LOOP = Loop("velocity", flag="loop_w", injection="d_w", measured="omega", rate="f_s_w")
+
+
+def _omega_max(P):
+    return 2 * math.pi * P.v_max / P.p
+
+
+#: The saturations of the outer loops, which a trim keeps inactive.
+_LIMITS = (
+    Limit("current", "current limit", "i_q", lambda y, P: abs(y["i_cmd"]), lambda P: P.I_max, "I_max",
+          lift=("I_max",), unit="A", holds_load=True, digits=3),
+    Limit("rod_speed", "rate limit", "the rod speed command", lambda y, P: abs(y["omega_cmd"]) * P.p / (2 * math.pi),
+          lambda P: P.v_max, "v_max", lift=("v_max",), unit="mm/s", scale=1e3),
+)
+#: Tunable gains of the outer loops; K_i_x may start at zero: then it is scaled linearly
+#: from K_x^2/4 (the PI zero at K_x/4, its natural size).
+_K_X = Gain("K_x", "position")
+_K_I_X = Gain("K_i_x", "position", zero_scale=lambda ref: ref["K_x"] ** 2 / 4)
+_SPEED_GAINS = (Gain("K_p_w", "velocity"), Gain("T_i_w", "velocity", kind="time"))
+
+
+class PositionP(Part):
+    """ECU outer loops: P position loop (rate-limited) and PI speed loop (docs: physics)."""
+
+    family, value = "controller", "P"
+    doc = "position P loop -> speed PI loop -> current command"
+    inputs = (
+        Input("x_cmd", "m", "length", "commanded rod position"),
+        Input("d_x", "m", "length", "injection at the position feedback (loop break)", injection=True),
+        Input("d_w", "rad/s", "angular_velocity", "injection at the speed feedback (loop break)", injection=True),
+    )
+    outputs = (
+        Output("omega_cmd", "rad/s", "motor speed command of the position loop"),
+        Output("i_cmd", "A", "q-current command of the speed loop"),
+    )
+    params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w")
+    trim_limits = _LIMITS
+    gains = (_K_X, *_SPEED_GAINS)
+    loops = (POSITION_LOOP, VELOCITY_LOOP)
+    holds = (Hold("omega_cmd", "rad/s", "position"), Hold("i_cmd", "A", "velocity"))
+    states = (
+        State("z_w", "A", "speed-loop integral part", roles=("controller_integral",),
+              scale=lambda P: P.I_max, loop="velocity"),
+    )
+    options = {**AW_OPTION, "limit_shape": LIMIT_SHAPES}
+    integral = False
+
+    def signals(self):
+        aw = self.opt.get("anti_windup", ANTI_WINDUP[0])
+        shape = self.opt.get("limit_shape", LIMIT_SHAPES[0])
+
+        def position(b):
+            z = b["z_x"] if self.integral else 0
+            w, z_dot = position_law(b["x_cmd"], b.feedback(POSITION_LOOP), z, b.P, self.integral, aw, shape)
+            return (w, z_dot) if self.integral else w
+
+        def velocity(b):
+            return velocity_law(b["omega_cmd"], b.feedback(VELOCITY_LOOP), b["z_w"], b.P, aw, shape)
+
+        out = {("i_cmd", der("z_w")): velocity}
+        out[("omega_cmd", der("z_x")) if self.integral else "omega_cmd"] = position
+        return out
+
+
+class PositionPI(PositionP):
+    """ECU outer loops with a PI position loop (integral action: hunting studies)."""
+
+    value = "PI"
+    doc = "position PI loop -> speed PI loop -> current command"
+    params = PositionP.params + ("K_i_x",)
+    gains = (_K_X, _K_I_X, *_SPEED_GAINS)
+    states = (
+        State("z_x", "rad/s", "position-loop integral part", roles=("controller_integral",),
+              scale=_omega_max, loop="position"),
+        *PositionP.states,
+    )
+    integral = True

@@ -1,0 +1,486 @@
+"""Parameter sets: TOML file -> typed, validated, SI-unit objects (docs: physics).
+
+A parameter file holds one table per group (``[screw]``, ``[friction]``, ``[motor]``,
+``[power]``, ``[control]``, ``[thermal]``, ``[actuator]``) and an optional ``[model]``
+table with the default variants. Every value carries its unit, which must be the SI
+unit the schema names::
+
+    [screw]
+    p = { value = 5.0e-3, unit = "m" }   # lead per revolution
+
+Names are the physics reference's symbols. Inside the toolkit the parameters travel as one flat
+numeric vector (:meth:`Parameters.vector`) so that the assembled CasADi Function takes
+them as an input: changing a value never rebuilds a model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._util._checks import describe, number, read_toml
+from .._util._checks import nearest as _nearest
+from .._util._files import write_text
+from ._params_airframe import Airframe
+
+__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
+
+
+class ParameterError(ValueError):
+    """A parameter file or variant choice is invalid. The message is one line that
+    names the file and the key and says what was expected."""
+
+
+class UnknownParameterError(ParameterError, TypeError):
+    """A keyword naming no parameter (:meth:`Parameters.vector`, :meth:`Parameters.replace`):
+    a ParameterError like any bad parameter, a TypeError like any unexpected keyword."""
+
+
+# Value checks ---------------------------------------------------------------------
+POS = "positive"  # > 0
+NONNEG = "non-negative"  # >= 0
+FRAC = "fraction"  # 0 < x <= 1
+INT = "positive integer"
+NONPOS = "non-positive"  # <= 0
+FLAG = "switch"  # 0 or 1 (false or true)
+TEMP = "temperature"  # degC, above absolute zero
+
+#: Length of a table parameter in the flat vector (2..TABLE_MAX points, padded: :func:`_pad`).
+TABLE_MAX = 6
+
+
+def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
+    """A parameter field. ``default``: the value taken when a file lacks the key (keys added
+    after files were written); ``table``: a list of 2 to TABLE_MAX values, each checked."""
+    meta = {"unit": unit, "check": check, "doc": doc}
+    if default is not None:
+        meta["default"] = default
+    if table:
+        meta["table"] = True
+    return field(metadata=meta)
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Actuator envelope (paper Table 1)."""
+
+    stroke: float = _p("m", POS, "half stroke: the rod travels +-stroke (m)")
+
+
+@dataclass(frozen=True)
+class Screw:
+    """Ballscrew (docs: physics)."""
+
+    p: float = _p("m", POS, "lead, rod travel per screw revolution (m)")
+    eta: float = _p("1", FRAC, "direct efficiency, motor drives the load (-)")
+    eta_inv: float = _p("1", FRAC, "inverse efficiency, load back-drives the motor (-)")
+    J_s: float = _p("kg*m^2", NONNEG, "screw rotating inertia (kg m^2)")
+    M: float = _p("kg", POS, "rod + nut mass (kg)")
+    C: float = _p("N/m", POS, "drive-train axial stiffness (N/m)")
+    c_c: float = _p("N*s/m", NONNEG, "contact damping, acts only in contact (N s/m)")
+    B: float = _p("m", NONNEG, "backlash, total gap (m)")
+    P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
+                        default=0.1)
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction (docs: physics)."""
+
+    F_seal: float = _p("N", NONNEG, "seal friction force (N)")
+    C_bear: float = _p("m", NONNEG, "thrust-bearing torque per axial load (m)")
+    c_v: float = _p("N*s/m", NONNEG, "rod viscous friction (N s/m)")
+    b_m: float = _p("N*m*s/rad", NONNEG, "motor-shaft viscous friction (N m s/rad)")
+    r_start: float = _p("1", POS, "breakaway ratio F_start/F_r (-)")
+    v_s: float = _p("m/s", POS, "smoothing velocity of the smooth variant (m/s)")
+    eps: float = _p("m/s", POS, "stick dead band of the hybrid variant (m/s)")
+    v_st: float = _p("m/s", POS, "Stribeck velocity of the optional hump and of the LuGre curve (m/s)")
+    sigma_0: float = _p("N/m", POS, "LuGre bristle stiffness: pre-sliding deflection F/sigma_0 (N/m)", default=1.0e7)
+    sigma_1: float = _p("N*s/m", NONNEG, "LuGre bristle damping (N s/m)", default=5.0e3)
+
+
+@dataclass(frozen=True)
+class Motor:
+    """PMSM, rotor dq frame, amplitude-invariant (docs: physics)."""
+
+    pp: float = _p("1", INT, "pole pairs (-)")
+    psi: float = _p("Wb", POS, "permanent-magnet flux linkage (Wb)")
+    R: float = _p("Ohm", POS, "phase resistance at T_ref (Ohm)")
+    alpha_Cu: float = _p("1/K", NONNEG, "copper temperature coefficient (1/K)")
+    L_d: float = _p("H", POS, "d-axis inductance (H)")
+    L_q: float = _p("H", POS, "q-axis inductance (H)")
+    J_m: float = _p("kg*m^2", POS, "rotor inertia (kg m^2)")
+    I_max: float = _p("A", POS, "current limit, peak (A)")
+    k_h: float = _p("W/(Hz*Wb^2)", NONNEG, "iron loss, hysteresis coefficient: k_h f_e psi^2 (W/(Hz Wb^2))",
+                    default=1.6)
+    k_e: float = _p("W/(Hz*Wb)^2", NONNEG, "iron loss, eddy-current coefficient: k_e (f_e psi)^2 (W/(Hz Wb)^2)",
+                    default=0.016)
+
+
+@dataclass(frozen=True)
+class Power:
+    """Inverter and supply (docs: physics)."""
+
+    V_dc: float = _p("V", POS, "DC-link (supply) voltage (V); MIL-STD-704F normal range 250-280 V")
+    k_v: float = _p("1", FRAC, "voltage-limit factor on V_dc/sqrt(3) (-)")
+    f_sw: float = _p("Hz", POS, "switching frequency (Hz)")
+    V_CE0: float = _p("V", NONNEG, "IGBT threshold voltage (V)")
+    r_CE: float = _p("Ohm", NONNEG, "IGBT slope resistance (Ohm)")
+    V_F0: float = _p("V", NONNEG, "diode threshold voltage (V)")
+    r_F: float = _p("Ohm", NONNEG, "diode slope resistance (Ohm)")
+    E_sw: float = _p("J", NONNEG, "E_on + E_off at the reference point (J)")
+    V_sw_ref: float = _p("V", POS, "reference voltage of E_sw (V)")
+    I_sw_ref: float = _p("A", POS, "reference current of E_sw (A)")
+    t_dead: float = _p("s", NONNEG, "dead time (s)")
+    R_line: float = _p("Ohm", POS, "supply = line: resistance, source to DC link (Ohm)", default=0.1)
+    L_line: float = _p("H", POS, "supply-line inductance, source to DC link (H)", default=20e-6)
+    C_dc: float = _p("F", POS, "DC-link capacitance (F)", default=200e-6)
+
+
+@dataclass(frozen=True)
+class Control:
+    """Cascade controller (docs: physics)."""
+
+    K_p_i: float = _p("V/A", POS, "current-loop proportional gain (V/A)")
+    K_i_i: float = _p("V/(A*s)", POS, "current-loop integral gain (V/(A s))")
+    K_p_w: float = _p("A*s/rad", POS, "speed-loop proportional gain (A/(rad/s))")
+    T_i_w: float = _p("s", POS, "speed-loop integral time (s)")
+    K_x: float = _p("1/s", POS, "position-loop gain: rod-speed command per error (1/s)")
+    K_i_x: float = _p("1/s^2", NONNEG, "position-loop integral gain, PI variant (1/s^2)")
+    v_max: float = _p("m/s", POS, "rod rate limit (m/s)")
+    f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
+    f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
+    f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
+
+
+@dataclass(frozen=True)
+class Thermal:
+    """Lumped thermal network (docs: physics)."""
+
+    C_th_w: float = _p("J/K", POS, "winding heat capacity (J/K)")
+    R_th_ws: float = _p("K/W", POS, "winding-to-stator thermal resistance (K/W)")
+    C_th_h: float = _p("J/K", POS, "housing heat capacity (J/K)")
+    R_th_ha: float = _p("K/W", POS, "housing-to-ambient thermal resistance (K/W)")
+    C_th_s: float = _p("J/K", POS, "screw heat capacity (J/K)")
+    R_th_sh: float = _p("K/W", POS, "screw-to-housing thermal resistance (K/W)")
+    C_th_inv: float = _p("J/K", POS, "inverter heat-sink heat capacity (J/K)", default=400.0)
+    R_th_inv: float = _p("K/W", POS, "inverter heat-sink-to-ambient thermal resistance (K/W)", default=0.25)
+    alpha_psi: float = _p("1/K", NONPOS, "magnet-flux temperature coefficient (1/K), rotor at T_h", default=-1.2e-3)
+    T_ref: float = _p("degC", TEMP, "reference temperature of R and psi (degC)", default=20.0)
+    T_eta: tuple = _p("degC", TEMP, "temperatures of the screw-efficiency table, increasing (degC)",
+                      default=(-55.0, -20.0, 20.0, 80.0), table=True)
+    eta_T: tuple = _p("1", FRAC, "screw direct efficiency at T_eta (-); eta_inv follows shifted by eta_inv - eta",
+                      default=(0.80, 0.86, 0.90, 0.91), table=True)
+    feedback_R: float = _p("1", FLAG, "1: winding resistance R(T_w) (alpha_Cu); 0: R at T_ref", default=1.0)
+    feedback_psi: float = _p("1", FLAG, "1: magnet flux psi(T_h) (alpha_psi); 0: psi at T_ref", default=1.0)
+    feedback_eta: float = _p("1", FLAG, "1: screw efficiency from the table at T_s; 0: the eta input", default=1.0)
+    T_max_w: float = _p("degC", TEMP, "winding insulation limit, e.g. class H 180 degC (degC)", default=180.0)
+
+
+@dataclass(frozen=True)
+class EndStop:
+    """Stroke end stops (docs: physics), used by ``endstop = "elastic"``."""
+
+    k_stop: float = _p("N/m", POS, "end-stop stiffness (N/m)")
+    d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
+
+
+GROUPS: dict[str, type] = {
+    "actuator": Actuator,
+    "screw": Screw,
+    "friction": Friction,
+    "motor": Motor,
+    "power": Power,
+    "control": Control,
+    "thermal": Thermal,
+    "endstop": EndStop,
+    "airframe": Airframe,  # the aircraft loop: optional table, every key defaulted
+}
+
+#: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
+#: parameter vector: 1 closes the loop, 0 opens it at the feedback signal.
+LOOP_FLAGS = ("loop_x", "loop_w", "loop_i", "loop_a")
+
+
+def _unknown(func: str, key: str, names) -> str:
+    return f"{func}() got an unexpected keyword argument '{key}': no parameter of that name{_nearest(key, names)}"
+
+
+def _variant_table(model, src: str) -> dict[str, str]:
+    """The [model] table: variant key -> value names (checked against the registry of
+    parts when a model is built)."""
+    if not isinstance(model, dict):
+        raise ParameterError(f"{src}: [model] must be a table of variant names")
+    for k, v in model.items():
+        if not isinstance(v, str):
+            raise ParameterError(f"{src}: [model] {k} must be a variant name (a string), got {v!r}")
+    return dict(model)
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """A complete, validated parameter set in SI units.
+
+    Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
+    :meth:`names` order for the CasADi model's parameter input.
+
+    Attributes
+    ----------
+    actuator, screw, friction, motor, power, control, thermal, endstop, airframe : dataclass
+        The parameter groups of :data:`GROUPS`, each value in the SI unit its field
+        declares (:meth:`units`).
+    variants : dict
+        The default variant choice of the set (its ``[model]`` table).
+    source : str
+        Where the set came from (a file path), named in error messages.
+    """
+
+    actuator: Actuator
+    screw: Screw
+    friction: Friction
+    motor: Motor
+    power: Power
+    control: Control
+    thermal: Thermal
+    endstop: EndStop
+    airframe: Airframe = Airframe()
+    variants: dict[str, str] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    # -- flat view ---------------------------------------------------------------
+    @staticmethod
+    def names() -> list[str]:
+        """Flat parameter names (the physics reference's symbols), then the loop-closure flags. A table
+        parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
+        out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
+        return out + list(LOOP_FLAGS)
+
+    @staticmethod
+    def units() -> dict[str, str]:
+        """SI unit of every flat parameter."""
+        out = {n: f.metadata["unit"] for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
+        out.update({k: "1" for k in LOOP_FLAGS})
+        return out
+
+    def as_dict(self) -> dict[str, float]:
+        """Flat name -> value (SI), loop flags closed (1.0); tables padded (:func:`_pad`)."""
+        out = {}
+        for g in GROUPS:
+            grp = getattr(self, g)
+            for f in fields(grp):
+                val = getattr(grp, f.name)
+                if f.metadata.get("table"):
+                    out.update(zip(_flat_names(f), _pad(val, f.metadata["check"] == TEMP), strict=True))
+                else:
+                    out[f.name] = float(val)
+        out.update({k: 1.0 for k in LOOP_FLAGS})
+        return out
+
+    def vector(self, **overrides: float) -> np.ndarray:
+        """Flat numeric vector for the model's ``p`` input.
+
+        Parameters
+        ----------
+        **overrides : float
+            Values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
+        """
+        d = self.as_dict()
+        for k, v in overrides.items():
+            if k not in d:
+                raise UnknownParameterError(_unknown("Parameters.vector", k, d))
+            d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
+        return np.array([d[n] for n in self.names()], dtype=float)
+
+    def replace(self, **values: float) -> Parameters:
+        """A copy with some flat parameters changed (validated like a file).
+
+        Parameters
+        ----------
+        **values : float
+            New values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
+        """
+        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
+        flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
+        for k, v in values.items():
+            if k not in flat_group:
+                raise UnknownParameterError(_unknown("Parameters.replace", k, flat_group))
+            raw[flat_group[k]][k] = v
+        return _build(raw, self.variants, self.source, plain=True)
+
+    def to_toml(self, path: str | Path, header: str = "") -> Path:
+        """Write the set as a parameter file (atomically: no half-written file).
+
+        Parameters
+        ----------
+        path : str or Path
+            The TOML file to write.
+        header : str
+            Text written as comment lines at the top.
+        """
+        lines = [f"# {line}" for line in header.splitlines()] if header else []
+        lines += ["[model]"] + [f'{k} = "{v}"' for k, v in self.variants.items()]
+        for g, cls in GROUPS.items():
+            lines += ["", f"[{g}]"]
+            for f in fields(cls):
+                val = getattr(getattr(self, g), f.name)
+                val = f"[{', '.join(repr(float(v)) for v in val)}]" if f.metadata.get("table") else repr(val)
+                lines.append(
+                    f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
+                    f'  # {f.metadata["doc"]}'
+                )
+        return write_text(path, "\n".join(lines) + "\n")
+
+    # -- derived quantities used across the toolkit --------------------------------
+    @property
+    def K_t(self) -> float:
+        """Torque constant 1.5*pp*psi (N m/A)."""
+        return 1.5 * self.motor.pp * self.motor.psi
+
+
+def _flat_names(f) -> list[str]:
+    return [f"{f.name}_{i}" for i in range(TABLE_MAX)] if f.metadata.get("table") else [f.name]
+
+
+def _pad(values, temperature: bool) -> list[float]:
+    """A table padded to TABLE_MAX entries: values hold the last one; temperatures go
+    on in 1 K steps past the last (so every padded interval has width 1 and adds nothing
+    to a piecewise-linear interpolation)."""
+    vals = [float(v) for v in values]
+    last = vals[-1]
+    return vals + [last + (k + 1 if temperature else 0.0) for k in range(TABLE_MAX - len(vals))]
+
+
+def _check_table(where: str, meta: dict, value: Any) -> tuple:
+    if not isinstance(value, (list, tuple)) or not 2 <= len(value) <= TABLE_MAX:
+        raise ParameterError(f"{where}: expected a list of 2 to {TABLE_MAX} numbers, got {value!r}")
+    item = {k: v for k, v in meta.items() if k != "table"}
+    vals = tuple(_check_value(where, "", "", item, v, plain=True, bare=True) for v in value)
+    if meta["check"] == TEMP and any(b <= a for a, b in zip(vals, vals[1:], strict=False)):
+        raise ParameterError(f"{where}: temperatures must increase strictly, got {list(vals)}")
+    return vals
+
+
+def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool, bare: bool = False):
+    where = src if bare else f"{src}: [{group}] {name}"
+    unit = meta["unit"]
+    if plain:
+        value = raw
+    else:
+        if not isinstance(raw, dict) or "value" not in raw or "unit" not in raw:
+            raise ParameterError(
+                f'{where}: expected a table {{ value = <number>, unit = "{unit}" }}, got {raw!r}'
+            )
+        extra = set(raw) - {"value", "unit"}
+        if extra:
+            raise ParameterError(f"{where}: unexpected field(s) {sorted(extra)}; expected value and unit")
+        if raw["unit"] != unit:
+            raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
+        value = raw["value"]
+    if meta.get("table"):
+        return _check_table(where, meta, value)
+    check = meta["check"]
+    if check == FLAG and isinstance(value, bool):
+        value = float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(f"{where}: expected a number, got {type(value).__name__} {value!r}")
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ParameterError(f"{where}: expected a finite number, got an integer of {len(str(value))} digits") from None
+    if not math.isfinite(value):
+        raise ParameterError(f"{where}: expected a finite number, got {value}")
+    if check == POS and not value > 0:
+        raise ParameterError(f"{where}: must be positive, got {value}")
+    if check == NONNEG and value < 0:
+        raise ParameterError(f"{where}: must be non-negative, got {value}")
+    if check == FRAC and not 0 < value <= 1:
+        raise ParameterError(f"{where}: must be in (0, 1], got {value}")
+    if check == INT and not (value >= 1 and value == int(value)):
+        raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    if check == NONPOS and value > 0:
+        raise ParameterError(f"{where}: must be zero or negative, got {value}")
+    if check == FLAG and value not in (0.0, 1.0):
+        raise ParameterError(f"{where}: must be 0 or 1 (false or true), got {value}")
+    if check == TEMP and not value > -273.15:
+        raise ParameterError(f"{where}: must be a temperature in degC above -273.15, got {value}")
+    return value
+
+
+def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> Parameters:
+    unknown = set(data) - set(GROUPS) - {"model"}
+    for g in sorted(unknown):
+        raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
+    groups = {}
+    for g, cls in GROUPS.items():
+        table = data.get(g, {} if all("default" in f.metadata for f in fields(cls)) else None)
+        if table is None:
+            raise ParameterError(f"{src}: missing table [{g}]")
+        if not isinstance(table, dict):
+            raise ParameterError(f"{src}: [{g}] must be a table")
+        names = [f.name for f in fields(cls)]
+        for key in table:
+            if key not in names:
+                raise ParameterError(f"{src}: [{g}] unknown key '{key}'{_nearest(key, names)}")
+        values = {}
+        for f in fields(cls):
+            if f.name not in table and "default" in f.metadata:
+                values[f.name] = f.metadata["default"]  # a key newer than the file
+            elif f.name not in table:
+                raise ParameterError(
+                    f"{src}: [{g}] missing key '{f.name}' ({f.metadata['doc']}, unit {f.metadata['unit']})"
+                )
+            else:
+                values[f.name] = _check_value(src, g, f.name, dict(f.metadata), table[f.name], plain)
+        groups[g] = cls(**values)
+    model = data.get("model", {}) if variants is None else variants
+    merged = _variant_table(model, src)
+    s = groups["screw"]
+    if s.eta * s.eta_inv > 1:
+        raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
+    _check_eta_table(src, groups["thermal"], s)
+    return Parameters(**groups, variants=merged, source=src)
+
+
+def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
+    """The efficiency table: one efficiency per temperature, and the inverse efficiency
+    it implies (shifted by eta_inv - eta) in (0, 1] at every point."""
+    if len(th.eta_T) != len(th.T_eta):
+        raise ParameterError(f"{src}: [thermal] eta_T has {len(th.eta_T)} values, T_eta {len(th.T_eta)}: "
+                             "expected one efficiency per temperature")
+    inv = [e + s.eta_inv - s.eta for e in th.eta_T]
+    if not all(0 < v <= 1 for v in inv):
+        raise ParameterError(f"{src}: [thermal] eta_T shifted by eta_inv - eta ({s.eta_inv - s.eta:+.3g}) "
+                             f"gives inverse efficiencies {[round(v, 4) for v in inv]}, outside (0, 1]")
+
+
+def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:
+    """Load and validate a parameter file.
+
+    Parameters
+    ----------
+    path : str or Path
+        TOML parameter file (the layout of models/cesa_ema.toml).
+    variants : dict, optional
+        Variant overrides on top of the file's ``[model]`` table.
+
+    Raises
+    ------
+    ParameterError
+        One-line message naming the file and key: unreadable file or not UTF-8 text (a
+        UTF-8 byte-order mark is accepted), not TOML, missing or unknown table or key
+        (with the nearest valid name), wrong type or unit, non-finite or out-of-range
+        value, unknown variant.
+    """
+    if not isinstance(path, (str, Path)):
+        raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
+    if variants is not None and not isinstance(variants, dict):
+        raise ParameterError(f"variants: expected a dict of variant names, got {describe(variants)}")
+    src = str(path)
+    data = read_toml(path, "parameter file", ParameterError)
+    merged = _variant_table(data.get("model", {}), src)
+    merged.update(_variant_table(variants or {}, "variant"))
+    return _build(data, merged, src)

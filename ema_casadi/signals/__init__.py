@@ -1,0 +1,14 @@
+"""Input signals: the signal algebra (:class:`Signal`, step, ramp, sine, chirp,
+constant), CSV tables and the text syntax of the command line (:func:`parse_signal`; docs: simulate).
+
+The modules import one way: ``_signal`` (the algebra and quantities) <- ``_tables``
+(CSV tables) <- ``_parse`` (the text syntax, which may name a table).
+"""
+
+from .._util._checks import decode_utf8
+from ._parse import parse_signal
+from ._signal import Signal, SignalError, constant, parse_list, parse_quantity, parse_range
+from ._tables import TIME_NAMES, read_text
+
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "constant",
+           "read_text", "decode_utf8", "TIME_NAMES"]

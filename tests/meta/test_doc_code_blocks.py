@@ -1,0 +1,128 @@
+"""Every code block of README.md and of the documentation (``docs/**/*.md``) runs.
+
+The ```python blocks of one page run in order as one script (a page reads like a
+notebook: a later block may use what an earlier one defined), in a fresh process and
+an empty temporary folder, where ``models`` points at the repository's reference
+files so that the paths the docs use (``models/cesa_ema.toml``) resolve as they do
+from the repository's root. A block that is not meant to run says so in its fence,
+```python {no-run} (keep those rare). Console blocks (```sh, ```console, ```shell) run
+the lines that call ``ema ... --help`` or ``ema --version``: each must exit 0; the
+commands that do real work are covered by their own tests.
+
+The pages' code is written with short runs, so the whole test stays within tens of
+seconds (each page is allowed ``TIMEOUT`` seconds, generous for a loaded machine).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+#: Seconds one page's code may take (the slowest page measured ~10 s on the 2-core machine).
+TIMEOUT = 240
+_FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)\n"
+                    r"(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.M | re.S)
+NO_RUN = "{no-run}"
+_CONSOLE = ("sh", "console", "shell", "bash")
+
+
+def _pages() -> list[Path]:
+    docs = sorted(p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts)
+    return [ROOT / "README.md", *docs]
+
+
+def blocks(path: Path) -> list[tuple[str, str, str]]:
+    """(language, options, code) of every fenced block of a Markdown file.
+
+    Parameters
+    ----------
+    path : Path
+        The Markdown file.
+    """
+    out = []
+    for m in _FENCE.finditer(path.read_text(encoding="utf-8")):
+        lang, _, options = m.group("info").strip().partition(" ")
+        out.append((lang.strip().lower(), options.strip(), m.group("body")))
+    return out
+
+
+def _python(path: Path) -> str:
+    return "\n".join(code for lang, opts, code in blocks(path) if lang == "python" and NO_RUN not in opts)
+
+
+def _help_lines(path: Path) -> list[str]:
+    lines = []
+    for lang, opts, code in blocks(path):
+        if lang not in _CONSOLE or NO_RUN in opts:
+            continue
+        for line in code.splitlines():
+            line = line.strip().removeprefix("$ ").split("#")[0].strip()
+            words = line.split()
+            if words[:1] == ["ema"] and ("--help" in words or "--version" in words):
+                lines.append(line)
+    return lines
+
+
+def _ids(pages):
+    return [str(p.relative_to(ROOT)) for p in pages]
+
+
+_CODE_PAGES = [p for p in _pages() if _python(p)]
+_HELP_PAGES = [p for p in _pages() if _help_lines(p)]
+
+
+def _workdir(tmp_path: Path) -> Path:
+    (tmp_path / "models").symlink_to(ROOT / "models", target_is_directory=True)
+    return tmp_path
+
+
+def _env() -> dict:
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env.pop("PYTHONPATH", None)
+    return env
+
+
+def test_the_fence_parser_finds_blocks_and_options(tmp_path):
+    """The extractor itself: language, the no-run option and the code, and nothing from
+    prose between the fences (so a page whose blocks it missed would not pass silently)."""
+    page = tmp_path / "page.md"
+    page.write_text("text\n\n```python\nx = 1\n```\n\nmore `inline`\n\n```python {no-run}\nboom()\n```\n\n"
+                    "```sh\nema --help\nls\n```\n", encoding="utf-8")
+    assert blocks(page) == [("python", "", "x = 1\n"), ("python", "{no-run}", "boom()\n"),
+                            ("sh", "", "ema --help\nls\n")]
+    assert _python(page) == "x = 1\n"
+    assert _help_lines(page) == ["ema --help"]
+
+
+def test_the_readme_and_the_guide_have_code_to_run():
+    """The README's API taste and the guide's pages are among the pages run below."""
+    names = _ids(_CODE_PAGES)
+    assert "README.md" in names
+    assert sum(n.startswith("docs/guide/") for n in names) >= 5
+
+
+@pytest.mark.parametrize("page", _CODE_PAGES, ids=_ids(_CODE_PAGES))
+def test_python_blocks_run(page, tmp_path):
+    """The page's ```python blocks, as one script, exit 0 (its stderr is the message)."""
+    script = _workdir(tmp_path) / "page_code.py"
+    script.write_text(_python(page), encoding="utf-8")
+    proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=TIMEOUT, env=_env())
+    assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
+
+
+@pytest.mark.parametrize("page", _HELP_PAGES, ids=_ids(_HELP_PAGES))
+def test_help_commands_run(page, tmp_path):
+    """Each ``ema ... --help`` / ``ema --version`` line of the page exits 0 and prints."""
+    ema, cwd = [sys.executable, "-m", "ema_casadi.cli"], _workdir(tmp_path)
+    for line in _help_lines(page):
+        proc = subprocess.run(ema + shlex.split(line)[1:], cwd=cwd, capture_output=True,
+                              text=True, timeout=60, env=_env())
+        assert proc.returncode == 0 and proc.stdout.strip(), f"{page.relative_to(ROOT)}: '{line}' failed: {proc.stderr}"
