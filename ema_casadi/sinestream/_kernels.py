@@ -137,22 +137,23 @@ class _HybridPeriods:
 
 class _SwitchedPeriods(_HybridPeriods):
     """Period-by-period stepping of a switched (PWM) model through :func:`simulate`,
-    carrier synchronous: each sine period is a whole number N = round(f_sw / f) of
-    carrier periods (the command's frequency f_sw / N, within 0.5/N of the asked one:
+    carrier synchronous: each sine period is a whole number N = round(f_c / f) of
+    carrier periods (f_c the carrier frequency the model declares; the command's
+    frequency f_c / N, within 0.5/N of the asked one:
     0.5 % at 30 Hz, 1e-5 at 0.1 Hz at 16 kHz), sampled at every carrier period's end
     (N uniform samples over the whole period: the harmonics' grid)."""
 
     def __init__(self, model: Model, samples: int, dt_max: float):
         super().__init__(model, samples, dt_max)
-        self.i_sw = model.param_names.index(model.carrier)
+        self.i_carrier = model.param_names.index(model.carrier)
 
     def period(self, x0, pa):
         p = pa[: self.npar]
         A, freq, f_ext = pa[self.npar :]
-        f_sw = float(p[self.i_sw])
-        n = max(1, round(f_sw / freq))
-        res = simulate(self.model, n / f_sw, Signal.sine(A, f_sw / n), float(f_ext), p=p, x0=x0,
-                       dt=min(self.dt_max, 0.5 / f_sw), dt_out=1.0 / f_sw, solver="rk4")
+        f_c = float(p[self.i_carrier])
+        n = max(1, round(f_c / freq))
+        res = simulate(self.model, n / f_c, Signal.sine(A, f_c / n), float(f_ext), p=p, x0=x0,
+                       dt=min(self.dt_max, 0.5 / f_c), dt_out=1.0 / f_c, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
         y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
         return x1, y, None

@@ -11,7 +11,7 @@ import casadi as ca
 import numpy as np
 
 from ._closed_loop import _LOOP_ORDER
-from ._constraints import _disk_expr, _Group
+from ._constraints import _current_limit, _disk_expr, _Group
 from ._requirements import Requirements, exclusion_disk
 
 #: Loops opened to see each loop of the cascade with its outer loops open.
@@ -137,7 +137,7 @@ def noise_group(S1: ca.Function, noise, freqs: np.ndarray, bound: float, F: floa
 def noise_gain_bound(req: Requirements, ref: dict) -> float | None:
     """The bound (A/m) of :func:`noise_group` for the set's current limit I_max (A),
     :data:`_NOISE_MARGIN` inside the requirement's."""
-    bound = req.noise_gain_max(float(ref["I_max"]))
+    bound = req.noise_gain_max(_current_limit(ref))
     return None if bound is None else bound * (1 - _NOISE_MARGIN)
 
 

@@ -43,6 +43,11 @@ def _disk_expr(G, j: int, c: float, R: float):
     return (u2 - R**2 * s2) / (l2 + (c**2 + R**2) * s2)
 
 
+def _current_limit(ref: dict) -> float:
+    """The current limit I_max (A) of a parameter set (flat names)."""
+    return float(ref["I_max"])
+
+
 def _rate_floor(ref: dict, loop: str, req: Requirements) -> float:
     """Frequency (Hz) above which the loop's gain must stay below 1."""
     return ref[_RATE[loop]] / req.rate_ratio

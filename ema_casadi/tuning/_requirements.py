@@ -135,16 +135,16 @@ class Requirements:
                 and self.sensor_noise > 0):
             bad("sensor_noise", "a positive length (m)")
 
-    def noise_gain_max(self, I_max: float) -> float | None:
+    def noise_gain_max(self, i_limit: float) -> float | None:
         """Bound (A/m) on the peak gain from position-sensor noise to the current command,
         command_noise I_max / sensor_noise, or None when switched off.
 
         Parameters
         ----------
-        I_max : float
-            Current limit (A) of the model.
+        i_limit : float
+            Current limit I_max (A) of the model.
         """
-        return self.command_noise * I_max / self.sensor_noise if self.command_noise > 0 else None
+        return self.command_noise * i_limit / self.sensor_noise if self.command_noise > 0 else None
 
     def margin_targets(self) -> tuple[float, float]:
         """(GM dB, PM deg) every loop must reach: the requested ones, or with ``ms`` the
