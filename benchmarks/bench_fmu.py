@@ -11,7 +11,7 @@
   (hybrid friction), communication step 1 ms; the input table holds x_cmd every 1 ms
   (and both sides of the step's edge): FMPy interpolates it, the FMU holds it over each
   communication step.
-- toolkit RK4: ``ema.simulate(rk4, dt=..., dt_out=1e-3)``, the same internal steps.
+- toolkit RK4: ``ema.simulate(rk4, dt=..., dt_out=1e-3, solver="rk4")``, the same internal steps.
 - toolkit CVODES: ``ema.simulate(cvodes, rtol=3e-4, dt_out=1e-3)``, the toolkit's
   fastest way on this scenario (docs: benchmarks, 0.09 um).
 - FMPy, model-exchange FMU: FMPy's CVode, rtol 1e-6, 1 ms output.
@@ -84,8 +84,8 @@ def main():
         built[label] = info
         print(f"| {label} | {info['build_time']:.2f} | {info['compile_time']:.2f} |", flush=True)
 
-    refs = {"smooth": ema.simulate(smooth, T_END, X_CMD, solver="cvodes", dt=DT_OUT, rtol=1e-10, atol=1e-12),
-            "hybrid": ema.simulate(hybrid, T_END, X_CMD, solver="cvodes", dt=DT_OUT, rtol=1e-10, atol=1e-13,
+    refs = {"smooth": ema.simulate(smooth, T_END, X_CMD, solver="cvodes", dt_out=DT_OUT, rtol=1e-10, atol=1e-12),
+            "hybrid": ema.simulate(hybrid, T_END, X_CMD, solver="cvodes", dt_out=DT_OUT, rtol=1e-10, atol=1e-13,
                                    event_tol=1e-9)}
     inp = input_table()
     paths = {k: str(v["path"]) for k, v in built.items()}
@@ -96,14 +96,16 @@ def main():
 
     methods = [
         ("FMPy + fmu-cs, RK4 1e-5 s inside", "smooth", fmpy_cs("fmu-cs (smooth)", DT)),
-        ("ema.simulate rk4, dt 1e-5 s", "smooth", lambda: ema.simulate(smooth, T_END, X_CMD, dt=DT, dt_out=DT_OUT)),
+        ("ema.simulate rk4, dt 1e-5 s", "smooth", lambda: ema.simulate(smooth, T_END, X_CMD, dt=DT, dt_out=DT_OUT,
+                                                                       solver="rk4")),
         ("FMPy + fmu-cs, RK4 5e-6 s inside", "smooth", fmpy_cs("fmu-cs (smooth)", 5e-6)),
-        ("ema.simulate rk4, dt 5e-6 s", "smooth", lambda: ema.simulate(smooth, T_END, X_CMD, dt=5e-6, dt_out=DT_OUT)),
+        ("ema.simulate rk4, dt 5e-6 s", "smooth", lambda: ema.simulate(smooth, T_END, X_CMD, dt=5e-6, dt_out=DT_OUT,
+                                                                       solver="rk4")),
         ("ema.simulate cvodes, rtol 3e-4", "smooth", lambda: ema.simulate(smooth, T_END, X_CMD, solver="cvodes",
                                                                           rtol=3e-4, dt_out=DT_OUT)),
         ("FMPy + fmu-cs hybrid, RK4 1e-4 s inside", "hybrid", fmpy_cs("fmu-cs (hybrid)", 1e-4)),
         ("ema.simulate hybrid rk4, dt 1e-4 s", "hybrid", lambda: ema.simulate(hybrid, T_END, X_CMD, dt=1e-4,
-                                                                              dt_out=DT_OUT)),
+                                                                              dt_out=DT_OUT, solver="rk4")),
         ("FMPy + fmu-me (its CVode, rtol 1e-6)*", "smooth", lambda: fmpy.simulate_fmu(
             paths["fmu-me (smooth)"], stop_time=T_END, input=inp, output=["x_rod"], output_interval=DT_OUT,
             relative_tolerance=1e-6, validate=False)),

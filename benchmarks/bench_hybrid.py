@@ -49,13 +49,13 @@ def main():
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
     models = {fr: ema.build_model(params, {"friction": fr}) for fr in ("hybrid", "smooth")}
     refs = {
-        "hybrid": ema.simulate(models["hybrid"], T_END, X_CMD, solver="cvodes", dt=DT_OUT, rtol=1e-10, atol=1e-13,
+        "hybrid": ema.simulate(models["hybrid"], T_END, X_CMD, solver="cvodes", dt_out=DT_OUT, rtol=1e-10, atol=1e-13,
                                event_tol=1e-9),
-        "smooth": ema.simulate(models["smooth"], T_END, X_CMD, solver="cvodes", dt=DT_OUT, rtol=1e-10, atol=1e-12),
+        "smooth": ema.simulate(models["smooth"], T_END, X_CMD, solver="cvodes", dt_out=DT_OUT, rtol=1e-10, atol=1e-12),
     }
 
     def run(fr, dt):
-        return ema.simulate(models[fr], T_END, X_CMD, dt=dt, dt_out=DT_OUT)
+        return ema.simulate(models[fr], T_END, X_CMD, dt=dt, dt_out=DT_OUT, solver="rk4")
 
     def err(fr, res):
         return float(np.abs(res["x_rod"] - refs[fr]["x_rod"]).max())
@@ -79,7 +79,7 @@ def main():
                 break
         else:
             print(f"{fr}: no step of {steps} reached {TOL * 1e6} um", flush=True)
-    wall_cv, res_cv = timed(lambda: ema.simulate(models["hybrid"], T_END, X_CMD, solver="cvodes", dt=DT_OUT,
+    wall_cv, res_cv = timed(lambda: ema.simulate(models["hybrid"], T_END, X_CMD, solver="cvodes", dt_out=DT_OUT,
                                                  rtol=1e-6, atol=1e-9), max(1, repeat // 2), warmup=True)
     e_cv = err("hybrid", res_cv)
 

@@ -70,11 +70,12 @@ def main():
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
     pwm = ema.build_model(params, {"inverter": "pwm"})
     avg = ema.build_model(params)
-    t_pwm, r = timed(lambda: ema.simulate(pwm, 1.0, X_CMD, dt=5e-6, dt_out=1e-3), repeat, warmup=True)
-    fine = ema.simulate(pwm, 1.0, X_CMD, dt=1.25e-6, dt_out=1e-3)
+    t_pwm, r = timed(lambda: ema.simulate(pwm, 1.0, X_CMD, dt=5e-6, dt_out=1e-3, solver="rk4"), repeat, warmup=True)
+    fine = ema.simulate(pwm, 1.0, X_CMD, dt=1.25e-6, dt_out=1e-3, solver="rk4")
     err_x = float(np.abs(r["x_rod"] - fine["x_rod"]).max())
     err_i = float(np.abs(r["i_a"] - fine["i_a"]).max())
-    t_avg, _ = timed(lambda: ema.simulate(avg, 1.0, X_CMD, dt=5e-6, dt_out=1e-3, zoh=True), repeat, warmup=True)
+    t_avg, _ = timed(lambda: ema.simulate(avg, 1.0, X_CMD, dt=5e-6, dt_out=1e-3, zoh=True, solver="rk4"), repeat,
+                                          warmup=True)
     periods = r.info["carrier_periods"]
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print("| simulator | per simulated second (s) | ratio to ema pwm |")

@@ -42,7 +42,7 @@ def main():
     params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
     model = ema.build_model(params)
     P = params.as_dict()
-    ref = ema.simulate(model, T_END, X_CMD, solver="cvodes", dt=1e-3, rtol=1e-10, atol=1e-12)
+    ref = ema.simulate(model, T_END, X_CMD, solver="cvodes", dt_out=1e-3, rtol=1e-10, atol=1e-12)
     x_ref = ref["x_rod"]
 
     def err(x_rod):
@@ -66,19 +66,21 @@ def main():
 
     # ema_casadi: compiled RODAS4, CVODES and compiled RK4 (compile time reported separately)
     t0 = time.perf_counter()
-    ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt=1e-3)
+    ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt_out=1e-3)
     ros_build = time.perf_counter() - t0
     ladder("ema_casadi rosenbrock (compiled RODAS4)",
-           lambda tol: ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt=1e-3, rtol=tol,
+           lambda tol: ema.simulate(model, T_END, X_CMD, solver="rosenbrock", dt_out=1e-3, rtol=tol,
                                     atol=tol * 1e-3)["x_rod"],
            [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8], repeat=5)
     ladder("ema_casadi cvodes",
-           lambda tol: ema.simulate(model, T_END, X_CMD, solver="cvodes", dt=1e-3, rtol=tol, atol=tol * 1e-3)["x_rod"],
+           lambda tol: ema.simulate(model, T_END, X_CMD, solver="cvodes", dt_out=1e-3, rtol=tol,
+                                    atol=tol * 1e-3)["x_rod"],
            [1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7, 1e-8], repeat=5)
     t0 = time.perf_counter()
-    first = ema.simulate(model, T_END, X_CMD, dt=5e-6, dt_out=1e-3)
+    first = ema.simulate(model, T_END, X_CMD, dt=5e-6, dt_out=1e-3, solver="rk4")
     compile_time = time.perf_counter() - t0 - first.info["compute_time"]
-    ladder("ema_casadi rk4 (compiled)", lambda dt: ema.simulate(model, T_END, X_CMD, dt=dt, dt_out=1e-3)["x_rod"],
+    ladder("ema_casadi rk4 (compiled)", lambda dt: ema.simulate(model, T_END, X_CMD, dt=dt, dt_out=1e-3,
+                                                                solver="rk4")["x_rod"],
            [1e-5, 5e-6, 2.5e-6])
 
     from scipy.integrate import solve_ivp

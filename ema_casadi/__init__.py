@@ -5,10 +5,12 @@ frequency response, gain tuning and export.
 Quick start::
 
     import ema_casadi as ema
-    params = ema.load_parameters("models/cesa_ema.toml")
+    params = ema.load_parameters()              # the packaged reference set (or a path)
     model = ema.build_model(params, {"motor": "pmsm", "screw": "elastic"})
     res = ema.simulate(model, 0.2, x_cmd=ema.Signal.step(1e-3, 0.01))
-    res["x_rod"]          # rod position (m)
+    res["x_rod"]          # rod position (m), a sample every 1e-4 s
+    res.info["solver"]    # "rosenbrock": solver="auto" picked the compiled RODAS4
+    res.plot()            # a matplotlib Figure; res.to_pandas() a DataFrame
     lin = ema.linearize(model)                  # control.StateSpace, named signals
     ema.loop_margins(model)                     # GM/PM/disk margins per loop
 
@@ -31,11 +33,13 @@ _EXPORTS = {
     ".frequency": ("bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins"),
     ".linearisation": ("LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer",
                        "operating_point"),
+    "._util._resources": ("packaged_file", "packaged_files"),
     ".signals": ("Signal", "SignalError", "parse_signal"),
     ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate"),
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
+    ".identification": ("IdentificationError", "IdentResult", "identify"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -59,6 +63,7 @@ __version__ = "0.1.0"
 __all__ = [
     "AssemblyError", "Model", "build_model",
     "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
+    "packaged_file", "packaged_files",
     "Signal", "SignalError", "parse_signal",
     "RunFailed", "SimResult", "SimulationError", "simulate",
     "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
@@ -67,4 +72,5 @@ __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream",
     "Requirements", "TuneError", "TuneResult", "tune",
     "SweepError", "SweepResult", "load_sweep", "sweep",
+    "IdentificationError", "IdentResult", "identify",
 ]

@@ -4,11 +4,13 @@ margins, nonlinear frequency-response map; PNGs and ``summary.md``/``summary.jso
 The output folder is assembled beside its place and moved in at the end
 (:func:`ema_casadi._util._files.atomic_dir`): it appears whole or not at all, also when the
 run fails or is interrupted. An existing folder is replaced whole, and refused if it
-holds anything but :data:`DEMO_FILES` (so no other file is ever removed)."""
+holds anything but :data:`DEMO_FILES` and the :data:`KEPT_FOLDERS` (so no other file is
+ever removed)."""
 
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -20,7 +22,11 @@ from .model.params import Parameters
 from .signals import Signal
 from .simulation import simulate, step_response_metrics
 
-__all__ = ["run_demo", "DEMO_FILES"]
+__all__ = ["run_demo", "DEMO_FILES", "KEPT_FOLDERS"]
+
+#: Subfolders of the demo's folder that belong to other commands (``ema mission``
+#: writes into ``out/mission``): allowed there and kept when the demo replaces the folder.
+KEPT_FOLDERS = ("mission",)
 
 #: The files the demo writes into its folder.
 DEMO_FILES = (
@@ -175,7 +181,7 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
     progress : bool
         Print a line per stage.
     """
-    out = check_folder(out, DEMO_FILES)
+    out = check_folder(out, DEMO_FILES, keep=KEPT_FOLDERS)
     t0 = time.perf_counter()
     model = build_model(params)
     written: list[Path] = []
@@ -183,9 +189,9 @@ def run_demo(params: Parameters, out: str | Path = "out", progress: bool = True)
 
     def stage(name):
         if progress:
-            print(f"[demo] {name} ({time.perf_counter() - t0:.1f} s)", flush=True)
+            print(f"[demo] {name} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr, flush=True)
 
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, keep=KEPT_FOLDERS) as tmp:
         stage("time responses")
         summary["time_responses"] = _simulations(model, tmp, written)
         stage("switched PWM bridge against the averaged bridge")

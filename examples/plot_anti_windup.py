@@ -24,7 +24,7 @@ fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
 for ax, (controller, p) in zip(axes, (("P", params), ("PI", params.replace(K_i_x=400.0))), strict=True):
     for law in ("backcalc", "clamping"):
         model = ema.build_model(p, {"anti_windup": law, "controller": controller})
-        res = ema.simulate(model, 0.4, x_cmd=0.02, f_ext=20e3, solver="rosenbrock", dt=1e-4)
+        res = ema.simulate(model, 0.4, x_cmd=0.02, f_ext=20e3, solver="rosenbrock", dt_out=1e-4)
         x = np.asarray(res["x_rod"])
         print(f"{controller:2s} position loop, {law:9s}: overshoot {(x.max() - 0.02) * 1e6:6.1f} um")
         ax.plot(res.t, x * 1e3, label=law)

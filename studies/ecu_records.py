@@ -96,7 +96,7 @@ def record(model, params, path, t_end, x_cmd, f_ext, pv, seed, rate=RATE, fields
     sampled = {name: parse_signal(text, model.input_info[name].kind, stroke=params.actuator.stroke, duration=t_end)(t)
                for name, text in (("x_cmd", x_cmd), ("f_ext", f_ext))}
     tables = {k: Signal.table(t, v) for k, v in sampled.items()}
-    res = ema.simulate(model, t[-1], solver="rosenbrock", dt=1.0 / rate, p=pv, rtol=1e-10, atol=1e-13, **tables)
+    res = ema.simulate(model, t[-1], solver="rosenbrock", dt_out=1.0 / rate, p=pv, rtol=1e-10, atol=1e-13, **tables)
     rng = np.random.default_rng(seed)
     cols = {**sampled, **{c: np.asarray(res[c], float) + rng.normal(0.0, s, len(res.t)) for c, s in NOISE.items()}}
     meta = {**(fields or {}), **{f"sigma_{c}": s for c, s in NOISE.items()}, "seed": seed}

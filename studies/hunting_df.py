@@ -60,7 +60,7 @@ def run_case(params, name, k_i_x, t_end, dt, out, orders=(3, 5, 7)):
               for c in df.cycles]
     df.cycles = cycles
     t_df = time.perf_counter() - t0
-    res = ema.simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=dt, p=p)
+    res = ema.simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=dt, p=p, solver="rk4")
     sim = cycle_of(res.t, res[signal], t_end / 2)
     plot_nichols(df, out / f"hunting_df_{name}.png", unit_scale=scale, unit=unit,
                  title=f"hunting by describing function: {name} (PI, K_i_x = {k_i_x:g}, hybrid friction)")

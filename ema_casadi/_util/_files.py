@@ -66,9 +66,14 @@ def _remove(p: Path) -> None:
 
 
 def _commit(tmp: Path, target: Path, folder: bool) -> None:
-    """Rename ``tmp`` onto ``target``; a folder replaces an existing folder whole."""
+    """Rename ``tmp`` onto ``target``; a folder replaces an existing folder whole (but for
+    the subfolders :func:`atomic_dir` was told to keep, moved into the new one first)."""
     with _lock:
+        keep = _kept.pop(tmp, ()) if folder else ()
         if folder and target.is_dir():
+            for name in keep:
+                if (target / name).is_dir() and not (tmp / name).exists():
+                    os.rename(target / name, tmp / name)
             old = target.with_name(f".{target.name}.{os.getpid()}.old")
             os.rename(target, old)
             try:
@@ -128,28 +133,37 @@ def atomic_path(path: str | Path, suffix: str = "", *, stage: bool = True):
         raise
 
 
+#: Subfolders an :func:`atomic_dir` carries over from the folder it replaces, by temporary.
+_kept: dict = {}
+
+
 @contextlib.contextmanager
-def atomic_dir(path: str | Path):
+def atomic_dir(path: str | Path, keep: tuple = ()):
     """Yield an empty temporary folder beside ``path``; on success it becomes ``path``.
 
     An existing folder ``path`` is replaced whole (callers decide beforehand, with
-    :func:`check_folder`, whether that is allowed). On failure the temporary folder and
+    :func:`check_folder`, whether that is allowed), except its subfolders named in
+    ``keep``, which move into the new folder. On failure the temporary folder and
     everything in it are removed and ``path`` is untouched.
 
     Parameters
     ----------
     path : str or Path
         The target folder.
+    keep : tuple of str
+        Subfolders of an existing ``path`` to carry over (another command's output).
     """
     path = Path(path)
     tmp = _temp_name(path)
     with _lock:
         _live.add(tmp)
+        _kept[tmp] = tuple(keep)
     try:
         tmp.mkdir()
         yield tmp  # the files inside are private until the folder moves: not staged
         _finish(tmp, path, folder=True)
     except BaseException:
+        _kept.pop(tmp, None)
         _remove(tmp)
         raise
 
@@ -315,7 +329,7 @@ def check_file(path: str | Path, what: str | None = None) -> Path:
     return path
 
 
-def check_folder(path: str | Path, names=(), what: str | None = None) -> Path:
+def check_folder(path: str | Path, names=(), what: str | None = None, keep: tuple = ()) -> Path:
     """Check that the output folder ``path`` can be assembled beside and moved into
     place (before any work); returns it.
 
@@ -331,6 +345,8 @@ def check_folder(path: str | Path, names=(), what: str | None = None) -> Path:
         The files the command writes into it.
     what : str, optional
         How to name it in the message (default the path), e.g. ``"--out out"``.
+    keep : tuple of str
+        Subfolders that may be there (kept across the replacement, :func:`atomic_dir`).
     """
     path = Path(path)
     what = what or str(path)
@@ -339,7 +355,8 @@ def check_folder(path: str | Path, names=(), what: str | None = None) -> Path:
     _probe(path.parent, what)
     if path.is_dir():
         names = set(names)
-        foreign = sorted(p.name for p in path.iterdir() if p.name not in names or not p.is_file())
+        foreign = sorted(p.name for p in path.iterdir()
+                         if not (p.name in names and p.is_file()) and not (p.name in keep and p.is_dir()))
         if foreign:
             shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             raise OutputPathError(f"{what}: the folder exists and holds other files ({shown}); it would be "

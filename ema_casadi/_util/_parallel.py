@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import threading
 
-__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map"]
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -28,6 +28,72 @@ def cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not on Linux
         return os.cpu_count() or 1
+
+
+def check_main_guard(error: type, what: str) -> None:
+    """Refuse, with one line, to start worker processes from a script that calls this
+    outside ``if __name__ == "__main__":``.
+
+    Worker processes are started by *spawn*: each imports the main script again, so an
+    unguarded call runs the work once more in every worker (which then fails in
+    confusing ways). Two checks, before any work: in a worker while it imports the
+    script (spawn's bootstrapping), and in the script itself (the top-level statement
+    running now lies outside every ``if __name__ == "__main__":`` block). Interactive
+    sessions, notebooks and ``python -c`` have no script and pass.
+
+    Parameters
+    ----------
+    error : type
+        The exception raised.
+    what : str
+        The call, for the message (``"sweep(jobs=2)"``).
+    """
+    import multiprocessing
+    import sys
+
+    fix = (f"{what} starts worker processes, which import the main script again: put the call under "
+           "'if __name__ == \"__main__\":' (or use jobs=1, or threads)")
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        raise error(fix + " (this is a worker importing the unguarded script)")
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if not path or getattr(main, "__spec__", None) is not None:  # no script, or python -m (a module)
+        return
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_code.co_name == "<module>" and frame.f_globals.get("__name__") ==
+                                     "__main__" and frame.f_code.co_filename == path):
+        frame = frame.f_back
+    if frame is not None and not _inside_main_guard(path, frame.f_lineno):
+        raise error(f"{path}, line {frame.f_lineno}: " + fix)
+
+
+def _inside_main_guard(path: str, line: int) -> bool:
+    """True when ``line`` of the script lies in an ``if __name__ == "__main__":`` block
+    (or the script cannot be read: then nothing is refused)."""
+    import ast
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            tree = ast.parse(fh.read())
+    except (OSError, SyntaxError, ValueError):
+        return True
+    for node in tree.body:
+        if isinstance(node, ast.If) and _is_main_test(node.test):
+            end = node.end_lineno or node.lineno
+            if node.lineno <= line <= end:
+                return True
+    return False
+
+
+def _is_main_test(test) -> bool:
+    import ast
+
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1 and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = [test.left, test.comparators[0]]
+    names = [s.id for s in sides if isinstance(s, ast.Name)]
+    texts = [s.value for s in sides if isinstance(s, ast.Constant)]
+    return names == ["__name__"] and texts == ["__main__"]
 
 
 def timeout(name: str, default: float, error: type) -> float:

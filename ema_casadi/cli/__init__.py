@@ -37,12 +37,14 @@ from .._util import _interrupts
 
 _interrupts.record_early()  # the ema process: a signal during the imports below is kept for main
 
+from ._options import DEFAULT_MODEL, _holds_table, add_progress, model_path, progress_of, stage  # noqa: E402, F401
+
 if TYPE_CHECKING:
     from pathlib import Path
 
-__all__ = ["main", "UserError", "DEFAULT_MODEL", "check_output_path", "check_output_dir"]
+__all__ = ["main", "UserError", "DEFAULT_MODEL", "check_output_path", "check_output_dir", "add_progress", "progress_of",
+           "stage", "second_file", "model_path"]
 
-DEFAULT_MODEL = "models/cesa_ema.toml"
 
 #: Exit status of a failed run (and of ``ema freqresp`` with a failed point).
 EXIT_FAILED = 3
@@ -84,12 +86,38 @@ def _variant(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
-def positionals(model: str, second: str | None, default: str) -> tuple[str, str]:
-    """(model, file) of a command taking ``[MODEL] FILE``: a single file named is the
-    FILE (the model stays the default), none gives ``default``."""
-    if second is None:
-        return (DEFAULT_MODEL, model) if model != DEFAULT_MODEL else (DEFAULT_MODEL, default)
-    return model, second
+def second_file(args, positional: str | None, flag_value: str | None, *, flag: str, what: str, key: str,
+                default: str) -> str:
+    """The second file of ``ema COMMAND [MODEL] [FILE]`` (a mission, a sweep), unambiguous:
+    the first positional is always the parameter file, the second file comes second or
+    by its flag; without either it is the packaged ``default``. A single positional that
+    is a ``what`` file (it holds ``[key]``) is refused with one line saying how to name it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``args.model_given``: a MODEL.toml was named).
+    positional, flag_value : str or None
+        The file as the second positional and as ``flag``.
+    flag : str
+        The named flag (``"--mission"``).
+    what : str
+        The kind of file, for the message (``"mission"``).
+    key : str
+        A table only that kind of file has (``"segment"``).
+    default : str
+        The packaged file used when none is given.
+    """
+    from .._util._resources import packaged_file
+
+    if positional is not None and flag_value is not None:
+        raise UserError(f"{flag} {flag_value}: the {what} file is already given as the second argument "
+                        f"({positional}); give one of them")
+    named = positional if positional is not None else flag_value
+    if named is None and getattr(args, "model_given", True) and _holds_table(args.model, key):
+        raise UserError(f"{args.model}: a {what} file ([{key}] tables), given where the parameter file goes; "
+                        f"give MODEL.toml {what.upper()}.toml, or {flag} {args.model}")
+    return named if named is not None else str(packaged_file(default))
 
 
 class _VariantHelp:
@@ -114,8 +142,8 @@ class _VariantHelp:
 
 
 def add_common(p) -> None:
-    p.add_argument("model", nargs="?", default=DEFAULT_MODEL,
-                   help=f"parameter file (TOML, docs: physics); default {DEFAULT_MODEL}")
+    p.add_argument("model", nargs="?", default=None, metavar="MODEL.toml",
+                   help=f"parameter file (TOML, docs: physics); default: the packaged reference set {DEFAULT_MODEL}")
     p.add_argument("--variant", action="append", type=_variant, default=[], metavar="KEY=VALUE",
                    help=_VariantHelp())
     p.add_argument("--json", action="store_true", help="print a machine-readable result on stdout")
@@ -124,10 +152,12 @@ def add_common(p) -> None:
 def load(args):
     """(Parameters, Model) from the common arguments."""
     from ..model.assembly import build_model
+    from ..model.components import validate_variants
     from ..model.params import load_parameters
 
     variants = dict(args.variant)
-    params = load_parameters(args.model, variants)
+    validate_variants(variants, "--variant")
+    params = load_parameters(model_path(args), variants)
     return params, build_model(params)
 
 
@@ -223,6 +253,9 @@ def build_parser():
     _Parser = _parser_class()
     parser = _Parser(prog="ema", description="Electromechanical actuator toolkit (CasADi). "
                      "Run 'ema COMMAND --help' for a command's options.")
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"ema_casadi {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     mods = {}
     for mod in _commands():
@@ -378,6 +411,8 @@ def _run(argv, stop) -> int:
     argv = join_negative_values(list(sys.argv[1:] if argv is None else argv), parser)
     args = parser.parse_args(argv)
     stop.command = args.command
+    args.model_given = args.model is not None
+    args.model = model_path(args)
     mod = mods[args.command]
     errors = _user_errors()
     try:

@@ -12,7 +12,7 @@ import math
 import time
 
 from .._util._files import atomic_dir
-from . import UserError, check_output_dir, load
+from . import UserError, add_progress, check_output_dir, load, stage
 
 COMMAND = "aircraft"
 ORDER = 11
@@ -22,6 +22,7 @@ CONDITION_NAMES = ("cruise_sl", "cruise_30k", "landing")
 
 
 def add_arguments(p):
+    add_progress(p)
     p.add_argument("--airframe", choices=AIRFRAMES, default="transport", help="airframe; default transport")
     p.add_argument("--condition", choices=[*CONDITION_NAMES, "all"], default="all",
                    help="flight condition (500 ft/s sea level, 800 ft/s at 30 000 ft, 250 ft/s landing); default all")
@@ -59,7 +60,8 @@ def run(args) -> dict:
     args.variant = [*args.variant, ("airframe", args.airframe)]
     params, model = load(args)
     out, plots = {}, {}
-    for c in conds:
+    for k, c in enumerate(conds):
+        stage(args, "aircraft", k / len(conds), f"{c}: trim, margins" + ("" if args.no_responses else ", responses"))
         op = aircraft_point(model, c)
         am = aircraft_margins(model, c, op)
         r = am.as_dict()
@@ -72,6 +74,7 @@ def run(args) -> dict:
         else:
             plots[c] = (am, None, None)
         out[c] = r
+    stage(args, "aircraft", 1.0, "done")
     written = []
     if plot_dir is not None:
         from ..plots._aircraft import plot_condition

@@ -3,8 +3,9 @@ nonlinear frequency-response map; PNGs plus summary.md and summary.json in --out
 
 from __future__ import annotations
 
-from ..demo import DEMO_FILES, run_demo
-from . import check_output_dir, load
+from .._util import _files
+from ..demo import DEMO_FILES, KEPT_FOLDERS, run_demo
+from . import UserError, add_progress, load, progress_of
 
 COMMAND = "demo"
 ORDER = 1
@@ -14,14 +15,18 @@ HELP = "main job: responses, Bode, margins, frequency-response map -> out/"
 def add_arguments(p):
     p.add_argument("--out", default="out", metavar="DIR",
                    help="output folder, assembled beside it and moved into place at the end; an existing folder "
-                        "is replaced whole, and refused if it holds files the demo does not write; default out/")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+                        "is replaced whole (but for out/mission, which ema mission writes), and refused if it holds "
+                        "files the demo does not write; default out/")
+    add_progress(p)
 
 
 def run(args) -> dict:
-    out = check_output_dir(args.out, DEMO_FILES, "--out")
+    try:
+        out = _files.check_folder(args.out, DEMO_FILES, f"--out {args.out}", keep=KEPT_FOLDERS)
+    except _files.OutputPathError as exc:
+        raise UserError(str(exc)) from None
     params, _ = load(args)
-    return run_demo(params, out, progress=not (args.quiet or args.json))
+    return run_demo(params, out, progress=progress_of(args))
 
 
 def report(r: dict) -> None:

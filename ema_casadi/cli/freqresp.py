@@ -20,15 +20,13 @@ Example: ema freqresp --amplitudes 0.5%,10% --freqs 0.1-30:40 --out fr.csv --plo
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 
 import numpy as np
 
 from ..sinestream import parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
 from ..sinestream._parse import check_grid
-from . import UserError, check_output_path, load
+from . import UserError, add_progress, check_output_path, load, progress_of
 
 COMMAND = "freqresp"
 ORDER = 6
@@ -53,8 +51,7 @@ def add_arguments(p):
     p.add_argument("--out", default=None, metavar="FILE.csv",
                    help="write one row per point: variant, load_N, amplitude_m, freq_Hz, gain_db, phase_deg, ...")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="Bode plot, one line per load and amplitude")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar on stderr (--no-progress to hide); default: when stderr is a terminal")
+    add_progress(p)
 
 
 def run(args) -> dict:
@@ -75,7 +72,7 @@ def run(args) -> dict:
     loads = parse_loads(args.loads)
     check_grid({"--loads": len(loads), "--amplitudes": len(amplitudes), "--freqs": len(np.unique(freqs))},
                args.max_periods, args.jobs or 1, "--max-periods")
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    progress = progress_of(args)
     resp = sine_stream(params, amplitudes, freqs, loads, variants=model.variants, jobs=args.jobs,
                        scheduler=args.scheduler, max_periods=args.max_periods, tol_db=args.tol_db,
                        tol_deg=args.tol_deg, progress=progress)

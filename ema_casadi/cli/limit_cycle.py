@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 
-from . import UserError, check_output_path, load
+from . import UserError, add_progress, check_output_path, load, stage
 
 COMMAND = "limit-cycle"
 ORDER = 12
@@ -22,6 +22,7 @@ DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300u
 
 
 def add_arguments(p):
+    add_progress(p)
     p.add_argument("--loop", choices=("position", "aircraft"), default="position", help="loop break; default position")
     p.add_argument("--airframe", choices=("b747", "transport"), default="b747",
                    help="airframe of the aircraft loop (ignored for position); default b747")
@@ -93,12 +94,16 @@ def run(args) -> dict:
     s = setup(model, args.loop, model.p(**over), args.condition)
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
               settle=args.periods // 2)
+    stage(args, "limit-cycle", 0.0, "describing function")
     df = describing_function(model, args.loop, amps, freqs, **kw)
+    stage(args, "limit-cycle", 0.4, "refining the predicted cycles")
     cycles = df.cycles if args.no_refine else [refine(model, args.loop, c, **kw) for c in df.cycles]
     if orders and not args.no_refine:
         cycles = [harmonic_balance(model, args.loop, c, harmonics=orders, **kw) for c in cycles]
     df.cycles = cycles
+    stage(args, "limit-cycle", 0.6, f"confirming by a {t_end:g} s simulation" if t_end > 0 else "")
     sim = confirm_cycle(s, t_end, args.dt) if t_end > 0 else None
+    stage(args, "limit-cycle", 1.0, "done")
     written = [str(plot_nichols(df, plot))] if plot is not None else []
     return {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
             "describing_function": df.as_dict(), "harmonics": list(orders), "predicted": cycles, "simulation": sim,

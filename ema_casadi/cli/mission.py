@@ -4,12 +4,16 @@ energy per part and per segment, peaks against the limits stated in the mission 
 MISSION.toml holds [[segment]] tables (duration, x_cmd, f_ext, T_amb) run back to back
 on the full model (thermal = lumped, hybrid friction, iron loss on; compiled RK4 at
 --dt); the format is in the docs (missions) and in models/mission_regional.toml.
-Writes OUT/<mission>.csv (1 s rows: temperatures in degC, mean losses in W),
-OUT/<mission>.png (temperatures and losses, segments shaded) and
-OUT/<mission>_summary.json. Progress on stderr (--quiet: none).
+MODEL.toml comes first, MISSION.toml second (or by --mission); without them the
+packaged reference set and mission run. A single file that is a mission is refused
+(name it with --mission). Writes OUT/<mission>.csv (1 s rows: time, then a Unit: row,
+temperatures in degC, mean losses in W; the layout of every time series, so
+--x-cmd OUT/<mission>.csv:x_cmd replays it), OUT/<mission>.png (temperatures and
+losses, segments shaded) and OUT/<mission>_summary.json; OUT defaults to out/mission.
+--from-trim starts at the operating point of the first segment's values.
 Exit status: 2 for a mistake in a file or flag, 3 when the run leaves the physical
 envelope (rod beyond the stroke, current beyond its limit, non-finite state).
-Example: ema mission models/cesa_ema.toml models/mission_regional.toml --out out
+Example: ema mission models/cesa_ema.toml models/mission_regional.toml --out out/mission
 """
 
 from __future__ import annotations
@@ -19,22 +23,30 @@ import math
 import sys
 from pathlib import Path
 
+from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
-from . import UserError, _jsonable, positionals
+from . import UserError, _jsonable, add_progress, progress_of, second_file
 
 COMMAND = "mission"
-#: The mission run without a MISSION.toml: ~20 minutes of a regional-jet flight.
-DEFAULT_MISSION = "models/mission_regional.toml"
+#: The mission run without a MISSION.toml (packaged): ~20 minutes of a regional-jet flight.
+DEFAULT_MISSION = REFERENCE_MISSION
+#: The output folder without --out: a folder of its own, beside the demo's files in out/.
+DEFAULT_OUT = "out/mission"
 ORDER = 9
 HELP = "flight mission: temperatures, losses, energy per part and segment, peaks vs limits"
 
 
 def add_arguments(p):
     p.add_argument("mission", metavar="MISSION.toml", nargs="?", default=None,
-                   help=f"mission file (segments, limits); default {DEFAULT_MISSION} (a single file named "
-                        "is the mission)")
-    p.add_argument("--out", default="out", metavar="DIR",
-                   help="folder for <mission>.csv, <mission>.png and <mission>_summary.json (created); default out/")
+                   help=f"mission file (segments, limits), after MODEL.toml; default: the packaged {DEFAULT_MISSION}")
+    p.add_argument("--mission", dest="mission_file", default=None, metavar="MISSION.toml",
+                   help="the mission file by name (with or without MODEL.toml)")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help="folder for <mission>.csv, <mission>.png and <mission>_summary.json (created with its "
+                        f"parents); default {DEFAULT_OUT}")
+    p.add_argument("--from-trim", action="store_true",
+                   help="start at the trimmed operating point of the first segment's command and load (default: "
+                        "at rest, all states zero)")
     p.add_argument("--dt", type=float, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
     p.add_argument("--fast", action="store_true",
                    help=f"the fast path: the same model at {FAST_DT:g} s, about twice as fast (worst temperature "
@@ -42,7 +54,7 @@ def add_arguments(p):
     p.add_argument("--dt-out", type=float, default=0.01,
                    help="spacing of the kept samples the energies are integrated from (s); default 0.01")
     p.add_argument("--csv-dt", type=float, default=1.0, help="row spacing of the CSV (s); default 1")
-    p.add_argument("--quiet", action="store_true", help="no progress line on stderr")
+    add_progress(p)
 
 
 def _check(args) -> Path:
@@ -55,10 +67,9 @@ def _check(args) -> Path:
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    if not out.exists() and not out.parent.exists():
-        raise UserError(f"--out {out}: folder {out.parent} does not exist")
+    for folder in (out, *out.parents):
+        if folder.exists() and not folder.is_dir():
+            raise UserError(f"--out {out}: {folder} exists and is not a folder")
     return out
 
 
@@ -67,20 +78,24 @@ def run(args) -> dict:
     from ..model.params import load_parameters
 
     out = _check(args)
-    args.model, args.mission = positionals(args.model, args.mission, DEFAULT_MISSION)
+    args.mission = second_file(args, args.mission, args.mission_file, flag="--mission", what="mission",
+                               key="segment", default=DEFAULT_MISSION)
+    from ..model.components import validate_variants
+
+    validate_variants(dict(args.variant), "--variant")
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)
         stem = Path(args.mission).stem
         paths = {"csv": out / f"{stem}.csv", "png": out / f"{stem}.png", "json": out / f"{stem}_summary.json"}
         res = run_mission(params, mission, dict(args.variant), dt=args.dt, dt_out=args.dt_out,
-                          progress=not args.quiet)
+                          progress=progress_of(args), from_trim=args.from_trim)
     except MissionError as exc:
         raise UserError(str(exc)) from None
     except MissionFailed as exc:
         sys.stderr.write(f"ema mission: failed: {exc}\n")
         raise SystemExit(3) from None
-    out.mkdir(exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     summary = res.summary()
     res.to_csv(paths["csv"], dt=args.csv_dt)
     res.plot(paths["png"])

@@ -9,8 +9,13 @@ CSV files are UTF-8 and SI: bare numbers in a file are m, N, s (the mm rule is f
 values only) unless the header names a unit (x_cmd [mm], f_ext [kN], time [ms]) or a
 'Unit:' row follows the header (the layout --out writes: time, then one column per
 signal, then Unit: and each unit; MATLAB's Simulation Data Inspector reads it).
-Samples: every --dt-out and at --t-end itself (the last interval shorter when --dt-out
-does not divide --t-end); with rk4, --t-end and --dt-out must be whole numbers of --dt.
+Solver: --solver auto (default) runs the compiled RODAS4 (rosenbrock) on a continuous
+model and the compiled RK4 at --dt where the model switches or sticks (hybrid friction,
+--zoh, inverter=pwm); the choice and its tolerance are reported (and in --json).
+Samples: every --dt-out (default 1e-4 s) and at --t-end itself (the last interval
+shorter when --dt-out does not divide --t-end); with rk4, --t-end and --dt-out must be
+whole numbers of --dt. --from-trim starts at the operating point of the inputs' values
+at t = 0 (a load present from the start does not knock the rod back).
 Runs above 1e9 RK4 steps or a 1 GiB result are refused with the estimate.
 With --variant inverter=pwm the model switches: rk4 steps to every switching instant
 (--dt bounds its step inside a sub-interval), --t-end must be whole carrier periods
@@ -29,10 +34,10 @@ import math
 import time
 
 from ..signals import parse_signal
-from ..simulation import SOLVERS, simulate
+from ..simulation import DT_OUT, SOLVERS, simulate
 from ..simulation._api import check_run
 from ..simulation._pwm import check_switched
-from . import UserError, check_output_path, load
+from . import UserError, add_progress, check_output_path, load, progress_of
 
 COMMAND = "simulate"
 ORDER = 2
@@ -50,13 +55,17 @@ def add_arguments(p):
                    help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
     p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
-    p.add_argument("--dt", type=float, default=5e-6, help="RK4 step, or CVODES output spacing (s); default 5e-6")
+    p.add_argument("--dt", type=float, default=5e-6, help="RK4 step (s); default 5e-6")
     p.add_argument("--dt-out", type=float, default=None,
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
-    p.add_argument("--solver", choices=SOLVERS, default="rk4",
-                   help="rk4 (fixed step, compiled), cvodes (variable-step BDF) or rosenbrock (variable-step "
-                        "RODAS4, compiled; smooth friction only)")
+    p.add_argument("--solver", choices=SOLVERS, default="auto",
+                   help="auto (default: rosenbrock on a continuous model, rk4 where it switches or sticks), rk4 "
+                        "(fixed step, compiled), cvodes (variable-step BDF) or rosenbrock (variable-step RODAS4, "
+                        "compiled; smooth friction only)")
+    p.add_argument("--from-trim", action="store_true",
+                   help="start at the trimmed operating point of the first --x-cmd and --f-ext values (default: "
+                        "at rest, all states zero)")
     p.add_argument("--zoh", action="store_true", help="sampled ECU at its rates (rk4 only)")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="write the time series: .csv (column time, then one per signal, a Unit: row, SI, 17 "
@@ -70,12 +79,12 @@ def add_arguments(p):
     p.add_argument("--instantaneous", action="store_true",
                    help="switched model: also write the power and loss outputs sampled at the kept instants "
                         "(<name>_inst; the <name> columns hold carrier-period averages)")
-    p.add_argument("--progress", action="store_true", help="progress bar on stderr")
+    add_progress(p)
 
 
 #: simulate()'s argument names as the flags that set them (messages name the flag).
 FLAGS = {"t_end": "--t-end", "dt": "--dt", "dt_out": "--dt-out", "event_tol": "--event-tol",
-         "solver": "--solver", "zoh": "--zoh"}
+         "solver": "--solver", "zoh": "--zoh", "from_trim": "--from-trim"}
 
 
 def run(args) -> dict:
@@ -85,18 +94,13 @@ def run(args) -> dict:
                       ("--event-tol", args.event_tol)):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
-    if args.dt_out is not None:
-        dt_out = args.dt_out
-    elif args.solver == "rk4":
-        dt_out = args.dt * max(1, round(1e-4 / args.dt))
-    else:
-        dt_out = max(args.dt, 1e-4)
+    dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
-        if args.solver != "rk4":
+        if args.solver not in ("rk4", "auto"):
             raise UserError(f"--solver {args.solver}: the model switches (inverter={model.variants['inverter']}); "
                             f"use --solver rk4, which steps to every switching instant")
-        check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver="cvodes", event_tol=args.event_tol,
+        check_run(model, args.t_end, dt=args.dt, dt_out=dt_out or DT_OUT, solver="cvodes", event_tol=args.event_tol,
                   labels=FLAGS, error=UserError)
         check_switched(model, model.p(), args.t_end, UserError, "--t-end")
     else:
@@ -114,7 +118,8 @@ def run(args) -> dict:
     others = _named_inputs(args.input, model, stroke, args.t_end)
     t0 = time.perf_counter()
     res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, event_tol=args.event_tol, progress=args.progress, **others)
+                   zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
+                   **others)
     written = []
     if out is not None:
         table = res.with_instantaneous() if args.instantaneous else res
@@ -123,7 +128,7 @@ def run(args) -> dict:
     if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
         from ..plots._pwm import plot_switched
 
-        full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=None, **others)
+        full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, decimate=1, from_trim=args.from_trim, **others)
         written.append(str(plot_switched(full, plot)))
     elif plot is not None:
         from ..plots._base import plot_simulation
@@ -133,7 +138,11 @@ def run(args) -> dict:
     return {
         "model": args.model,
         "variants": model.variants,
-        "solver": args.solver,
+        "solver": info["solver"],
+        "solver_requested": args.solver,
+        "solver_reason": info.get("solver_reason"),
+        "tolerance": info.get("tolerance"),
+        "from_trim": args.from_trim,
         "t_end": args.t_end,
         "final": res.final(),
         "units": {k: res.units().get(k, "") for k in res.final()},
@@ -196,7 +205,9 @@ def _rel(x) -> str:
 
 def report(r: dict) -> None:
     f = r["final"]
-    print(f"simulated {r['t_end']} s with {r['solver']} ({r['steps']} steps) in {r['wall_time']:.3f} s "
+    tol = ", ".join(f"{k} {v:g}" for k, v in (r["tolerance"] or {}).items())
+    why = f"{r['solver_requested']}: {r['solver_reason']}; " if r["solver_requested"] == "auto" else ""
+    print(f"simulated {r['t_end']} s with {r['solver']} ({why}{tol}; {r['steps']} steps) in {r['wall_time']:.3f} s "
           f"(compile {r['compile_time']:.3f} s)")
     if r["mode_switches"] is not None:
         print(f"stick/slip mode switches: {r['mode_switches']}")

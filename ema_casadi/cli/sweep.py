@@ -12,27 +12,30 @@ row is kept in the journal .OUT.journal beside it, so that after Ctrl-C or a cra
 each parameter. Failed runs (left the physical envelope, integrator gave up, no
 operating point) are rows with status failed and the reason; any makes the command
 exit with status 3 after writing the whole table.
-Example: ema sweep models/sweep_hunting_backlash.toml --out results.csv --plot sweep.png --jobs 2
+MODEL.toml comes first, SPEC.toml second (or by --spec); without them the packaged
+reference set and sweep run. A single file that is a sweep is refused (name it with
+--spec).
+Example: ema sweep --spec models/sweep_hunting_backlash.toml --out results.csv --plot sweep.png --jobs 2
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
-
-from . import UserError, check_output_path, positionals
+from .._util._resources import REFERENCE_SWEEP
+from . import UserError, add_progress, check_output_path, progress_of, second_file
 
 COMMAND = "sweep"
-#: The sweep run without a SPEC.toml.
-DEFAULT_SPEC = "models/sweep_reference.toml"
+#: The sweep run without a SPEC.toml (packaged).
+DEFAULT_SPEC = REFERENCE_SWEEP
 ORDER = 10
 HELP = "sweep / Monte Carlo: parameters on a grid or from distributions, metrics per run"
 
 
 def add_arguments(p):
     p.add_argument("spec", metavar="SPEC.toml", nargs="?", default=None,
-                   help=f"sweep description (parameters, scenario, metrics); default {DEFAULT_SPEC} (40 runs "
-                        "over tolerances; a single file named is the sweep)")
+                   help="sweep description (parameters, scenario, metrics), after MODEL.toml; default: the packaged "
+                        f"{DEFAULT_SPEC} (40 runs over tolerances)")
+    p.add_argument("--spec", dest="spec_file", default=None, metavar="SPEC.toml",
+                   help="the sweep description by name (with or without MODEL.toml)")
     p.add_argument("--out", default=None, metavar="FILE.csv", help="the table, one row per run (and its journal)")
     p.add_argument("--plot", default=None, metavar="FILE.png", help="histograms and sensitivities")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers; default: all cores")
@@ -41,15 +44,15 @@ def add_arguments(p):
                    help="run on a Dask distributed scheduler (needs ema_casadi[dask] here and on the workers)")
     p.add_argument("--resume", action="store_true",
                    help="take the rows already in --out's journal (or in a finished --out) instead of rerunning them")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress and ETA on stderr (--no-progress to hide); default: when stderr is a terminal")
+    add_progress(p)
 
 
 def run(args) -> dict:
     from ..model.params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep
 
-    args.model, args.spec = positionals(args.model, args.spec, DEFAULT_SPEC)
+    args.spec = second_file(args, args.spec, args.spec_file, flag="--spec", what="sweep", key="sweep",
+                            default=DEFAULT_SPEC)
     out = check_output_path(args.out, (".csv",), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")
     if args.jobs is not None and args.jobs < 1:
@@ -63,10 +66,11 @@ def run(args) -> dict:
     from ..model.components import validate_variants
 
     given = dict(args.variant)
+    validate_variants(given, "--variant")
     params = load_parameters(args.model, given)  # the sweep file's [variants] go on top
     validate_variants({k: v for k, v in params.variants.items() if k not in given}, str(args.model))
     validate_variants(params.variants, "--variant")
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    progress = progress_of(args)
     try:
         spec = load_sweep(args.spec, params)
         res = sweep(spec, out, jobs=args.jobs, backend="threads" if args.threads else "processes",

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .._util._files import atomic_dir
 from ..signals import SignalError, parse_quantity
-from . import UserError, check_output_dir, check_output_path, load
+from . import UserError, add_progress, check_output_dir, check_output_path, load, stage
 
 #: The files --plot-dir receives (the folder is replaced whole: it may hold only these).
 PLOT_FILES = ("tune_bode.png", "tune_step.png", "tune_cascade.png")
@@ -38,6 +38,7 @@ HELP = "tune the loop gains by IPOPT (margins, overshoot, limits; several load c
 
 
 def add_arguments(p):
+    add_progress(p)
     from ..tuning import GAINS, OBJECTIVES
 
     p.add_argument("--free", default=None, metavar="G1,G2,...",
@@ -148,10 +149,12 @@ def run(args) -> dict:
                        command_noise=args.command_noise / 100)
     try:
         start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
+        stage(args, "tune", 0.0, f"IPOPT on {len(loads)} load case(s), then the verification")
         res = tune(params, model=model, free=free, loads=loads, objective=args.objective, requirements=req,
                    start=start, max_iter=args.max_iter, hessian=args.hessian, verify_step=sim_step)
     except TuneError as exc:
         raise UserError(str(exc)) from None
+    stage(args, "tune", 0.9 if plot_dir is not None else 1.0, "plots" if plot_dir is not None else "done")
     if not res.success:
         raise UserError(res.message)
     written = []
@@ -161,6 +164,7 @@ def run(args) -> dict:
         before = params.replace(**res.gains_before)
         with atomic_dir(plot_dir) as tmp:
             written.extend(str(plot_dir / Path(w).name) for w in plot_tuning(res, model, before, tmp))
+        stage(args, "tune", 1.0, "done")
     r = res.to_dict()
     for key in ("before", "after"):
         nl = r[key].get("nonlinear_step")

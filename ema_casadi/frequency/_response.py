@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -58,6 +59,15 @@ from ..linearisation import (
 from ..model.assembly import Model
 from ._grid import MAX_FREQ_POINTS, _frequencies, check_points, frequency_grid
 from ._margins import _closed_loop_stable, _disk_margin, _gain_crossovers, _phase_crossovers, _root, _unwrap_deg
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import control
+    from numpy.typing import ArrayLike
+
+    from ..linearisation import LinearModel
+
 
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
@@ -119,7 +129,8 @@ def _siso(sys, what="the system", name="sys"):
     return A, B, C, D
 
 
-def bode(sys, f_hz=None, *, input: str | None = None, output: str | None = None) -> dict:
+def bode(sys: LinearModel | control.StateSpace, f_hz: ArrayLike | None = None, *, input: str | None = None,
+         output: str | None = None) -> dict:
     """Bode data of a SISO system or of one input/output pair (by name).
 
     Returns a dict with ``freq_hz``, ``mag_db`` (20 log10 |H|, in dB re the system's
@@ -241,7 +252,8 @@ class LoopMargins:
         return d
 
 
-def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200, loop: str = "") -> LoopMargins:
+def margins(L: LinearModel | control.StateSpace, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200,
+            loop: str = "") -> LoopMargins:
     """Gain, phase, delay and disk margins of a SISO loop transfer L (negative feedback).
 
     Parameters
@@ -298,7 +310,7 @@ def margins(L, *, f_min: float = 1e-2, f_max: float = 1e5, per_decade: int = 200
 def loop_margins(
     model: Model,
     op: OperatingPoint | None = None,
-    loops="all",
+    loops: str | Sequence[str] = "all",
     *,
     outer: str = "closed",
     f_min: float = 1e-2,
@@ -390,7 +402,8 @@ def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> L
     return lin
 
 
-def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz=None, **op_kwargs) -> dict:
+def dynamic_stiffness(model: Model, op: OperatingPoint | None = None, f_hz: ArrayLike | None = None,
+                      **op_kwargs) -> dict:
     """Dynamic stiffness K = -f_ext/x_rod (N/m) of the closed loop.
 
     Returns a dict with ``freq_hz``, ``stiffness`` (complex, N/m), ``magnitude`` (N/m),

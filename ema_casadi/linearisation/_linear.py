@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -11,6 +12,12 @@ from .._util._kwargs import check_keywords, keywords_of
 from ..model.assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import control
+
 
 
 @dataclass
@@ -93,9 +100,9 @@ def linear_model(
     model: Model,
     op: OperatingPoint | None = None,
     *,
-    open_loops=(),
-    inputs=None,
-    outputs=None,
+    open_loops: Sequence[str] = (),
+    inputs: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
     **op_kwargs,
 ) -> LinearModel:
     """Exact AD linearisation at ``op`` as a :class:`LinearModel` (NumPy only).
@@ -164,7 +171,7 @@ def linear_model(
     return lin
 
 
-def linearize(model: Model, op: OperatingPoint | None = None, **kwargs):
+def linearize(model: Model, op: OperatingPoint | None = None, **kwargs) -> control.StateSpace:
     """Exact AD linearisation as a named ``control.StateSpace``.
 
     The operating point travels with the :class:`LinearModel` (``linear_model(...).op``)
@@ -221,7 +228,7 @@ def loop_model(model: Model, loop: str, op: OperatingPoint | None = None, *, out
 
 
 def loop_transfer(model: Model, loop: str, op: OperatingPoint | None = None, *, outer: str = "closed",
-                  **op_kwargs):
+                  **op_kwargs) -> control.StateSpace:
     """:func:`loop_model` as a named ``control.StateSpace``.
 
     Parameters

@@ -3,15 +3,12 @@ peaks against the limits, the heat balance; CSV, JSON-ready summary, figure."""
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from .._util._files import write_text
 from ..model.components import node_outflow
 from ._profile import Mission
 
@@ -282,9 +279,10 @@ class MissionResult:
         return names, units, np.column_stack(cols)
 
     def to_csv(self, path: str | Path, dt: float = 1.0) -> Path:
-        """Write :meth:`table` as CSV (atomically): a ``time`` column, then a ``Unit:``
-        row (MATLAB Simulation Data Inspector metadata: temperatures in degC, SI
-        otherwise), then the rows.
+        """Write :meth:`table` as CSV (atomically) in the layout of every time series the
+        toolkit writes (:func:`~ema_casadi.signals._tables.write_series`): ``time``, one column
+        per signal, a ``Unit:`` row (temperatures in degC, SI otherwise), 10 significant
+        digits; readable back as a signal (``mission.csv:x_cmd``).
 
         Parameters
         ----------
@@ -293,25 +291,56 @@ class MissionResult:
         dt : float
             Row spacing (s).
         """
-        names, units, data = self.table(dt)
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(names)
-        w.writerow([""] + [f"Unit: {u}" if u and u != "1" else "" for u in units[1:]])
-        for row in data:
-            w.writerow([f"{row[0]:.6g}", f"{int(row[1])}", *(f"{v:.8g}" for v in row[2:])])
-        return write_text(path, buf.getvalue())
+        from ..signals._tables import write_series
 
-    def plot(self, path: str | Path, title: str = "") -> Path:
-        """Temperatures and losses over the mission, segments shaded (PNG, atomically).
+        names, units, data = self.table(dt)
+        return write_series(path, names, units, data, fmt="%.10g")
+
+    def plot(self, path: str | Path | None = None, title: str = ""):
+        """Temperatures and losses over the mission, segments shaded.
 
         Parameters
         ----------
-        path : str or Path
-            The PNG file.
+        path : str or Path, optional
+            A PNG file to write (atomically); without it the figure is returned.
         title : str
             Figure title (default the mission's name).
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
         """
         from ..plots._mission import plot_mission
 
         return plot_mission(self, path, title)
+
+    def to_pandas(self, dt: float = 1.0):
+        """:meth:`table` as a :class:`pandas.DataFrame` indexed by ``time`` (s), units in
+        ``frame.attrs["units"]``. Needs pandas.
+
+        Parameters
+        ----------
+        dt : float
+            Row spacing (s).
+        """
+        from .._util._notebook import data_frame
+
+        names, units, data = self.table(dt)
+        return data_frame({n: data[:, i] for i, n in enumerate(names)}, index="time", units=dict(zip(names, units,
+                                                                                                   strict=True)))
+
+    def _facts(self) -> dict:
+        return {"mission": self.mission.name, "duration": f"{self.t[-1]:g} s", "samples": len(self.t),
+                "solver": self.info.get("solver"),
+                "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
+
+    def __repr__(self) -> str:
+        from .._util._notebook import short_repr
+
+        return short_repr("MissionResult", self._facts())
+
+    def _repr_html_(self) -> str:
+        from .._util._notebook import html_summary
+
+        peaks = {f"peak {n}": f"{float(np.max(self.series[n])):.1f} degC" for n in self.nodes}
+        return html_summary("MissionResult", {**self._facts(), **peaks})

@@ -5,7 +5,6 @@ mission reports."""
 from __future__ import annotations
 
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -14,7 +13,8 @@ import numpy as np
 from ..model.assembly import Model, build_model
 from ..model.components import node_outflow
 from ..model.params import Parameters
-from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, simulate
+from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, progress_bar, simulate
+from ..simulation._choice import choose_solver, trimmed_start
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 
@@ -67,19 +67,13 @@ def _blocks(t_total: float, dt: float, dt_out: float, block: float) -> list[tupl
 
 
 def _progress(enabled: bool, frac: float, t: float, run: Mission, seg: str, T_w: float, wall: float) -> None:
-    if not enabled:
-        return
-    n = int(30 * frac)
-    sys.stderr.write(f"\rmission [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%  {t:6.0f}/{run.duration:.0f} s  "
-                     f"{seg[:18]:18s}  T_w {T_w:6.1f} degC  {wall:5.1f} s")
-    if frac >= 1:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
+    progress_bar(frac, enabled, "mission", f"{t:6.0f}/{run.duration:.0f} s  {seg[:18]:18s}  T_w {T_w:6.1f} degC  "
+                                           f"{wall:5.1f} s")
 
 
 def run_mission(params: Parameters, mission: Mission | str | Path, variants: dict | None = None, *,
                 dt: float = FULL_DT, dt_out: float = 0.01, block: float = 60.0, progress: bool = False,
-                jit: bool = True) -> MissionResult:
+                jit: bool = True, solver: str = "auto", from_trim: bool = False) -> MissionResult:
     """Run a mission on the full model (compiled RK4, every step at ``dt``).
 
     The mission is simulated in blocks of about ``block`` seconds of mission time, each
@@ -108,6 +102,13 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
         Draw a progress line on stderr.
     jit : bool
         Compile the model to native code (cached on disk).
+    solver : {"auto", "rk4", "rosenbrock", "cvodes"}
+        As in :func:`~ema_casadi.simulation.simulate`; ``auto`` runs the compiled RK4 on
+        the mission's model (hybrid friction sticks) and the compiled RODAS4 when the
+        variants make it continuous. The choice is in ``info["solver"]``.
+    from_trim : bool
+        Start the mechanics and electrics at the operating point of the first
+        segment's command and load (temperatures at the mission's start value).
     """
     if not isinstance(mission, Mission):
         mission = load_mission(mission, params)
@@ -127,7 +128,8 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     keep = tuple(dict.fromkeys((*temps, *losses, *heat, *flows, *KEPT, x_mech)))
     wall0 = time.perf_counter()
     t, series, info = _simulate_blocks(model, mission, keep, _blocks(mission.duration, dt, dt_out, block),
-                                       dt=dt, dt_out=dt_out, jit=jit, progress=progress)
+                                       dt=dt, dt_out=dt_out, jit=jit, progress=progress, solver=solver,
+                                       from_trim=from_trim)
     series["x_mech"] = series[x_mech]
     info.update(wall_time=time.perf_counter() - wall0, variants=dict(model.variants), model=str(params.source))
     return MissionResult(
@@ -140,7 +142,7 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
 
 
 def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, *, dt: float, dt_out: float,
-                     jit: bool, progress: bool):
+                     jit: bool, progress: bool, solver: str = "auto", from_trim: bool = False):
     """The blocks one after the other, each from where the previous one ended; the kept
     signals concatenated. Returns (t, series, info)."""
     temps = model.states_with("temperature")
@@ -148,6 +150,9 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
     for n in temps:
         x[model.index(n)] = mission.T_start
     sig = {name: mission.signal(name) for name in ("x_cmd", "f_ext", "T_amb")}
+    if from_trim:
+        x = trimmed_start(model, sig, model.p(), x)
+    used, why = choose_solver(model, solver)
     chunks = {n: [] for n in keep}
     times, steps, switches, compile_time = [], 0, 0, 0.0
     wall0 = time.perf_counter()
@@ -155,7 +160,7 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
     _progress(progress, 0.0, 0.0, mission, seg_names[0], mission.T_start, 0.0)
     for b, (t0, length) in enumerate(blocks):
         try:
-            res = simulate(model, length, dt=dt, dt_out=dt_out, solver="rk4", x0=x, jit=jit,
+            res = simulate(model, length, dt=dt, dt_out=dt_out, solver=used, x0=x, jit=jit,
                            **{n: s.shifted(t0) for n, s in sig.items()})
         except RunFailed as exc:  # the physical-envelope monitor of simulate()
             raise MissionFailed(f"{mission.source}: the run failed: {exc.what} at t = {t0 + exc.time:.6g} s") from None
@@ -175,6 +180,7 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
         seg = seg_names[min(int(np.searchsorted(mission.starts, t_now, side="right")) - 1, len(seg_names) - 1)]
         _progress(progress, (b + 1) / len(blocks), t_now, mission, seg, float(x[model.index(temps[0])]),
                   time.perf_counter() - wall0)
-    info = {"dt": dt, "dt_out": dt_out, "steps": steps, "mode_switches": switches, "blocks": len(blocks),
+    info = {"solver": used, "solver_reason": why, "from_trim": from_trim, "dt": dt, "dt_out": dt_out,
+            "steps": steps, "mode_switches": switches, "blocks": len(blocks),
             "compile_time": compile_time, "switched": bool(model.switched)}
     return np.concatenate(times), {n: np.concatenate(chunks[n]) for n in keep}, info

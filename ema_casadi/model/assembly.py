@@ -410,6 +410,18 @@ def _sum(bus, names):
     return total
 
 
+def _check_tables(params: Parameters, parts) -> None:
+    """Refuse a model whose parts read a table the parameter file does not have."""
+    if not params.missing:
+        return
+    group_of = params.group_of()
+    for part in parts:
+        for name in part.params:
+            if group_of.get(name) in params.missing:
+                raise ParameterError(f"{params.source}: missing table [{group_of[name]}] (its key '{name}' is read "
+                                     f"by {part.family} = {part.value}); add the table or choose another variant")
+
+
 def build_model(params: Parameters, variants: dict | None = None) -> Model:
     """Assemble the EMA for a variant choice.
 
@@ -423,11 +435,14 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     """
     if not isinstance(params, Parameters):
         raise ParameterError(f"params: expected Parameters (from load_parameters), got {type(params).__name__}")
-    v = validate_variants(params.variants, where=f"{params.source}: [model]")
+    given = set(params.overrides)  # load_parameters(variants=...): blamed on them, the rest on the file
+    validate_variants({k: x for k, x in params.variants.items() if k not in given}, where=f"{params.source}: [model]")
+    v = validate_variants(params.variants, where="variants")  # the file alone holds: what fails is theirs
     validate_variants(variants, where="variant")
     v.update(variants or {})
     params = dataclasses.replace(params, variants=v)
     parts, ignored = parts_for(v)
+    _check_tables(params, parts)
     states, inputs, outputs, providers, loops, holds = _declarations(parts)
 
     names = Parameters.names()

@@ -16,7 +16,7 @@ them as an input: changing a value never rebuilds a model.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,8 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
+from ._param_units import absent as _absent
+from ._param_units import raw_value
 from ._params_airframe import Airframe
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
@@ -237,6 +239,10 @@ class Parameters:
         The default variant choice of the set (its ``[model]`` table).
     source : str
         Where the set came from (a file path), named in error messages.
+    overrides : tuple of str
+        Variant keys given by ``load_parameters(variants=...)`` (a wrong one is blamed there).
+    missing : tuple of str
+        Tables the file lacks (NaN values): ``build_model`` names one its variants read.
     """
 
     actuator: Actuator
@@ -250,6 +256,8 @@ class Parameters:
     airframe: Airframe = Airframe()
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
+    missing: tuple = ()
+    overrides: tuple = ()
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod
@@ -258,6 +266,11 @@ class Parameters:
         parameter ``T_eta`` is ``T_eta_0`` ... ``T_eta_5`` (:data:`TABLE_MAX` entries)."""
         out = [n for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)]
         return out + list(LOOP_FLAGS)
+
+    @staticmethod
+    def group_of() -> dict[str, str]:
+        """Flat parameter name -> the table it belongs to (``"B"`` -> ``"screw"``)."""
+        return {n: g for g, cls in GROUPS.items() for f in fields(cls) for n in _flat_names(f)}
 
     @staticmethod
     def units() -> dict[str, str]:
@@ -303,7 +316,8 @@ class Parameters:
         **values : float
             New values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
-        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()}
+        raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()
+               if g not in self.missing}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
         for k, v in values.items():
             if k not in flat_group:
@@ -367,19 +381,7 @@ def _check_table(where: str, meta: dict, value: Any) -> tuple:
 def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: bool, bare: bool = False):
     where = src if bare else f"{src}: [{group}] {name}"
     unit = meta["unit"]
-    if plain:
-        value = raw
-    else:
-        if not isinstance(raw, dict) or "value" not in raw or "unit" not in raw:
-            raise ParameterError(
-                f'{where}: expected a table {{ value = <number>, unit = "{unit}" }}, got {raw!r}'
-            )
-        extra = set(raw) - {"value", "unit"}
-        if extra:
-            raise ParameterError(f"{where}: unexpected field(s) {sorted(extra)}; expected value and unit")
-        if raw["unit"] != unit:
-            raise ParameterError(f"{where}: unit '{raw['unit']}' is not the expected SI unit '{unit}'")
-        value = raw["value"]
+    value = raw if plain else raw_value(where, raw, unit, ParameterError)  # convertible units (_param_units)
     if meta.get("table"):
         return _check_table(where, meta, value)
     check = meta["check"]
@@ -414,11 +416,13 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     unknown = set(data) - set(GROUPS) - {"model"}
     for g in sorted(unknown):
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
-    groups = {}
+    groups, missing = {}, []
     for g, cls in GROUPS.items():
         table = data.get(g, {} if all("default" in f.metadata for f in fields(cls)) else None)
-        if table is None:
-            raise ParameterError(f"{src}: missing table [{g}]")
+        if table is None:  # only the variants that read it need it: named when one does (build_model)
+            missing.append(g)
+            groups[g] = cls(**{f.name: _absent(f) for f in fields(cls)})
+            continue
         if not isinstance(table, dict):
             raise ParameterError(f"{src}: [{g}] must be a table")
         names = [f.name for f in fields(cls)]
@@ -441,8 +445,10 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
     s = groups["screw"]
     if s.eta * s.eta_inv > 1:
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
-    _check_eta_table(src, groups["thermal"], s)
-    return Parameters(**groups, variants=merged, source=src)
+    if "thermal" not in missing:
+        _check_eta_table(src, groups["thermal"], s)
+    return Parameters(**groups, variants=merged, source=src, missing=tuple(missing))
+
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
@@ -457,13 +463,14 @@ def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:
                              f"gives inverse efficiencies {[round(v, 4) for v in inv]}, outside (0, 1]")
 
 
-def load_parameters(path: str | Path, variants: dict[str, str] | None = None) -> Parameters:
+def load_parameters(path: str | Path | None = None, variants: dict[str, str] | None = None) -> Parameters:
     """Load and validate a parameter file.
 
     Parameters
     ----------
-    path : str or Path
-        TOML parameter file (the layout of models/cesa_ema.toml).
+    path : str or Path, optional
+        TOML parameter file (the layout of models/cesa_ema.toml), read as given (relative
+        to the working folder); default the packaged reference set ``cesa_ema.toml``.
     variants : dict, optional
         Variant overrides on top of the file's ``[model]`` table.
 
@@ -475,6 +482,10 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
         (with the nearest valid name), wrong type or unit, non-finite or out-of-range
         value, unknown variant.
     """
+    if path is None:
+        from .._util._resources import packaged_file
+
+        path = packaged_file()
     if not isinstance(path, (str, Path)):
         raise ParameterError(f"path: expected a parameter file path (str or Path), got {describe(path)}")
     if variants is not None and not isinstance(variants, dict):
@@ -482,5 +493,7 @@ def load_parameters(path: str | Path, variants: dict[str, str] | None = None) ->
     src = str(path)
     data = read_toml(path, "parameter file", ParameterError)
     merged = _variant_table(data.get("model", {}), src)
-    merged.update(_variant_table(variants or {}, "variant"))
-    return _build(data, merged, src)
+    given = _variant_table(variants or {}, "variants")
+    merged.update(given)
+    # the registry checks the names when a model is built, blaming the file or `variants`
+    return replace(_build(data, merged, src), overrides=tuple(given))

@@ -7,7 +7,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
-from ._base import save  # sets the Agg backend before pyplot is imported
+from ._base import finish, save  # sets the Agg backend before pyplot is imported
 
 __all__ = ["plot_bode", "plot_loop_margins"]
 
@@ -46,8 +46,8 @@ def _gm_text(gm_db: float) -> str:
     return f"GM {gm_db:.1f} dB" if gm_db > 0 else f"gain-reduction margin {-gm_db:.1f} dB"
 
 
-def plot_bode(curves, path: str | Path, *, title: str = "", margins=None,
-              mag_label: str = "magnitude (dB)", linear_magnitude: bool = False) -> Path:
+def plot_bode(curves, path: str | Path | None = None, *, title: str = "", margins=None,
+              mag_label: str = "magnitude (dB)", linear_magnitude: bool = False):
     """Bode plot of one or more curves.
 
     Parameters
@@ -96,7 +96,7 @@ def plot_bode(curves, path: str | Path, *, title: str = "", margins=None,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
 def plot_loop_margins(loops: dict, path: str | Path, *, title: str = "") -> Path:

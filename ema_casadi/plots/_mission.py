@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._base import plt, save
+from ._base import finish, plt
 
 __all__ = ["plot_mission"]
 
@@ -22,7 +22,7 @@ def _means(t: np.ndarray, y: np.ndarray, width: float):
     return 0.5 * (edges[1:] + edges[:-1]), np.diff(ci) / np.diff(edges)
 
 
-def plot_mission(res, path: str | Path, title: str = "") -> Path:
+def plot_mission(res, path: str | Path | None = None, title: str = ""):
     """Temperatures (degC) with the limits, losses per part (W, 5 s means) and the rod
     command and load over the mission; segments shaded and labelled.
 
@@ -80,4 +80,4 @@ def plot_mission(res, path: str | Path, title: str = "") -> Path:
             axis.legend(loc="upper left", fontsize=7)
     fig.suptitle(title or res.mission.name)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)

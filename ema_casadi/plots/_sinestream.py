@@ -10,7 +10,7 @@ if TYPE_CHECKING:  # annotations only: this layer imports no analysis
     from ..sinestream import FreqResponse
 
 
-def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: float | None = None) -> Path:
+def plot_bode(resp: FreqResponse, path: str | Path | None = None, title: str = "", stroke: float | None = None):
     """Bode plot (gain dB, phase deg against Hz), one line per (variant, load, amplitude).
 
     Points that did not settle are marked with an ``x``. PNG, written atomically.
@@ -19,8 +19,8 @@ def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: flo
     ----------
     resp : FreqResponse
         Sine-stream result.
-    path : str or Path
-        PNG file.
+    path : str or Path, optional
+        PNG file; without it the figure is returned.
     title : str
         Figure title.
     stroke : float, optional
@@ -28,8 +28,8 @@ def plot_bode(resp: FreqResponse, path: str | Path, title: str = "", stroke: flo
 
     Returns
     -------
-    Path
-        ``path``.
+    matplotlib.figure.Figure or Path
+        The figure, or ``path`` when one was given.
     """
     from ._frequency import plot_bode as draw_bode  # matplotlib only when plotting
 

@@ -8,7 +8,7 @@ from pathlib import Path
 __all__ = ["draw_bode", "draw_step", "cascade_figure"]
 
 
-def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) -> Path:
+def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path | None = None):
     """One column per system (closed loop, then each loop transfer), gain over phase.
 
     Parameters
@@ -27,7 +27,7 @@ def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) ->
     """
     import matplotlib.pyplot as plt
 
-    from ._base import save  # first: it selects the Agg backend
+    from ._base import finish  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, len(titles), figsize=(17, 7), sharex=True, squeeze=False)
     for lbl, (ls, bodes) in curves.items():
@@ -45,10 +45,10 @@ def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path) ->
     ax[0, 0].legend(fontsize=8)
     fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
-def draw_step(steps: dict, path: str | Path) -> Path:
+def draw_step(steps: dict, path: str | Path | None = None):
     """Rod position and q-axis current of nonlinear steps, one line per gain set.
 
     Parameters
@@ -61,7 +61,7 @@ def draw_step(steps: dict, path: str | Path) -> Path:
     """
     import matplotlib.pyplot as plt
 
-    from ._base import save  # first: it selects the Agg backend
+    from ._base import finish  # first: it selects the Agg backend
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
     amp = None
@@ -79,10 +79,10 @@ def draw_step(steps: dict, path: str | Path) -> Path:
         a.legend(fontsize=8)
     ax[0].set_title(f"nonlinear {amp * 1e3:g} mm step (full model, no load)", fontsize=10)
     fig.tight_layout()
-    return save(fig, path)
+    return finish(fig, path)
 
 
-def cascade_figure(f, curves: dict, loops: list, suptitle: str):
+def cascade_figure(f, curves: dict, loops: list, suptitle: str, path: str | Path | None = None):
     """One column per loop (with its outer loops open), gain over phase, one colour per
     gain set, each gain crossover marked.
 
@@ -96,14 +96,13 @@ def cascade_figure(f, curves: dict, loops: list, suptitle: str):
         The loop names, in the order of the curves.
     suptitle : str
         Figure title.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    path : str or Path, optional
+        PNG file, written atomically; without it the Figure is returned.
     """
     import matplotlib.pyplot as plt
 
-    from ._base import save  # noqa: F401  (first: it selects the Agg backend)
+    from ._base import finish  # first: it selects the Agg backend
+
 
     fig, ax = plt.subplots(2, len(loops), figsize=(5 * len(loops), 6.5), sharex=True, squeeze=False)
     for k, (lbl, per_loop) in enumerate(curves.items()):
@@ -125,4 +124,4 @@ def cascade_figure(f, curves: dict, loops: list, suptitle: str):
     ax[1, 0].set_ylabel("phase (deg)")
     fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
-    return fig
+    return finish(fig, path)

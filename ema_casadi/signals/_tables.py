@@ -158,3 +158,38 @@ def _table_reference(part: str) -> tuple[Path, str | None] | None:
     if sep and head and Path(head).is_file():
         return Path(head), col.strip() or None
     return None
+
+
+def write_series(path: str | Path, names: list[str], units: list[str], data: np.ndarray, fmt: str = "%.17g") -> Path:
+    """Write a time series as CSV in the one layout every time series of the toolkit
+    uses (and :func:`~ema_casadi.signals.parse_signal` reads back, ``FILE.csv:COLUMN``):
+    the MATLAB Simulation Data Inspector layout, a header ``time,<name>,...``, a row
+    ``Unit:,<unit>,...`` (``1`` for a dimensionless column), then one row per sample;
+    atomic.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    names : list of str
+        Column names, the first ``time`` (s).
+    units : list of str
+        One unit per column (the time's is not written: ``Unit:`` stands in its cell).
+    data : ndarray
+        Samples x columns.
+    fmt : str
+        Number format (default 17 significant digits: a float written and read back is
+        the same float).
+    """
+    from .._util._files import write_with
+
+    if names[0] != "time" or len(units) != len(names):
+        raise ValueError("write_series: the first column is 'time' and every column has a unit")
+    head = ",".join(names) + "\n" + ",".join(["Unit:", *((u or "1") for u in units[1:])]) + "\n"
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8", newline="") as fh:
+            fh.write(head)
+            np.savetxt(fh, np.asarray(data, dtype=float).reshape(len(data), len(names)), delimiter=",", fmt=fmt)
+
+    return write_with(path, write)

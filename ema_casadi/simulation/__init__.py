@@ -1,6 +1,9 @@
 """Time simulation of an assembled model (docs: simulate).
 
-Three solvers share the model's one CasADi Function:
+Three solvers share the model's one CasADi Function; ``solver="auto"`` (the default)
+picks ``rosenbrock`` for a continuous model and ``rk4`` where the model switches or
+sticks (hybrid friction, the sampled ECU, a PWM bridge), and records the choice and
+its tolerance in ``info`` (``solver``, ``solver_reason``, ``tolerance``):
 
 ``rk4``
     Fixed-step classical Runge-Kutta, rolled out inside one compiled call per chunk
@@ -54,14 +57,16 @@ honour an interrupt (:mod:`ema_casadi._util._interrupts`) between chunks.
 """
 
 
-from ._api import SOLVERS, simulate
+from ._api import DT_OUT, SOLVERS, simulate
+from ._choice import AUTO_ATOL, AUTO_RTOL, choose_solver
 from ._cvodes import BDF_MAX_ORDER
 from ._envelope import Monitor, RunFailed
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
 
 __all__ = [
-    "simulate", "SimResult", "SOLVERS", "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
+    "simulate", "SimResult", "SOLVERS", "DT_OUT", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
+    "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
     "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER",
 ]

@@ -28,12 +28,14 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._util._checks import describe, instance, integer, number, vector
 from ..model.assembly import Model
 from ..model.params import Parameters
+from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import _input_signals
@@ -42,8 +44,14 @@ from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 from ._rosenbrock import _simulate_rosenbrock, library
 
-SOLVERS = ("rk4", "cvodes", "rosenbrock")
+if TYPE_CHECKING:
+    from ..signals import Signal
 
+SOLVERS = ("auto", "rk4", "cvodes", "rosenbrock")
+
+#: Spacing of the kept samples without ``dt_out`` or ``decimate`` (s); for rk4 the
+#: nearest whole number of steps (at least one), for a switched model whole carrier periods.
+DT_OUT = 1e-4
 #: Most RK4 steps one run may take (about 12 min at :data:`RK4_SECONDS_PER_STEP`).
 MAX_STEPS = 10**9
 #: Largest result (kept samples x signals x 8 bytes) one run may build: 1 GiB.
@@ -60,33 +68,22 @@ _WHOLE = 1e-9
 def simulate(
     model: Model,
     t_end: float,
-    x_cmd=None,
-    f_ext=None,
-    eta=None,
+    x_cmd: Signal | float | str | None = None,
+    f_ext: Signal | float | str | None = None,
+    eta: Signal | float | str | None = None,
     *,
-    dt: float = 1e-5,
-    solver: str = "rk4",
-    params: Parameters | None = None,
-    p: np.ndarray | None = None,
-    x0: np.ndarray | None = None,
-    zoh: bool = False,
-    decimate: int | None = None,
-    dt_out: float | None = None,
-    rtol: float = 1e-8,
-    atol: float = 1e-11,
-    event_tol: float = 1e-7,
-    jit: bool = True,
-    progress: bool = False,
+    dt: float = 1e-5, solver: str = "auto",
+    params: Parameters | None = None, p: np.ndarray | None = None,
+    x0: np.ndarray | None = None, from_trim: bool = False, zoh: bool = False,
+    decimate: int | None = None, dt_out: float | None = None,
+    rtol: float | None = None, atol: float | None = None, event_tol: float = 1e-7,
+    jit: bool = True, progress: bool = False,
     **signals,
 ) -> SimResult:
-    """Simulate ``model`` from 0 to ``t_end`` (s).
-
-    Samples are kept at 0, ``dt_out``, 2 ``dt_out``, ... and at ``t_end`` (the last
-    interval shorter when ``dt_out`` does not divide ``t_end``); never past ``t_end``.
-    Every argument is checked first: a wrong type or value raises
-    :class:`SimulationError` (:class:`~ema_casadi.signals.SignalError` for a signal)
-    naming it, and a run above :data:`MAX_STEPS` or :data:`MAX_RESULT_BYTES` is refused
-    with the estimate before anything is built (module docstring).
+    """Simulate ``model`` from 0 to ``t_end`` (s): samples at 0, ``dt_out``, 2 ``dt_out``,
+    ... and at ``t_end``. Every argument is checked first (:class:`SimulationError`, or
+    :class:`~ema_casadi.signals.SignalError` for a signal, naming it; a run above
+    :data:`MAX_STEPS` or :data:`MAX_RESULT_BYTES` is refused with the estimate).
 
     Parameters
     ----------
@@ -98,45 +95,53 @@ def simulate(
         Rod command (m), external force (N, + pushes the rod in), screw efficiency (-);
         None: the input's default (0 m, 0 N, the set's eta; no x_cmd behind an airframe).
     **signals : Signal, float or str
-        Any other model input by name (``model.inputs``, e.g. the loop-break
-        injections ``d_x``); strings in the unit of the input's quantity kind.
-        Undriven inputs take their declared default.
+        Any other model input by name (``model.inputs``, e.g. ``d_x``), strings in its
+        quantity's unit; undriven inputs take their declared default.
     dt : float
-        RK4 step (s); for ``cvodes`` and ``rosenbrock`` the default output spacing
-        without ``dt_out``.
-    solver : {"rk4", "cvodes", "rosenbrock"}
-        ``rosenbrock``: variable-step RODAS4 in compiled C (not for hybrid friction;
-        without a C compiler it runs ``cvodes``, with a warning).
+        RK4 step (s).
+    solver : {"auto", "rk4", "cvodes", "rosenbrock"}
+        ``auto`` (default): ``rosenbrock`` (compiled RODAS4; ``cvodes`` without a C
+        compiler) at :data:`AUTO_RTOL`, :data:`AUTO_ATOL` on a continuous model, ``rk4``
+        where it switches or sticks (hybrid friction, ``zoh``, a PWM bridge); what ran
+        and its tolerance: ``info["solver"]``, ``info["tolerance"]``.
     params, p : Parameters or array, optional
         Parameter values (default: the model's set); ``p`` is the raw vector.
     x0 : array, optional
         Initial state, one value per ``model.states`` (default: at rest, all zero).
+    from_trim : bool
+        Start at the operating point of the inputs' values at t = 0 (a load present
+        from the start does not knock the rod back); not with ``x0``.
     zoh : bool
         Sampled ECU at its rates (rk4 only).
     decimate, dt_out : int or float, optional
-        Keep every ``decimate``-th step, or one sample per ``dt_out`` seconds (for
-        ``rk4`` a whole number of steps); default every step for rk4, every ``dt`` for
-        cvodes.
-    rtol, atol : float
-        Tolerances of the variable-step solvers (the same error weighting for both).
+        Keep every ``decimate``-th step (1: all), or a sample every ``dt_out`` s (rk4: a
+        whole number of steps); default every :data:`DT_OUT` (1e-4 s).
+    rtol, atol : float, optional
+        Tolerances of the variable-step solvers; default :data:`AUTO_RTOL`,
+        :data:`AUTO_ATOL` for ``auto``, else :data:`RTOL`, :data:`ATOL`.
     event_tol : float
-        cvodes with hybrid friction: the stick/slip switching instants are located to
-        within this time (s) before the integrator is restarted.
+        cvodes with hybrid friction: switching instants located to this time (s).
     jit : bool
         Compile the rollout to native code (cached on disk).
     progress : bool
         Progress bar on stderr.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
+    (solver, why), requested, (rtol, atol) = choose_solver(model, solver, zoh), solver, tolerances(solver, rtol, atol)
+    if from_trim and x0 is not None:
+        raise SimulationError("give x0 or from_trim, not both")
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
-        return _run_switched(model, t_end, _given(x_cmd, f_ext, eta, signals), dt, solver, params, p, x0, dt_out,
-                             decimate, jit, progress)
+        res = _run_switched(model, t_end, _given(x_cmd, f_ext, eta, signals), dt, solver, params, p, x0, dt_out,
+                            decimate, jit, progress, from_trim)
+        return _chosen(res, requested, why, rtol, atol)
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
+    if from_trim:
+        x0 = trimmed_start(model, sig, pv)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
-    return _timed(model, solver, plan.t_end, run, used=used)
+    return _chosen(_timed(model, solver, plan.t_end, run, used=used), requested, why, rtol, atol)
 
 
 def _given(x_cmd, f_ext, eta, signals) -> dict:
@@ -172,18 +177,25 @@ def _timed(model, solver, t_end, run, **info) -> SimResult:
     return res
 
 
-def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress) -> SimResult:
+def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress,
+                  from_trim=False) -> SimResult:
     """A switched model runs carrier period by period (``simulation/_pwm.py``): solver
     rk4 only (its ``dt`` bounds the RK4 step inside a sub-interval), the ECU always
-    sampled, ``dt_out`` rounded to whole carrier periods (None: every sub-interval)."""
+    sampled, ``dt_out`` (default :data:`DT_OUT`) rounded to whole carrier periods
+    (``decimate=1``: every sub-interval)."""
     if solver != "rk4":
         raise SimulationError(f"solver '{solver}': the model switches ({', '.join(model.switched)}); it runs with "
                               f"solver rk4, which steps to every switching instant")
-    if decimate is not None:
-        raise SimulationError("decimate: a switched model keeps samples by dt_out (whole carrier periods)")
+    if decimate is not None and (decimate != 1 or dt_out is not None):
+        raise SimulationError("decimate: a switched model keeps samples by dt_out (whole carrier periods), or "
+                              "every sub-interval with decimate=1")
+    every = decimate == 1
+    dt_out = None if every else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, given, pv)
+    if from_trim:
+        x0 = trimmed_start(model, sig, pv)
     out = None if dt_out is None else float(dt_out)
     return _timed(model, solver, float(t_end), lambda: simulate_pwm(model, float(t_end), sig, pv, x0, float(dt), out,
                                                                     bool(jit), bool(progress)), dt=float(dt))
@@ -253,8 +265,8 @@ def _largest_divisor(n: int, cap: int) -> int:
     return best
 
 
-def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solver="rk4", zoh=False,
-              event_tol=1e-7, rtol=1e-8, atol=1e-11, labels: dict | None = None, error: type = SimulationError):
+def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solver="auto", zoh=False,
+              event_tol=1e-7, rtol=RTOL, atol=ATOL, labels: dict | None = None, error: type = SimulationError):
     """Check a simulation request and plan its output grid, before anything is built.
 
     Raises ``error`` with one line naming the argument (by its name in ``labels``, e.g.
@@ -285,10 +297,13 @@ def check_run(model: Model, t_end, *, dt=1e-5, dt_out=None, decimate=None, solve
 
     if not isinstance(solver, str) or solver not in SOLVERS:
         raise error(f"{lab('solver')} '{solver}' unknown; choose one of {', '.join(SOLVERS)}")
+    solver = choose_solver(model, solver, zoh)[0]
     t_end = _seconds(t_end, lab("t_end"), error)
     dt = _seconds(dt, lab("dt"), error)
     if dt_out is not None:
         dt_out = _seconds(dt_out, lab("dt_out"), error)
+    elif decimate is None:  # the default spacing: DT_OUT, for rk4 in whole steps
+        dt_out = dt * max(1, round(DT_OUT / dt)) if solver == "rk4" else DT_OUT
     if decimate is not None:
         decimate = integer(decimate, lab("decimate"), error, minimum=1)
         if dt_out is not None:

@@ -175,9 +175,20 @@ class Monitor:
                     k = over[0]
                     name = names[rows[k]]
                     unit = self.model.units.get(name, "")
-                    return (f"{kind} {name} = {Z[rows[k], j]:.4g} {unit} left its physical envelope |{name}| <= "
-                            f"{b[k]:.4g} {unit} ({info[name].bound.why})")
+                    value, bound = _distinct(float(Z[rows[k], j]), float(b[k]))
+                    return (f"{kind} {name} = {value} {unit} left its physical envelope |{name}| <= "
+                            f"{bound} {unit} ({info[name].bound.why})")
         raise AssertionError("no violation at the flagged sample")  # pragma: no cover
+
+
+def _distinct(value: float, bound: float) -> tuple[str, str]:
+    """``value`` and ``bound`` with 4 significant digits, or as many more as it takes for
+    the magnitude of the one to read differently from the other (0.07601 vs 0.076)."""
+    for digits in range(4, 18):
+        v, b = f"{value:.{digits}g}", f"{bound:.{digits}g}"
+        if f"{abs(value):.{digits}g}" != b:
+            return v, b
+    return repr(value), repr(bound)
 
 
 # -- what CasADi prints -----------------------------------------------------------------

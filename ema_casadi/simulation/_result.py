@@ -90,8 +90,56 @@ class SimResult:
         return {k: float(v[-1]) for k, v in self.outputs.items()}
 
     def table(self) -> np.ndarray:
+        """Samples x (time, then every signal of :meth:`columns`), SI."""
         cols = self.columns()[1:]
         return np.column_stack([self.t] + [self[c] for c in cols])
+
+    def to_pandas(self):
+        """The time series as a :class:`pandas.DataFrame` indexed by ``time`` (s), one
+        column per signal (SI; units in ``frame.attrs["units"]``). Needs pandas."""
+        from .._util._notebook import data_frame
+
+        cols = self.columns()[1:]
+        return data_frame({"time": self.t, **{c: self[c] for c in cols}}, index="time", units=self.units())
+
+    def plot(self, signals=None, path: str | Path | None = None, title: str = ""):
+        """Plot against time: by default command and rod position, rod velocity, current,
+        voltage; with ``signals`` (names) one panel per unit, lengths in mm.
+
+        Parameters
+        ----------
+        signals : sequence of str, optional
+            The signals to draw (``["x_rod", "F_in"]``).
+        path : str or Path, optional
+            A PNG file to write; without it the figure is returned.
+        title : str
+            Figure title (default the variants).
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+        """
+        from ..plots._base import plot_simulation
+
+        return plot_simulation(self, path, title, signals=signals)
+
+    def _facts(self) -> dict:
+        t_end = f"{self.t[-1]:g} s" if len(self.t) else None
+        return {"t_end": t_end, "samples": len(self.t), "signals": len(self.columns()) - 1,
+                "solver": self.info.get("solver"), "status": self.info.get("status"),
+                "wall_time": f"{self.info['wall_time']:.3g} s" if "wall_time" in self.info else None}
+
+    def __repr__(self) -> str:
+        from .._util._notebook import short_repr
+
+        return short_repr("SimResult", self._facts())
+
+    def _repr_html_(self) -> str:
+        from .._util._notebook import html_summary
+
+        final = {k: f"{v:.6g} {self.unit_table.get(k, '')}" for k, v in self.final().items()
+                 if k in ("x_rod", "v_rod", "i_q", "F_in")}
+        return html_summary("SimResult", {**self._facts(), **{f"final {k}": v for k, v in final.items()}})
 
     def to_csv(self, path: str | Path) -> Path:
         """Write the time series as CSV (the file layout, docs: simulate); atomic.
@@ -107,16 +155,11 @@ class SimResult:
         path : str or Path
             The CSV file.
         """
+        from ..signals._tables import write_series
+
         cols = self.columns()[1:]
         units = self.units()
-        head = ",".join(["time", *cols]) + "\n" + ",".join(["Unit:", *(units[c] for c in cols)]) + "\n"
-
-        def write(tmp):
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                fh.write(head)
-                np.savetxt(fh, self.table(), delimiter=",", fmt="%.17g")
-
-        return write_with(path, write)
+        return write_series(path, ["time", *cols], ["s", *(units[c] for c in cols)], self.table())
 
     def to_mat(self, path: str | Path, name: str = "ema_sim") -> Path:
         """Write the time series as a MATLAB struct (the file layout, docs: simulate); atomic.
@@ -232,8 +275,14 @@ def hunting_metrics(t: np.ndarray, e: np.ndarray, t_from: float = 0.0) -> dict:
 # ---------------------------------------------------------------------------------
 
 
+#: The last tenth each label reported, when stderr is not a terminal (a log).
+_logged: dict = {}
+
+
 def progress_bar(frac: float, enabled: bool, label: str = "simulate", note: str = ""):
-    """Draw a one-line progress bar on stderr (a newline at 1).
+    """Show progress on stderr: on a terminal a one-line bar redrawn in place (a newline
+    at 1); into a file or a pipe (a log) whole lines only, one per tenth done, never a
+    carriage return.
 
     Parameters
     ----------
@@ -249,10 +298,23 @@ def progress_bar(frac: float, enabled: bool, label: str = "simulate", note: str 
     if not enabled:
         return
     n = int(30 * frac)
-    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%{' ' + note.ljust(48) if note else ''}")
-    if frac >= 1:
-        sys.stderr.write("\n")
+    text = f"{label} [{'#' * n}{'.' * (30 - n)}] {100 * frac:5.1f}%{' ' + note if note else ''}"
+    if _is_terminal(sys.stderr):
+        sys.stderr.write(f"\r{text.ljust(len(label) + 88)}" + ("\n" if frac >= 1 else ""))
+    else:
+        tenth = int(10 * frac + 1e-9)
+        if frac > 0 and tenth == _logged.get(label):
+            return
+        _logged[label] = None if frac >= 1 else tenth
+        sys.stderr.write(text.rstrip() + "\n")
     sys.stderr.flush()
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 def _result(model, sig, t, X, Y, info):

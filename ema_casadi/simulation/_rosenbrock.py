@@ -47,8 +47,11 @@ _STATE_HEAD = 6  # t, h, h_acc, err_acc, n_acc, reject (then x), as in the drive
 _STATS = ("steps", "rejected_steps", "f_evals", "jacobian_evals", "lu_decompositions", "forced_steps")
 
 
-def _source(model) -> str:
-    """CasADi C of ros_f and ros_fj for ``model``, then the driver."""
+def _source(model, extra=(), defines: dict | None = None, tail: str = "") -> str:
+    """CasADi C of ros_f and ros_fj for ``model`` (and the ``extra`` Functions of
+    ``xdot(x, u, p)``: ``extra`` holds callables ``(x, u, p, xdot) -> Function``), then
+    the driver with ``defines`` and the C text ``tail`` after it (the identification's
+    sensitivities)."""
     x = ca.SX.sym("x", model.nx)
     u = ca.SX.sym("u", model.nu)
     ud = ca.SX.sym("ud", model.nu)
@@ -59,8 +62,11 @@ def _source(model) -> str:
     gen = ca.CodeGenerator("ros_model.c", {"with_header": False, "casadi_int": "int"})
     gen.add(ca.Function("ros_f", [x, u, p], [xdot]))
     gen.add(fj)
-    return (f"{inline_min_max(gen.dump())}\n#define EMA_NX {model.nx}\n#define EMA_NU {model.nu}\n"
-            f"#line 1 \"rosenbrock.c\"\n{_DRIVER.read_text()}")
+    for make in extra:
+        gen.add(make(x, u, p, xdot))
+    macros = "".join(f"#define {k} {v}\n" for k, v in {"EMA_NX": model.nx, "EMA_NU": model.nu,
+                                                       **(defines or {})}.items())
+    return f"{inline_min_max(gen.dump())}\n{macros}#line 1 \"rosenbrock.c\"\n{_DRIVER.read_text()}\n{tail}"
 
 
 def library(model):

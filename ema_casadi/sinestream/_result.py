@@ -92,6 +92,41 @@ class FreqResponse:
             out.append(row)
         return out
 
+    def to_pandas(self):
+        """:meth:`rows` as a :class:`pandas.DataFrame`, one row per point (SI). Needs pandas."""
+        from .._util._notebook import data_frame
+
+        rows = self.rows()
+        return data_frame({k: [r[k] for r in rows] for k in rows[0]})
+
+    def plot(self, path: str | Path | None = None, title: str = "", stroke: float | None = None):
+        """Bode plot (gain dB, phase deg against Hz), one line per (variant, load,
+        amplitude); points that did not settle marked ``x``.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            A PNG file to write; without it the figure is returned.
+        title : str
+            Figure title.
+        stroke : float, optional
+            Actuator stroke (m): amplitudes labelled in % of it too.
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+        """
+        from ..plots._sinestream import plot_bode
+
+        return plot_bode(self, path, title, stroke)
+
+    def __repr__(self) -> str:
+        from .._util._notebook import short_repr
+
+        converged = int(np.asarray(self.data["converged"]).sum())
+        return short_repr("FreqResponse", {"shape": "x".join(map(str, self.shape)), "axes": ", ".join(self.axes),
+                                           "converged": f"{converged} of {int(np.prod(self.shape))}"})
+
     def to_csv(self, path: str | Path) -> Path:
         """Write one row per point (columns as :meth:`rows`, SI units), atomically.
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -21,9 +22,13 @@ from ._kernels import _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
 
 def sine_stream(
-    params: Parameters, amplitudes, freqs, loads=(0.0,), variants=None, *,
+    params: Parameters, amplitudes: ArrayLike, freqs: ArrayLike, loads: ArrayLike = (0.0,),
+    variants: dict | list | None = None, *,
     p: np.ndarray | None = None, samples: int = 64, tol_db: float = 0.01, tol_deg: float = 0.1,
     max_periods: int = 60, rtol: float = 1e-6, atol: float = 1e-9, hybrid_dt: float = 5e-5,
     jobs: int | None = None, scheduler: str | None = None, progress: bool = False, keep: bool = False,

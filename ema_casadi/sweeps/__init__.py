@@ -2,12 +2,16 @@
 distributions, any metric of the registry per run, on local cores or a Dask cluster,
 one row per run, resumable after an interruption or a crash.
 
-Usage::
+Usage (worker processes import the main script again: in a script, call ``sweep`` under
+``if __name__ == "__main__":``; an unguarded call is refused)::
 
+    import ema_casadi as ema
     from ema_casadi.sweeps import load_sweep, sweep
-    spec = load_sweep("models/sweep_hunting_backlash.toml", params)
-    result = sweep(spec, "results.csv", jobs=2)         # or scheduler="tcp://host:8786"
-    result.summary(); result.plot("sweep.png")
+
+    if __name__ == "__main__":
+        spec = load_sweep(ema.packaged_file("sweep_hunting_backlash.toml"), ema.load_parameters())
+        result = sweep(spec, "results.csv", jobs=2)     # or scheduler="tcp://host:8786"
+        result.summary(); result.plot("sweep.png")      # result.plot(): the Figure
 
 Layout: ``_spec`` reads and checks the description and expands it into runs (grid x
 draws, per-sample seeds); ``_metrics`` is the metric registry (each metric is the

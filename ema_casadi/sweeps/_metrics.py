@@ -6,6 +6,8 @@ name               columns (SI)                                    computed by
 =================  ==============================================  ================================
 step               step_overshoot (-), step_rise_time_s,           ``simulation.step_response_metrics``
                    step_settling_time_s                            on x_rod of the scenario from ``at``
+                                                                   to ``until`` (default: the next
+                                                                   change of x_cmd, or the end)
 hunting            hunting_amplitude_m, hunting_frequency_hz       ``simulation.hunting_metrics`` of
                                                                    x_rod - x_cmd over t >= ``from``
 margins            margins_<loop>_gm_db, _pm_deg, _f_gc_hz,        ``frequency.loop_margins`` at the
@@ -73,7 +75,7 @@ def _names(where, opts, key, allowed, error, default):
 
 # -- option checks: (spec, options, where, error) -> (checked options, [(column, unit)]) --
 def _step(spec, o, where, error, models):
-    o = _opts(where, o, ("at", "amplitude", "band"), error)
+    o = _opts(where, o, ("at", "amplitude", "band", "until"), error)
     x_cmd = spec.scenario["signals"].get("x_cmd")
     if x_cmd is None:
         raise error(f"{where}: the scenario has no x_cmd step")
@@ -85,7 +87,13 @@ def _step(spec, o, where, error, models):
     if amp == 0:
         raise error(f"{where} amplitude: x_cmd does not jump at t = {at:g} s; give the step's amplitude (m)")
     band = _number(where, o, "band", error, 0.02, positive=True)
-    return ({"at": at, "amplitude": amp, "band": band},
+    # the step's window: up to the next change of the command (a sine starting, a second
+    # step), where the response stops being the step's; else the end of the scenario
+    later = [b for b in x_cmd.breakpoints() if b > at]
+    until = _number(where, o, "until", error, min(later) if later else spec.scenario["duration"])
+    if until <= at:
+        raise error(f"{where} until: the window ends at {until:g} s, not after the step at {at:g} s")
+    return ({"at": at, "amplitude": amp, "band": band, "until": until},
             [("step_overshoot", "1"), ("step_rise_time_s", "s"), ("step_settling_time_s", "s")])
 
 
@@ -257,7 +265,7 @@ def _c_step(o, model, params, pv, res):
 
     t, x = res.t, res["x_rod"]
     x0 = float(np.interp(o["at"], t, x))
-    after = t >= o["at"]
+    after = (t >= o["at"]) & (t <= o.get("until", math.inf))
     m = step_response_metrics(t[after] - o["at"], (x[after] - x0) / o["amplitude"], o["band"])
     return {"step_overshoot": m["overshoot"], "step_rise_time_s": m["rise_time_s"],
             "step_settling_time_s": m["settling_time_s"]}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -122,45 +123,105 @@ class SweepResult:
         return {"runs": len(self.rows), "ok": int(ok.sum()), "failed": int((~ok).sum()),
                 "statistics": stats, "sensitivity_spearman": sens}
 
-    def plot(self, path: str | Path, max_panels: int = 6) -> Path:
-        """Histograms of the metrics (top row) and each metric against each swept
-        parameter that varies, with the rank correlation (below); failed runs and
-        values that do not exist (inf, NaN) left out.
+    def to_pandas(self):
+        """The table (one row per run, the columns of :meth:`to_csv`) as a
+        :class:`pandas.DataFrame` indexed by ``run``; units in ``frame.attrs["units"]``.
+        Needs pandas."""
+        from .._util._notebook import data_frame
+
+        return data_frame({c: [r.get(c) for r in self.rows] for c in self.columns}, index="run", units=self.units())
+
+    def __repr__(self) -> str:
+        from .._util._notebook import short_repr
+
+        return short_repr("SweepResult", {"sweep": self.spec.name, "runs": len(self.rows),
+                                          "failed": self.info.get("failed"), "metrics": len(self.metrics)})
+
+    def plot(self, path: str | Path | None = None, max_panels: int = 6):
+        """One row per metric: its histogram, then the metric against each swept
+        parameter that varies, with the rank correlation; failed runs and values that do
+        not exist (inf, NaN) left out, and a metric without any finite value not drawn
+        (named in the title instead).
 
         Parameters
         ----------
-        path : str or Path
-            The PNG file (written atomically).
+        path : str or Path, optional
+            A PNG file to write (atomically); without it the figure is returned (a
+            notebook shows it).
         max_panels : int
-            At most this many metrics and parameters are drawn.
+            At most this many metrics (rows) and parameters are drawn.
+
+        Returns
+        -------
+        matplotlib.figure.Figure or Path
+            The figure, or ``path`` when one was given.
         """
-        from ..plots._base import plt, save
+        from ..plots._base import finish, plt
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids
-        metrics, params = self.metrics[:max_panels], varied[:max_panels]
-        ncol = max(len(metrics), len(params), 1)
-        nrow = 1 + (len(metrics) if params else 0)
-        fig, axes = plt.subplots(nrow, ncol, figsize=(3.0 * ncol, 2.4 * nrow), squeeze=False)
-        for ax in axes.ravel():
-            ax.set_visible(False)
+        drawable = [m for m in self.metrics if (ok & np.isfinite(self.column(m))).any()]
+        empty = [m for m in self.metrics if m not in drawable]
+        metrics, params = drawable[:max_panels], varied[:max_panels]
+        nrow, ncol = max(len(metrics), 1), 1 + len(params)
+        fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.3 * nrow + 0.6), squeeze=False,
+                                 layout="constrained")
         units = self.units()
         sens = self.summary()["sensitivity_spearman"]
         for j, m in enumerate(metrics):
             y = self.column(m)
             good = ok & np.isfinite(y)
-            ax = axes[0, j]
-            ax.set_visible(True)
+            ax = _panel(axes[j, 0])
             ax.hist(y[good], bins=min(30, max(5, int(np.sqrt(good.sum())))), color="C0")
-            ax.set_xlabel(f"{m} ({units.get(m, '')})", fontsize=8)
-            ax.set_title(f"{good.sum()} of {len(y)} runs", fontsize=8)
+            ax.set_ylabel("runs", fontsize=7)
+            ax.set_xlabel(f"{_wrap(m)} ({units.get(m, '') or '-'}), {good.sum()} of {len(y)} runs", fontsize=7)
             for i, p in enumerate(params):
-                ax = axes[1 + j, i]
-                ax.set_visible(True)
-                ax.plot(self.column(p)[good], y[good], ".", ms=2, color="C1")
-                ax.set_title(f"rho = {sens[m][p]:.2f}", fontsize=8)
-                ax.set_xlabel(f"{p} ({units.get(p, '')})", fontsize=8)
-                ax.set_ylabel(m, fontsize=7)
-        fig.suptitle(f"sweep {self.spec.name}: {len(self.rows)} runs, {int((~ok).sum())} failed", fontsize=10)
-        fig.tight_layout()
-        return save(fig, path)
+                ax = _panel(axes[j, 1 + i])
+                ax.plot(self.column(p)[good], y[good], ".", ms=3, color="C1")
+                ax.text(0.03, 0.95, f"rho = {sens[m][p]:.2f}", transform=ax.transAxes, fontsize=7, va="top")
+                ax.set_xlabel(f"{p} ({units.get(p, '')})", fontsize=7)
+        for ax in axes.ravel():
+            if not ax.has_data():
+                ax.set_visible(False)
+        title = f"sweep {self.spec.name}: {len(self.rows)} runs, {int((~ok).sum())} failed"
+        if len(drawable) > len(metrics):
+            title += f"; first {len(metrics)} of {len(drawable)} metrics"
+        if empty:
+            title += f"\nno finite value: {', '.join(empty[:4])}{', ...' if len(empty) > 4 else ''}"
+        fig.suptitle(title, fontsize=9)
+        return finish(fig, path)
+
+
+def _panel(ax):
+    """An axes with few, small ticks labelled with just the digits that tell them apart
+    (no offset text such as '1e8' or '+7.6e1' to run into the panel below)."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+    ax.tick_params(labelsize=7)
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(4))
+        axis.set_major_formatter(FuncFormatter(lambda x, pos, axis=axis: _tick_label(x, axis.get_majorticklocs())))
+    return ax
+
+
+def _tick_label(x: float, locs) -> str:
+    """``x`` with the fewest significant digits (2 or more, and the whole digits of
+    numbers below a million) that keep the ticks distinct."""
+    locs = list(locs) or [x]
+    top = max(abs(v) for v in locs)
+    whole = int(math.floor(math.log10(top))) + 1 if 1 <= top < 1e6 else 0  # 150, not 1.5e+02
+    digits = next((d for d in range(max(2, whole), 13) if len({f"{v:.{d}g}" for v in locs}) == len(locs)), 13)
+    return f"{x:.{digits}g}"
+
+
+def _wrap(name: str, width: int = 26) -> str:
+    """A long column name broken at its underscores onto lines of about ``width``."""
+    lines, line = [], ""
+    for part in name.split("_"):
+        piece = part if not line else f"{line}_{part}"
+        if len(piece) > width and line:
+            lines.append(line + "_")
+            line = part
+        else:
+            line = piece
+    return "\n".join([*lines, line])

@@ -15,16 +15,20 @@ import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._util import _interrupts
 from .._util._files import after_commit
-from .._util._parallel import cores, dask_map
+from .._util._parallel import check_main_guard, cores, dask_map
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
 from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
 from ._spec import SweepError, SweepSpec
+
+if TYPE_CHECKING:
+    from ._result import SweepResult
 
 __all__ = ["sweep", "BACKENDS", "PointFailed"]
 
@@ -121,7 +125,7 @@ def _process_init():
 
 # -- the driver ------------------------------------------------------------------
 def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = None, backend: str = "processes",
-          scheduler: str | None = None, resume: bool = False, progress: bool = False):
+          scheduler: str | None = None, resume: bool = False, progress: bool = False) -> SweepResult:
     """Run every run of a sweep and return its table.
 
     Parameters
@@ -134,7 +138,9 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     jobs : int, optional
         Local workers (default: the cores); 1 runs in this thread.
     backend : {"processes", "threads"}
-        The local pool.
+        The local pool. Processes are started by spawn and import the main script
+        again: a script must call ``sweep`` under ``if __name__ == "__main__":``
+        (refused with :class:`SweepError` otherwise, before any work).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:8786``) instead.
     resume : bool
@@ -151,6 +157,8 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
 
     t0 = time.perf_counter()
     _check_request(spec, out, jobs, backend, scheduler, resume)
+    if backend == "processes" and not scheduler and (jobs or cores()) > 1:
+        check_main_guard(SweepError, f"sweep(jobs={jobs or cores()})")
     columns, text = _columns(spec)
     done, journal = _previous(spec, out, columns, text, resume)
     todo = [r for r in spec.runs if r.index not in done]

@@ -390,7 +390,7 @@ def _shown(values: dict) -> str:
 def _scenario(table: dict, params: Parameters, src: str) -> dict:
     _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
     where = f"{src} [scenario]"
-    out = {"duration": _num(where, table, "duration", False) or 1.0, "solver": table.get("solver", "cvodes"),
+    out = {"duration": _num(where, table, "duration", False) or 1.0, "solver": table.get("solver", "auto"),
            "dt": _num(where, table, "dt", False) or 1e-4}
     for key in ("dt_out", "rtol", "atol", "event_tol"):
         if key in table:

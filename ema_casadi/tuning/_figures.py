@@ -4,6 +4,7 @@ step), computed here and drawn by :mod:`ema_casadi.plots._tuning`."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..frequency import bode, closed_loop, frequency_grid
 from ..linearisation import loop_model, operating_point
@@ -11,8 +12,10 @@ from ..model.assembly import Model
 from ..model.params import Parameters
 from ..plots._tuning import cascade_figure, draw_bode, draw_step
 from ._requirements import _load_label
-from ._solve import TuneResult
 from ._verify import step_metrics
+
+if TYPE_CHECKING:
+    from ._solve import TuneResult
 
 __all__ = ["plot_tuning", "cascade_bode_figure"]
 
@@ -32,17 +35,17 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         The assembled model.
     params_before : Parameters
         The parameter set with the start gains.
-    folder : str or Path
-        Existing folder the PNGs are written into.
+    folder : str or Path or None
+        Existing folder the PNGs are written into; None: return the two figures.
     reference : Parameters, optional
         A further gain set drawn dotted.
 
     Returns
     -------
-    list of Path
-        The three PNG files.
+    list of Path or of matplotlib.figure.Figure
+        The three PNG files (or, without a folder, the figures).
     """
-    folder = Path(folder)
+    folder = None if folder is None else Path(folder)
     sets = {"before": (params_before, "--"), "after": (result.params, "-")}
     if reference is not None:
         sets["reference"] = (reference, ":")
@@ -55,15 +58,14 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         systems = [closed_loop(model, op)] + [loop_model(model, n, op) for n in model.loops]
         curves[lbl] = (ls, [bode(sys_, f) for sys_ in systems])
     bode_png = draw_bode(f, curves, titles, f"gain tuning ({result.objective}), linearised at {_load_label(F)}",
-                         folder / "tune_bode.png")
-    from ..plots._base import save
+                         None if folder is None else folder / "tune_bode.png")
+    cascade = cascade_bode_figure(model, {k: v[0] for k, v in sets.items()}, F,
+                                  path=None if folder is None else folder / "tune_cascade.png")
+    return [bode_png, draw_step(_steps(result, model, sets), None if folder is None else folder / "tune_step.png"),
+            cascade]
 
-    cascade = cascade_bode_figure(model, {k: v[0] for k, v in sets.items()}, F)
-    return [bode_png, draw_step(_steps(result, model, sets), folder / "tune_step.png"),
-            save(cascade, folder / "tune_cascade.png")]
 
-
-def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None):
+def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None, path=None):
     """Bode plots of every loop with its outer loops open (the cascade view), one
     column per loop, for each gain set, the gain crossovers marked.
 
@@ -77,10 +79,8 @@ def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None):
         Load (N) of the operating point.
     f : array_like, optional
         Frequencies (Hz; default 0.1 Hz - 10 kHz).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
+    path : str or Path, optional
+        PNG file, written atomically; without it the Figure is returned.
     """
     from ..frequency import margins
 
@@ -93,7 +93,7 @@ def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None):
             L = loop_model(model, n, op, outer="open")
             m = margins(L)
             curves[lbl].append((bode(L, f), [c["f_hz"] for c in m.gain_crossovers], m.pm_deg))
-    return cascade_figure(f, curves, list(model.loops), f"the cascade view, linearised at {_load_label(f_ext)}")
+    return cascade_figure(f, curves, list(model.loops), f"the cascade view, linearised at {_load_label(f_ext)}", path)
 
 
 def _steps(result, model, sets) -> dict:

@@ -7,6 +7,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,11 @@ from ._problem import TuningProblem
 from ._report import _message
 from ._requirements import Requirements, TuneError, _goal, _load_label, _request
 from ._verify import step_metrics, verify
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from numpy.typing import ArrayLike
 
 _FEAS_TOL = 1e-6         # a normalised constraint below -_FEAS_TOL is violated
 #: At most this many solves: after each, frequencies where a dense (100 per decade)
@@ -116,6 +122,30 @@ class TuneResult:
             "before": self.verification_before, "after": self.verification_after,
         }
 
+    def plot(self, model: Model | None = None, reference: Parameters | None = None) -> list:
+        """The Bode plots (closed loop and the loop transfers, first load case) and the
+        nonlinear step before and after tuning, as two matplotlib Figures.
+
+        Parameters
+        ----------
+        model : Model, optional
+            The model tuned (default: built from :attr:`params` and :attr:`variants`).
+        reference : Parameters, optional
+            A further gain set drawn dotted.
+        """
+        from ._figures import plot_tuning
+
+        model = model if model is not None else build_model(self.params, self.variants or None)
+        before = self.params.replace(**self.gains_before)
+        return plot_tuning(self, model, before, None, reference)
+
+    def __repr__(self) -> str:
+        from .._util._notebook import short_repr
+
+        return short_repr("TuneResult", {"success": self.success, "status": self.status, "objective":
+                                         f"{self.objective} = {self.objective_value:.4g}",
+                                         "gains": ", ".join(f"{k}={v:.4g}" for k, v in self.gains_after.items())})
+
     def write(self, path) -> Path:
         """Write the parameter file with the tuned gains (atomically); returns its path.
 
@@ -135,12 +165,12 @@ def tune(
     params: Parameters,
     variants: dict | None = None,
     *,
-    free=None,
-    loads=(0.0,),
+    free: Sequence[str] | None = None,
+    loads: Sequence[float] = (0.0,),
     objective: str = "bandwidth",
     requirements: Requirements | None = None,
     start: dict | None = None,
-    freqs=None,
+    freqs: ArrayLike | None = None,
     max_iter: int = 200,
     hessian: str = "exact",
     verify_step: float = 1e-3,

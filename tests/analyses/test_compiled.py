@@ -55,7 +55,8 @@ def test_simulate_is_thread_safe(model_cache):
     gains = [60.0, 75.0, 90.0, 105.0]
 
     def run(k):
-        r = ema.simulate(model, 0.02, ema.Signal.step(1e-3, 0.001), p=model.p(K_x=k), dt=5e-6, dt_out=1e-4)
+        r = ema.simulate(model, 0.02, ema.Signal.step(1e-3, 0.001), p=model.p(K_x=k), dt=5e-6, dt_out=1e-4,
+                         solver="rk4")
         return r["x_rod"]
 
     sequential = [run(k) for k in gains]

@@ -77,7 +77,7 @@ def test_noise_is_the_stated_sigma(records, params):
     model = ema.build_model(params, {"anti_windup": "clamping"})
     t = data[:, 0]
     pv = params.vector(**records[3])
-    res = ema.simulate(model, t[-1], solver="rosenbrock", dt=t[1] - t[0], p=pv, rtol=1e-10, atol=1e-13,
+    res = ema.simulate(model, t[-1], solver="rosenbrock", dt_out=t[1] - t[0], p=pv, rtol=1e-10, atol=1e-13,
                        x_cmd=ema.Signal.table(t, data[:, 1]), f_ext=ema.Signal.table(t, data[:, 2]))
     for j, name in enumerate(head[3:], start=3):
         r = data[:, j] - np.asarray(res[name])

@@ -43,7 +43,7 @@ def test_simulate_out_then_in_reproduces_the_command(tmp_path, capsys, monkeypat
 
 def test_csv_is_the_sdi_layout_and_exact(tmp_path, model_cache):
     model = model_cache()
-    res = ema.simulate(model, 0.005, "step:1mm@0.001", dt=5e-6, dt_out=5e-5)
+    res = ema.simulate(model, 0.005, "step:1mm@0.001", dt=5e-6, dt_out=5e-5, solver="rk4")
     path = res.to_csv(tmp_path / "run.csv")
     header, units, data = _csv(path)
     assert header[0] == "time" and units[0] == "Unit:"
@@ -57,7 +57,7 @@ def test_csv_is_the_sdi_layout_and_exact(tmp_path, model_cache):
 
 def test_mat_holds_one_struct_with_time_signals_and_units(tmp_path, model_cache):
     model = model_cache()
-    res = ema.simulate(model, 0.005, "step:1mm@0.001", dt=5e-6, dt_out=5e-5)
+    res = ema.simulate(model, 0.005, "step:1mm@0.001", dt=5e-6, dt_out=5e-5, solver="rk4")
     path = res.to_mat(tmp_path / "run.mat")
     m = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
     s = m["ema_sim"]
@@ -163,8 +163,9 @@ def test_dt_out_longer_than_t_end_gives_start_and_end(model_cache, solver):
 
 def test_a_large_dt_out_over_dt_costs_no_more_than_a_small_one(model_cache):
     model = model_cache()
-    big = ema.simulate(model, 0.1, Signal.step(1e-3, 0.01), dt=5e-6, dt_out=0.05)  # 10000 steps per sample
-    small = ema.simulate(model, 0.1, Signal.step(1e-3, 0.01), dt=5e-6, dt_out=1e-4)
+    big = ema.simulate(model, 0.1, Signal.step(1e-3, 0.01), dt=5e-6, dt_out=0.05,
+                       solver="rk4")  # 10000 steps per sample
+    small = ema.simulate(model, 0.1, Signal.step(1e-3, 0.01), dt=5e-6, dt_out=1e-4, solver="rk4")
     assert big.t.tolist() == pytest.approx([0.0, 0.05, 0.1])
     assert big["x_rod"][-1] == small["x_rod"][-1]
     assert big.info["decimate"] == 10000 and big.info["steps"] == 20000
@@ -182,7 +183,7 @@ def test_hybrid_cvodes_tail_counts_its_switches(model_cache):
 
 def test_rk4_refuses_a_t_end_that_is_not_whole_steps(model_cache):
     with pytest.raises(ema.SimulationError, match=r"t_end 0.2 s is not a whole number of RK4 steps dt 3e-06 s"):
-        ema.simulate(model_cache(), 0.2, dt=3e-6)
+        ema.simulate(model_cache(), 0.2, dt=3e-6, solver="rk4", decimate=1)
 
 
 # -- flags ------------------------------------------------------------------------------

@@ -216,6 +216,19 @@ def test_tuned_file_round_trip(tuned, tmp_path):
     assert "Solve_Succeeded" in path.read_text().splitlines()[0]
 
 
+def test_tuned_result_plots_before_and_after(tuned):
+    """TuneResult.plot(): the Bode figure (closed loop and each loop transfer) and the
+    step figure, one line per gain set (before, after)."""
+    from matplotlib.figure import Figure
+
+    model, res = tuned
+    bode_fig, step_fig = res.plot(model)
+    assert isinstance(bode_fig, Figure) and isinstance(step_fig, Figure)
+    assert len(bode_fig.axes) == 2 * (1 + len(model.loops))
+    assert {line.get_label().split(":")[0] for line in step_fig.axes[0].lines} >= {"before", "after"}
+    assert repr(res).startswith("TuneResult(success=True")
+
+
 # ----------------------------------------------------------------------------------
 def test_infeasible_request_names_the_constraint(capsys):
     """PM >= 89 deg with bandwidth >= 20 Hz cannot be met: exit 2 and one line that

@@ -25,7 +25,7 @@ COMMANDS = {
     # rk4, 60 s simulated: ~30 s of work
     "simulate": ["simulate", str(REFERENCE), "--t-end", "60", "--out", "run.csv"],
     "freqresp": ["freqresp", str(REFERENCE), "--freqs", "0.1-30:1000", "--amplitudes", "1mm", "--out", "fr.csv"],
-    "demo": ["demo", str(REFERENCE), "--out", "out", "--quiet"],
+    "demo": ["demo", str(REFERENCE), "--out", "out", "--no-progress"],
     "tune": ["tune", str(REFERENCE), "--out", "tuned.toml"],
 }
 SIGNALS = {"SIGINT": (signal.SIGINT, 130), "SIGTERM": (signal.SIGTERM, 143)}

@@ -2,7 +2,7 @@
 
 import argparse
 
-from ema_casadi.cli import DEFAULT_MODEL, add_common, positionals
+from ema_casadi.cli import add_common, build_parser
 from ema_casadi.model.components import VARIANTS
 
 
@@ -14,7 +14,13 @@ def test_the_variant_help_names_every_key_and_value():
         assert f"{key}={'|'.join(values)}" in text, key
 
 
-def test_a_single_file_named_is_the_commands_own_file():
-    assert positionals(DEFAULT_MODEL, None, "d.toml") == (DEFAULT_MODEL, "d.toml")
-    assert positionals("mission.toml", None, "d.toml") == (DEFAULT_MODEL, "mission.toml")
-    assert positionals("m.toml", "mission.toml", "d.toml") == ("m.toml", "mission.toml")
+def test_every_long_command_takes_the_one_progress_convention():
+    """--progress/--no-progress (default: on a terminal only) on every long command."""
+    _, mods = build_parser()
+    parser, _ = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name in ("simulate", "mission", "sweep", "freqresp", "tune", "aircraft", "limit-cycle", "demo"):
+        flags = {o for a in sub.choices[name]._actions for o in a.option_strings}
+        assert {"--progress", "--no-progress"} <= flags and "--quiet" not in flags, name
+        action = next(a for a in sub.choices[name]._actions if "--progress" in a.option_strings)
+        assert action.default is None, name  # None: decided by whether stderr is a terminal

@@ -31,7 +31,7 @@ def test_stall_load_45kN_extends_52kN_cannot(model_cache, screw):
     model = model_cache(screw=screw)
     moved = {}
     for load in (45e3, 52e3):
-        r = ema.simulate(model, 0.5, Signal.step(10e-3, 0.05), load, solver="cvodes", dt=1e-3)
+        r = ema.simulate(model, 0.5, Signal.step(10e-3, 0.05), load, solver="cvodes", dt_out=1e-3)
         i0 = np.searchsorted(r.t, 0.05)
         moved[load] = r["x_rod"][-1] - r["x_rod"][i0]
         if load == 52e3:
@@ -43,7 +43,7 @@ def test_stall_load_45kN_extends_52kN_cannot(model_cache, screw):
 @pytest.mark.parametrize("screw", ["elastic", "rigid"])
 def test_unloaded_slew_at_rate_limit(model_cache, screw):
     model = model_cache(screw=screw)
-    r = ema.simulate(model, 0.3, Signal.step(20e-3, 0.01), solver="cvodes", dt=1e-3)
+    r = ema.simulate(model, 0.3, Signal.step(20e-3, 0.01), solver="cvodes", dt_out=1e-3)
     plateau = r["v_rod"][(r.t > 0.1) & (r.t < 0.2)]
     np.testing.assert_allclose(plateau, 0.080, rtol=0.01)
 
@@ -51,7 +51,7 @@ def test_unloaded_slew_at_rate_limit(model_cache, screw):
 @pytest.mark.parametrize("screw", ["elastic", "rigid"])
 def test_1mm_step_settles_without_steady_state_error(model_cache, screw):
     model = model_cache(screw=screw)
-    r = ema.simulate(model, 0.5, Signal.step(1e-3, 0.01), solver="cvodes", dt=1e-4)
+    r = ema.simulate(model, 0.5, Signal.step(1e-3, 0.01), solver="cvodes", dt_out=1e-4)
     e = np.abs(r["x_rod"] - 1e-3)
     # within +-1 % of the step from 0.1 s on (the loop's time constant is 1/K_x = 13 ms)
     assert e[r.t >= 0.1].max() <= 1e-5
@@ -64,7 +64,7 @@ def test_1mm_step_settles_without_steady_state_error(model_cache, screw):
 def test_steady_extension_against_30kN_draws_the_analytic_current(params, model_cache, screw):
     model = model_cache(screw=screw)
     v = 0.040
-    r = ema.simulate(model, 0.6, Signal.ramp(v), 30e3, solver="cvodes", dt=1e-3)
+    r = ema.simulate(model, 0.6, Signal.ramp(v), 30e3, solver="cvodes", dt_out=1e-3)
     sel = r.t > 0.3
     np.testing.assert_allclose(r["v_rod"][sel], v, rtol=1e-3)
     p, fr = params.screw.p, params.friction
@@ -78,7 +78,7 @@ def test_dc_and_pmsm_give_the_same_rod_response(model_cache):
     x_cmd = Signal.sine(0.5e-3, 2.0)
     out = {}
     for motor in ("pmsm", "dc"):
-        r = ema.simulate(model_cache(motor=motor), 1.5, x_cmd, solver="cvodes", dt=1e-4)
+        r = ema.simulate(model_cache(motor=motor), 1.5, x_cmd, solver="cvodes", dt_out=1e-4)
         out[motor] = first_harmonic(r.t, r["x_rod"], 2.0)
     (a1, ph1), (a2, ph2) = out["pmsm"], out["dc"]
     assert abs(a1 - a2) <= 0.02 * 0.5e-3
@@ -108,7 +108,7 @@ def test_rk4_and_cvodes_agree_on_the_reference_scenario(model_cache):
     # reference scenario: 1 mm step at 0.01 s, 0.375 mm 1 Hz sine added from 0.5 s
     model = model_cache()
     x_cmd = Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5)
-    ref = ema.simulate(model, 1.0, x_cmd, solver="cvodes", dt=1e-4, rtol=1e-10, atol=1e-12)
+    ref = ema.simulate(model, 1.0, x_cmd, solver="cvodes", dt_out=1e-4, rtol=1e-10, atol=1e-12)
     rk = ema.simulate(model, 1.0, x_cmd, solver="rk4", dt=5e-6, dt_out=1e-4)
     np.testing.assert_array_equal(rk.t.round(9), ref.t.round(9))
     assert np.abs(rk["x_rod"] - ref["x_rod"]).max() < 0.1e-6
@@ -118,7 +118,7 @@ def test_energy_balance_closes(model_cache):
     # electrical input = change of stored energy + losses + work on the load
     model = model_cache()
     r = ema.simulate(model, 0.4, Signal.step(2e-3, 0.01) + Signal.sine(1e-3, 5.0, 0.1), 10e3,
-                     solver="cvodes", dt=2e-6, rtol=1e-10, atol=1e-12)
+                     solver="cvodes", dt_out=2e-6, rtol=1e-10, atol=1e-12)
     # every loss the parts declare, the inverter's included (P_dc is upstream of it)
     losses = sum(r[k] for k in model.outputs_of("loss"))
     lhs = np.trapezoid(r["P_dc"], r.t)
@@ -133,8 +133,8 @@ def test_energy_balance_closes(model_cache):
 def test_sampled_ecu_stays_close_to_continuous(model_cache):
     model = model_cache()
     x_cmd = Signal.step(1e-3, 0.01)
-    cont = ema.simulate(model, 0.1, x_cmd, dt=5e-6, dt_out=1e-4)
-    zoh = ema.simulate(model, 0.1, x_cmd, dt=5e-6, dt_out=1e-4, zoh=True)
+    cont = ema.simulate(model, 0.1, x_cmd, dt=5e-6, dt_out=1e-4, solver="rk4")
+    zoh = ema.simulate(model, 0.1, x_cmd, dt=5e-6, dt_out=1e-4, zoh=True, solver="rk4")
     # the slowest ECU rate (2 kHz) delays the position loop by ~1/4 ms: a few % of the
     # transient, nothing at the end
     assert np.abs(zoh["x_rod"] - cont["x_rod"]).max() < 0.05e-3
@@ -143,6 +143,6 @@ def test_sampled_ecu_stays_close_to_continuous(model_cache):
 
 def test_decimation_bounds_the_stored_samples(model_cache):
     model = model_cache()
-    r = ema.simulate(model, 0.05, Signal.step(1e-3), dt=5e-6, dt_out=1e-3)
+    r = ema.simulate(model, 0.05, Signal.step(1e-3), dt=5e-6, dt_out=1e-3, solver="rk4")
     assert len(r.t) == 51
     assert r.info["steps"] == 10000

@@ -46,7 +46,7 @@ def rig(params):
 
 def _model_step(rig, anti_windup, zoh):
     model = ema.build_model(rig, {**VARIANTS, "anti_windup": anti_windup})
-    res = ema.simulate(model, T_END, x_cmd=STEP, f_ext=LOAD, dt=DT, zoh=zoh)
+    res = ema.simulate(model, T_END, x_cmd=STEP, f_ext=LOAD, dt=DT, zoh=zoh, solver="rk4", decimate=1)
     return np.asarray(res["x_rod"], float), np.asarray(res["i_cmd"], float)
 
 

@@ -4,7 +4,9 @@ Parts declare the envelope of what they bring; every run is checked against it, 
 a run that leaves it, goes non-finite or whose integrator fails is *failed* (API:
 RunFailed with reason, time and partial result; CLI: exit 3 and one line), never a
 result. A sine stream inside the envelope is bit for bit what it was before the
-monitor (values stored from the code before it, commit 7e11905).
+monitor (values stored from the code before it, commit 7e11905), to round-off: the
+stored values came from other library builds, so they are compared with tolerances;
+bit for bit only within this process (a point computed alone or inside a grid).
 """
 
 import math
@@ -101,20 +103,20 @@ def test_a_state_outside_at_the_start_fails_at_t0(model_cache):
     x0 = m.x0()
     x0[m.index("x_rod")] = 0.2
     with pytest.raises(RunFailed, match=r"x_rod = 0.2 m left") as info:
-        ema.simulate(m, 0.01, x0=x0, solver="cvodes", dt=1e-3)
+        ema.simulate(m, 0.01, x0=x0, solver="cvodes", dt_out=1e-3)
     assert info.value.time == 0.0
 
 
 def test_an_integrator_failure_is_a_failed_run_with_its_time(model_cache, capsys):
     with pytest.raises(RunFailed, match=r"CVODES failed: .*\(CV_TOO_MUCH_ACC\) at t = ") as info:
-        ema.simulate(model_cache(), 0.05, 1e-3, solver="cvodes", dt=1e-3, rtol=1e-30, atol=1e-40)
+        ema.simulate(model_cache(), 0.05, 1e-3, solver="cvodes", dt_out=1e-3, rtol=1e-30, atol=1e-40)
     assert info.value.time < 1e-3 and info.value.result.t[0] == 0.0
     assert capsys.readouterr().err == ""  # CVODES's own complaint is captured, not printed
 
 
 def test_an_integrator_failure_of_the_hybrid_wrapper_too(model_cache):
     with pytest.raises(RunFailed, match=r"CV_TOO_MUCH_ACC"):
-        ema.simulate(model_cache(friction="hybrid"), 0.05, 1e-3, solver="cvodes", dt=1e-3, rtol=1e-30, atol=1e-40)
+        ema.simulate(model_cache(friction="hybrid"), 0.05, 1e-3, solver="cvodes", dt_out=1e-3, rtol=1e-30, atol=1e-40)
 
 
 def test_reading_the_integrators_complaint():
@@ -192,7 +194,8 @@ def test_sine_stream_point_status(params):
 
 
 # -- inside the envelope nothing changed -------------------------------------------------------
-# float.hex of the results computed by the code before the monitor (commit 7e11905)
+# float.hex of the results computed by the code before the monitor (commit 7e11905), with
+# the library builds of then; today's builds may round differently in their last bit.
 BEFORE = {
     "smooth": {
         "gain_db": [
@@ -253,13 +256,35 @@ def _hex(a):
     return [float(v).hex() for v in np.asarray(a).ravel()]
 
 
-def test_a_sine_stream_inside_the_envelope_is_bit_identical(params):
+# Tolerances against the stored values. Measured across library builds: 1 ULP (2e-16
+# relative) on gain_db (numpy 2.4.6, scipy 1.17.1, casadi 3.8.2 against the builds that
+# stored them); round-off through the ~1e4 RK4 steps and the DFT of a point can grow it
+# to ~1e-13 relative, so 1e-10 relative is asserted (x1000) - five decades below the sine
+# stream's own convergence tolerances (0.01 dB, 0.1 deg), so any change of the
+# integration (a monitor that altered a step) still fails. Absolute floors where a value
+# is round-off around zero: the offsets of a symmetric response are ~1e-11 m of
+# cancellation noise (amplitude 4e-3 m x eps x 1e4 samples ~ 1e-14 m per sum; floor
+# 1e-12 m), gains near 0 dB (floor 1e-9 dB), phases (1e-9 deg). The period counts are
+# whole numbers and must be equal.
+REL = 1e-10
+FLOOR = {"gain_db": 1e-9, "phase_deg": 1e-9, "i_q_amp": 1e-12, "distortion": 1e-12, "x_offset": 1e-12,
+         "periods": 0.0}
+
+
+def test_a_sine_stream_inside_the_envelope_is_unchanged(params):
     smooth = ema.sine_stream(params, [0.375e-3, 3.75e-3], [0.5, 2.0, 8.0], [0.0, 30e3], jobs=2)
     hybrid = ema.sine_stream(params, [0.375e-3], [2.0], [0.0], variants={"friction": "hybrid"}, jobs=1)
     for name, r in (("smooth", smooth), ("hybrid", hybrid)):
         assert (r.data["status"] == "converged").all()
         for k, want in BEFORE[name].items():
-            assert _hex(r.data[k]) == want, (name, k)
+            stored = np.array([float.fromhex(v) for v in want])
+            np.testing.assert_allclose(np.asarray(r.data[k], float).ravel(), stored, rtol=REL if k != "periods" else 0,
+                                       atol=FLOOR[k], err_msg=f"{name} {k}")
+    # within one process and build: a point computed alone is the grid's point bit for bit
+    alone = ema.sine_stream(params, [3.75e-3], [2.0], [30e3], jobs=1)
+    grid = {k: np.asarray(smooth.data[k])[0, 1, 1, 1] for k in BEFORE["smooth"]}
+    for k in BEFORE["smooth"]:
+        assert _hex(np.asarray(alone.data[k]).ravel()[0]) == _hex(grid[k]), k
 
 
 def test_the_monitored_period_map_integrates_exactly_as_before(params):

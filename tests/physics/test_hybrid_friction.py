@@ -76,7 +76,7 @@ def test_raising_the_force_above_F_start_starts_motion_within_one_step(params, h
     # then ramps it by dI per integral time T_i_w
     dI = 0.01
     step = dI / (params.control.K_p_w * params.control.K_x * 2 * math.pi / params.screw.p)
-    res = ema.simulate(model, 0.1, Signal.step(step, 0.05), x0=x0, p=p, dt=1e-4)
+    res = ema.simulate(model, 0.1, Signal.step(step, 0.05), x0=x0, p=p, dt=1e-4, solver="rk4", decimate=1)
     F_hold = np.abs(res["F_in"] - res["f_ext"])  # force the friction has to hold
     x = contact_position(res, screw)
     n_force = int(np.argmax(F_hold > F_start(params)))
@@ -90,7 +90,7 @@ def test_raising_the_force_above_F_start_starts_motion_within_one_step(params, h
 def test_sliding_friction_is_F_r_with_its_bearing_term(params, hybrid, screw):
     model = hybrid(screw)
     f_ext = 10e3  # N, pushes the rod in: F_r = F_seal + |F_ext| (2 pi/p) C_bear
-    res = ema.simulate(model, 0.5, Signal.sine(2e-3, 2.0), f_ext, dt=1e-5, dt_out=1e-4)
+    res = ema.simulate(model, 0.5, Signal.sine(2e-3, 2.0), f_ext, dt=1e-5, dt_out=1e-4, solver="rk4")
     F_r = params.friction.F_seal + f_ext * 2 * math.pi / params.screw.p * params.friction.C_bear
     assert F_r == pytest.approx(527.0, rel=1e-3)  # the bearing term is 2.5x the seal here
     v = res["v_rod"]
@@ -129,16 +129,16 @@ def test_stuck_intervals_of_the_reference_scenario_hold_the_rod_exactly(params, 
 
 
 def test_mode_switches_are_counted_at_every_step(hybrid):
-    res = ema.simulate(hybrid(), 0.9, REFERENCE, dt=1e-5, dt_out=1e-5)
+    res = ema.simulate(hybrid(), 0.9, REFERENCE, dt=1e-5, dt_out=1e-5, solver="rk4")
     # dense output: the switches seen in the stick signal are all the switches
     assert res.info["mode_switches"] == np.count_nonzero(np.diff(res["stick"]))
     assert res.info["mode_switches"] >= 4
-    decimated = ema.simulate(hybrid(), 0.9, REFERENCE, dt=1e-5, dt_out=1e-3)
+    decimated = ema.simulate(hybrid(), 0.9, REFERENCE, dt=1e-5, dt_out=1e-3, solver="rk4")
     assert decimated.info["mode_switches"] == res.info["mode_switches"]
 
 
 def test_smooth_model_has_no_stick_mode(model_cache):
-    res = ema.simulate(model_cache(), 0.1, REFERENCE, dt=1e-5, dt_out=1e-3)
+    res = ema.simulate(model_cache(), 0.1, REFERENCE, dt=1e-5, dt_out=1e-3, solver="rk4")
     assert np.all(res["stick"] == 0) and "mode_switches" not in res.info
 
 
@@ -163,9 +163,9 @@ def test_breakaway_under_a_load_ramp_at_the_analytic_instant(params, hybrid, sol
 def test_cvodes_switch_instants_converge_with_event_tol_and_agree_with_fine_rk4(hybrid):
     model = hybrid()
     t_end = 0.15  # the step, its settling and the first stick-slip episodes
-    fine = ema.simulate(model, t_end, REFERENCE, dt=1e-6, dt_out=1e-6)
+    fine = ema.simulate(model, t_end, REFERENCE, dt=1e-6, dt_out=1e-6, solver="rk4")
     t_rk4 = fine.t[np.flatnonzero(np.diff(fine["stick"])) + 1]
-    runs = {tol: ema.simulate(model, t_end, REFERENCE, solver="cvodes", dt=1e-3, rtol=1e-10, atol=1e-13,
+    runs = {tol: ema.simulate(model, t_end, REFERENCE, solver="cvodes", dt_out=1e-3, rtol=1e-10, atol=1e-13,
                               event_tol=tol) for tol in (1e-7, 1e-9)}
     t7, t9 = (runs[tol].info["switch_times"] for tol in (1e-7, 1e-9))
     assert len(t7) == len(t9) == len(t_rk4) == fine.info["mode_switches"] >= 5
@@ -178,9 +178,9 @@ def test_cvodes_switch_instants_converge_with_event_tol_and_agree_with_fine_rk4(
 
 def test_rk4_at_1e4_s_tracks_the_event_located_reference(hybrid):
     model = hybrid()
-    ref = ema.simulate(model, 1.0, REFERENCE, solver="cvodes", dt=1e-4, rtol=1e-10, atol=1e-13, event_tol=1e-9)
+    ref = ema.simulate(model, 1.0, REFERENCE, solver="cvodes", dt_out=1e-4, rtol=1e-10, atol=1e-13, event_tol=1e-9)
     for dt, tol in ((1e-4, 1.5e-6), (1e-5, 0.15e-6)):  # measured 1.05 and 0.107 um: first order
-        res = ema.simulate(model, 1.0, REFERENCE, dt=dt, dt_out=1e-4)
+        res = ema.simulate(model, 1.0, REFERENCE, dt=dt, dt_out=1e-4, solver="rk4")
         assert np.abs(res["x_rod"] - ref["x_rod"]).max() < tol
         assert res.info["mode_switches"] == ref.info["mode_switches"]
 

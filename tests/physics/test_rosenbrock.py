@@ -23,7 +23,7 @@ F_SHORT = Signal.step(20e3, 0.3)
 
 
 def _reference(model, t_end, x_cmd, **kw):
-    return ema.simulate(model, t_end, x_cmd, solver="cvodes", dt=1e-3, rtol=1e-10, atol=1e-12, **kw)
+    return ema.simulate(model, t_end, x_cmd, solver="cvodes", dt_out=1e-3, rtol=1e-10, atol=1e-12, **kw)
 
 
 def _rod_error(res, ref):
@@ -36,13 +36,13 @@ def test_reference_scenario_within_0p1_um_at_the_benchmark_setting(model_cache):
     # accuracy target, 2.3x the measured error
     model = model_cache()
     ref = _reference(model, 1.0, X_REF)
-    res = ema.simulate(model, 1.0, X_REF, solver="rosenbrock", dt=1e-3, rtol=3e-4, atol=3e-7)
+    res = ema.simulate(model, 1.0, X_REF, solver="rosenbrock", dt_out=1e-3, rtol=3e-4, atol=3e-7)
     assert res.info["solver"] == "rosenbrock" and res.info["status"] == "completed"
     np.testing.assert_array_equal(res.t, ref.t)
     assert _rod_error(res, ref) <= 0.1e-6
     assert res.info["steps"] < 400  # measured 276: fewer steps than CVODES's 804 is the point
     # at the default tolerances (rtol 1e-8): measured 2.7e-12 m; bound 1e-10 m (37x)
-    tight = ema.simulate(model, 1.0, X_REF, solver="rosenbrock", dt=1e-3)
+    tight = ema.simulate(model, 1.0, X_REF, solver="rosenbrock", dt_out=1e-3)
     assert _rod_error(tight, ref) <= 1e-10
 
 
@@ -59,7 +59,7 @@ def test_variants_match_the_cvodes_reference(model_cache, variants):
     rod, rel = MEASURED["-".join(variants.values())]
     model = model_cache(**variants)
     ref = _reference(model, 0.5, X_SHORT, f_ext=F_SHORT)
-    res = ema.simulate(model, 0.5, X_SHORT, F_SHORT, solver="rosenbrock", dt=1e-3, rtol=1e-6, atol=1e-9)
+    res = ema.simulate(model, 0.5, X_SHORT, F_SHORT, solver="rosenbrock", dt_out=1e-3, rtol=1e-6, atol=1e-9)
     assert _rod_error(res, ref) <= 3 * rod
     for name in model.states:
         peak = max(np.abs(ref.states[name]).max(), 1e-12)
@@ -78,7 +78,7 @@ def test_every_signal_kind_is_evaluated_in_the_compiled_driver(model_cache, kind
              "table": Signal.table([0.0, 0.03, 0.031, 0.1, 0.2], [0.0, 0.0, 1e-3, -1e-3, 0.5e-3])}[kind]
     f_ext = Signal.table([0.0, 0.1, 0.15], [0.0, 15e3, 15e3]) if kind == "table" else 0.0
     ref = _reference(model, 0.25, x_cmd, f_ext=f_ext)
-    res = ema.simulate(model, 0.25, x_cmd, f_ext, solver="rosenbrock", dt=1e-3, rtol=1e-6, atol=1e-9)
+    res = ema.simulate(model, 0.25, x_cmd, f_ext, solver="rosenbrock", dt_out=1e-3, rtol=1e-6, atol=1e-9)
     assert _rod_error(res, ref) <= 1e-9
     np.testing.assert_array_equal(res["x_cmd"], ref["x_cmd"])
 
@@ -104,7 +104,7 @@ def test_a_load_the_actuator_cannot_hold_fails_with_the_envelope(model_cache):
 
 def test_an_impossible_tolerance_is_a_failed_run_with_its_reason(model_cache):
     with pytest.raises(RunFailed, match=r"rosenbrock gave up: the step size fell to .* rtol 1e-30") as info:
-        ema.simulate(model_cache(), 0.05, 1e-3, solver="rosenbrock", dt=1e-3, rtol=1e-30, atol=1e-40)
+        ema.simulate(model_cache(), 0.05, 1e-3, solver="rosenbrock", dt_out=1e-3, rtol=1e-30, atol=1e-40)
     assert info.value.result.t[0] == 0.0
 
 
@@ -119,7 +119,7 @@ def test_concurrent_runs_equal_sequential_ones(model_cache):
     gains = [60.0, 90.0, 120.0]
 
     def run(k):
-        return ema.simulate(model, 0.05, X_SHORT, p=model.p(K_x=k), solver="rosenbrock", dt=1e-3)["x_rod"]
+        return ema.simulate(model, 0.05, X_SHORT, p=model.p(K_x=k), solver="rosenbrock", dt_out=1e-3)["x_rod"]
 
     sequential = [run(k) for k in gains]
     with ThreadPoolExecutor(3) as pool:
@@ -134,7 +134,7 @@ def test_without_a_compiler_cvodes_runs_with_a_warning(model_cache, monkeypatch)
     model.cache.pop("rosenbrock", None)
     try:
         with pytest.warns(UserWarning, match="rosenbrock needs a C compiler: running cvodes"):
-            res = ema.simulate(model, 0.02, 1e-3, solver="rosenbrock", dt=1e-3)
+            res = ema.simulate(model, 0.02, 1e-3, solver="rosenbrock", dt_out=1e-3)
         assert res.info["solver"] == "cvodes"
     finally:
         model.cache.pop("rosenbrock", None)
@@ -165,5 +165,5 @@ def test_piecewise_and_ramp_signals_of_missions(model_cache):
     x_cmd = Piecewise.of([0.0, 0.05, 0.1], [Signal.step(1e-3, 0.01), held, Ramp(a=1e-3, b=-0.5e-3, T=0.04)])
     f_ext = Piecewise.of([0.0, 0.08], [Ramp(a=0.0, b=10e3, T=0.05), Ramp(a=5e3, b=5e3)])
     ref = _reference(model, 0.2, x_cmd, f_ext=f_ext)
-    res = ema.simulate(model, 0.2, x_cmd, f_ext, solver="rosenbrock", dt=1e-3, rtol=1e-6, atol=1e-9)
+    res = ema.simulate(model, 0.2, x_cmd, f_ext, solver="rosenbrock", dt_out=1e-3, rtol=1e-6, atol=1e-9)
     assert _rod_error(res, ref) <= 1e-9

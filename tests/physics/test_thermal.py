@@ -88,7 +88,7 @@ def test_cold_screw_needs_the_analytic_extra_current(params):
         x0 = model.x0()
         for n in model.states_with("temperature"):
             x0[model.index(n)] = T
-        r = ema.simulate(model, 0.6, Signal.ramp(v), F, T_amb=T, x0=x0, p=p, solver="cvodes", dt=1e-3)
+        r = ema.simulate(model, 0.6, Signal.ramp(v), F, T_amb=T, x0=x0, p=p, solver="cvodes", dt_out=1e-3)
         sel = r.t > 0.3
         np.testing.assert_allclose(r["v_rod"][sel], v, rtol=1e-3)
         i[T] = float(np.mean(r["i_q"][sel]))
@@ -115,7 +115,7 @@ def test_energy_balance_closes_with_thermal_network_and_iron(params, scenario):
         args = (1.0, Signal.step(1e-3, 0.01) + Signal.sine(0.375e-3, 1.0, 0.5), 0.0)
     else:
         args = (0.4, Signal.step(2e-3, 0.01) + Signal.sine(1e-3, 5.0, 0.1), 10e3)
-    r = ema.simulate(model, *args, solver="cvodes", dt=2e-6, rtol=1e-10, atol=1e-12)
+    r = ema.simulate(model, *args, solver="cvodes", dt_out=2e-6, rtol=1e-10, atol=1e-12)
     losses = sum(r[k] for k in model.outputs_of("loss"))
     lhs = np.trapezoid(r["P_dc"], r.t)
     rhs = r["E_stored"][-1] - r["E_stored"][0] + np.trapezoid(losses + r["P_load"], r.t)
@@ -128,7 +128,7 @@ def test_heat_reaches_the_network(params):
     """Every loss the parts declare is routed to a node: the heat into the nodes is the
     sum of the losses, sample by sample."""
     model = ema.build_model(params, {"thermal": "lumped", "iron_loss": "on", "endstop": "elastic"})
-    r = ema.simulate(model, 0.2, Signal.step(1e-3, 0.01), 5e3, solver="cvodes", dt=1e-3)
+    r = ema.simulate(model, 0.2, Signal.step(1e-3, 0.01), 5e3, solver="cvodes", dt_out=1e-3)
     heat = sum(r[n] for n in model.outputs if n.startswith("P_heat_"))
     losses = sum(r[k] for k in model.outputs_of("loss"))
     np.testing.assert_allclose(heat, losses, rtol=1e-12, atol=1e-9)

@@ -8,8 +8,10 @@ release's API: ``ema.tune`` was a module then); this module
 repeats each call with the current code through the public API and compares:
 
 - x_rod of the reference scenario (1 mm step at 0.01 s + 0.375 mm 1 Hz sine from
-  0.5 s, shortened to 0.2 s), every variant combination, cvodes and rk4: within
-  1e-12 m, max over the samples;
+  0.5 s, shortened to 0.2 s), every variant combination: rk4 (fixed steps: round-off
+  only) within 1e-12 m, cvodes within 1e-10 m (its step sizes follow its error
+  estimates, so a last-bit difference of another library build moves the result by a
+  fraction of its accuracy, rtol 1e-8 x 1 mm = 1e-11 m; x10), max over the samples;
 - loop margins of the default model, sine-stream gain/phase, tuned gains: within
   1e-9 relative (with the absolute floors stated at ``_check``).
 
@@ -33,7 +35,7 @@ ROOT = HERE.parent.parent
 DATA = HERE / "data"
 REF = json.loads((DATA / "reference_pre_refactor.json").read_text())
 
-X_ROD_ATOL = 1e-12  # m, max over samples
+X_ROD_ATOL = {"rk4": 1e-12, "cvodes": 1e-10}  # m, max over samples (module docstring)
 REL = 1e-9
 
 _cache: dict = {}
@@ -83,7 +85,8 @@ def test_rod_trajectory_matches_reference(key):
     assert t.shape == t_ref.shape, f"{len(t)} samples, reference {len(t_ref)}"
     assert np.abs(t - t_ref).max() <= 1e-12  # s: the same output grid
     err = float(np.abs(x - x_ref).max())
-    assert err <= X_ROD_ATOL, f"max |x_rod - reference| = {err:.3e} m at t = {t[np.argmax(np.abs(x - x_ref))]:.4g} s"
+    worst = t[np.argmax(np.abs(x - x_ref))]
+    assert err <= X_ROD_ATOL[case["solver"]], f"max |x_rod - reference| = {err:.3e} m at t = {worst:.4g} s"
 
 
 # -- (b) loop margins of the default model --------------------------------------------------

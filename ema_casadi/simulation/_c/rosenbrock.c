@@ -7,6 +7,20 @@
  *                                                 df/du * udot (the time derivative)
  * and the macros EMA_NX, EMA_NU.
  *
+ * Forward sensitivities (compiled only with EMA_NS, the number of directions, defined;
+ * the identification's library, see identification/_c/sensitivity.c appended after
+ * this file): on every accepted step the step's own formulas are differentiated at its
+ * step size (internal numerical differentiation), so the sensitivities are the exact
+ * derivatives of the computed solution; the plain driver is unchanged. That driver can
+ * also record the accepted step sizes (mode 1) and replay them without error control
+ * (mode 2): on a frozen step sequence the computed solution is a smooth function of
+ * the parameters (an adaptive one jumps as the step choices change), which a
+ * least-squares fit with exact derivatives needs; a replayed step whose error estimate
+ * exceeds opt[5] times the tolerance ends the run (status -6: choose steps anew). With EMA_TABLE_BY_TIME a table's piece
+ * is found from the time itself rather than from the segment's start, so that steps may
+ * cross its rows (the identification's records are tables of thousands of rows with
+ * small slope changes; the error control sees the kinks).
+ *
  * Method: RODAS4 (Hairer & Wanner, Solving ODEs II, 2nd ed., Sec. IV.7), a 6-stage,
  * order-4 Rosenbrock method, L-stable and stiffly accurate, with an embedded order-3
  * solution for the error estimate; the coefficients below are the book's, in the
@@ -52,6 +66,11 @@ static const double ros_e[ROS_S] = {0.0, 0.0, 0.0, 0.0, 0.0, 1.0};
 
 #define NX EMA_NX
 #define NU EMA_NU
+#ifdef EMA_TABLE_BY_TIME
+#define ROS_PIECE_AT t
+#else
+#define ROS_PIECE_AT seg
+#endif
 
 /* term layout: 12 doubles per term; a term counts in the segments that start in
    [T_LO, T_HI) and is evaluated at t - T_SHIFT (pieces of a piecewise signal) */
@@ -64,6 +83,9 @@ enum { S_T, S_H, S_HACC, S_ERRACC, S_NACC, S_REJECT, S_X };
 enum { N_STEPS, N_REJECTED, N_F, N_JAC, N_LU, N_FORCED, N_STATS };
 
 typedef struct {
+  /* the last attempted step: its matrix' LU (G, pivots, reciprocal pivots) and stages */
+  double G[NX * NX], dinv[NX], K[ROS_S][NX];
+  int piv[NX];
   const double* p;
   const double* terms;
   int n_terms;
@@ -73,7 +95,20 @@ typedef struct {
   casadi_int* iw;
   double* w;
   double* stats;
+#ifdef EMA_NS
+  const double* W; /* parameter directions, n_p x EMA_NS column-major */
+  double* S;       /* sensitivities of x at the step's start, NX x EMA_NS column-major */
+  double dF0[NX * EMA_NS], dF1[NX * EMA_NS]; /* d f / d theta at the step's ends (dense output) */
+  int have_dF;     /* dF0, dF1 computed for the current step */
+#endif
 } ros_ctx;
+
+#ifdef EMA_NS
+static int ros_sens_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_int* sz_w);
+static int ros_sens_step(ros_ctx* c, double t, double seg, double h, const double* x, double* Sn);
+static int ros_sens_sample(ros_ctx* c, double t, double seg, double h, double tn, const double* x,
+                           const double* xn, const double* Sn, double th, int at_end, double* out);
+#endif
 
 /* Inputs u and their time derivatives ud at t, in the segment that starts at seg_g. */
 static void ros_inputs(const ros_ctx* c, double t_g, double seg_g, double* u, double* ud) {
@@ -93,14 +128,14 @@ static void ros_inputs(const ros_ctx* c, double t_g, double seg_g, double* u, do
       const double* tt = c->tab + (long)q[T_OFF];
       long n = (long)q[T_LEN], lo = 0, hi = n - 1, mid;
       const double* vv = tt + n;
-      if (seg < tt[0]) {
+      if (ROS_PIECE_AT < tt[0]) {
         u[i] += vv[0];
-      } else if (seg >= tt[n - 1]) {
+      } else if (ROS_PIECE_AT >= tt[n - 1]) {
         u[i] += vv[n - 1];
       } else {
         while (hi - lo > 1) { /* tt[lo] <= seg < tt[hi] */
           mid = (lo + hi) / 2;
-          if (tt[mid] <= seg) lo = mid; else hi = mid;
+          if (tt[mid] <= ROS_PIECE_AT) lo = mid; else hi = mid;
         }
         w = (vv[hi] - vv[lo]) / (tt[hi] - tt[lo]);
         u[i] += vv[lo] + w * (t - tt[lo]);
@@ -196,8 +231,8 @@ static void ros_solve(const double* G, const int* piv, const double* dinv, doubl
    is not finite). */
 static double ros_step(ros_ctx* c, double t, double seg, double h, const double* x, const double* f0,
                        const double* J, const double* ft, double rtol, double atol, double* xn) {
-  double G[NX * NX], dinv[NX], K[ROS_S][NX], y[NX], fi[NX], err = 0.0, sc, e;
-  int piv[NX], i, j, s, ok = 1;
+  double *G = c->G, *dinv = c->dinv, (*K)[NX] = c->K, y[NX], fi[NX], err = 0.0, sc, e;
+  int *piv = c->piv, i, j, s, ok = 1;
   double d = 1.0 / (h * ros_gamma[0]);
   for (j = 0; j < NX * NX; ++j) G[j] = -J[j];
   for (i = 0; i < NX; ++i) G[i + i * NX] += d;
@@ -271,16 +306,17 @@ static void ros_segment(const double* edges, int n_edges, double t, double* seg,
    first, -1 when the step size fell below round-off, -2 when the model gave non-finite
    values that no smaller step removed, -3 when a model evaluation failed, -4 after
    max_forced forced steps. */
-int ema_ros_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
-                int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
-                long max_attempts, double* stats, int* n_done) {
+static int ros_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
+                   int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
+                   long max_attempts, double* stats, int* n_done, const double* W, double* S, double* SX,
+                   int mode, double* hs, long hs_cap, double* hs_n) {
   double rtol = opt[0], atol = opt[1], hmax = opt[2], h_floor = opt[3], max_forced = opt[4];
   double t = state[S_T], h = state[S_H], hacc = state[S_HACC], erracc = state[S_ERRACC];
   double nacc = state[S_NACC];
   int reject = (int)state[S_REJECT], nonfinite = 0, status = 1, filled = 0, i;
   double x[NX], xn[NX], f0[NX], f1[NX], fl[NX], J[NX * NX], ft[NX];
   double seg, end, hh, err, fac, facgus, hnew, tn;
-  long attempts = 0;
+  long attempts = 0, k_hs = hs_n ? (long)*hs_n : 0;
   casadi_int sz_arg, sz_res, sz_iw, sz_w, a1, r1, i1, w1;
   ros_ctx c;
   ros_f_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
@@ -289,6 +325,20 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
   if (r1 > sz_res) sz_res = r1;
   if (i1 > sz_iw) sz_iw = i1;
   if (w1 > sz_w) sz_w = w1;
+#ifdef EMA_NS
+  double Sn[NX * EMA_NS];
+  ros_sens_work(&a1, &r1, &i1, &w1);
+  if (a1 > sz_arg) sz_arg = a1;
+  if (r1 > sz_res) sz_res = r1;
+  if (i1 > sz_iw) sz_iw = i1;
+  if (w1 > sz_w) sz_w = w1;
+  c.W = W;
+  c.S = S;
+#else
+  (void)W;
+  (void)S;
+  (void)SX;
+#endif
   c.p = p;
   c.terms = terms;
   c.n_terms = n_terms;
@@ -306,9 +356,17 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
     ++attempts;
     hh = fmin(h, hmax);
     if (t + 1.01 * hh >= end) hh = end - t; /* land on the segment's end, no sliver after it */
+    if (mode == 2) { /* replay: the recorded step, accepted unless non-finite */
+      if (k_hs >= hs_cap) { status = -5; goto done; }
+      hh = hs[k_hs];
+    }
     if (!(hh > 16 * 2.220446049250313e-16 * fmax(1.0, fabs(t)))) { status = nonfinite ? -2 : -1; goto done; }
     err = ros_step(&c, t, seg, hh, x, f0, J, ft, rtol, atol, xn);
     nonfinite = !isfinite(err);
+    if (mode == 2) { /* a replayed step whose error estimate is far above the tolerance: not this grid */
+      if (nonfinite || err > opt[5]) { status = -6; goto done; }
+      err = 0.0;
+    }
     fac = nonfinite ? 5.0 : fmax(1.0 / 6.0, fmin(5.0, pow(err, 1.0 / ROS_ORDER) / 0.9));
     hnew = hh / fac;
     if (err > 1.0 && !nonfinite && hh <= h_floor) { /* across a jump of f: accept (see above) */
@@ -327,7 +385,12 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
       erracc = fmax(1e-2, err);
       nacc += 1;
       stats[N_STEPS] += 1;
+      if (mode == 1 && k_hs < hs_cap) hs[k_hs] = hh;
+      if (mode) ++k_hs;
       tn = (hh == end - t) ? end : t + hh;
+#ifdef EMA_NS
+      if (ros_sens_step(&c, t, seg, hh, x, Sn)) { status = -3; goto done; }
+#endif
       if (tn >= end && end < edges[n_edges - 1]) { /* on a breakpoint: f's left limit for the samples */
         if (ros_rhs(&c, tn, seg, xn, fl)) { status = -3; goto done; }
       }
@@ -338,10 +401,15 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
         if (!(tn >= end && end < edges[n_edges - 1])) memcpy(fl, f1, sizeof fl);
         while (filled < n_out && tout[filled] <= tn + 1e-13 * fmax(1.0, fabs(tn))) {
           double* col = X + (long)filled * NX;
-          if (fabs(tout[filled] - tn) <= 1e-13 * fmax(1.0, fabs(tn)))
+          int at_end = fabs(tout[filled] - tn) <= 1e-13 * fmax(1.0, fabs(tn));
+          if (at_end)
             memcpy(col, xn, sizeof xn);
           else
             ros_hermite((tout[filled] - t) / hh, hh, x, f0, xn, fl, col);
+#ifdef EMA_NS
+          if (ros_sens_sample(&c, t, seg, hh, tn, x, xn, Sn, (tout[filled] - t) / hh, at_end,
+                              SX + (long)filled * NX * EMA_NS)) { status = -3; goto done; }
+#endif
           ++filled;
         }
         seg = seg_n;
@@ -352,6 +420,9 @@ int ema_ros_run(const double* p, const double* terms, int n_terms, const double*
       t = tn;
       memcpy(x, xn, sizeof x);
       memcpy(f0, f1, sizeof f0);
+#ifdef EMA_NS
+      memcpy(S, Sn, sizeof Sn);
+#endif
       for (i = 0; i < NX; ++i)
         if (!isfinite(x[i])) { status = -2; goto done; }
     } else {
@@ -371,6 +442,7 @@ done:
   state[S_NACC] = nacc;
   state[S_REJECT] = reject;
   memcpy(state + S_X, x, sizeof x);
+  if (hs_n) *hs_n = (double)k_hs;
   *n_done = filled;
   free(c.arg);
   free(c.res);
@@ -378,3 +450,27 @@ done:
   free(c.w);
   return status;
 }
+
+/* The plain driver (see ros_run). */
+int ema_ros_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
+                int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
+                long max_attempts, double* stats, int* n_done) {
+  return ros_run(p, terms, n_terms, tab, edges, n_edges, tout, n_out, state, X, opt, max_attempts, stats, n_done,
+                 NULL, NULL, NULL, 0, NULL, 0, NULL);
+}
+
+#ifdef EMA_NS
+/* The driver with forward sensitivities: W (n_p x EMA_NS) the parameter directions, S
+   (NX x EMA_NS, in/out) the sensitivities at state[S_T], SX (NX x EMA_NS per sample) the
+   sensitivities at the samples filled; mode 0 adaptive, 1 adaptive recording the
+   accepted step sizes into hs (capacity hs_cap, count in/out in *hs_n; beyond the
+   capacity they are counted, not stored), 2 replaying hs (-5 when it runs out, -6 when a
+   step's error estimate exceeds opt[5]). */
+int ema_ros_sens_run(const double* p, const double* terms, int n_terms, const double* tab, const double* edges,
+                     int n_edges, const double* tout, int n_out, double* state, double* X, const double* opt,
+                     long max_attempts, double* stats, int* n_done, const double* W, double* S, double* SX,
+                     int mode, double* hs, long hs_cap, double* hs_n) {
+  return ros_run(p, terms, n_terms, tab, edges, n_edges, tout, n_out, state, X, opt, max_attempts, stats, n_done,
+                 W, S, SX, mode, hs, hs_cap, hs_n);
+}
+#endif

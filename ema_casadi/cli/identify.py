@@ -1,0 +1,344 @@
+"""Fit named parameters to test records (weighted least squares with exact sensitivities).
+
+Records (CSV with a time column and a Unit: row or units in brackets, or .mat with
+time and one field per signal): columns named after model inputs (x_cmd, f_ext, ...)
+drive the model, columns named after model states or outputs (x_rod, phi, omega, i_q,
+F_in, ...) are fitted. The fitted parameter file (--out) keeps the input file's
+layout with the estimates in place; --report DIR writes measured vs fitted figures,
+residuals, the correlation heat map, the intervals and summary.json/summary.md.
+A parameter whose 95 % interval is wider than +-50 % or that is correlated beyond 0.95
+with another is reported as not identifiable from these records (a wide one is held
+at its start value and the others fitted again). A fit that does not converge ends
+with exit status 3 and writes nothing. A fit whose residuals are not explained by
+the noise (chi-square against the given noise level, Ljung-Box whiteness) is
+inadequate: exit status 3 with the fitted file written as FILE.inadequate.toml, or
+status 0 and a warning with --allow-misfit.
+--track fits each record alone in the order of its time stamp (--stamp: a file-level
+field such as '# flight_hours: 1200' or a column) and extrapolates each parameter's
+trend to --limit NAME=VALUE (remaining useful life).
+Without records, the built-in example runs: records simulated from the reference set
+with worn parameters, fitted from the reference values.
+Example: ema identify step.csv chirp.csv --free F_seal,c_v,J_m,psi --sigma x_rod=0.3um --out fitted.toml
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
+
+COMMAND = "identify"
+ORDER = 12
+HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
+
+
+def add_arguments(p):
+    p.add_argument("records", nargs="*", metavar="RECORD", help="test records (.csv or .mat); none: the example")
+    p.add_argument("--free", default=None, metavar="NAME[,NAME...]", help="parameters to fit (flat names)")
+    p.add_argument("--bounds", action="append", default=[], metavar="NAME=LO:HI",
+                   help="bounds of a free parameter (SI), repeatable; LO > 0 for a positive (log-scaled) one")
+    p.add_argument("--sigma", action="append", default=[], metavar="CHANNEL=VALUE",
+                   help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
+                        "default: the record's field sigma_CHANNEL, else estimated from the residuals")
+    p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
+                   help="model evaluations per fit; more means not converged (exit 3); default 60")
+    p.add_argument("--allow-misfit", action="store_true",
+                   help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
+                        "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
+    p.add_argument("--compare", action="append", default=[], metavar="KEY=V1,V2[,...]",
+                   help="fit every combination of these variant/option values (repeatable: anti_windup=backcalc,"
+                        "clamping) and rank them: adequate first, then by BIC; the best is written")
+    p.add_argument("--max-fits", type=int, default=None, metavar="N",
+                   help="--compare: most combinations (each a full fit); default 8")
+    p.add_argument("--keep-unidentifiable", action="store_true",
+                   help="do not hold parameters with intervals wider than +-50 %% at their start values")
+    p.add_argument("--profile", action="append", default=[], metavar="NAME",
+                   help="profile-likelihood interval of a free parameter, repeatable")
+    p.add_argument("--validate", nargs="+", default=[], metavar="RECORD",
+                   help="records not used in the fit, predicted with the estimates (NRMSE, residual whiteness)")
+    p.add_argument("--track", action="store_true",
+                   help="health trend: fit each record alone in the order of its time stamp")
+    p.add_argument("--stamp", default="flight_hours", metavar="FIELD",
+                   help="--track: the records' time-stamp field or column; default flight_hours")
+    p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
+                   help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
+    p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
+    add_progress(p)
+
+
+def _pairs(items, flag) -> dict:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise UserError(f"{flag} expects NAME=VALUE, got '{item}'")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _bounds(items) -> dict:
+    out = {}
+    for name, text in _pairs(items, "--bounds").items():
+        lo, sep, hi = text.partition(":")
+        try:
+            a, b = float(lo), float(hi)
+        except ValueError:
+            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)") from None
+        if not sep or math.isnan(a) or math.isnan(b):
+            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)")
+        if not a < b:
+            raise UserError(f"--bounds {name}={text}: LO must be below HI")
+        out[name] = (a, b)
+    return out
+
+
+def _quantities(items, flag, model) -> dict:
+    """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
+    from ..identification._records import _KIND_OF_UNIT
+    from ..signals import SignalError, parse_quantity
+
+    units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
+    out = {}
+    for name, text in _pairs(items, flag).items():
+        if name not in units:
+            from .._util._checks import nearest
+
+            raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
+        kind = _KIND_OF_UNIT.get(units[name])
+        try:
+            out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
+        except (SignalError, ValueError):
+            raise UserError(f"{flag} {name}={text}: expected a number (SI) or a quantity in a "
+                            f"{kind or units.get(name, 'SI')} unit") from None
+    return out
+
+
+def _split(args):
+    """(model file, records): a first positional that is not a .toml file is a record."""
+    records = list(args.records)
+    if args.model is not None and Path(args.model).suffix.lower() != ".toml":
+        records.insert(0, args.model)
+        args.model = None
+    return model_path(args), records
+
+
+def run(args) -> dict:
+    from ..identification import IdentificationError
+    from ..model.assembly import build_model
+    from ..model.params import load_parameters
+
+    out = check_output_path(args.out, (".toml",), "--out")
+    model_file, records = _split(args)
+    if args.starts < 1:
+        raise UserError(f"--starts must be at least 1, got {args.starts}")
+    if args.max_evaluations < 2:
+        raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
+    params = load_parameters(model_file, dict(args.variant))
+    model = build_model(params)
+    progress = progress_of(args)
+    try:
+        if not records:
+            return _example(args, params, out, progress)
+        if args.free is None:
+            raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
+        free = [s.strip() for s in args.free.split(",") if s.strip()]
+        kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
+              "starts": args.starts, "max_evaluations": args.max_evaluations,
+              "hold_unidentifiable": not args.keep_unidentifiable, "progress": progress}
+        if args.track:
+            return _track(args, params, records, free, kw)
+        if args.compare:
+            return _compare(args, params, model, records, free, kw, out)
+        return _fit(args, params, model, records, free, kw, out)
+    except IdentificationError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _fit(args, params, model, records, free, kw, out) -> dict:
+    from ..identification import is_frequency_record, profile, read_record, validate
+    from ..identification._plot import report_names
+
+    kinds = {is_frequency_record(r) for r in records}
+    if len(kinds) > 1:
+        raise UserError("records: time series and frequency responses (freq_hz, gain_db, phase_deg) cannot be "
+                        "fitted together; give one kind")
+    if kinds == {True}:
+        return _fit_frequency(args, params, records, free, kw, out)
+    recs = [read_record(r, model) for r in records]  # every record checked before any work
+    checks = [read_record(r, model) for r in args.validate]
+    for name in args.profile:
+        if name not in free:
+            from .._util._checks import nearest
+
+            raise UserError(f"--profile {name}: not a free parameter{nearest(name, free)}")
+    report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
+    res = identify_api(params, recs, free, **kw)
+    doc = res.to_dict()
+    if args.profile:
+        doc["profiles"] = {n: profile(res, n) for n in args.profile}
+    if checks:
+        doc["validation"] = validate(res, checks)
+    written = []
+    bad = not res.adequacy["adequate"]
+    if out is not None:
+        written.append(str(res.write(_target(out, bad and not args.allow_misfit),
+                                     note=f"command: ema {' '.join(sys.argv[1:])}"[:300])))
+    if report is not None:
+        written.append(str(res.write_report(report)))
+    doc["written"] = written
+    if bad:
+        reasons = res.adequacy["reasons"]
+        line = f"inadequate fit: {reasons[0]}" + (f" (and {len(reasons) - 1} more)" if len(reasons) > 1 else "")
+        if args.allow_misfit:
+            sys.stderr.write(f"ema identify: warning: {line}\n")
+        else:
+            doc["failure"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
+    return doc
+
+
+def _target(out: Path, inadequate: bool) -> Path:
+    """The fitted file's name: FILE.inadequate.toml for an inadequate fit."""
+    return out.with_name(out.name[: -len(out.suffix)] + ".inadequate.toml") if inadequate else out
+
+
+def _fit_frequency(args, params, records, free, kw, out) -> dict:
+    """Frequency-response records: fitted through the linear model."""
+    from ..identification import identify_frequency
+
+    for flag in ("track", "profile", "validate"):
+        if getattr(args, flag):
+            raise UserError(f"--{flag} is for time-series records, not frequency responses")
+    from ..identification._plot import report_names
+
+    report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
+    res = identify_frequency(params, records, free, sigma={k: v for k, v in kw["sigma"].items()},
+                             max_evaluations=kw["max_evaluations"])
+    doc = res.to_dict()
+    doc["written"] = []
+    if out is not None:
+        doc["written"].append(str(res.write(out, note="frequency-response fit through the linear model")))
+    if report is not None:
+        doc["written"].append(str(res.write_report(report)))
+    return doc
+
+
+def _compare(args, params, model, records, free, kw, out) -> dict:
+    """--compare: every combination fitted, ranked; the best written (as inadequate when
+    no combination is adequate)."""
+    from ..identification import MAX_FITS, combinations, compare, read_record
+
+    options = {}
+    for item in args.compare:
+        key, sep, values = item.partition("=")
+        vals = [v.strip() for v in values.split(",") if v.strip()]
+        if not sep or not key.strip() or not vals:
+            raise UserError(f"--compare expects KEY=V1,V2[,...], got '{item}'")
+        options[key.strip()] = vals
+    max_fits = MAX_FITS if args.max_fits is None else args.max_fits
+    if max_fits < 1:
+        raise UserError(f"--max-fits must be at least 1, got {max_fits}")
+    combinations(options, dict(args.variant), max_fits)  # checked before any work
+    for r in records:
+        read_record(r, model)
+    cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
+                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"])
+    best = cmp.best
+    if best is None:
+        from ..simulation import RunFailed
+
+        raise RunFailed("no combination converged", 0.0)
+    doc = {**best.to_dict(), **cmp.to_dict()}
+    bad = not best.adequacy["adequate"]
+    doc["written"] = []
+    if out is not None:
+        note = f"structure chosen by comparison: {cmp.rows[0]['variants']}"
+        doc["written"].append(str(best.write(_target(out, bad and not args.allow_misfit), note=note)))
+    if bad and not args.allow_misfit:
+        doc["failure"] = f"no compared structure is adequate; the best: {best.adequacy['reasons'][0]}"
+    return doc
+
+
+def identify_api(params, recs, free, **kw):
+    """The API call the command makes (one place to see it)."""
+    from ..identification import identify
+
+    return identify(params, recs, free, **kw)
+
+
+def _track(args, params, records, free, kw) -> dict:
+    from ..identification import track
+
+    limits = _quantities(args.limit, "--limit", __import__("ema_casadi").build_model(params))
+    report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
+    if args.out is not None:
+        raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
+    kw = {k: v for k, v in kw.items() if k not in ("starts",)}
+    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
+    doc = tr.to_dict()
+    if report is not None:
+        doc["written"] = [str(tr.write_report(report))]
+    return doc
+
+
+def _example(args, params, out, progress) -> dict:
+    """The built-in example: records simulated with worn parameters, fitted."""
+    from .._util._files import scratch_dir
+    from ..identification import example_records
+
+    with scratch_dir() as tmp:
+        paths, truth = example_records(params, tmp)
+        free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
+        model = __import__("ema_casadi").build_model(params)
+        doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
+                                                      "max_evaluations": args.max_evaluations,
+                                                      "hold_unidentifiable": not args.keep_unidentifiable,
+                                                      "sigma": _quantities(args.sigma, "--sigma", model),
+                                                      "bounds": _bounds(args.bounds)}, out)
+    doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
+                                              "these values, sensor noise added; fitted from the reference values"}
+    return doc
+
+
+def report(result: dict) -> None:
+    """Print the parameter table and the channels' residuals."""
+    w = sys.stdout.write
+    if "trend" in result:
+        from ..identification._track import report_text
+
+        w(report_text(result))
+        return
+    truth = result.get("example", {}).get("truth", {})
+    if truth:
+        w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
+    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval':>25}  identifiable\n")
+    for n, d in result["parameters"].items():
+        if d.get("estimate") is None:
+            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
+            continue
+        lo, hi = d["interval"]
+        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
+        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g}  {ok}\n")
+    for c in result["channels"]:
+        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
+          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    if result.get("adequate", True):
+        w("adequate: the residuals are explained by the noise (chi-square, whiteness)\n")
+    else:
+        for reason in result["misfit"]:
+            w(f"INADEQUATE: {reason}\n")
+    for row in result.get("comparison", []):
+        state = "failed: " + row["failed"] if "failed" in row else ("adequate" if row["adequate"] else "INADEQUATE")
+        w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
+    for name, prof in result.get("profiles", {}).items():
+        w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
+    for v in result.get("validation", []):
+        w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
+          f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
+    w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
+    for p in result.get("written", []):
+        w(f"wrote {p}\n")

@@ -1,0 +1,140 @@
+"""Model selection: the same records and free parameters fitted with every combination
+of structural options (``anti_windup = backcalc | clamping``, ``friction = smooth |
+...``), ranked by the adequacy tests first and then by the Bayesian information
+criterion.
+
+BIC = -2 log L + k log N, with -2 log L = sum of the weighted squared residuals where
+the noise levels were given, and sum_c N_c log(RSS_c / N_c) (the likelihood profiled
+over one noise level per channel) where they were estimated; k free parameters, N
+residuals. A lower BIC is better; a difference above 10 is decisive. An adequate
+structure ranks before any inadequate one (a structure that cannot explain the
+records is not rescued by its likelihood).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._util._checks import nearest
+from ._fit import FitFailed, identify
+from ._records import IdentificationError
+
+#: Combinations compared at most unless the caller raises it (each is a full fit).
+MAX_FITS = 8
+
+
+@dataclass
+class Comparison:
+    """The fits of every combination, best first.
+
+    Attributes
+    ----------
+    rows : list of dict
+        Per combination: ``variants``, ``adequate``, ``reasons``, ``bic``, ``cost``,
+        ``estimate``, or ``failed`` with the reason.
+    results : list
+        The :class:`IdentResult` of each row (None where the fit failed).
+    """
+
+    rows: list = field(default_factory=list)
+    results: list = field(default_factory=list)
+
+    @property
+    def best(self):
+        """The best fit (the first row's result)."""
+        return self.results[0]
+
+    def to_dict(self) -> dict:
+        """Plain data (``--json``)."""
+        return {"comparison": self.rows, "chosen": self.rows[0]["variants"] if self.rows else None}
+
+
+def combinations(options: dict, variants: dict | None = None, max_fits: int = MAX_FITS) -> list[dict]:
+    """Every combination of the option values (checked against the registry).
+
+    Parameters
+    ----------
+    options : dict
+        Variant or option key -> list of values.
+    variants : dict, optional
+        Fixed overrides the combinations are added to.
+    max_fits : int
+        Most combinations allowed.
+    """
+    from ..model.components import VARIANTS
+
+    for key, values in options.items():
+        if key not in VARIANTS:
+            raise IdentificationError(f"--compare {key}: not a variant or option{nearest(key, VARIANTS)}")
+        for v in values:
+            if v not in VARIANTS[key]:
+                raise IdentificationError(f"--compare {key}={v}: not a value of {key}{nearest(v, VARIANTS[key])}; "
+                                          f"choose from {', '.join(VARIANTS[key])}")
+    keys = list(options)
+    combos = [{**(variants or {}), **dict(zip(keys, vals, strict=True))}
+              for vals in itertools.product(*(options[k] for k in keys))]
+    if len(combos) > max_fits:
+        raise IdentificationError(f"--compare: {len(combos)} combinations, above --max-fits {max_fits} (each is a "
+                                  "full fit); raise --max-fits to run them")
+    return combos
+
+
+def bic(result) -> float:
+    """The Bayesian information criterion of a fit (module docstring).
+
+    Parameters
+    ----------
+    result : IdentResult
+        A fit.
+    """
+    chans = result.channels
+    N = sum(c["samples"] for c in chans)
+    m2ll = 0.0
+    for name in {c["channel"] for c in chans}:
+        rows = [c for c in chans if c["channel"] == name]
+        if name in result.sigma_estimated:
+            n = sum(c["samples"] for c in rows)
+            rss = sum(c["rms"] ** 2 * c["samples"] for c in rows)
+            m2ll += n * np.log(rss / n)
+        else:
+            m2ll += sum(c["chi2"] for c in rows)
+    return float(m2ll + len(result.names) * np.log(N))
+
+
+def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
+            max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False) -> Comparison:
+    """Fit every combination of ``options`` and rank them (module docstring).
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set.
+    records : sequence of str or Path
+        The records.
+    free : sequence of str
+        The free parameters (the same for every combination).
+    options : dict
+        Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
+        "clamping"]}``).
+    sigma, variants, max_evaluations, progress
+        As for :func:`~ema_casadi.identification.identify`.
+    max_fits : int
+        Most combinations (refused above).
+    """
+    rows, results = [], []
+    for combo in combinations(options, variants, max_fits):
+        try:
+            res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
+                           progress=progress)
+        except FitFailed as exc:
+            rows.append({"variants": combo, "failed": exc.reason, "adequate": False, "bic": float("inf")})
+            results.append(None)
+            continue
+        rows.append({"variants": combo, "adequate": res.adequacy["adequate"], "reasons": res.adequacy["reasons"],
+                     "bic": bic(res), "cost": res.info["cost"], "estimate": res.estimate})
+        results.append(res)
+    order = sorted(range(len(rows)), key=lambda k: (not rows[k]["adequate"], rows[k]["bic"]))
+    return Comparison([rows[k] for k in order], [results[k] for k in order])

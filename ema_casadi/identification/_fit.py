@@ -1,0 +1,301 @@
+"""``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
+noise) by Levenberg-Marquardt (``_lm``) with the exact Jacobian, noise levels
+estimated where not given, then the Fisher-information uncertainty and the
+identifiability verdicts."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .._util._checks import instance, integer, nearest, number
+from ..model.assembly import Model, build_model
+from ..model.params import Parameters
+from ..simulation import RunFailed
+from ..simulation._result import progress_bar
+from ._lm import COST_TOL, levenberg_marquardt
+from ._problem import Predictor, free_parameters
+from ._records import IdentificationError, Record, read_record
+from ._result import IdentResult, uncertainty
+
+#: Relative change of the estimated noise levels below which their re-estimation stops.
+SIGMA_TOL = 0.02
+#: Re-estimation rounds of the noise levels at most.
+SIGMA_ROUNDS = 6
+#: Evaluations within this distance (in log-parameters) of the point where the step
+#: sequences were chosen replay them (the cost is then a smooth function, so the small
+#: steps near the optimum compare like with like); farther ones choose them anew.
+REGRID = 0.05
+
+
+class FitFailed(RunFailed):
+    """A fit that did not converge, or whose model run failed at the start values: not
+    a result (the command line: exit status 3, one line, no fitted file).
+
+    Parameters
+    ----------
+    what : str
+        The reason, one line.
+    """
+
+    def __init__(self, what: str):
+        super().__init__(what, 0.0, None)
+        self.reason = what
+        self.args = (what,)
+
+
+def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
+             variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
+             max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False) -> IdentResult:
+    """Fit named parameters of ``params`` to test records.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set (from :func:`~ema_casadi.model.params.load_parameters`); its values
+        are the start of the fit and the values of everything not free.
+    records : sequence of str, Path or Record
+        Record files (CSV or ``.mat``, see :func:`read_record`) or records read.
+    free : sequence of str
+        Flat names of the parameters to fit (``["F_seal", "c_v", "J_m"]``).
+    bounds : dict, optional
+        Name -> (lo, hi) in SI; a log-scaled (positive) parameter needs lo > 0.
+    sigma : dict, optional
+        Channel -> noise standard deviation (SI). Channels without one take the
+        record's field ``sigma_<channel>`` if every record gives it, else are
+        estimated from the residuals (one level per channel, over all records).
+    variants : dict, optional
+        Variant overrides of the model the records are fitted with.
+    start : dict, optional
+        Name -> start value (SI) instead of the file's.
+    starts : int
+        Fits from different starts (the first the file's values, the others drawn
+        log-normally around it, seeded by ``seed``); the lowest cost wins.
+    seed : int
+        Seed of the extra starts.
+    max_evaluations : int
+        Model evaluations per fit at most; a fit that needs more did not converge.
+    hold_unidentifiable : bool
+        A parameter whose interval is wider than +-50 % is held at its start value
+        and the others are fitted again without it.
+    progress : bool
+        One line of progress on stderr.
+
+    Returns
+    -------
+    IdentResult
+        Estimates, intervals, correlation, identifiability, residual statistics,
+        fitted trajectories.
+
+    Raises
+    ------
+    IdentificationError
+        A mistake in the request (before any fit).
+    FitFailed
+        The fit did not converge, or the model fails at the start values.
+    """
+    t_wall = time.perf_counter()
+    instance(params, Parameters, "params", IdentificationError, " (from load_parameters)")
+    starts = integer(starts, "starts", IdentificationError, minimum=1)
+    max_evaluations = integer(max_evaluations, "max_evaluations", IdentificationError, minimum=2)
+    if isinstance(free, str):
+        free = [s.strip() for s in free.split(",") if s.strip()]
+    model = build_model(params, variants)
+    recs = [r if isinstance(r, Record) else read_record(r, model) for r in _as_list(records)]
+    if not recs:
+        raise IdentificationError("records: give at least one record")
+    fr = free_parameters(model, free, bounds, start)
+    given = _sigmas(recs, sigma)
+    pred = Predictor(model, recs, fr, model.p())
+    fit = _Fit(pred, given, max_evaluations, progress)
+    best = _best_start(fit, fr, starts, seed)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    res.info["variant_overrides"] = dict(variants or {})
+    return res
+
+
+def _best_start(fit, fr, starts: int, seed: int) -> dict:
+    """The lowest-cost fit of ``starts`` (the first from the file's values, the others
+    drawn log-normally around them, seeded)."""
+    best = None
+    rng = np.random.default_rng(seed)
+    for k in range(starts):
+        z0 = fr.z(fr.theta0)
+        if k:
+            lo, hi = fr.z_bounds()
+            z0 = np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                         lo + 1e-9, hi - 1e-9)
+        try:
+            out = fit.run(z0)
+        except FitFailed:
+            if starts == 1:
+                raise
+            continue
+        if best is None or out["cost"] < best["cost"]:
+            best = out
+    if best is None:
+        raise FitFailed(f"none of the {starts} starts converged")
+    return best
+
+
+def _as_list(records) -> list:
+    if isinstance(records, (str, Record)) or hasattr(records, "__fspath__"):
+        return [records]
+    return list(records)
+
+
+def _sigmas(recs, sigma) -> dict:
+    """Given noise levels: the argument's, then fields ``sigma_<channel>`` present in
+    every record that measures the channel."""
+    channels = sorted({c for r in recs for c in r.channels})
+    out = {}
+    for c, v in (sigma or {}).items():
+        if c not in channels:
+            raise IdentificationError(f"--sigma {c}: no record measures it{nearest(c, channels)}")
+        out[c] = number(v, f"--sigma {c}", IdentificationError, positive=True)
+    for c in channels:
+        if c in out:
+            continue
+        vals = [r.fields.get(f"sigma_{c}") for r in recs if c in r.channels]
+        if vals and all(isinstance(v, float) and v > 0 for v in vals):
+            out[c] = float(np.mean(vals))
+    return out
+
+
+class _Fit:
+    """One fit: residuals and Jacobian from one prediction, the noise re-estimation
+    around the least-squares solve."""
+
+    def __init__(self, pred: Predictor, given: dict, max_evaluations: int, progress: bool):
+        self.pred, self.given, self.max_eval, self.progress = pred, given, max_evaluations, progress
+        self.channels = sorted({c for r in pred.records for c in r.channels})
+        self._cache = None
+        self.z_grid = None
+        self.failure = ""
+        self.evaluations = 0
+
+    # -- residuals -------------------------------------------------------------------
+    def errors(self, theta):
+        """(predictions, e per (record, channel), de/dz per (record, channel)); e =
+        measured - model, from the second sample on (the first fixes the start)."""
+        preds = self.pred.predict(theta)
+        e, de = {}, {}
+        for i, (rec, pr) in enumerate(zip(self.pred.records, preds, strict=True)):
+            for c, meas in rec.channels.items():
+                e[i, c] = meas[1:] - pr["y"][c][1:]
+                de[i, c] = -pr["dy"][c][1:]
+        return preds, e, de
+
+    def weighted(self, e, de, sig):
+        keys = sorted(e, key=lambda k: (k[0], k[1]))
+        r = np.concatenate([e[k] / sig[k[1]] for k in keys])
+        J = np.concatenate([de[k] / sig[k[1]] for k in keys])
+        return r, J
+
+    def _raw(self, z):
+        """(predictions, e, de) at ``z``, or None where the run failed; the last one kept."""
+        z = np.asarray(z, float)
+        key = z.tobytes()
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > REGRID:
+            self.pred.refresh()  # far from where the step sequences were chosen: choose them here
+            self.z_grid = z.copy()
+        self.evaluations += 1
+        try:
+            raw = self.errors(self.pred.free.theta(z))
+            if not all(np.all(np.isfinite(v)) for d in raw[1:] for v in d.values()):
+                raw, self.failure = None, "non-finite model values"
+        except RunFailed as exc:
+            raw, self.failure = None, exc.reason
+        self._cache = (key, raw)
+        progress_bar(min(1.0, self.evaluations / self.max_eval), self.progress, "identify",
+                     f"evaluation {self.evaluations}")
+        return raw
+
+    def _eval(self, z, sig):
+        """Weighted residuals and Jacobian at ``z`` (None, None where the run failed)."""
+        raw = self._raw(z)
+        return (None, None) if raw is None else self.weighted(raw[1], raw[2], sig)
+
+    # -- the fit ---------------------------------------------------------------------
+    def run(self, z0) -> dict:
+
+        fr = self.pred.free
+        z0 = np.asarray(z0, float)
+        self.z_grid = None
+        raw = self._raw(z0)
+        if raw is None:
+            raise FitFailed(f"the model run fails at the start values: {self.failure}")
+        e0 = raw[1]
+        sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
+        sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
+        lo, hi = fr.z_bounds()
+        z = np.clip(np.asarray(z0, float), lo, hi)
+        estimate = [c for c in self.channels if c not in self.given]
+
+        for _round in range(SIGMA_ROUNDS):
+            if _round:  # the step sequences chosen anew at a later round's start, then frozen
+                self._cache, self.z_grid = None, None
+            budget = self.max_eval - self.evaluations + 1  # the round's start may be the cached point
+            if budget < 2:
+                raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
+            tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
+            sol = levenberg_marquardt(lambda zz, sig=sig: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
+            if not sol["converged"]:
+                raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
+            z = sol["z"]
+            if not estimate:
+                break
+            _, e, _ = self._raw(z)
+            n_tot = sum(len(v) for v in e.values())
+            dof = max(1e-3, 1.0 - len(z) / n_tot)
+            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in estimate}
+            change = max(abs(new[c] / sig[c] - 1) for c in estimate)
+            sig = {**sig, **new}
+            if change < SIGMA_TOL:
+                break
+        r, J = self._eval(z, sig)
+        progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
+        return {"z": z, "sigma": sig, "r": r, "J": J, "cost": 0.5 * float(r @ r), "message": sol["message"],
+                "estimated": estimate}
+
+
+def _rms(arrays) -> float:
+    a = np.concatenate(arrays) if arrays else np.zeros(1)
+    return float(np.sqrt(np.mean(a * a)))
+
+
+def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool) -> IdentResult:
+    """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
+    their start values and the others fitted again; the result."""
+    fr = fit.pred.free
+    start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
+    estimated = bool(out["estimated"])
+    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+    held = {}
+    wide = [n for n, w in zip(fr.names, unc["wide"], strict=True) if w]
+    evaluations = fit.pred.evaluations
+    if hold and wide and len(wide) < len(fr.names):
+        theta = fr.theta(out["z"])
+        for n in wide:
+            k = fr.names.index(n)
+            held[n] = {"start": float(fr.theta0[k]), "estimate_when_free": float(theta[k]),
+                       "interval_when_free": [float(v) for v in unc["interval"][k]],
+                       "relative_halfwidth": float(unc["halfwidth"][k])}
+        keep = [n for n in fr.names if n not in wide]
+        base = fit.pred.base.copy()
+        base[fr.index] = np.where(np.isin(fr.names, wide), fr.theta0, theta)
+        pred = Predictor(model, recs, fr.subset(keep, theta), base)
+        sig = {c: out["sigma"][c] for c in out["estimated"]}
+        fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
+        out = {**fit2.run(pred.free.z(pred.free.theta0)), "estimated": out["estimated"]}
+        fit, fr = fit2, pred.free
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+        evaluations += pred.evaluations
+    theta = fr.theta(out["z"])
+    preds, e, _ = fit._raw(out["z"])
+    return IdentResult._build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
+                             preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
+                             evaluations=evaluations, start=start)

@@ -1,0 +1,425 @@
+"""The result of a fit: estimates, Fisher-information uncertainty, identifiability,
+residual statistics per channel and record, fitted trajectories; JSON, the fitted
+parameter file, figures and the report folder."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._util._files import write_text
+from ._data import plain
+
+#: A parameter is not identifiable from the records when its 95 % interval is wider than
+#: this fraction of its value on either side ...
+WIDE = 0.5
+#: ... or when it is correlated with another beyond this.
+CORRELATED = 0.95
+#: Two-sided 95 % quantile of the normal distribution.
+Z95 = 1.959963984540054
+#: Misfit tests: a channel's residuals are not explained by the noise when its
+#: chi-square exceeds its expectation N by more than MISFIT_Z standard deviations
+#: (sqrt(2 N)), or when the Ljung-Box test over 20 lags rejects whiteness at p below
+#: MISFIT_P. Both one-sided at 1e-3 per channel and record: about 0.4 % false alarms
+#: on a four-channel fit of a correct model.
+MISFIT_Z = 3.09
+MISFIT_P = 1e-3
+
+
+def uncertainty(free, z, J, r, estimated: bool) -> dict:
+    """Covariance s^2 (J^T J)^-1 in optimiser coordinates (s^2 = sum r^2 / (N - n) when
+    noise levels were estimated, else 1), 95 % intervals (log-scaled parameters on
+    log theta), correlation, weak directions (small singular values of J) and the
+    identifiability verdicts.
+
+    Parameters
+    ----------
+    free : Free
+        The free parameters.
+    z : ndarray
+        The optimum in optimiser coordinates.
+    J : ndarray
+        Weighted residual Jacobian at the optimum (N x n).
+    r : ndarray
+        Weighted residuals at the optimum.
+    estimated : bool
+        Some noise levels were estimated from the residuals.
+    """
+    N, n = J.shape
+    s2 = float(r @ r) / max(1, N - n) if estimated else 1.0
+    U, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    tiny = sv <= sv[0] * 1e-12 if len(sv) else np.zeros(0, bool)
+    inv = np.where(tiny, np.inf, 1.0 / np.where(tiny, 1.0, sv) ** 2)
+    with np.errstate(invalid="ignore"):
+        cov_z = (Vt.T * np.where(np.isinf(inv), 1e300, inv)) @ Vt * s2
+    std_z = np.sqrt(np.diag(cov_z))
+    singular = [bool(np.any(np.abs(Vt[tiny][:, k]) > 1e-6)) for k in range(n)] if tiny.any() else [False] * n
+    std_z = np.where(singular, np.inf, std_z)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov_z / np.outer(std_z, std_z)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    theta = free.theta(z)
+    half = Z95 * std_z
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        lo = np.where(free.log, theta * np.exp(-half), theta - half * free.dtheta_dz(theta))
+        hi = np.where(free.log, theta * np.exp(half), theta + half * free.dtheta_dz(theta))
+        rel = np.where(free.log, np.expm1(half), half * free.dtheta_dz(theta) / np.abs(theta))
+    D = free.dtheta_dz(theta)
+    with np.errstate(invalid="ignore", over="ignore"):
+        cov = cov_z * np.outer(D, D)
+    offdiag = np.abs(corr - np.eye(n))
+    partner = [int(np.argmax(offdiag[k])) if n > 1 else -1 for k in range(n)]
+    correlated = [bool(n > 1 and offdiag[k, partner[k]] > CORRELATED) for k in range(n)]
+    wide = [bool(not np.isfinite(rel[k]) or rel[k] > WIDE) for k in range(n)]
+    weak = []
+    for i in range(len(sv)):
+        h = Z95 * np.sqrt(s2) / sv[i] if sv[i] > 0 else np.inf
+        if h > np.log1p(WIDE):
+            v = Vt[i] / np.max(np.abs(Vt[i]))
+            weak.append({"singular_value": float(sv[i]), "halfwidth_log": float(h),
+                         "direction": {free.names[k]: float(v[k]) for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.05}})
+    return {"s2": s2, "cov_z": cov_z, "cov": cov, "std_z": std_z, "corr": corr, "interval": np.column_stack([lo, hi]),
+            "halfwidth": rel, "wide": wide, "correlated": correlated, "partner": partner, "singular_values": sv,
+            "weak": weak}
+
+
+def channel_stats(records, preds, errors, sigma) -> list[dict]:
+    """Per record and channel: samples, RMS residual (SI), RMS / sigma, chi-square and its
+    expectation, lag-1 autocorrelation and the Ljung-Box statistic of the residuals
+    (20 lags) with its p-value."""
+    from scipy.special import gammaincc  # chi2.sf(Q, k) = gammaincc(k / 2, Q / 2), without importing scipy.stats
+
+    out = []
+    for i, rec in enumerate(records):
+        for c in rec.channels:
+            e = errors[i, c]
+            s = sigma[c]
+            rho = autocorrelation(e, 20)
+            N = len(e)
+            Q = float(N * (N + 2) * np.sum(rho[1:] ** 2 / (N - np.arange(1, len(rho)))))
+            out.append({"record": rec.path, "channel": c, "samples": N, "rms": float(np.sqrt(np.mean(e * e))),
+                        "sigma": float(s), "rms_over_sigma": float(np.sqrt(np.mean(e * e)) / s),
+                        "chi2": float(np.sum((e / s) ** 2)), "chi2_expected": float(N),
+                        "autocorr_lag1": float(rho[1]) if len(rho) > 1 else 0.0, "ljung_box_q": Q,
+                        "ljung_box_p": float(gammaincc((len(rho) - 1) / 2, Q / 2))})
+    return out
+
+
+def adequacy(channels, estimated) -> dict:
+    """Whether the residuals are explained by the noise: per record and channel the
+    chi-square against its expectation (only where the noise level was given, not
+    estimated from these residuals) and the Ljung-Box whiteness test.
+
+    Parameters
+    ----------
+    channels : list of dict
+        :func:`channel_stats`.
+    estimated : sequence of str
+        Channels whose noise level was estimated from the residuals.
+
+    Returns
+    -------
+    dict
+        ``adequate`` (bool) and ``reasons`` (one line per failed test).
+    """
+    reasons = []
+    for c in channels:
+        where = f"{Path(c['record']).name}: {c['channel']}"
+        N = c["samples"]
+        if c["channel"] not in estimated:
+            z = (c["chi2"] - N) / np.sqrt(2 * N)
+            if z > MISFIT_Z:
+                reasons.append(f"{where}: residuals {c['rms_over_sigma']:.3g} x the noise level "
+                               f"(chi-square {c['chi2']:.4g} for {N} samples, +{z:.1f} sd)")
+        if c["ljung_box_p"] < MISFIT_P:
+            reasons.append(f"{where}: residuals not white (lag-1 autocorrelation {c['autocorr_lag1']:+.3f}, "
+                           f"Ljung-Box p = {c['ljung_box_p']:.2g})")
+    return {"adequate": not reasons, "reasons": reasons}
+
+
+def autocorrelation(e, lags: int) -> np.ndarray:
+    """Normalised autocorrelation of ``e`` at lags 0..lags (biased estimate).
+
+    Parameters
+    ----------
+    e : array_like
+        A residual series.
+    lags : int
+        Largest lag.
+    """
+    e = np.asarray(e, float) - np.mean(e)
+    d = float(e @ e)
+    L = min(lags, len(e) - 1)
+    if d == 0:
+        return np.concatenate([[1.0], np.zeros(L)])
+    return np.array([float(e[: len(e) - k] @ e[k:]) / d for k in range(L + 1)])
+
+
+@dataclass
+class IdentResult:
+    """What :func:`~ema_casadi.identification.identify` found.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters fitted (those held as not identifiable are in :attr:`held`).
+    start, estimate : dict
+        Name -> start value and estimate (SI).
+    interval : dict
+        Name -> (lo, hi), the 95 % confidence interval (SI).
+    std : dict
+        Name -> standard deviation (SI, first order).
+    covariance, correlation : ndarray
+        In :attr:`names` order (SI).
+    identifiable : dict
+        Name -> True, or the reason it is not (a wide interval, a correlation).
+    held : dict
+        Parameters not identifiable from the records (interval wider than +-50 %),
+        held at their start values while the others were fitted again: name ->
+        their start, their estimate and interval while free.
+    weak_directions : list of dict
+        Directions in log-parameter space the records determine poorly (from the SVD).
+    channels : list of dict
+        Residual statistics per record and channel (:func:`channel_stats`).
+    sigma : dict
+        Channel -> noise level used (SI).
+    sigma_estimated : list of str
+        The channels whose noise level came from the residuals.
+    trajectories : list of dict
+        Per record: ``t``, ``measured`` and ``fitted`` per channel (SI).
+    status : str
+        ``converged``.
+    adequacy : dict
+        ``adequate`` and the ``reasons`` when the residuals are not explained by the
+        noise (:func:`adequacy`); the intervals of an inadequate fit are not
+        trustworthy (they assume the model's structure is right).
+    info : dict
+        Cost, evaluations, wall time, the model's variants, records, noise factor s^2.
+    params, fitted_params : Parameters
+        The set fitted and the set with the estimates in place (held parameters at
+        their start values).
+    """
+
+    names: tuple
+    start: dict
+    estimate: dict
+    interval: dict
+    std: dict
+    covariance: np.ndarray
+    correlation: np.ndarray
+    identifiable: dict
+    held: dict
+    weak_directions: list
+    channels: list
+    sigma: dict
+    sigma_estimated: list
+    trajectories: list
+    status: str = "converged"
+    adequacy: dict = field(default_factory=lambda: {"adequate": True, "reasons": []})
+    info: dict = field(default_factory=dict)
+    params: object = field(default=None, repr=False)
+    fitted_params: object = field(default=None, repr=False)
+
+    @classmethod
+    def _build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,
+              start):
+        """The result from the pieces of :func:`identify` (internal)."""
+        names = free.names
+        ident = {}
+        for k, n in enumerate(names):
+            if unc["wide"][k]:
+                ident[n] = f"95 % interval +-{100 * unc['halfwidth'][k]:.3g} % (wider than +-{100 * WIDE:g} %)"
+            elif unc["correlated"][k]:
+                j = unc["partner"][k]
+                ident[n] = f"correlated with {names[j]} ({unc['corr'][k, j]:+.3f}): only their combination is known"
+            else:
+                ident[n] = True
+        for n, h in held.items():
+            ident[n] = (f"95 % interval +-{100 * h['relative_halfwidth']:.3g} % when free: held at its start value "
+                        f"{h['start']:.6g}")
+        traj = [{"record": rec.path, "t": rec.t, "measured": dict(rec.channels),
+                 "fitted": {c: pr["y"][c] for c in rec.channels}} for rec, pr in zip(records, preds, strict=True)]
+        fitted = params.replace(**{n: float(v) for n, v in zip(names, theta, strict=True)})
+        stats = channel_stats(records, preds, errors, out["sigma"])
+        return cls(names=tuple(names), start={n: float(start[n]) for n in names},
+                   estimate={n: float(v) for n, v in zip(names, theta, strict=True)},
+                   interval={n: (float(a), float(b)) for n, (a, b) in zip(names, unc["interval"], strict=True)},
+                   std={n: float(np.sqrt(unc["cov"][k, k])) for k, n in enumerate(names)},
+                   covariance=unc["cov"], correlation=unc["corr"], identifiable=ident, held=held,
+                   weak_directions=unc["weak"], channels=stats, adequacy=adequacy(stats, out["estimated"]),
+                   sigma=dict(out["sigma"]), sigma_estimated=list(out["estimated"]), trajectories=traj,
+                   info={"cost": out["cost"], "s2": unc["s2"], "evaluations": int(evaluations),
+                         "wall_time": wall_time, "variants": dict(model.variants),
+                         "records": [r.path for r in records],
+                         "units": {c: model.units.get(c, "") for r in records for c in r.channels},
+                         "samples": int(sum(len(v) for v in errors.values())),
+                         "solver": "Levenberg-Marquardt, exact Jacobian (RODAS4 forward sensitivities)",
+                         "optimizer_message": out["message"]},
+                   params=params, fitted_params=fitted)
+
+    # -- views ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The result as plain data (the ``--json`` document; no trajectories)."""
+        params = {}
+        for n in self.names:
+            params[n] = {"start": self.start[n], "estimate": self.estimate[n], "interval": list(self.interval[n]),
+                         "std": self.std[n], "identifiable": self.identifiable[n] is True,
+                         **({} if self.identifiable[n] is True else {"reason": self.identifiable[n]})}
+        for n, h in self.held.items():
+            params[n] = {"start": h["start"], "estimate": None, "held_at": h["start"], "identifiable": False,
+                         "reason": self.identifiable[n], "estimate_when_free": h["estimate_when_free"],
+                         "interval_when_free": h["interval_when_free"]}
+        return {"status": self.status, "adequate": self.adequacy["adequate"],
+                "misfit": self.adequacy["reasons"], "intervals_trustworthy": self.adequacy["adequate"],
+                "parameters": params, "correlation": {
+                    "names": list(self.names), "matrix": np.round(self.correlation, 6).tolist()},
+                "weak_directions": self.weak_directions, "channels": self.channels,
+                "sigma": self.sigma, "sigma_estimated": self.sigma_estimated, **self.info}
+
+    def to_json(self, path: str | Path) -> Path:
+        """Write :meth:`to_dict` as JSON (atomically).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file.
+        """
+        return write_text(path, json.dumps(plain(self.to_dict()), indent=1) + "\n")
+
+    def summary(self) -> str:
+        """A Markdown summary: the parameters with intervals and verdicts, the channels."""
+        lines = ["| parameter | start | estimate | 95 % interval | identifiable |", "|---|---|---|---|---|"]
+        for n in self.names:
+            lo, hi = self.interval[n]
+            ok = "yes" if self.identifiable[n] is True else f"**no**: {self.identifiable[n]}"
+            lines.append(f"| {n} | {self.start[n]:.5g} | {self.estimate[n]:.5g} | {lo:.5g} .. {hi:.5g} | {ok} |")
+        for n, h in self.held.items():
+            lines.append(f"| {n} | {h['start']:.5g} | (held) | - | **no**: {self.identifiable[n]} |")
+        lines += ["", "| record | channel | samples | RMS residual | sigma | RMS/sigma | lag-1 autocorr. |",
+                  "|---|---|---|---|---|---|---|"]
+        for c in self.channels:
+            lines.append(f"| {Path(c['record']).name} | {c['channel']} | {c['samples']} | {c['rms']:.4g} | "
+                         f"{c['sigma']:.4g} | {c['rms_over_sigma']:.3f} | {c['autocorr_lag1']:+.3f} |")
+        for w in self.weak_directions:
+            d = ", ".join(f"{v:+.2f} {k}" for k, v in w["direction"].items())
+            lines.append(f"\nWeak direction (log-parameters): {d} (95 % half-width {w['halfwidth_log']:.3g} in log)")
+        return "\n".join(lines) + "\n"
+
+    def write(self, path: str | Path, note: str = "") -> Path:
+        """Write the fitted parameter file: the input file's text with the estimates put
+        in place of the values (comments and layout kept), a header naming the fit;
+        parameters held as not identifiable keep their values (and say so).
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.toml`` file.
+        note : str
+            An extra line for the header (the command that made it).
+        """
+        head = ["Fitted by ema identify (weighted least squares, exact sensitivities) to: "
+                + ", ".join(Path(r).name for r in self.info["records"])]
+        if note:
+            head.append(note)
+        if not self.adequacy["adequate"]:
+            head.append("INADEQUATE FIT: the residuals are not explained by the noise; the intervals are not "
+                        "trustworthy: " + "; ".join(self.adequacy["reasons"][:3]))
+        for n in self.names:
+            lo, hi = self.interval[n]
+            tag = "" if self.identifiable[n] is True else f"  NOT IDENTIFIABLE: {self.identifiable[n]}"
+            head.append(f"  {n}: {self.start[n]:.6g} -> {self.estimate[n]:.6g} (95 %: {lo:.6g} .. {hi:.6g}){tag}")
+        for n in self.held:
+            head.append(f"  {n}: NOT IDENTIFIABLE from these records, left at {self.held[n]['start']:.6g}: "
+                        f"{self.identifiable[n]}")
+        return write_fitted(self.params, self.estimate, path, "\n".join(head), self.info.get("variant_overrides"))
+
+    def plot(self, truth: dict | None = None) -> dict:
+        """The report's figures (matplotlib Figures by name): ``fit_<k>`` measured vs
+        fitted and residuals per record, ``correlation`` the heat map, ``intervals``
+        the estimates with their intervals relative to the start.
+
+        Parameters
+        ----------
+        truth : dict, optional
+            Known true values (SI) marked on ``intervals`` (records made by simulation).
+        """
+        from ._plot import figures
+
+        return figures(self, truth)
+
+    def write_report(self, folder: str | Path) -> Path:
+        """Write the report folder (assembled aside and moved in): the figures as PNG,
+        ``summary.json`` and ``summary.md``.
+
+        Parameters
+        ----------
+        folder : str or Path
+            The folder (replaced whole).
+        """
+        from ._plot import write_report
+
+        return write_report(self, folder)
+
+
+_LINE = re.compile(r"^(\s*)([A-Za-z_]\w*)(\s*=\s*\{\s*value\s*=\s*)([^,}]+?)(\s*,.*)$")
+_TABLE = re.compile(r"^\s*\[([A-Za-z_]\w*)\]")
+
+
+_VARIANT = re.compile(r'^(\s*)([A-Za-z_]\w*)(\s*=\s*)"[^"]*"(.*)$')
+
+
+def write_fitted(params, values: dict, path: str | Path, header: str, variants: dict | None = None) -> Path:
+    """The parameter file of ``params`` (its source text, layout and comments kept) with
+    ``values`` (flat name -> SI) put in place; written atomically.
+
+    Parameters
+    ----------
+    params : Parameters
+        The set fitted (its ``source`` file is the template).
+    values : dict
+        Flat name -> new value (SI).
+    path : str or Path
+        Output file.
+    header : str
+        Comment lines written at the top.
+    variants : dict, optional
+        Variant and option choices to put in the ``[model]`` table (a structure chosen
+        by comparison).
+    """
+    from ..model.params import GROUPS
+
+    group_of = {f: g for g, cls in GROUPS.items() for f in cls.__dataclass_fields__}
+    src = Path(str(params.source))
+    comment = "".join(f"# {line}\n" for line in header.splitlines())
+    if not src.is_file():
+        return params.replace(**values).to_toml(path, header)
+    lines = src.read_text(encoding="utf-8-sig").splitlines()
+    table, done = None, set()
+    variants = dict(variants or {})
+    for i, line in enumerate(lines):
+        m = _TABLE.match(line)
+        if m:
+            table = m.group(1)
+            continue
+        mv = _VARIANT.match(line)
+        if table == "model" and mv and mv.group(2) in variants:
+            lines[i] = f'{mv.group(1)}{mv.group(2)}{mv.group(3)}"{variants.pop(mv.group(2))}"{mv.group(4)}'
+            continue
+        m = _LINE.match(line)
+        if m and m.group(2) in values and group_of.get(m.group(2)) == table:
+            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{float(values[m.group(2)])!r}{m.group(5)}"
+            done.add(m.group(2))
+    if variants:  # choices the [model] table does not name yet: added under its header
+        at = next((i for i, line in enumerate(lines) if _TABLE.match(line) and _TABLE.match(line).group(1) == "model"),
+                  None)
+        new = [f'{k} = "{v}"  # chosen by the fit' for k, v in variants.items()]
+        lines = (lines[: at + 1] + new + lines[at + 1 :]) if at is not None else ["[model]", *new, "", *lines]
+    missing = [n for n in values if n not in done]
+    if missing:  # keys the file does not set (defaults): written as the whole set instead
+        return params.replace(**values).to_toml(path, header)
+    return write_text(path, comment + "\n".join(lines) + "\n")

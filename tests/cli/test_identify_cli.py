@@ -1,0 +1,164 @@
+"""``ema identify``: a mistake -> exit 2 and one line naming it, nothing
+written; a fit that does not converge -> exit 3, one line, no fitted file; plain
+``ema identify`` (the built-in example) succeeds and writes what it is asked to."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import REFERENCE
+from ema_casadi import identification as idn
+from ema_casadi.cli import main
+
+REF = str(REFERENCE)
+GOOD = "time,x_cmd,x_rod\nUnit:,m,m\n0,0,0\n0.0005,0,1e-7\n0.001,0,-1e-7\n"
+
+
+@pytest.fixture(scope="module")
+def record(params, tmp_path_factory):
+    """A short record (0.3 s) of a 1 mm step, seal friction +40 %."""
+    d = tmp_path_factory.mktemp("rec")
+    return idn.synthetic_record(params, d / "step.csv", t_end=0.3, x_cmd="step:1mm@0.02", truth={"F_seal": 210.0})
+
+
+def _run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("content, flags, words", [
+    ("x,x_rod\n0,0\n1,0\n", [], ["first column must be the time"]),
+    ("time,x_rod\n0,0\n0.001,0\n0.0005,0\n", [], ["increase strictly"]),
+    ("time,x_cmd,x_rod [kN]\n0,0,0\n0.001,0,0\n", [], ["x_rod", "kN"]),
+    ("time,x_cmd,x_rood\n0,0,0\n0.001,0,0\n", [], ["did you mean 'x_rod'"]),
+    ("", [], ["empty"]),
+    (GOOD, ["--free", "F_sael"], ["did you mean 'F_seal'"]),
+    (GOOD, ["--bounds", "F_seal=300:100"], ["--bounds F_seal", "LO"]),
+    (GOOD, ["--bounds", "F_seal=0:100"], ["--bounds F_seal", "log scale"]),
+    (GOOD, ["--bounds", "F_seal=1"], ["--bounds", "LO:HI"]),
+    (GOOD, ["--sigma", "x_rd=0.3um"], ["--sigma x_rd", "did you mean 'x_rod'"]),
+    (GOOD, ["--out", "{tmp}/fit.txt"], ["--out", ".toml"]),
+    (GOOD, ["--profile", "c_v"], ["--profile c_v", "not a free parameter"]),
+])
+def test_mistakes_exit_2_with_one_line_and_nothing_written(tmp_path, capsys, content, flags, words):
+    rec = tmp_path / "r.csv"
+    rec.write_text(content)
+    flags = [f.format(tmp=tmp_path) for f in flags]
+    free = [] if "--free" in flags else ["--free", "F_seal"]
+    code, out, err = _run(["identify", REF, str(rec), *free, *flags, "--out", str(tmp_path / "fit.toml"),
+                           "--no-progress"] if "--out" not in flags else
+                          ["identify", REF, str(rec), *free, *flags, "--no-progress"], capsys)
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("ema identify: error:"), err
+    assert all(w in err for w in words), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv"]
+
+
+def test_a_record_too_large_is_refused_up_front(tmp_path, capsys, monkeypatch, record):
+    """The working set (samples x states x directions) against the machine's allowance:
+    with the allowance lowered to 10 kB the 0.3 s record is refused before any fit."""
+    monkeypatch.setattr(idn._records, "MAX_BYTES", 1e4)
+    code, _, err = _run(["identify", REF, str(record), "--free", "F_seal", "--out", str(tmp_path / "f.toml")], capsys)
+    assert code == 2 and "GB" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "f.toml").exists()
+
+
+def test_no_free_parameters_named(capsys, record):
+    code, _, err = _run(["identify", REF, str(record)], capsys)
+    assert code == 2 and "--free" in err
+
+
+def test_a_fit_that_does_not_converge_exits_3_and_writes_nothing(tmp_path, capsys, record):
+    code, out, err = _run(["identify", REF, str(record), "--free", "F_seal,c_v", "--max-evaluations", "2",
+                           "--out", str(tmp_path / "fit.toml"), "--report", str(tmp_path / "rep")], capsys)
+    assert code == 3, err
+    assert err.count("\n") == 1 and "did not converge" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_fit_writes_the_file_and_the_report(tmp_path, capsys, record):
+    code, out, err = _run(["identify", str(record), "--free", "F_seal", "--sigma", "x_rod=0.3um",
+                           "--sigma", "i_q=0.05A", "--out", str(tmp_path / "fit.toml"),
+                           "--report", str(tmp_path / "rep"), "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    doc = json.loads(out)
+    est = doc["parameters"]["F_seal"]
+    assert abs(est["estimate"] - 210.0) <= 3 * est["std"] and est["identifiable"]
+    assert doc["sigma"] == {"x_rod": 3e-7, "i_q": 0.05} and doc["sigma_estimated"] == []
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["fit_0.png", "intervals.png", "summary.json",
+                                                                   "summary.md"]
+    assert "F_seal = { value = " + repr(est["estimate"]) in (tmp_path / "fit.toml").read_text()
+
+
+def test_plain_identify_runs_the_example(capsys):
+    code, out, err = _run(["identify", "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    doc = json.loads(out)
+    for n, v in doc["example"]["truth"].items():
+        d = doc["parameters"][n]
+        assert abs(d["estimate"] - v) <= 3 * d["std"], n
+
+
+@pytest.fixture(scope="module")
+def misfit_record(params, tmp_path_factory):
+    """A record whose rotor inertia is +25 % while the fit may move only F_seal: the
+    model cannot explain it."""
+    d = tmp_path_factory.mktemp("misfit")
+    return idn.synthetic_record(params, d / "m.csv", t_end=0.3, x_cmd="step:1mm@0.02",
+                                truth={"F_seal": 210.0, "J_m": 1.5e-3})
+
+
+def test_an_inadequate_fit_exits_3_and_says_so_in_the_file_name(tmp_path, capsys, misfit_record):
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--json", "--no-progress"], capsys)
+    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "not white" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.inadequate.toml"]
+    assert json.loads(out)["adequate"] is False
+    assert "INADEQUATE FIT" in (tmp_path / "fit.inadequate.toml").read_text()
+
+
+def test_allow_misfit_warns_and_succeeds(tmp_path, capsys, misfit_record):
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--allow-misfit", "--no-progress"], capsys)
+    assert code == 0 and err.startswith("ema identify: warning: inadequate fit") and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.toml"]
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["identify", "--help"]])
+def test_help(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0 and "identify" in capsys.readouterr().out
+
+
+def test_track_writes_the_trend(params, tmp_path, capsys):
+    """Three records stamped 0, 1000, 2000 h (seal friction 150, 200, 250 N): the trend
+    report, with the crossing of 300 N predicted."""
+    recs = [str(idn.synthetic_record(params, tmp_path / f"r{h}.csv", t_end=0.3, x_cmd="step:1mm@0.02",
+                                     truth={"F_seal": 150.0 + 0.05 * h}, seed=h, fields={"flight_hours": h}))
+            for h in (0, 1000, 2000)]
+    code, out, err = _run(["identify", "--track", *recs, "--free", "F_seal", "--limit", "F_seal=300N",
+                           "--report", str(tmp_path / "trend"), "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    doc = json.loads(out)
+    assert [r["stamp"] for r in doc["records"]] == [0.0, 1000.0, 2000.0]
+    a, b = doc["trend"]["F_seal"]["crossing_interval"]
+    assert a <= 3000.0 <= b
+    assert sorted(p.name for p in (tmp_path / "trend").iterdir()) == ["trend.json", "trend.png"]
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--compare", "anti_windop=clamping"], ["did you mean 'anti_windup'"]),
+    (["--compare", "anti_windup=clamp"], ["did you mean 'clamping'"]),
+    (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--max-fits", "3"],
+     ["--max-fits"]),
+    (["--compare", "anti_windup"], ["KEY=V1,V2"]),
+])
+def test_compare_mistakes_exit_2(tmp_path, capsys, record, flags, words):
+    code, _, err = _run(["identify", str(record), "--free", "F_seal", *flags, "--out", str(tmp_path / "f.toml")],
+                        capsys)
+    assert code == 2 and err.count("\n") == 1 and all(w in err for w in words), err
+    assert list(tmp_path.iterdir()) == []
