@@ -211,7 +211,8 @@ def report(r: dict) -> None:
           f"(compile {r['compile_time']:.3f} s)")
     if r["mode_switches"] is not None:
         print(f"stick/slip mode switches: {r['mode_switches']}")
-    if r["dt_out_used"] is not None and not math.isclose(r["dt_out_used"], r["dt_out_requested"], rel_tol=1e-9):
+    if (r["dt_out_used"] is not None and r["dt_out_requested"] is not None
+            and not math.isclose(r["dt_out_used"], r["dt_out_requested"], rel_tol=1e-9)):
         print(f"--dt-out {r['dt_out_requested']:g} s rounded to {r['dt_out_used']:g} s (whole carrier periods); "
               f"power and loss columns: {r['power_columns']}")
     if r["balance_residual_J"] is not None:

@@ -123,8 +123,9 @@ class TuneResult:
         }
 
     def plot(self, model: Model | None = None, reference: Parameters | None = None) -> list:
-        """The Bode plots (closed loop and the loop transfers, first load case) and the
-        nonlinear step before and after tuning, as two matplotlib Figures.
+        """The Bode plots (closed loop and the loop transfers, first load case), the
+        nonlinear step and the cascade view (each loop with its outer loops open) before
+        and after tuning, as three matplotlib Figures.
 
         Parameters
         ----------

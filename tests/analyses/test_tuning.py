@@ -217,13 +217,15 @@ def test_tuned_file_round_trip(tuned, tmp_path):
 
 
 def test_tuned_result_plots_before_and_after(tuned):
-    """TuneResult.plot(): the Bode figure (closed loop and each loop transfer) and the
-    step figure, one line per gain set (before, after)."""
+    """TuneResult.plot(): the Bode figure (closed loop and each loop transfer), the
+    step figure, one line per gain set (before, after), and the cascade view (each loop
+    with its outer loops open)."""
     from matplotlib.figure import Figure
 
     model, res = tuned
-    bode_fig, step_fig = res.plot(model)
-    assert isinstance(bode_fig, Figure) and isinstance(step_fig, Figure)
+    bode_fig, step_fig, cascade_fig = res.plot(model)
+    assert isinstance(bode_fig, Figure) and isinstance(step_fig, Figure) and isinstance(cascade_fig, Figure)
+    assert len(cascade_fig.axes) == 2 * len(model.loops)
     assert len(bode_fig.axes) == 2 * (1 + len(model.loops))
     assert {line.get_label().split(":")[0] for line in step_fig.axes[0].lines} >= {"before", "after"}
     assert repr(res).startswith("TuneResult(success=True")
