@@ -15,7 +15,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "closest", "nearest"]
+__all__ = ["describe", "number", "integer", "vector", "instance", "choice", "closest", "nearest", "budget",
+           "size_text"]
 
 
 def describe(value) -> str:
@@ -27,11 +28,12 @@ def describe(value) -> str:
 
 
 def number(value, name: str, error: type, *, unit: str = "", positive: bool = False,
-           nonneg: bool = False, finite: bool = True) -> float:
+           nonneg: bool = False, negative: bool = False, finite: bool = True) -> float:
     """``value`` as a float: a real number (not a bool, a string or an array), finite
-    unless ``finite`` is False, > 0 with ``positive``, >= 0 with ``nonneg``."""
+    unless ``finite`` is False, > 0 with ``positive``, >= 0 with ``nonneg``, < 0 with
+    ``negative``."""
     u = f" ({unit})" if unit else ""
-    what = "a positive" if positive else ("a non-negative" if nonneg else "a")
+    what = "a positive" if positive else ("a non-negative" if nonneg else ("a negative" if negative else "a"))
     fin = " finite" if finite else ""
     if isinstance(value, np.ndarray) and value.shape == ():
         value = value[()]
@@ -40,7 +42,7 @@ def number(value, name: str, error: type, *, unit: str = "", positive: bool = Fa
     v = float(value)
     if (finite and not math.isfinite(v)) or math.isnan(v):
         raise error(f"{name}: expected {what}{fin} number{u}, got {v}")
-    if (positive and not v > 0) or (nonneg and not v >= 0):
+    if (positive and not v > 0) or (nonneg and not v >= 0) or (negative and not v < 0):
         raise error(f"{name}: expected {what}{fin} number{u}, got {v:g}")
     return v
 
@@ -193,3 +195,44 @@ def read_toml(path, what: str, error: type) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML ({exc})") from None
+
+
+def size_text(n: float) -> str:
+    """``n`` bytes as ``"7.28 TB"`` (decimal units) for messages."""
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n / 1e3:.3g} kB"
+
+
+def budget(count: float, limit: float, what: str, error: type, *, unit: str = "points", item_bytes: float = 8.0,
+           limit_name: str = "", hint: str = "") -> int:
+    """``count`` as an int when it is at most ``limit``; otherwise ``error`` with the
+    estimate (count and memory), before anything is allocated (the reliability contract:
+    work the machine cannot do is refused up front).
+
+    Parameters
+    ----------
+    count : float
+        How many items the work would allocate or run (may be a float estimate).
+    limit : float
+        The most allowed.
+    what : str
+        What is counted, named in the message (``"--freqs 0.1-30:1e12"``).
+    error : type
+        The exception raised (the caller's toolkit type).
+    unit : str
+        What an item is (``"points"``, ``"samples"``, ``"runs"``).
+    item_bytes : float
+        Memory of one item (B), for the estimate; 0 leaves it out.
+    limit_name : str
+        The constant holding the limit (``"MAX_RUNS"``), named in the message.
+    hint : str
+        What to do instead.
+    """
+    if not math.isfinite(float(count)) or count > limit:
+        mem = f" x {item_bytes:g} B = {size_text(count * item_bytes)}" if item_bytes else ""
+        name = f" ({limit_name})" if limit_name else ""
+        tail = f"; {hint}" if hint else ""
+        raise error(f"{what}: {count:.3g} {unit}{mem}, above the limit of {limit:.3g} {unit}{name}{tail}")
+    return int(count)

@@ -6,10 +6,21 @@ no C compiler is found, or compilation fails, the Function runs in CasADi's virt
 machine instead (slower, same results) and a warning says so once.
 
 Cache folder: ``$EMA_CASADI_CACHE`` or ``~/.cache/ema_casadi``.
+
+The cache verifies what it loads: every library it writes is recorded with its size
+and SHA-256 in the folder's index (``index-v1.json``, rewritten atomically under a file
+lock), and a library is loaded only when it matches its record. A recorded library
+that does not (garbage, truncated, empty: loading it could crash the process with
+SIGBUS) is rebuilt, with one line on stderr; a file the index does not record is not
+an entry and is rebuilt silently. When the folder cannot be used (it is a file, or
+read-only) the libraries are built in a temporary folder removed at exit, with one
+line on stderr. The compilers run with ``TMPDIR`` in a private folder, so an
+interrupted build leaves nothing in the system's temporary folder.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
@@ -34,11 +45,157 @@ _loaded: dict[str, ca.Function] = {}
 _warned = False
 
 
+#: The cache's record of its libraries: file name -> {"size": bytes, "sha256": hex}.
+INDEX = "index-v1.json"
+_usable: dict = {}  # configured folder -> the folder used (itself or a temporary fallback)
+
+
 def cache_dir() -> Path:
-    """The folder holding compiled models."""
+    """The folder holding compiled models: ``$EMA_CASADI_CACHE`` or
+    ``~/.cache/ema_casadi``, or a temporary folder (one line on stderr) when that one
+    cannot be created or written."""
     d = Path(os.environ.get("EMA_CASADI_CACHE", Path.home() / ".cache" / "ema_casadi"))
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    with _lock:
+        if str(d) not in _usable:
+            _usable[str(d)] = _usable_folder(d)
+        return _usable[str(d)]
+
+
+def _usable_folder(d: Path) -> Path:
+    import atexit
+    import tempfile
+
+    from . import _files
+
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".ema-probe.", dir=d)
+        os.close(fd)
+        os.unlink(probe)
+        return d
+    except OSError as exc:
+        up = next((q for q in (d, *d.parents) if q.exists()), None)
+        why = f"{up} is a file" if up is not None and not up.is_dir() else (exc.strerror or str(exc))
+    tmp = Path(tempfile.mkdtemp(prefix="ema_casadi-cache-"))
+    with _files._lock:
+        _files._live.add(tmp)  # removed on an interrupt too
+    atexit.register(_files._remove, tmp)
+    _note(f"compile cache {d} cannot be used ({why}); building in a temporary folder for this run")
+    return tmp
+
+
+_noted: set = set()
+
+
+def _note(text: str, kind: str = "") -> None:
+    """One line on stderr (the cache's own reports), once per process for each ``kind``."""
+    if kind and kind in _noted:
+        return
+    _noted.add(kind)
+    sys.stderr.write(f"ema: {text}\n")
+    sys.stderr.flush()
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+@contextlib.contextmanager
+def _index_lock(folder: Path):
+    """An exclusive lock on the folder's index across processes (POSIX; elsewhere none)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    with open(folder / ".index.lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _read_index(folder: Path) -> dict:
+    import json
+
+    try:
+        data = json.loads((folder / INDEX).read_text(encoding="utf-8"))
+        return data if isinstance(data, dict) else {}
+    except FileNotFoundError:
+        return {}
+    except (OSError, ValueError):
+        _note(f"compile cache {folder / INDEX} is unreadable; its libraries are rebuilt", "index")
+        return {}
+
+
+def _record(so: Path) -> None:
+    """Record a library just written (size, hash) in its folder's index, atomically."""
+    import json
+
+    entry = {"size": so.stat().st_size, "sha256": _digest(so)}
+    with _index_lock(so.parent):
+        index = _read_index(so.parent)
+        index[so.name] = entry
+        write_with(so.parent / INDEX, lambda t: Path(t).write_text(json.dumps(index, indent=0), encoding="utf-8"),
+                   stage=False)
+
+
+def _verified(so: Path) -> bool:
+    """True when ``so`` exists and matches its record in the index; a recorded library
+    that does not is removed (one line on stderr), so that it is rebuilt."""
+    if not so.exists():
+        return False
+    entry = _read_index(so.parent).get(so.name)
+    if not isinstance(entry, dict):
+        return False  # not an entry of this cache: rebuilt (and recorded)
+    try:
+        size = so.stat().st_size
+        why = (f"{size} bytes instead of {entry.get('size')}" if size != entry.get("size") else
+               "its content does not match its hash" if _digest(so) != entry.get("sha256") else None)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    if why is None:
+        return True
+    _note(f"compile cache: {so} is damaged ({why}); rebuilding it (and any other damaged entry)", "damaged")
+    with contextlib.suppress(OSError):
+        so.unlink()
+    return False
+
+
+def run_compilers(commands: list) -> list[tuple[int, str]]:
+    """Run compiler command lines in parallel, each in its own process group with
+    ``TMPDIR`` in a private folder (removed after, also on an interrupt: killed
+    compilers leave no temporaries); returns (exit status, output) of each.
+
+    Parameters
+    ----------
+    commands : list of list of str
+        The command lines.
+    """
+    import signal
+
+    with scratch_dir() as tmp:
+        env = {**os.environ, "TMPDIR": str(tmp), "TMP": str(tmp), "TEMP": str(tmp)}
+        procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                                  start_new_session=True) for cmd in commands]
+        out = []
+        try:
+            for proc in procs:
+                log, _ = proc.communicate()
+                out.append((proc.returncode, log))
+        except BaseException:
+            for proc in procs:
+                with contextlib.suppress(OSError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+            for proc in procs:
+                proc.wait()
+            raise
+    return out
 
 
 def compiler() -> str | None:
@@ -90,7 +247,7 @@ def compile_function(f: ca.Function, jit: bool = True) -> tuple[ca.Function, dic
         if str(so) in _loaded:
             info.update(compiled=True, cached=True)
             return _loaded[str(so)], info
-        if not so.exists():
+        if not _verified(so):
             failed = _build_library(cc, src, name, so)
             if failed:
                 warnings.warn(f"C compilation failed, using CasADi's VM: {failed}", stacklevel=3)
@@ -135,7 +292,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     with _lock:
         if str(so) in _loaded:
             return _loaded[str(so)], {"compiled": True, "cached": True, "compile_time": 0.0}
-        if so.exists():
+        if _verified(so):
             g = ca.external(name, str(so))
             _loaded[str(so)] = g
             return g, {"compiled": True, "cached": True, "compile_time": 0.0}
@@ -146,6 +303,7 @@ def compile_keyed(name: str, key_parts, build, jit: bool = True) -> tuple[ca.Fun
     if info["compiled"]:
         src = Path(_loaded_path(g))
         write_with(so, lambda t: shutil.copyfile(src, t), suffix=".so", stage=False)
+        _record(so)
     info["compile_time"] = time.perf_counter() - t0
     return g, info
 
@@ -180,11 +338,12 @@ def _build_library(cc: str, src: str, name: str, so: Path, flags=()) -> str | No
         c_file.write_text(src)
         tmp_so = Path(tmp) / so.name
         cmd = [cc, *CFLAGS, *flags, "-fPIC", "-shared", str(c_file), "-o", str(tmp_so), "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            return proc.stderr.strip()[:200] or f"{cc} exit status {proc.returncode}"
+        [(code, log)] = run_compilers([cmd])
+        if code != 0:
+            return log.strip()[:200] or f"{cc} exit status {code}"
         # loaded at once: not deferred to the end of the command's outputs
         write_with(so, lambda t: shutil.move(str(tmp_so), str(t)), suffix=".so", stage=False)
+        _record(so)
     return None
 
 
@@ -224,7 +383,7 @@ def compile_source(name: str, key_parts, build, flags=()) -> tuple[Path | None, 
     so = cache_dir() / f"{name}_s{h.hexdigest()[:20]}.so"
     t0 = time.perf_counter()
     with _lock:
-        if so.exists():
+        if _verified(so):
             info.update(compiled=True, cached=True)
             return so, info
         failed = _build_library(cc, build(), name, so, flags)

@@ -32,7 +32,7 @@ from pathlib import Path
 
 __all__ = [
     "atomic_path", "atomic_dir", "write_text", "write_with", "transaction", "scratch_dir", "remove_temporaries",
-    "check_file", "check_folder", "OutputPathError", "after_commit",
+    "check_file", "check_folder", "OutputPathError", "after_commit", "on_error",
 ]
 
 
@@ -47,6 +47,8 @@ _live: set[Path] = set()
 _staged: list | None = None
 #: callables of the open transaction to run once its renames are done
 _after: list = []
+#: callables of the open transaction to run if it fails with an error (not an interrupt)
+_on_error: list = []
 
 
 def _temp_name(path: Path, suffix: str = "") -> Path:
@@ -123,11 +125,12 @@ def atomic_path(path: str | Path, suffix: str = "", *, stage: bool = True):
     with _lock:
         _live.add(tmp)
     try:
-        yield tmp
-        if stage:
-            _finish(tmp, path, folder=False)
-        else:
-            _commit(tmp, path, folder=False)
+        with _cannot_write(path):
+            yield tmp
+            if stage:
+                _finish(tmp, path, folder=False)
+            else:
+                _commit(tmp, path, folder=False)
     except BaseException:
         _remove(tmp)
         raise
@@ -135,6 +138,33 @@ def atomic_path(path: str | Path, suffix: str = "", *, stage: bool = True):
 
 #: Subfolders an :func:`atomic_dir` carries over from the folder it replaces, by temporary.
 _kept: dict = {}
+
+
+@contextlib.contextmanager
+def _cannot_write(target: Path):
+    """An OSError while an output is written (a full disk, a quota, a read-only
+    filesystem) as one line naming the output: :class:`OutputPathError`."""
+    try:
+        yield
+    except OutputPathError:
+        raise
+    except OSError as exc:
+        raise OutputPathError(f"{_shown(target)}: cannot write ({exc.strerror or exc})") from None
+
+
+#: folders being assembled -> the folder they become (messages name the latter)
+_folders: dict = {}
+
+
+def _shown(target: Path) -> Path:
+    """``target`` as the user named it: a file inside a folder being assembled is named
+    inside the folder it will become."""
+    for tmp, real in list(_folders.items()):
+        try:
+            return real / Path(target).relative_to(tmp)
+        except ValueError:
+            continue
+    return target
 
 
 @contextlib.contextmanager
@@ -158,14 +188,18 @@ def atomic_dir(path: str | Path, keep: tuple = ()):
     with _lock:
         _live.add(tmp)
         _kept[tmp] = tuple(keep)
+    _folders[tmp] = path
     try:
-        tmp.mkdir()
-        yield tmp  # the files inside are private until the folder moves: not staged
-        _finish(tmp, path, folder=True)
+        with _cannot_write(path):
+            tmp.mkdir()
+            yield tmp  # the files inside are private until the folder moves: not staged
+            _finish(tmp, path, folder=True)
     except BaseException:
         _kept.pop(tmp, None)
         _remove(tmp)
         raise
+    finally:
+        _folders.pop(tmp, None)
 
 
 @contextlib.contextmanager
@@ -188,12 +222,16 @@ def transaction():
         return
     try:
         yield
-    except BaseException:
+    except BaseException as exc:
         with _lock:
             staged, _staged = _staged, None
             _after.clear()
+            undo = list(_on_error) if isinstance(exc, Exception) else []
+            _on_error.clear()
         for tmp, _, _ in staged:
             _remove(tmp)
+        for fn in undo:
+            fn()
         raise
     with _lock:
         staged, _staged = _staged, None
@@ -203,15 +241,35 @@ def transaction():
                     _commit(tmp, target, folder)
                 except OSError as exc:
                     raise OutputPathError(f"{target}: cannot write ({exc.strerror or exc})") from exc
-        except BaseException:
+        except BaseException as exc:
             for tmp, _, _ in staged:
                 _remove(tmp)
             _after.clear()
+            undo = list(_on_error) if isinstance(exc, Exception) else []
+            _on_error.clear()
+            for fn in undo:
+                fn()
             raise
         todo = list(_after)
         _after.clear()
+        _on_error.clear()
     for fn in todo:
         fn()
+
+
+def on_error(fn) -> None:
+    """Call ``fn()`` if the open :func:`transaction` fails with an error (not on an
+    interrupt, not on success); nothing outside a transaction. For what a failed
+    command must not leave: a new sweep journal whose table could not be written.
+
+    Parameters
+    ----------
+    fn : callable
+        Called without arguments.
+    """
+    with _lock:
+        if _staged is not None:
+            _on_error.append(fn)
 
 
 def after_commit(fn) -> None:
@@ -311,6 +369,17 @@ def _probe(folder: Path, what: str) -> None:
     os.unlink(name)
 
 
+def _given(path, what: str) -> Path:
+    """``path`` as a Path; an empty one is refused (it would mean wherever the user
+    stands), as is one naming no file (``.``, ``/``)."""
+    if not str(path).strip():
+        raise OutputPathError(f"{what}: empty path; name the output")
+    p = Path(path)
+    if p.name in ("", ".", ".."):
+        raise OutputPathError(f"{what}: names no file or folder of its own; name the output")
+    return p
+
+
 def check_file(path: str | Path, what: str | None = None) -> Path:
     """Check that the file ``path`` can be written (before any work); returns it.
 
@@ -321,8 +390,8 @@ def check_file(path: str | Path, what: str | None = None) -> Path:
     what : str, optional
         How to name it in the message (default the path), e.g. ``"--out run.csv"``.
     """
-    path = Path(path)
     what = what or str(path)
+    path = _given(path, what)
     if path.is_dir():
         raise OutputPathError(f"{what}: is a folder; expected a file name")
     _probe(path.parent, what)
@@ -348,8 +417,8 @@ def check_folder(path: str | Path, names=(), what: str | None = None, keep: tupl
     keep : tuple of str
         Subfolders that may be there (kept across the replacement, :func:`atomic_dir`).
     """
-    path = Path(path)
     what = what or str(path)
+    path = _given(path, what)
     if path.exists() and not path.is_dir():
         raise OutputPathError(f"{what}: exists and is not a folder")
     _probe(path.parent, what)

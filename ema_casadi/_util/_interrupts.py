@@ -26,7 +26,7 @@ import signal
 import sys
 import threading
 
-__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early"]
+__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early", "finished"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -37,6 +37,7 @@ _on_timeout = None
 _on_signal = None
 _grace = 1.0
 _cancel = threading.Event()
+_finished = False
 
 
 class Interrupted(BaseException):
@@ -102,6 +103,18 @@ def replay_early() -> None:
         _handler(signum, None)
 
 
+def finished() -> None:
+    """The work is done and reported (the ``ema`` process only): SIGINT and SIGTERM are
+    ignored from now on, through the end of :func:`handling` and the interpreter's
+    shutdown, so that a signal in the last moments cannot kill the process silently
+    (the default action) after a complete run."""
+    global _finished
+    if threading.current_thread() is threading.main_thread():
+        _finished = True
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+
+
 def _handler(signum, frame):
     global _received, _watchdog
     if _received is not None:
@@ -136,12 +149,13 @@ def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
         ``on_signal(signum)``, called in the handler on the first signal, before the
         run is interrupted (e.g. to silence what the unwinding prints).
     """
-    global _received, _on_timeout, _on_signal, _grace, _watchdog
+    global _received, _on_timeout, _on_signal, _grace, _watchdog, _finished
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     _received, _watchdog, _on_timeout, _on_signal, _grace = None, None, on_timeout, on_signal, grace
+    _finished = False
     _cancel.clear()
     for s in SIGNALS:
         if previous[s] is not signal.SIG_IGN:  # ignored by the parent (a background job): stays ignored
@@ -151,5 +165,5 @@ def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
     finally:
         _cancel.set()
         for s, h in previous.items():
-            signal.signal(s, h)
+            signal.signal(s, signal.SIG_IGN if _finished else h)
         _received, _on_timeout, _on_signal, _watchdog = None, None, None, None

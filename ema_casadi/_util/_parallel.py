@@ -14,7 +14,8 @@ from __future__ import annotations
 import os
 import threading
 
-__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard"]
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard",
+           "die_with_parent", "worker_init"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -28,6 +29,58 @@ def cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not on Linux
         return os.cpu_count() or 1
+
+
+def worker_init(parent: int) -> None:
+    """Initializer of a local pool's worker process: it leaves Ctrl-C to its parent
+    (which ends the pool) and dies with it (:func:`die_with_parent`). This module is
+    light to import, so a spawned worker runs this within moments of starting, before
+    the toolkit's heavy imports.
+
+    Parameters
+    ----------
+    parent : int
+        The pid of the process that made the pool.
+    """
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent=parent)
+
+
+def die_with_parent(poll: float = 0.2, parent: int | None = None) -> None:
+    """Make this worker process end when its parent dies, even by SIGKILL (no orphans
+    computing for nobody): on Linux the kernel sends SIGKILL on the parent's death
+    (``prctl(PR_SET_PDEATHSIG)``); everywhere a daemon thread also polls the parent's
+    pid every ``poll`` seconds and ends the process when it changes.
+
+    Parameters
+    ----------
+    poll : float
+        Seconds between the watchdog's checks (s).
+    parent : int, optional
+        The parent's pid as the parent saw it (default: the parent now): a parent that
+        died before this call is noticed.
+    """
+    import signal
+
+    parent = os.getppid() if parent is None else parent
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+    if os.getppid() != parent:  # the parent died before the death signal was set
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent:
+            threading.Event().wait(poll)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="ema-parent-watchdog", daemon=True).start()
 
 
 def check_main_guard(error: type, what: str) -> None:

@@ -29,6 +29,7 @@ interrupt, not a traceback.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 from typing import TYPE_CHECKING
@@ -333,8 +334,12 @@ def main(argv=None) -> int:
         try:
             _interrupts.replay_early()  # a signal that came during start-up
             status = _run(argv, stop)
+            if process:  # done and reported: a late signal must not kill the process silently
+                _interrupts.finished()
         except _interrupts.Interrupted as exc:
             status = stop.report(exc.signum)
+        except BrokenPipeError:
+            status = _reader_gone()
         except KeyboardInterrupt:
             status = stop.report(2)
         except BaseException:
@@ -346,6 +351,16 @@ def main(argv=None) -> int:
         if stop.reported and process:
             stop.exit(status)
         return status
+
+
+def _reader_gone() -> int:
+    """The reader of stdout went away (``ema ... --json | head``): end quietly with the
+    shell's status for a broken pipe (128 + SIGPIPE), as other Unix tools do; stdout is
+    pointed at the null device so that the interpreter's final flush does not fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return 128 + 13
 
 
 class _Stop:

@@ -13,6 +13,7 @@ import time
 
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
+from ._flags import airframe_variant, fill_defaults, refuse_unused
 
 COMMAND = "aircraft"
 ORDER = 11
@@ -23,20 +24,30 @@ CONDITION_NAMES = ("cruise_sl", "cruise_30k", "landing")
 
 def add_arguments(p):
     add_progress(p)
-    p.add_argument("--airframe", choices=AIRFRAMES, default="transport", help="airframe; default transport")
+    p.add_argument("--airframe", choices=AIRFRAMES, default=None,
+                   help="airframe (the same as --variant airframe=...); default transport")
     p.add_argument("--condition", choices=[*CONDITION_NAMES, "all"], default="all",
                    help="flight condition (500 ft/s sea level, 800 ft/s at 30 000 ft, 250 ft/s landing); default all")
-    p.add_argument("--step-deg", type=float, default=1.0, help="theta_cmd step (deg); default 1")
-    p.add_argument("--gust", type=float, default=5.0, help="1-cosine gust peak (m/s, up); default 5")
-    p.add_argument("--gust-time", type=float, default=1.0, help="gust length (s); default 1")
-    p.add_argument("--t-end", type=float, default=20.0, help="response length (s); default 20")
-    p.add_argument("--dt", type=float, default=1e-4, help="RK4 step of the responses (s); default 1e-4")
+    p.add_argument("--step-deg", type=float, default=None, help="theta_cmd step (deg); default 1")
+    p.add_argument("--gust", type=float, default=None, help="1-cosine gust peak (m/s, up); default 5")
+    p.add_argument("--gust-time", type=float, default=None, help="gust length (s); default 1")
+    p.add_argument("--t-end", type=float, default=None, help="response length (s); default 20")
+    p.add_argument("--dt", type=float, default=None, help="RK4 step of the responses (s); default 1e-4")
     p.add_argument("--zoh", action="store_true", help="sampled flight-control computer (80 Hz) and ECU")
     p.add_argument("--no-responses", action="store_true", help="trim, margins and delay only")
     p.add_argument("--plot-dir", default=None, metavar="DIR", help="Bode (ideal/EMA) and responses per condition")
 
 
+#: The response flags' defaults (None in the parser: given or not, for --no-responses).
+RESPONSE_DEFAULTS = {"step_deg": 1.0, "gust": 5.0, "gust_time": 1.0, "t_end": 20.0, "dt": 1e-4}
+
+
 def _check(args):
+    if args.no_responses:
+        refuse_unused(args, {"--step-deg": "step_deg", "--gust": "gust", "--gust-time": "gust_time",
+                             "--t-end": "t_end", "--dt": "dt", "--zoh": "zoh"},
+                      "with --no-responses (nothing is simulated)")
+    fill_defaults(args, RESPONSE_DEFAULTS)
     for flag, val, ok in (("--step-deg", args.step_deg, 0 < abs(args.step_deg) <= 10),
                           ("--gust", args.gust, abs(args.gust) <= 30), ("--gust-time", args.gust_time,
                                                                          0 < args.gust_time <= 30),
@@ -51,13 +62,13 @@ def run(args) -> dict:
     from ..aircraft import aircraft_margins, aircraft_point, gust_response, pitch_step
 
     _check(args)
+    airframe_variant(args, "transport", AIRFRAMES)
     conds = CONDITION_NAMES if args.condition == "all" else (args.condition,)
     if args.airframe == "b747":
         conds = conds[:1]  # the 747 has one flight condition (Mach 0.8, 40 000 ft); the gains of cruise
     names = [f"aircraft_{c}_{k}.png" for c in conds for k in ("margins", "responses")]
     plot_dir = check_output_dir(args.plot_dir, names, "--plot-dir")
     t0 = time.perf_counter()
-    args.variant = [*args.variant, ("airframe", args.airframe)]
     params, model = load(args)
     out, plots = {}, {}
     for k, c in enumerate(conds):

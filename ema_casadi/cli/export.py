@@ -20,11 +20,13 @@ Examples::
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
+from ._flags import refuse_unused
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
@@ -67,17 +69,30 @@ def _run_model_export(args) -> dict:
     params, model = load(args)
     try:
         r = export_model(model, out, args.format, dt=args.dt, fmi_version=args.fmi_version)
-    except ExportError as exc:
-        raise UserError(f"--format {args.format}: {exc}") from None
+    except ExportError as exc:  # an argument of export_model is the flag that set it
+        text = re.sub(r"^(dt|fmi_version)\b", lambda m: "--" + m.group(1).replace("_", "-"), str(exc))
+        raise UserError(f"--format {args.format}: {text}") from None
     except OSError as exc:
         raise UserError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
     return {"model": args.model, "variants": model.variants, "format": args.format, "written": [str(r["path"])],
             **{k: v for k, v in r.items() if k != "path"}}
 
 
+def _applicable(args) -> None:
+    """Flags that mean nothing for the format given are refused, not ignored."""
+    if args.out is not None and not args.out.strip():
+        raise UserError("--out: empty path; name the output")
+    if args.format in LINEAR_FORMATS:  # the model formats check theirs (ema_casadi.export.fmu)
+        refuse_unused(args, {"--fmi-version": "fmi_version", "--dt": "dt"},
+                      f"to --format {args.format} (a linear model: nothing steps, no FMI)")
+    else:
+        refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
+
+
 def run(args) -> dict:
     from ..export import ExportError, export_function, save_linear
 
+    _applicable(args)
     if _model_export(args):
         return _run_model_export(args)
 

@@ -13,20 +13,24 @@ from __future__ import annotations
 
 import time
 
+from ..simulation._api import check_run
 from . import UserError, add_progress, check_output_path, load, stage
+from ._flags import airframe_variant, overrides, refuse_unused
 
 COMMAND = "limit-cycle"
 ORDER = 12
 HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
+#: Most points of the describing-function grid (amplitudes x frequencies).
+MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
 
 
 def add_arguments(p):
     add_progress(p)
     p.add_argument("--loop", choices=("position", "aircraft"), default="position", help="loop break; default position")
-    p.add_argument("--airframe", choices=("b747", "transport"), default="b747",
-                   help="airframe of the aircraft loop (ignored for position); default b747")
-    p.add_argument("--condition", default="cruise_sl", help="flight condition of the aircraft loop")
+    p.add_argument("--airframe", choices=("b747", "transport"), default=None,
+                   help="airframe of the aircraft loop (the same as --variant airframe=...); default b747")
+    p.add_argument("--condition", default=None, help="flight condition of the aircraft loop; default cruise_sl")
     p.add_argument("--amplitudes", default=None,
                    help="amplitudes at the break: A0-A1:N (log-spaced) or a list (bare numbers mm); "
                         "default 1um-30um:7 (position), 3um-300um:7 (aircraft)")
@@ -47,18 +51,20 @@ def add_arguments(p):
 def _axes(args):
     import numpy as np
 
-    from ..signals import SignalError, parse_range
+    from ..signals import SignalError, log_grid
     from ..sinestream import parse_amplitudes, parse_freqs
 
     a_txt, f_txt, t_end = DEFAULTS[args.loop]
-    try:
-        rng = parse_range(args.amplitudes or a_txt, "length", "mm")
-        amps = np.geomspace(rng[0], rng[1], rng[2]) if rng else parse_amplitudes(args.amplitudes, 0.075)
-        freqs = parse_freqs(args.freqs or f_txt)
+    try:  # each axis refused before it is allocated, the grid before any run
+        amps = log_grid(args.amplitudes or a_txt, "length", "mm", "--amplitudes", UserError, MAX_GRID)
+        amps = parse_amplitudes(args.amplitudes, 0.075) if amps is None else amps
+        freqs = log_grid(args.freqs or f_txt, "frequency", "Hz", "--freqs", UserError, MAX_GRID)
+        freqs = parse_freqs(args.freqs) if freqs is None else freqs
     except (SignalError, ValueError) as exc:
         raise UserError(str(exc)) from None
-    if len(amps) < 2 or len(freqs) < 2 or np.any(amps <= 0) or len(amps) * len(freqs) > 400:
-        raise UserError("--amplitudes/--freqs: need 2 to 400 grid points in all, positive amplitudes")
+    if len(amps) < 2 or len(freqs) < 2 or np.any(amps <= 0) or len(amps) * len(freqs) > MAX_GRID:
+        raise UserError(f"--amplitudes/--freqs: {len(amps)} x {len(freqs)} points; need 2 to {MAX_GRID} grid "
+                        "points in all (MAX_GRID), at least 2 per axis, positive amplitudes")
     return amps, freqs, (t_end if args.t_end is None else args.t_end)
 
 
@@ -84,13 +90,17 @@ def run(args) -> dict:
         raise UserError("--dt in (0, 1e-3] s, --periods 4..200, --t-end 0..7200 s")
     t0 = time.perf_counter()
     if args.loop == "aircraft":
-        args.variant = [*args.variant, ("airframe", args.airframe)]
+        airframe_variant(args, "b747", ("b747", "transport"))
+    else:
+        refuse_unused(args, {"--airframe": "airframe", "--condition": "condition"}, "to the position loop "
+                      "(give --loop aircraft)")
+    args.condition = args.condition or "cruise_sl"
     params, model = load(args)
-    over = {}
-    if args.k_i_x is not None:
-        over["K_i_x"] = args.k_i_x
-    if args.backlash is not None:
-        over["B"] = args.backlash * 1e-3
+    if t_end > 0:  # the confirming run's size and step, named by the flags
+        spacing = max(args.dt, 1e-4 if args.loop == "position" else 1e-3)  # what confirm_cycle keeps
+        check_run(model, t_end, dt=args.dt, dt_out=spacing,
+                  labels={"t_end": "--t-end", "dt": "--dt", "dt_out": "its sample spacing"}, error=UserError)
+    over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
     s = setup(model, args.loop, model.p(**over), args.condition)
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
               settle=args.periods // 2)

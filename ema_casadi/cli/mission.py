@@ -18,6 +18,7 @@ Example: ema mission models/cesa_ema.toml models/mission_regional.toml --out out
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
@@ -25,7 +26,7 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
-from . import UserError, _jsonable, add_progress, progress_of, second_file
+from . import UserError, _jsonable, add_progress, check_output_dir, check_output_path, progress_of, second_file
 
 COMMAND = "mission"
 #: The mission run without a MISSION.toml (packaged): ~20 minutes of a regional-jet flight.
@@ -66,6 +67,8 @@ def _check(args) -> Path:
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
+    if not args.out.strip():
+        raise UserError("--out: empty path; name the output folder")
     out = Path(args.out)
     for folder in (out, *out.parents):
         if folder.exists() and not folder.is_dir():
@@ -83,11 +86,13 @@ def run(args) -> dict:
     from ..model.components import validate_variants
 
     validate_variants(dict(args.variant), "--variant")
+    stem = Path(args.mission).stem
+    names = {"csv": f"{stem}.csv", "png": f"{stem}.png", "json": f"{stem}_summary.json"}
+    paths = {k: out / n for k, n in names.items()}
+    top = _new_folder(out, names)  # the outputs checked before any work
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)
-        stem = Path(args.mission).stem
-        paths = {"csv": out / f"{stem}.csv", "png": out / f"{stem}.png", "json": out / f"{stem}_summary.json"}
         res = run_mission(params, mission, dict(args.variant), dt=args.dt, dt_out=args.dt_out,
                           progress=progress_of(args), from_trim=args.from_trim)
     except MissionError as exc:
@@ -95,15 +100,31 @@ def run(args) -> dict:
     except MissionFailed as exc:
         sys.stderr.write(f"ema mission: failed: {exc}\n")
         raise SystemExit(3) from None
-    out.mkdir(parents=True, exist_ok=True)
-    summary = res.summary()
-    res.to_csv(paths["csv"], dt=args.csv_dt)
-    res.plot(paths["png"])
-    summary["written"] = [str(p) for p in paths.values()]
-    from .._util._files import write_text
+    from .._util._files import atomic_dir, write_text
 
-    write_text(paths["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
+    summary = res.summary()
+    summary["written"] = [str(p) for p in paths.values()]
+    with atomic_dir(top) if top is not None else contextlib.nullcontext(None) as tmp:  # whole, or not at all
+        folder = out if tmp is None else tmp / out.relative_to(top)
+        folder.mkdir(parents=True, exist_ok=True)  # inside the folder being assembled
+        res.to_csv(folder / names["csv"], dt=args.csv_dt)
+        res.plot(folder / names["png"])
+        write_text(folder / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary
+
+
+def _new_folder(out: Path, names: dict) -> Path | None:
+    """The highest folder of ``out`` that does not exist yet (assembled aside with what
+    lies below it and moved in at the end: a failure leaves no empty folder), or None
+    when ``out`` exists (each file is then written aside and renamed at the end);
+    UserError when the outputs cannot be written."""
+    missing = [p for p in (out, *out.parents) if not p.exists()]
+    if not missing:
+        for name in names.values():
+            check_output_path(str(out / name), (Path(name).suffix,), "--out")
+        return None
+    check_output_dir(str(missing[-1]), names.values() if missing[-1] == out else (), "--out")
+    return missing[-1]
 
 
 def report(r: dict) -> None:

@@ -33,21 +33,28 @@ from __future__ import annotations
 import math
 import time
 
-from ..signals import parse_signal
+from ..signals import SignalError, parse_signal
 from ..simulation import DT_OUT, SOLVERS, simulate
 from ..simulation._api import check_run
+from ..simulation._inputs import check_inputs
 from ..simulation._pwm import check_switched
 from . import UserError, add_progress, check_output_path, load, progress_of
 
 COMMAND = "simulate"
+#: A rod command beyond this many strokes means nothing (the end stops hold the rod at
+#: the stroke): refused.
+COMMAND_STROKES = 3.0
+#: The rod command when --x-cmd is not given (a model that takes x_cmd).
+DEFAULT_X_CMD = "step:1mm@0.01"
 ORDER = 2
 HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
 
 def add_arguments(p):
-    p.add_argument("--x-cmd", default="step:1mm@0.01", metavar="SIGNAL",
+    p.add_argument("--x-cmd", default=None, metavar="SIGNAL",
                    help="commanded rod position (bare numbers in mm; in a CSV file m unless the header names a "
-                        "unit); default step:1mm@0.01")
+                        f"unit); default {DEFAULT_X_CMD} (a model with an airframe is commanded by "
+                        "--input theta_cmd=...)")
     p.add_argument("--f-ext", default="0", metavar="SIGNAL",
                    help="external rod force, positive pushes the rod in (bare numbers in N, also in a CSV file); "
                         "default 0")
@@ -107,19 +114,32 @@ def run(args) -> dict:
         check_run(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
                   event_tol=args.event_tol, labels=FLAGS, error=UserError)
     stroke = params.actuator.stroke
-    try:
-        x_cmd = parse_signal(args.x_cmd, "length", bare="mm", stroke=stroke, duration=args.t_end)
-    except ValueError as exc:
-        raise UserError(f"--x-cmd {exc}") from None
+    x_cmd = None
+    if "x_cmd" in model.inputs:
+        try:
+            x_cmd = parse_signal(DEFAULT_X_CMD if args.x_cmd is None else args.x_cmd, "length", bare="mm",
+                                 stroke=stroke, duration=args.t_end)
+        except ValueError as exc:
+            raise UserError(f"--x-cmd {exc}") from None
+    elif args.x_cmd is not None:
+        raise UserError(f"--x-cmd: the model (airframe={model.variants.get('airframe')}) takes no rod command; "
+                        f"it is commanded by {', '.join(n for n in model.inputs if n.endswith('_cmd'))} "
+                        "(--input NAME=SIGNAL)")
     try:
         f_ext = parse_signal(args.f_ext, "force", bare="N", duration=args.t_end)
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
+    given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})
     t0 = time.perf_counter()
-    res = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, dt_out=dt_out, solver=args.solver,
-                   zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
-                   **others)
+    try:
+        res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
+                       zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
+                       **{n: s for n, s in given.items() if s is not None})
+    except SignalError as exc:  # checked against the chosen solver's sampling: named by its flag
+        name = str(exc).split(" ", 1)[0]
+        flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
+        raise UserError(flag + str(exc)[len(name):]) from None
     written = []
     if out is not None:
         table = res.with_instantaneous() if args.instantaneous else res
@@ -128,7 +148,8 @@ def run(args) -> dict:
     if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
         from ..plots._pwm import plot_switched
 
-        full = simulate(model, args.t_end, x_cmd, f_ext, dt=args.dt, decimate=1, from_trim=args.from_trim, **others)
+        full = simulate(model, args.t_end, dt=args.dt, decimate=1, from_trim=args.from_trim,
+                        **{n: s for n, s in given.items() if s is not None})
         written.append(str(plot_switched(full, plot)))
     elif plot is not None:
         from ..plots._base import plot_simulation
@@ -176,6 +197,25 @@ def energy_report(model, res) -> dict:
         out["balance_residual_J"] = float(r)
         out["balance_relative"] = float(r / E["P_dc"]) if E["P_dc"] else None
     return out
+
+
+#: Input names as the flags that set them.
+_FLAG_OF = {"x_cmd": "--x-cmd", "f_ext": "--f-ext"}
+
+
+def _checked(args, model, dt_out, given) -> dict:
+    """The driving signals against the envelope and the sampling, before the run,
+    naming the flags."""
+    flags = {n: _FLAG_OF.get(n, f"--input {n}") for n in given}
+    step = {f"--dt {args.dt:g} s": args.dt} if args.solver == "rk4" or model.switched else \
+        {f"--dt-out {dt_out:g} s": dt_out} if dt_out is not None else {}  # else simulate() checks its plan
+    # a command far beyond the stroke, a cavity temperature no network means: refused
+    bounds = model.envelope()
+    limits = {"x_cmd": (COMMAND_STROKES * model.params.actuator.stroke, f"{COMMAND_STROKES:g} x the stroke")}
+    limits.update({n: (bounds[n], model.input_info[n].bound.why) for n in ("T_amb",) if n in bounds})
+    check_inputs(model, {n: s for n, s in given.items() if s is not None}, args.t_end, step, flags, UserError,
+                 limits)
+    return given
 
 
 def _named_inputs(items, model, stroke, t_end) -> dict:

@@ -445,7 +445,9 @@ def bandwidth(sys, level_db: float = -3.0, f_min: float = 1e-2, f_max: float = 1
         Search window (Hz).
     """
     _siso(sys)
-    level_db = number(level_db, "level_db", LinearizationError, unit="dB")
+    # a level above the low-frequency gain is never "fallen to": no bandwidth, not a NaN
+    level_db = number(level_db, "level_db", LinearizationError, unit="dB below the low-frequency gain",
+                      negative=True)
     f = frequency_grid(f_min, f_max, 200)
     db = 20 * np.log10(np.abs(freqresp(sys, f)[0, 0]))
     m = db - db[0] - level_db

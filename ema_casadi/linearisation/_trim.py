@@ -388,6 +388,15 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
             raise OperatingPointError(f"{label} must be a finite number, got {val}")
     if abs(x_cmd) > stroke:
         raise OperatingPointError(f"x_cmd = {x_cmd * 1e3:.4g} mm is outside the stroke +-{stroke * 1e3:.4g} mm")
+    # far beyond what the actuator can hold or reach there is no point to solve for (and
+    # the Newton iteration meets overflowing numbers): refused by the model's envelope
+    bounds = model.envelope(pv)
+    for label, val, info in (("f_ext", f_ext, model.input_info.get("f_ext")),
+                             ("v_rod", v_rod, model.output_info.get("v_rod"))):
+        if info is not None and info.bound is not None and abs(val) > bounds[label]:
+            raise OperatingPointError(f"{label} = {val:.4g} {info.unit} is beyond the physical envelope "
+                                      f"{bounds[label]:.4g} {info.unit} ({info.bound.why}); no operating point "
+                                      "within the current limit")
     return pv
 
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
-from .._util._checks import nearest, read_toml
+from .._util._checks import budget, nearest, read_toml
 from ..model.components import REGISTRY, VariantError, parts_for, validate_variants
 from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
@@ -45,6 +45,9 @@ _TOP = {"mission", "model", "limits", "segment"}
 _MISSION_KEYS = {"name", "T_start", "description"}
 _SEGMENT_KEYS = {"name", "duration", "x_cmd", "f_ext", "T_amb"}
 _SAMPLE_RATE = 1000.0  # Hz: commands and loads are checked against the envelope on this grid
+_CHUNK = 1_000_000  # samples checked at a time
+#: Most envelope samples of one segment: 1e5 s, the MAX_STEPS of the full model's step.
+_MAX_CHECKED = 1e8
 
 
 class MissionError(ValueError):
@@ -347,7 +350,14 @@ def _held_load(source: str, params: Parameters, variants: dict) -> float:
 def _check_envelope(where: str, seg: Segment, params: Parameters, F_hold: float) -> None:
     """Commands within the stroke, loads within what the actuator holds, cavity
     temperatures in range: sampled over the segment before any simulation."""
-    t = np.linspace(0.0, seg.duration, max(2, int(seg.duration * _SAMPLE_RATE) + 1))
+    n = max(2, int(seg.duration * _SAMPLE_RATE) + 1)
+    for start in range(0, n, _CHUNK):  # a long segment in pieces: never one huge grid
+        t = np.linspace(0.0, seg.duration, n)[start:start + _CHUNK] if n <= _CHUNK else \
+            np.arange(start, min(n, start + _CHUNK)) * (seg.duration / (n - 1))
+        _check_samples(where, seg, params, F_hold, t)
+
+
+def _check_samples(where: str, seg: Segment, params: Parameters, F_hold: float, t: np.ndarray) -> None:
     stroke = params.actuator.stroke
     x = seg.x_cmd(t)
     if np.max(np.abs(x)) > stroke:
@@ -395,9 +405,13 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
     stroke = params.actuator.stroke
     held = _held_load(source, params, variants)
     segments = []
+    seen = {}
     for k, tab in enumerate(raw, 1):
         label = str(tab.get("name", f"segment {k}"))
         where = f"{source}: segment {k} ('{label}')"
+        if label in seen:  # the report's rows are by name: two of one name cannot both be read
+            raise MissionError(f"{where} name: '{label}' is also the name of segment {seen[label]}; names must differ")
+        seen[label] = k
         _keys(where, tab, _SEGMENT_KEYS)
         if "duration" not in tab:
             raise MissionError(f"{where}: missing key 'duration' (s)")
@@ -406,6 +420,10 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
         dur = _number(f"{where} duration", tab["duration"], "time", "s")
         if dur <= 0:
             raise MissionError(f"{where} duration: must be positive, got {dur:g} s")
+        # the envelope is sampled at _SAMPLE_RATE: its grid refused before it is allocated
+        budget(dur * _SAMPLE_RATE, _MAX_CHECKED, f"{where} duration {dur:g} s", MissionError,
+               unit="envelope samples", item_bytes=0, hint=f"at most {_MAX_CHECKED / _SAMPLE_RATE:g} s, "
+               "as long as MAX_STEPS steps of the full model's 1e-4 s")
         seg = Segment(
             name=label, duration=dur,
             x_cmd=_signal(f"{where} x_cmd", tab.get("x_cmd", "0"), "length", "mm", stroke, dur),

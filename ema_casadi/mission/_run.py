@@ -14,11 +14,12 @@ from ..model.assembly import Model, build_model
 from ..model.components import node_outflow
 from ..model.params import Parameters
 from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, progress_bar, simulate
+from ..simulation._api import check_run
 from ..simulation._choice import choose_solver, trimmed_start
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 
-__all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT"]
+__all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT", "HEAT_RESIDUAL_TOL"]
 
 #: The full model's step (s): the hybrid friction's (docs: friction-and-endstops).
 FULL_DT = 1e-4
@@ -26,6 +27,11 @@ FULL_DT = 1e-4
 #: its temperatures differ from the full model's by at most 0.16 K (docs: missions);
 #: RK4 stays stable (the 1.42 kHz drive-train mode at |lambda h| = 1.8 < 2.8).
 FAST_DT = 2e-4
+
+#: Largest relative residual of the heat balance (losses = stored + to ambient) a
+#: mission may report: the reference mission closes to 0.05 % (README "Missions"), a
+#: 5 s mission to 3 % (the sampling of the losses' first seconds); 10 % is no answer.
+HEAT_RESIDUAL_TOL = 0.1
 
 #: Signals kept besides the losses, the temperature states and the heat flows.
 KEPT = ("x_cmd", "x_rod", "f_ext", "T_amb", "i_q", "R_w", "psi_m", "eta_screw", "P_dc", "P_load", "P_amb",
@@ -119,6 +125,7 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     if abs(k - round(k)) > 1e-9 * k:
         raise MissionError(f"dt_out ({dt_out} s) must be a whole multiple of dt ({dt} s)")
     model = _model(params, mission, variants)
+    _check_size(model, mission, dt, dt_out, block)
     temps = model.states_with("temperature")
     losses = model.outputs_of("loss")
     heat = tuple(n for n in model.outputs if n.startswith("P_heat_"))
@@ -132,13 +139,30 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
                                        from_trim=from_trim)
     series["x_mech"] = series[x_mech]
     info.update(wall_time=time.perf_counter() - wall0, variants=dict(model.variants), model=str(params.source))
-    return MissionResult(
+    res = MissionResult(
         mission=mission, t=t, series=series, units={n: model.units.get(n, "") for n in keep}, losses=losses,
         owners={o: part.family for part in model.parts for o in (d.name for d in part.outputs) if o in losses},
         nodes={n: nodes[n].name if n in nodes else n for n in temps},
         capacity={n: float(node.capacity(model.pdict())) for n, node in nodes.items()},
         heat_of={n: node for part in model.parts for n, node in part.heat.items() if n in losses},
         P=model.pdict(), info=info)
+    residual = res.heat_balance()["relative_residual"]
+    if not abs(residual) <= HEAT_RESIDUAL_TOL:  # NaN too: heat not conserved is no answer
+        raise MissionFailed(f"{mission.source}: the heat balance does not close: residual {100 * residual:+.3g} % "
+                            f"of the losses, beyond the {100 * HEAT_RESIDUAL_TOL:g} % tolerance (HEAT_RESIDUAL_TOL)")
+    return res
+
+
+def _check_size(model: Model, mission: Mission, dt: float, dt_out: float, block: float) -> None:
+    """Before anything is built, a mistake (not a failed run): a segment too short to be
+    sampled, a run above the simulation's step or memory limits (with the estimate)."""
+    short = [s for s in mission.segments if s.duration < dt_out]
+    if short:
+        raise MissionError(f"{mission.source}: segment '{short[0].name}' lasts {short[0].duration:g} s, shorter than "
+                           f"the sample spacing dt_out {dt_out:g} s: it would not be resolved")
+    check_run(model, sum(n for _, n in _blocks(mission.duration, dt, dt_out, block)), dt=dt, dt_out=dt_out,
+              labels={"t_end": f"{mission.source}: the mission's {mission.duration:g} s", "dt": "dt",
+                      "dt_out": "dt_out"}, error=MissionError)
 
 
 def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, *, dt: float, dt_out: float,

@@ -28,6 +28,7 @@ from .._util._files import write_text
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
+from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
 
@@ -447,8 +448,8 @@ def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> 
         raise ParameterError(f"{src}: [screw] eta*eta_inv must not exceed 1 (got {s.eta * s.eta_inv:.3g})")
     if "thermal" not in missing:
         _check_eta_table(src, groups["thermal"], s)
+    check_relations(src, groups, ParameterError, missing)
     return Parameters(**groups, variants=merged, source=src, missing=tuple(missing))
-
 
 
 def _check_eta_table(src: str, th: Thermal, s: Screw) -> None:

@@ -7,8 +7,8 @@ The modules import one way: ``_signal`` (the algebra and quantities) <- ``_table
 
 from .._util._checks import decode_utf8
 from ._parse import parse_signal
-from ._signal import Signal, SignalError, constant, parse_list, parse_quantity, parse_range
+from ._signal import Signal, SignalError, check_signal, constant, log_grid, parse_list, parse_quantity, parse_range
 from ._tables import TIME_NAMES, read_text
 
-__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "constant",
-           "read_text", "decode_utf8", "TIME_NAMES"]
+__all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "log_grid",
+           "check_signal", "constant", "read_text", "decode_utf8", "TIME_NAMES"]

@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-__all__ = ["Signal", "SignalError", "parse_quantity", "parse_list", "parse_range", "constant"]
+__all__ = ["Signal", "SignalError", "parse_quantity", "parse_list", "parse_range", "log_grid", "check_signal",
+           "constant"]
 
 
 class SignalError(ValueError):
@@ -148,6 +149,36 @@ def parse_range(text: str, kind: str, bare: str) -> tuple[float, float, int] | N
     if not m:
         return None
     return parse_quantity(m.group(1), kind, bare), parse_quantity(m.group(2), kind, bare), int(m.group(3))
+
+
+def log_grid(text: str, kind: str, bare: str, flag: str, error: type, limit: int):
+    """The log-spaced grid of a range ``Q0-Q1:N`` (see :func:`parse_range`), or None when
+    ``text`` is not a range: ends positive and increasing, ``2 <= N <= limit``, checked
+    before the grid is allocated (the one check of every range flag).
+
+    Parameters
+    ----------
+    text : str
+        The flag's value.
+    kind, bare : str
+        As :func:`parse_range`.
+    flag : str
+        The flag, named in the message (``"--amplitudes"``).
+    error : type
+        The exception raised.
+    limit : int
+        Most points allowed.
+    """
+    from .._util._checks import budget
+
+    rng = parse_range(text, kind, bare)
+    if rng is None:
+        return None
+    q0, q1, n = rng
+    if not (0 < q0 < q1) or n < 2:
+        raise error(f"{flag} {text}: expected Q0-Q1:N with 0 < Q0 < Q1 (increasing) and N >= 2")
+    budget(n, limit, f"{flag} {text}", error)
+    return np.geomspace(q0, q1, n)
 
 
 @dataclass(frozen=True)
@@ -271,6 +302,37 @@ class Signal:
                 terms.append(_Term(term.kind, a=term.a, f0=term.f0, f1=term.f1, t0=at(term.t0), T=term.T))
         return Signal(tuple(terms), self.text)
 
+    def peak(self, t_end: float) -> float:
+        """An upper bound of |u(t)| over [0, t_end], cheap whatever t_end: steps, ramps
+        and tables at every breakpoint and the ends (exact), plus every sine's amplitude.
+
+        Parameters
+        ----------
+        t_end : float
+            End of the interval (s).
+        """
+        t = np.array(sorted({0.0, float(t_end), *(b for b in self.breakpoints() if 0 <= b <= t_end)}))
+        rest = Signal(tuple(term for term in self.terms if term.kind not in ("sine", "chirp")))
+        with np.errstate(all="ignore"):
+            return float(np.max(np.abs(rest(t)))) + sum(abs(u.a) for u in self.terms if u.kind in ("sine", "chirp"))
+
+    def top_frequency(self, t_end: float) -> float:
+        """The highest frequency of a sine or chirp term over [0, t_end] (Hz); 0 without.
+
+        Parameters
+        ----------
+        t_end : float
+            End of the interval (s).
+        """
+        out = 0.0
+        for term in self.terms:
+            if term.kind == "sine":
+                out = max(out, term.f0)
+            elif term.kind == "chirp":
+                k = (term.f1 - term.f0) / term.T
+                out = max(out, term.f0, term.f0 + k * min(max(t_end - term.t0, 0.0), term.T))
+        return out
+
     def finite(self) -> bool:
         """Whether every number of every term is finite."""
         for term in self.terms:
@@ -371,6 +433,40 @@ class Signal:
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
             raise SignalError("Signal.table: non-finite value in the table")
         return Signal((_Term("table", table=(tuple(map(float, t)), tuple(map(float, v)))),), "table")
+
+
+def check_signal(sig: Signal, what: str, error: type, t_end: float, *, limit: float | None = None, unit: str = "",
+                 sampling: dict | None = None) -> Signal:
+    """The one plausibility check of a driving signal before a run: its
+    largest value within ``limit`` and its highest frequency below the Nyquist rate of
+    every sampling in ``sampling`` (a sine above it is sampled as garbage: aliasing).
+
+    Parameters
+    ----------
+    sig : Signal
+        The signal.
+    what : str
+        How to name it in the message (``"--x-cmd"``).
+    error : type
+        The exception raised.
+    t_end : float
+        The run's length (s).
+    limit : float, optional
+        Largest meaningful |value| (SI).
+    unit : str
+        SI unit of the values, for the message.
+    sampling : dict, optional
+        Label (``"--dt 5e-06 s"``) -> sampling interval (s).
+    """
+    peak = sig.peak(t_end) if limit is not None else 0.0
+    if limit is not None and not peak <= limit:
+        raise error(f"{what} '{sig.text}': reaches {peak:.4g} {unit}, beyond the {limit:.4g} {unit} it can mean here")
+    f = sig.top_frequency(t_end)
+    for label, dt in (sampling or {}).items() if f > 0 else ():
+        if f >= 0.5 / dt:
+            raise error(f"{what} '{sig.text}': {f:.4g} Hz is at or above the Nyquist frequency {0.5 / dt:.4g} Hz "
+                        f"of {label} (it would alias); sample faster or drive it slower")
+    return sig
 
 
 def constant(value: float) -> Signal:

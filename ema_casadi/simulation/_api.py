@@ -38,7 +38,7 @@ from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
-from ._inputs import _input_signals
+from ._inputs import _input_signals, check_inputs
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -137,11 +137,20 @@ def simulate(
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, _given(x_cmd, f_ext, eta, signals), pv)
+    sig = _checked_inputs(model, _given(x_cmd, f_ext, eta, signals), pv, plan, solver)
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
     return _chosen(_timed(model, solver, plan.t_end, run, used=used), requested, why, rtol, atol)
+
+
+def _checked_inputs(model, given, pv, plan, solver) -> dict:
+    """The run's input signals, checked against the envelope and the Nyquist rate of
+    what samples them (the rk4 step; the output spacing of a variable-step solver)."""
+    sig = _input_signals(model, given, pv)
+    step = plan.dt if solver == "rk4" else plan.spacing
+    check_inputs(model, sig, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+    return sig
 
 
 def _given(x_cmd, f_ext, eta, signals) -> dict:
@@ -194,6 +203,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
     sig = _input_signals(model, given, pv)
+    check_inputs(model, sig, float(t_end), {f"dt {float(dt):g} s": float(dt)})
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
     out = None if dt_out is None else float(dt_out)

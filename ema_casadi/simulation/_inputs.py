@@ -7,7 +7,7 @@ import numpy as np
 from .._util._checks import describe
 from .._util._kwargs import check_keywords
 from ..model.assembly import Model
-from ..signals import Signal, SignalError, constant, parse_signal
+from ..signals import Signal, SignalError, check_signal, constant, parse_signal
 
 
 def _as_signal(value, name: str, kind: str) -> Signal:
@@ -43,6 +43,40 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
         sig[name] = _as_signal(value, name, inp.kind)
     return sig
+
+
+def check_inputs(model: Model, sig: dict, t_end: float, sampling: dict, labels: dict | None = None,
+                 error: type = SignalError, limits: dict | None = None) -> None:
+    """Every driving signal against the Nyquist frequency of the run's sampling and,
+    for the inputs in ``limits``, against the largest value it can mean, before the
+    run. (A signal beyond its input's declared bound is left to the run's envelope
+    monitor: a failed run at once.)
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    sig : dict
+        Input name -> Signal.
+    t_end : float
+        The run's length (s).
+    sampling : dict
+        Label -> sampling interval (s), e.g. ``{"dt 5e-06 s": 5e-6}``.
+    labels : dict, optional
+        Input name -> how to name it (``{"x_cmd": "--x-cmd"}``).
+    error : type
+        The exception raised.
+    limits : dict, optional
+        Input name -> (largest meaningful magnitude in its SI unit, why).
+    """
+    labels, limits = labels or {}, limits or {}
+    for name, s in sig.items():
+        limit, why = limits.get(name, (None, ""))
+        try:
+            check_signal(s, labels.get(name, name), SignalError, t_end, limit=limit,
+                         unit=model.input_info[name].unit, sampling=sampling)
+        except SignalError as exc:
+            raise error(f"{exc} ({why})" if why and "beyond the" in str(exc) else str(exc)) from None
 
 
 def _input_matrix(model, sig, t):

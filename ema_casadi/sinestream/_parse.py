@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._util._checks import describe
-from ..signals import SignalError, parse_list, parse_range
+from ..signals import SignalError, log_grid, parse_list, parse_range
 from ._result import FreqRespError
 
 #: Most points (variants x loads x amplitudes x frequencies) one sine stream may have.
@@ -88,7 +88,7 @@ def parse_freqs(text: str) -> np.ndarray:
                                     f"{MAX_SINE_STREAM_POINTS} points (MAX_SINE_STREAM_POINTS); about "
                                     f"{_hours(n * TYPICAL_PERIODS * SECONDS_PER_PERIOD)} on one core at "
                                     f"{SECONDS_PER_PERIOD * 1e3:g} ms per period")
-            return np.geomspace(f0, f1, n)
+            return log_grid(text, "frequency", "Hz", "--freqs", FreqRespError, MAX_SINE_STREAM_POINTS)
         vals = parse_list(text, "frequency", "Hz")
     except SignalError as exc:
         raise FreqRespError(f"--freqs {exc}; expected a list '0.1,1,5' or a range '0.1-30:40'") from None

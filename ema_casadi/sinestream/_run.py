@@ -6,6 +6,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -18,7 +19,7 @@ from ..model.components import validate_variants
 from ..model.params import Parameters
 from ..simulation import Monitor
 from ._backends import _cores, _run_dask, _run_local
-from ._kernels import _Settle, _stepper
+from ._kernels import _failed, _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
 
@@ -92,16 +93,35 @@ def sine_stream(
     build = (samples, rtol, atol, hybrid_dt)
     tasks = _tasks(params, vset, build, pv, loads, amplitudes, freqs)
     n_jobs = jobs or _cores()
+    held = _beyond_hold(vset, pv, loads)  # no response to measure: failed points, not numbers
+    tasks, beyond = [t for t in tasks if t[0][:2] not in held], [t for t in tasks if t[0][:2] in held]
     if scheduler:
-        results = _run_dask(scheduler, tasks, params, build, settle, keep, progress)
+        results = _run_dask(scheduler, tasks, params, build, settle, keep, progress) if tasks else {}
     else:
-        results = _run_local(tasks, params, build, settle, keep, progress, n_jobs)
+        results = _run_local(tasks, params, build, settle, keep, progress, n_jobs) if tasks else {}
+    results.update({t[0]: _failed(0, held[t[0][:2]]) for t in beyond})
     shape = (len(vset), len(loads), len(amplitudes), len(freqs))
     data, samples_out, failed = _collect(results, shape, keep)
-    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks), data, failed, freqs)
+    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks) + len(beyond), data, failed, freqs)
     info["wall_time"] = time.perf_counter() - t_wall
     axes = {"variant": list(vset), "load": loads, "amplitude": amplitudes, "frequency": freqs}
     return FreqResponse(axes=axes, data=data, variants=vset, info=info, samples=samples_out)
+
+
+def _beyond_hold(vset: dict, pv, loads) -> dict:
+    """(variant index, load index) -> the reason, for loads above what the variant's
+    actuator holds at standstill: the envelope limit ``held_load`` its parts declare."""
+    from ..model.components import parts_for
+
+    P = SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True)))
+    out = {}
+    for iv, v in enumerate(vset.values()):
+        held = [float(part.limits["held_load"](P)) for part in parts_for(v)[0] if "held_load" in part.limits]
+        F = max(held, default=math.inf)
+        out.update({(iv, il): f"load {load / 1e3:.4g} kN is above the {F / 1e3:.3g} kN the actuator holds at "
+                               "standstill at its current limit: the actuator cannot hold the load, no response "
+                               "to measure" for il, load in enumerate(loads) if abs(load) > F})
+    return out
 
 
 def _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs) -> None:

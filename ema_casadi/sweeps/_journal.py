@@ -21,6 +21,8 @@ import math
 import os
 from pathlib import Path
 
+from .._util._files import OutputPathError
+
 __all__ = ["Journal", "journal_path", "read_table", "write_table", "format_value"]
 
 _VERSION = 1
@@ -84,6 +86,12 @@ class Journal:
 
     def open(self) -> None:
         """Open for appending (a new journal gets its first line)."""
+        try:
+            self._open()
+        except OSError as exc:  # a full disk: one line naming the journal
+            raise OutputPathError(f"{self.path}: cannot write the journal ({exc.strerror or exc})") from None
+
+    def _open(self) -> None:
         new = not self.path.exists() or self.path.stat().st_size == 0
         self._fh = open(self.path, "a", encoding="utf-8")
         if not new:
@@ -99,9 +107,12 @@ class Journal:
 
     def append(self, rows) -> None:
         """Append finished rows, then flush and sync them to disk."""
-        for row in rows:
-            self._fh.write(json.dumps(row) + "\n")
-        self.sync()
+        try:
+            for row in rows:
+                self._fh.write(json.dumps(row) + "\n")
+            self.sync()
+        except OSError as exc:  # a full disk: one line naming the journal
+            raise OutputPathError(f"{self.path}: cannot write the journal ({exc.strerror or exc})") from None
 
     def sync(self) -> None:
         self._fh.flush()
@@ -109,8 +120,11 @@ class Journal:
 
     def close(self) -> None:
         if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+            fh, self._fh = self._fh, None
+            try:
+                fh.close()
+            except OSError:  # what did not reach the disk was reported by append()
+                pass
 
     def remove(self) -> None:
         """Close and delete the journal (its table is in place)."""

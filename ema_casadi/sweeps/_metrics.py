@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .._util._checks import nearest
+from .._util._checks import nearest, number
 
 __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "PointFailed"]
 
@@ -118,7 +118,9 @@ def _margins(spec, o, where, error, models):
 
 def _bandwidth(spec, o, where, error, models):
     o = _opts(where, o, ("level_db", "f_ext"), error)
-    return ({"level_db": _number(where, o, "level_db", error, -3.0), "f_ext": _number(where, o, "f_ext", error, 0.0)},
+    level = number(o.get("level_db", -3.0), f"{where} level_db", error, unit="dB below the low-frequency gain",
+                   negative=True)  # the same check as bandwidth()'s
+    return ({"level_db": level, "f_ext": _number(where, o, "f_ext", error, 0.0)},
             [("bandwidth_hz", "Hz")])
 
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._util import _interrupts
-from .._util._files import after_commit
+from .._util._files import after_commit, on_error
 from .._util._parallel import check_main_guard, cores, dask_map
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
@@ -116,13 +116,6 @@ def _run_batch(spec: SweepSpec, runs: list) -> list:
     return out
 
 
-def _process_init():
-    """A pool process leaves Ctrl-C to the sweep's own process (which ends the pool)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 # -- the driver ------------------------------------------------------------------
 def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = None, backend: str = "processes",
           scheduler: str | None = None, resume: bool = False, progress: bool = False) -> SweepResult:
@@ -162,15 +155,24 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
     columns, text = _columns(spec)
     done, journal = _previous(spec, out, columns, text, resume)
     todo = [r for r in spec.runs if r.index not in done]
-    if todo and journal is not None:
-        journal.open()
+    # a journal this sweep starts goes with a failure (a scheduler out of reach, a full
+    # disk: the next run must not be refused for it); an interrupt keeps it for --resume
+    new_journal = journal is not None and not journal.path.exists()
     fresh = {}
     n_jobs = 1 if scheduler else (jobs or cores())
     try:
+        if todo and journal is not None:
+            journal.open()
         _execute(spec, todo, n_jobs, backend, scheduler, fresh, journal, progress, len(spec.runs) - len(todo))
+    except Exception:
+        if new_journal:
+            journal.remove()
+        raise
     finally:
         if journal is not None:
             journal.close()
+    if new_journal:
+        on_error(journal.remove)
     rows = [done.get(r.index) or fresh[r.index] for r in spec.runs]
     info = {"runs": len(rows), "resumed": len(spec.runs) - len(todo), "computed": len(todo),
             "failed": sum(r["status"] != "ok" for r in rows), "wall_time": time.perf_counter() - t0,
@@ -179,7 +181,12 @@ def sweep(spec: SweepSpec, out: str | Path | None = None, *, jobs: int | None = 
             "scheduler": scheduler, "fingerprint": spec.fingerprint()}
     result = SweepResult(spec=spec, rows=rows, columns=columns, info=info)
     if out is not None:
-        write_table(out, rows, columns)
+        try:
+            write_table(out, rows, columns)
+        except Exception:
+            if new_journal:
+                journal.remove()
+            raise
         if journal is not None:
             after_commit(journal.remove)
     return result
@@ -278,8 +285,13 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
         from concurrent.futures import ProcessPoolExecutor
 
         _quiet_resource_tracker()
+        import os
+
+        from .._util._parallel import worker_init
+
+        # the workers leave Ctrl-C to this process and die with it (killed: no orphans)
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_process_init)
+                                   initializer=worker_init, initargs=(os.getpid(),))
     try:
         pending = {pool.submit(_run_batch, spec, b) for b in batches}
         while pending:

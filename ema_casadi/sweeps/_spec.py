@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._util._checks import nearest, read_toml
+from .._util._checks import budget, nearest, read_toml
 from ..model.components import VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
@@ -295,6 +295,7 @@ def _parameter(where, name, d, params) -> dict:
         n = d.get("points")
         if isinstance(n, bool) or not isinstance(n, int) or n < 2:
             raise SweepError(f"{where} points: expected an integer >= 2, got {n!r}")
+        budget(n, MAX_RUNS, f"{where} points", SweepError, unit="runs", limit_name="MAX_RUNS")
         spacing = d.get("spacing", "linear")
         if spacing not in ("linear", "log"):
             raise SweepError(f"{where} spacing: expected 'linear' or 'log', got {spacing!r}")
@@ -390,11 +391,12 @@ def _shown(values: dict) -> str:
 def _scenario(table: dict, params: Parameters, src: str) -> dict:
     _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
     where = f"{src} [scenario]"
-    out = {"duration": _num(where, table, "duration", False) or 1.0, "solver": table.get("solver", "auto"),
-           "dt": _num(where, table, "dt", False) or 1e-4}
-    for key in ("dt_out", "rtol", "atol", "event_tol"):
+    out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
+    for key in ("duration", "dt", "dt_out", "rtol", "atol", "event_tol"):
         if key in table:
             out[key] = _num(where, table, key)
+            if not out[key] > 0:  # a zero step or duration means nothing: never replaced by a default
+                raise SweepError(f"{where} {key}: must be positive, got {out[key]:g}")
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
     for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import shutil
 import struct
-import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -121,18 +120,13 @@ def build_all(jobs: list[tuple[Target, list, Path]], include_dirs=()) -> float:
     include_dirs : sequence of path
         Extra include folders (the FMI headers are always on the path).
     """
+    from ..._util._compiled import run_compilers
+
     t0 = time.perf_counter()
-    procs = [(t, subprocess.Popen(t.command(src, out, include_dirs), stdout=subprocess.PIPE,
-                                  stderr=subprocess.STDOUT, text=True)) for t, src, out in jobs]
     failed = []
-    for t, proc in procs:
-        try:
-            log, _ = proc.communicate()
-        except BaseException:
-            for _, other in procs:
-                other.kill()
-            raise
-        if proc.returncode != 0:
+    for t, (code, log) in zip([j[0] for j in jobs], run_compilers([t.command(src, out, include_dirs)
+                                                                  for t, src, out in jobs]), strict=True):
+        if code != 0:
             first = next((line for line in log.splitlines() if "error" in line), log.strip()[:200])
             failed.append(f"{t.key} ({Path(t.compiler).name}): {first}")
     if failed:

@@ -44,7 +44,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ..params import TABLE_MAX
-from ._part import Freeze, Input, Node, Output, Part, State, der, heat_signal, node_outflow
+from ._part import Bound, Freeze, Input, Node, Output, Part, State, der, heat_signal, node_outflow
 from .ballscrew import ETA
 
 __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
@@ -57,7 +57,11 @@ NODES = {"T_w": ("winding", "C_th_w"), "T_h": ("housing", "C_th_h"), "T_s": ("sc
 #: screw and an inverter heat sink.
 RATED = {"T_w": lambda P: P.T_max_w, "T_h": lambda P: 120.0, "T_s": lambda P: 120.0, "T_inv": lambda P: 100.0}
 
-T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0)
+#: The cavity temperatures a lumped network means something for (degC, magnitude): a
+#: mission's range is -100...300 degC.
+T_AMB_MAX = 300.0
+T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0,
+              bound=Bound(lambda E: T_AMB_MAX, f"{T_AMB_MAX:g} degC, beyond any cavity temperature"))
 
 
 def eta_table(T, P):

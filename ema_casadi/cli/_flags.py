@@ -1,0 +1,103 @@
+"""Shared checks of the commands' flags: parameter values set by flags (checked as a
+parameter file's values, named by the flag), flags given where they do not apply, and
+the airframe chosen by ``--variant airframe=...`` or ``--airframe``."""
+
+from __future__ import annotations
+
+from . import UserError
+
+__all__ = ["overrides", "refuse_unused", "fill_defaults", "airframe_variant"]
+
+
+def overrides(params, flags: dict) -> dict:
+    """Parameter values set by flags, checked as a parameter file's values are, the
+    message naming the flag: ``{"--backlash": ("B", 0.1, 1e-3)}`` (flag -> flat name,
+    value as given or None when not given, factor to SI) -> ``{"B": 1e-4}``.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set the values go into.
+    flags : dict
+        Flag -> (flat parameter name, value or None, factor to SI).
+    """
+    from ..model._flat import checked
+    from ..model.params import ParameterError
+
+    out = {}
+    for flag, (name, value, factor) in flags.items():
+        if value is None:
+            continue
+        try:
+            out[name] = checked(name, value * factor, f"{flag} {value:g}")
+        except ParameterError as exc:  # the value as given, not in SI
+            raise UserError(str(exc).split(", got ")[0]) from None
+    return out
+
+
+def refuse_unused(args, flags: dict, why: str) -> None:
+    """A flag given where it does not apply is a mistake, not silently ignored:
+    UserError for the first of ``flags`` (flag -> attribute name) whose value was given
+    (not None, False or empty).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments (the flags concerned default to None, False or []).
+    flags : dict
+        Flag -> attribute of ``args``.
+    why : str
+        Why they do not apply (``"with --no-responses (nothing is simulated)"``).
+    """
+    for flag, attr in flags.items():
+        if getattr(args, attr, None) not in (None, False, []):
+            raise UserError(f"{flag}: does not apply {why}")
+
+
+def fill_defaults(args, defaults: dict) -> None:
+    """Set each attribute of ``defaults`` that is None in ``args`` to its default (flags
+    whose default is None so that :func:`refuse_unused` can tell whether they were given).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments.
+    defaults : dict
+        Attribute -> default value.
+    """
+    for attr, value in defaults.items():
+        if getattr(args, attr, None) is None:
+            setattr(args, attr, value)
+
+
+def airframe_variant(args, default: str, choices) -> str:
+    """The airframe of a command with an ``--airframe`` flag: ``--variant airframe=X``
+    and ``--airframe`` name the same choice; both given and different is a mistake
+    (never one silently overriding the other). Appends the choice to ``args.variant``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With ``variant`` (list of pairs) and ``airframe`` (None when not given).
+    default : str
+        The command's default airframe.
+    choices : iterable of str
+        The airframes the command takes.
+    """
+    given = [v for k, v in args.variant if k == "airframe"]
+    chosen = given[-1] if given else None
+    if chosen is not None and args.airframe is not None and chosen != args.airframe:
+        raise UserError(f"--variant airframe={chosen} and --airframe {args.airframe} disagree; give one")
+    airframe = chosen or args.airframe or default
+    if airframe not in choices:
+        raise UserError(f"--variant airframe={airframe}: this command takes {', '.join(choices)}"
+                        f"{_nearest(airframe, choices)}")
+    args.airframe = airframe
+    args.variant = [*[(k, v) for k, v in args.variant if k != "airframe"], ("airframe", airframe)]
+    return airframe
+
+
+def _nearest(name, options) -> str:
+    from .._util._checks import nearest
+
+    return nearest(name, options)
