@@ -145,16 +145,8 @@ def run(args) -> dict:
         table = res.with_instantaneous() if args.instantaneous else res
         writer = {".csv": table.to_csv, ".mat": table.to_mat, ".npz": table.to_npz}[out.suffix.lower()]
         written.append(str(writer(out)))
-    if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
-        from ..plots._pwm import plot_switched
-
-        full = simulate(model, args.t_end, dt=args.dt, decimate=1, from_trim=args.from_trim,
-                        **{n: s for n, s in given.items() if s is not None})
-        written.append(str(plot_switched(full, plot)))
-    elif plot is not None:
-        from ..plots._base import plot_simulation
-
-        written.append(str(plot_simulation(res, plot)))
+    if plot is not None:
+        written.append(_plot(args, model, res, given, plot))
     info = res.info
     return {
         "model": args.model,
@@ -173,12 +165,32 @@ def run(args) -> dict:
         "steps": info.get("steps"),
         "samples": len(res.t),
         "mode_switches": info.get("mode_switches"),
-        "dt_out_requested": dt_out,
-        "dt_out_used": info.get("dt_out", dt_out) if model.switched else dt_out,
-        "power_columns": info.get("power_columns", "instantaneous"),
+        **sampling_report(model, res, dt_out),
         **energy_report(model, res),
         "written": written,
     }
+
+
+def _plot(args, model, res, given, plot) -> str:
+    """The --plot PNG: a switched model's waveforms (rerun keeping every sub-interval),
+    else the run's signals."""
+    if model.switched:
+        from ..plots._pwm import plot_switched
+
+        full = simulate(model, args.t_end, dt=args.dt, decimate=1, from_trim=args.from_trim,
+                        **{n: s for n, s in given.items() if s is not None})
+        return str(plot_switched(full, plot))
+    from ..plots._base import plot_simulation
+
+    return str(plot_simulation(res, plot))
+
+
+def sampling_report(model, res, dt_out) -> dict:
+    """``dt_out_requested`` (s, or None), ``dt_out_used`` (a switched run's whole carrier
+    periods) and what the power and loss columns hold (``power_columns``)."""
+    info = res.info
+    return {"dt_out_requested": dt_out, "dt_out_used": info.get("dt_out", dt_out) if model.switched else dt_out,
+            "power_columns": info.get("power_columns", "instantaneous")}
 
 
 def energy_report(model, res) -> dict:
