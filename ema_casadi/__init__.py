@@ -40,6 +40,7 @@ _EXPORTS = {
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
     ".identification": ("IdentificationError", "IdentResult", "identify"),
+    ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -73,4 +74,5 @@ __all__ = [
     "Requirements", "TuneError", "TuneResult", "tune",
     "SweepError", "SweepResult", "load_sweep", "sweep",
     "IdentificationError", "IdentResult", "identify",
+    "FaultError", "FaultResult", "load_faults", "run_faults",
 ]

@@ -15,7 +15,7 @@ import os
 import threading
 
 __all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard",
-           "die_with_parent", "worker_init"]
+           "die_with_parent", "worker_init", "process_map"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -247,3 +247,38 @@ def dask_map(address: str, function, chunks_of, each, error: type) -> None:
         raise
     finally:
         client.close(timeout=2)
+
+
+def process_map(function, items, jobs: int) -> list:
+    """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
+    the items' order. On an interrupt (or any error) nothing more is started, the pending
+    items are cancelled and the workers are ended. The caller checks the main guard
+    (:func:`check_main_guard`) before any work.
+
+    Parameters
+    ----------
+    function : callable
+        Picklable (a module-level function).
+    items : sequence
+        Picklable arguments, one call each.
+    jobs : int
+        Worker processes (at most ``len(items)``).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    items = list(items)
+    pool = ProcessPoolExecutor(max_workers=max(1, min(jobs, len(items))),
+                               mp_context=multiprocessing.get_context("spawn"), initializer=worker_init,
+                               initargs=(os.getpid(),))
+    try:
+        futures = [pool.submit(function, item) for item in items]
+        out = [f.result() for f in futures]
+    except BaseException:
+        procs = list(getattr(pool, "_processes", {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        raise
+    pool.shutdown(wait=True)
+    return out

@@ -8,7 +8,8 @@ from __future__ import annotations
 from importlib.resources import files
 from pathlib import Path
 
-__all__ = ["REFERENCE_MODEL", "REFERENCE_MISSION", "REFERENCE_SWEEP", "packaged_file", "packaged_files"]
+__all__ = ["REFERENCE_MODEL", "REFERENCE_MISSION", "REFERENCE_SWEEP", "REFERENCE_FAULTS", "packaged_file",
+           "packaged_files"]
 
 #: The reference parameter set (CESA elevator EMA).
 REFERENCE_MODEL = "cesa_ema.toml"
@@ -16,6 +17,8 @@ REFERENCE_MODEL = "cesa_ema.toml"
 REFERENCE_MISSION = "mission_regional.toml"
 #: The reference sweep (the default of ``ema sweep``).
 REFERENCE_SWEEP = "sweep_reference.toml"
+#: The reference fault table (the default of ``ema faults``).
+REFERENCE_FAULTS = "faults_reference.toml"
 
 
 def packaged_files() -> list[str]:

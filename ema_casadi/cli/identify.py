@@ -27,6 +27,7 @@ import math
 import sys
 from pathlib import Path
 
+from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
 
 COMMAND = "identify"
@@ -43,6 +44,11 @@ def add_arguments(p):
                    help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
                         "default: the record's field sigma_CHANNEL, else estimated from the residuals")
     p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="--starts: worker processes (the result does not depend on it); default the cores")
+    p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
+                   help="estimate each record's initial state instead of starting at rest (a record cut from "
+                        "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--allow-misfit", action="store_true",
@@ -136,6 +142,8 @@ def run(args) -> dict:
     model_file, records = _split(args)
     if args.starts < 1:
         raise UserError(f"--starts must be at least 1, got {args.starts}")
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
     params = load_parameters(model_file, dict(args.variant))
@@ -149,7 +157,8 @@ def run(args) -> dict:
         free = [s.strip() for s in args.free.split(",") if s.strip()]
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
-              "hold_unidentifiable": not args.keep_unidentifiable, "progress": progress}
+              "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
+              "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
         if args.track:
             return _track(args, params, records, free, kw)
         if args.compare:
@@ -176,6 +185,8 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
             from .._util._checks import nearest
 
             raise UserError(f"--profile {name}: not a free parameter{nearest(name, free)}")
+    if args.profile and kw.get("estimate_x0") is not False:
+        raise UserError("--profile with --estimate-x0: the profile re-fits start at rest; use the Wald intervals")
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
     res = identify_api(params, recs, free, **kw)
     doc = res.to_dict()
@@ -210,9 +221,9 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     """Frequency-response records: fitted through the linear model."""
     from ..identification import identify_frequency
 
-    for flag in ("track", "profile", "validate"):
+    for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
-            raise UserError(f"--{flag} is for time-series records, not frequency responses")
+            raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     from ..identification._plot import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
@@ -245,8 +256,12 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     combinations(options, dict(args.variant), max_fits)  # checked before any work
     for r in records:
         read_record(r, model)
+    from ..identification._plot import report_names
+
+    report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
-                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"])
+                  max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
+                  estimate_x0=kw["estimate_x0"])
     best = cmp.best
     if best is None:
         from ..simulation import RunFailed
@@ -258,6 +273,8 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     if out is not None:
         note = f"structure chosen by comparison: {cmp.rows[0]['variants']}"
         doc["written"].append(str(best.write(_target(out, bad and not args.allow_misfit), note=note)))
+    if report is not None:
+        doc["written"].append(str(cmp.write_report(report)))
     if bad and not args.allow_misfit:
         doc["failure"] = f"no compared structure is adequate; the best: {best.adequacy['reasons'][0]}"
     return doc
@@ -277,7 +294,9 @@ def _track(args, params, records, free, kw) -> dict:
     report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
     if args.out is not None:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
-    kw = {k: v for k, v in kw.items() if k not in ("starts",)}
+    if kw["estimate_x0"] is not False:
+        raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
     doc = tr.to_dict()
     if report is not None:
@@ -298,7 +317,8 @@ def _example(args, params, out, progress) -> dict:
                                                       "max_evaluations": args.max_evaluations,
                                                       "hold_unidentifiable": not args.keep_unidentifiable,
                                                       "sigma": _quantities(args.sigma, "--sigma", model),
-                                                      "bounds": _bounds(args.bounds)}, out)
+                                                      "bounds": _bounds(args.bounds),
+                                                      "jobs": min(args.starts, args.jobs or cores())}, out)
     doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
                                               "these values, sensor noise added; fitted from the reference values"}
     return doc
@@ -326,8 +346,15 @@ def report(result: dict) -> None:
     for c in result["channels"]:
         w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
           f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    test = result.get("consistency")
+    if test:
+        w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "
+          f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
+    for rec in (result.get("initial_state") or {}).get("records", []):
+        w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
     if result.get("adequate", True):
-        w("adequate: the residuals are explained by the noise (chi-square, whiteness)\n")
+        tests = "chi-square, whiteness" + (", consistency" if test else "")
+        w(f"adequate: the residuals are explained by the noise ({tests})\n")
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")

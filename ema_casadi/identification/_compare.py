@@ -47,6 +47,25 @@ class Comparison:
         """The best fit (the first row's result)."""
         return self.results[0]
 
+    def plot(self):
+        """The residuals of every structure side by side (a matplotlib Figure)."""
+        from ._plot import comparison_figure
+
+        return comparison_figure(self)
+
+    def write_report(self, folder) -> object:
+        """The best fit's report folder with ``comparison.png`` added (assembled aside
+        and moved in whole).
+
+        Parameters
+        ----------
+        folder : str or Path
+            The folder.
+        """
+        from ._plot import write_report
+
+        return write_report(self.best, folder, {"comparison": self.plot()})
+
     def to_dict(self) -> dict:
         """Plain data (``--json``)."""
         return {"comparison": self.rows, "chosen": self.rows[0]["variants"] if self.rows else None}
@@ -105,7 +124,8 @@ def bic(result) -> float:
 
 
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
-            max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False) -> Comparison:
+            max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
+            estimate_x0=False) -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters
@@ -119,7 +139,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
-    sigma, variants, max_evaluations, progress
+    sigma, variants, max_evaluations, progress, estimate_x0
         As for :func:`~ema_casadi.identification.identify`.
     max_fits : int
         Most combinations (refused above).
@@ -128,7 +148,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     for combo in combinations(options, variants, max_fits):
         try:
             res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
-                           progress=progress)
+                           progress=progress, estimate_x0=estimate_x0)
         except FitFailed as exc:
             rows.append({"variants": combo, "failed": exc.reason, "adequate": False, "bic": float("inf")})
             results.append(None)

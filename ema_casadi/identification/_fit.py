@@ -10,12 +10,14 @@ import time
 import numpy as np
 
 from .._util._checks import instance, integer, nearest, number
+from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..simulation import RunFailed
 from ..simulation._result import progress_bar
+from . import _consistency
 from ._lm import COST_TOL, levenberg_marquardt
-from ._problem import Predictor, free_parameters
+from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, uncertainty
 
@@ -27,6 +29,13 @@ SIGMA_ROUNDS = 6
 #: sequences were chosen replay them (the cost is then a smooth function, so the small
 #: steps near the optimum compare like with like); farther ones choose them anew.
 REGRID = 0.05
+#: The states estimated by ``estimate_x0=True``: the mechanism's positions and speeds,
+#: what a record cut from the middle of a motion starts away from, and the integral
+#: parts of the outer (non-current) loops, which hold the current that carries the
+#: load and friction then. The currents and the current loops' integrals settle within
+#: a millisecond of any start (two samples at 2 kHz: not identifiable, and freeing
+#: them led the test fit into a worse local minimum); name them explicitly if needed.
+X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 
 
 class FitFailed(RunFailed):
@@ -47,7 +56,8 @@ class FitFailed(RunFailed):
 
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
-             max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False) -> IdentResult:
+             max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
+             consistency: bool = True, jobs: int = 1, progress: bool = False) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -72,13 +82,22 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     starts : int
         Fits from different starts (the first the file's values, the others drawn
         log-normally around it, seeded by ``seed``); the lowest cost wins.
-    seed : int
-        Seed of the extra starts.
+    seed, jobs : int
+        Seed of the extra starts; worker processes for them (a script needs a main
+        guard for jobs > 1); the result is the same for any jobs.
     max_evaluations : int
         Model evaluations per fit at most; a fit that needs more did not converge.
     hold_unidentifiable : bool
         A parameter whose interval is wider than +-50 % is held at its start value
         and the others are fitted again without it.
+    estimate_x0 : bool or sequence of str
+        Estimate each record's initial state instead of starting it at rest: True for
+        the mechanical states (:data:`X0_ROLES`: positions and speeds) and the outer
+        loops' integrals, or the state names. Extra free values per record, with exact sensitivities; the parameters'
+        intervals include what the unknown start costs.
+    consistency : bool
+        With several records, test that they agree (each re-fitted alone against all
+        together, :mod:`._consistency`); disagreement makes the fit inadequate.
     progress : bool
         One line of progress on stderr.
 
@@ -107,36 +126,96 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         raise IdentificationError("records: give at least one record")
     fr = free_parameters(model, free, bounds, start)
     given = _sigmas(recs, sigma)
-    pred = Predictor(model, recs, fr, model.p())
-    fit = _Fit(pred, given, max_evaluations, progress)
-    best = _best_start(fit, fr, starts, seed)
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable)
+    xs = x0_states(model, estimate_x0)
+    jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
+    spec = (params, variants, recs, fr, xs, given, max_evaluations)
+    fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency)
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
 
-def _best_start(fit, fr, starts: int, seed: int) -> dict:
-    """The lowest-cost fit of ``starts`` (the first from the file's values, the others
-    drawn log-normally around them, seeded)."""
-    best = None
+def x0_states(model, estimate_x0) -> tuple:
+    """The states whose initial values are estimated: none (False), the states with a
+    role in :data:`X0_ROLES` (True), or the names given (checked)."""
+    if estimate_x0 is False or estimate_x0 is None:
+        return ()
+    if estimate_x0 is True:
+        return tuple(n for n, s in model.state_info.items() if set(s.roles) & set(X0_ROLES)
+                     or ("controller_integral" in s.roles and s.loop not in (None, "current")))
+    names = [s.strip() for s in estimate_x0.split(",")] if isinstance(estimate_x0, str) else list(estimate_x0)
+    for n in names:
+        if n not in model.states:
+            raise IdentificationError(f"--estimate-x0 {n}: not a state of the model{nearest(n, model.states)}")
+    if not names or len(set(names)) < len(names):
+        raise IdentificationError("--estimate-x0: name each state once")
+    return tuple(names)
+
+
+def _start_points(fr, starts: int, seed: int) -> list:
+    """The starts: the file's values, then points drawn log-normally around them (seeded)."""
     rng = np.random.default_rng(seed)
-    for k in range(starts):
+    lo, hi = fr.z_bounds()
+    out = [fr.z(fr.theta0)]
+    for _ in range(1, starts):
         z0 = fr.z(fr.theta0)
-        if k:
-            lo, hi = fr.z_bounds()
-            z0 = np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
-                         lo + 1e-9, hi - 1e-9)
-        try:
-            out = fit.run(z0)
-        except FitFailed:
-            if starts == 1:
-                raise
-            continue
-        if best is None or out["cost"] < best["cost"]:
-            best = out
-    if best is None:
-        raise FitFailed(f"none of the {starts} starts converged")
-    return best
+        out.append(np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                           lo + 1e-9, hi - 1e-9))
+    return out
+
+
+def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec):
+    """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
+    each from a fresh predictor, on ``jobs`` processes (the result does not depend on
+    ``jobs``: a worker's fit is the same computation, its final state handed back)."""
+    points = _start_points(fr, starts, seed)
+    results = []
+    if jobs <= 1 or starts == 1:
+        for z0 in points:
+            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            try:
+                results.append((fit, fit.run(z0)))
+            except FitFailed as exc:
+                if starts == 1:
+                    raise
+                results.append((None, exc.reason))
+    else:
+        check_main_guard(IdentificationError, f"identify(starts={starts}, jobs={jobs})")
+        for _z0, got in zip(points, process_map(_start_in_worker, [(*spec, z0) for z0 in points], jobs), strict=True):
+            if isinstance(got, str):
+                results.append((None, got))
+                continue
+            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            _install(fit, got["state"])
+            results.append((fit, got["out"]))
+    done = [(k, f, o) for k, (f, o) in enumerate(results) if f is not None]
+    if not done:
+        raise FitFailed(f"none of the {starts} starts converged ({results[0][1]})")
+    _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
+    return fit, out
+
+
+def _start_in_worker(args) -> dict | str:
+    """One start in a worker process: the optimum and the fit's final state, or the
+    reason it failed."""
+    params, variants, recs, fr, xs, given, max_evaluations, z0 = args
+    model = build_model(params, variants)
+    fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, False)
+    try:
+        out = fit.run(z0)
+    except FitFailed as exc:
+        return exc.reason
+    pred = fit.pred
+    return {"out": out, "state": {"cache": fit._cache, "z_grid": fit.z_grid, "evaluations": fit.evaluations,
+                                  "steps": pred.steps, "rows": pred.rows, "pred_evaluations": pred.evaluations,
+                                  "dx0": pred.dx0}}
+
+
+def _install(fit, state: dict) -> None:
+    """A worker's final fit state in ``fit`` (the same model, records and free set)."""
+    fit._cache, fit.z_grid, fit.evaluations = state["cache"], state["z_grid"], state["evaluations"]
+    fit.pred.steps, fit.pred.rows = state["steps"], state["rows"]
+    fit.pred.evaluations, fit.pred.dx0 = state["pred_evaluations"], state["dx0"]
 
 
 def _as_list(records) -> list:
@@ -170,6 +249,7 @@ class _Fit:
     def __init__(self, pred: Predictor, given: dict, max_evaluations: int, progress: bool):
         self.pred, self.given, self.max_eval, self.progress = pred, given, max_evaluations, progress
         self.channels = sorted({c for r in pred.records for c in r.channels})
+        self.regrid = REGRID  # farther than this from where the steps were chosen: choose them anew
         self._cache = None
         self.z_grid = None
         self.failure = ""
@@ -181,10 +261,16 @@ class _Fit:
         measured - model, from the second sample on (the first fixes the start)."""
         preds = self.pred.predict(theta)
         e, de = {}, {}
+        m, n_rec = len(self.pred.x0_states), len(preds)
+        first = 0 if m else 1  # an estimated start is fitted to the first sample too
         for i, (rec, pr) in enumerate(zip(self.pred.records, preds, strict=True)):
             for c, meas in rec.channels.items():
-                e[i, c] = meas[1:] - pr["y"][c][1:]
-                de[i, c] = -pr["dy"][c][1:]
+                e[i, c] = meas[first:] - pr["y"][c][first:]
+                de[i, c] = -pr["dy"][c][first:]
+                if m:  # the record's own initial-state columns; zero for the other records'
+                    d0 = np.zeros((len(e[i, c]), m * n_rec))
+                    d0[:, i * m : (i + 1) * m] = -pr["dy0"][c][first:]
+                    de[i, c] = np.hstack([de[i, c], d0])
         return preds, e, de
 
     def weighted(self, e, de, sig):
@@ -199,12 +285,14 @@ class _Fit:
         key = z.tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > REGRID:
+        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > self.regrid:
             self.pred.refresh()  # far from where the step sequences were chosen: choose them here
             self.z_grid = z.copy()
         self.evaluations += 1
+        n = len(self.pred.free.names)
+        self.pred.dx0 = list(z[n:].reshape(len(self.pred.records), -1)) if self.pred.x0_states else self.pred.dx0
         try:
-            raw = self.errors(self.pred.free.theta(z))
+            raw = self.errors(self.pred.free.theta(z[:n]))
             if not all(np.all(np.isfinite(v)) for d in raw[1:] for v in d.values()):
                 raw, self.failure = None, "non-finite model values"
         except RunFailed as exc:
@@ -223,7 +311,10 @@ class _Fit:
     def run(self, z0) -> dict:
 
         fr = self.pred.free
+        n_x0 = len(self.pred.x0_states) * len(self.pred.records)
         z0 = np.asarray(z0, float)
+        if len(z0) == len(fr.names):
+            z0 = np.concatenate([z0, np.zeros(n_x0)])
         self.z_grid = None
         raw = self._raw(z0)
         if raw is None:
@@ -232,6 +323,7 @@ class _Fit:
         sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
         sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
         lo, hi = fr.z_bounds()
+        lo, hi = np.concatenate([lo, np.full(n_x0, -np.inf)]), np.concatenate([hi, np.full(n_x0, np.inf)])
         z = np.clip(np.asarray(z0, float), lo, hi)
         estimate = [c for c in self.channels if c not in self.given]
 
@@ -258,8 +350,9 @@ class _Fit:
                 break
         r, J = self._eval(z, sig)
         progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
-        return {"z": z, "sigma": sig, "r": r, "J": J, "cost": 0.5 * float(r @ r), "message": sol["message"],
-                "estimated": estimate}
+        n = len(fr.names)
+        return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
+                "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
 
 
 def _rms(arrays) -> float:
@@ -267,7 +360,8 @@ def _rms(arrays) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
-def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool) -> IdentResult:
+def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool,
+            consistency_test: bool = True) -> IdentResult:
     """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
     their start values and the others fitted again; the result."""
     fr = fit.pred.free
@@ -287,15 +381,46 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         keep = [n for n in fr.names if n not in wide]
         base = fit.pred.base.copy()
         base[fr.index] = np.where(np.isin(fr.names, wide), fr.theta0, theta)
-        pred = Predictor(model, recs, fr.subset(keep, theta), base)
+        pred = Predictor(model, recs, fr.subset(keep, theta), base, fit.pred.x0_states)
         sig = {c: out["sigma"][c] for c in out["estimated"]}
         fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
-        out = {**fit2.run(pred.free.z(pred.free.theta0)), "estimated": out["estimated"]}
+        z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])
+        out = {**fit2.run(z0), "estimated": out["estimated"]}
         fit, fr = fit2, pred.free
         unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
         evaluations += pred.evaluations
     theta = fr.theta(out["z"])
-    preds, e, _ = fit._raw(out["z"])
-    return IdentResult._build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
+    preds, e, _ = fit._raw(out["z_full"])
+    res = IdentResult._build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
                              preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
                              evaluations=evaluations, start=start)
+    res.info["initial_state"] = initial_states(fit, out)
+    if consistency_test and len(recs) > 1:
+        test = _consistency.consistency(fit, out)
+        res.adequacy["consistency"] = test
+        extra = _consistency.reasons(test)
+        if extra:
+            res.adequacy["reasons"] = [*res.adequacy["reasons"], *extra]
+            res.adequacy["adequate"] = False
+    return res
+
+
+def initial_states(fit: _Fit, out: dict) -> dict:
+    """How each record started: ``{"estimated": [states], "records": [{state: value}]}``
+    (SI), the estimated offsets' standard deviations alongside (``std``)."""
+    pred = fit.pred
+    states = pred.x0_states
+    if not states:
+        return {"estimated": [], "rule": "at rest at the first sample"}
+    n, m = len(pred.free.names), len(states)
+    J, r = out["J_full"], out["r"]
+    s2 = float(r @ r) / max(1, len(r) - J.shape[1]) if out["estimated"] else 1.0
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    std = np.sqrt(np.maximum(np.diag(cov)[n:], 0)).reshape(len(pred.records), m) * pred.x0_scale
+    rows = []
+    for k in range(len(pred.records)):
+        x0 = pred.x0(k, pred.p(pred.free.theta(out["z"])))
+        rows.append({"record": pred.records[k].path,
+                     "x0": {s: float(x0[i]) for s, i in zip(states, pred.x0_index, strict=True)},
+                     "std": {s: float(v) for s, v in zip(states, std[k], strict=True)}})
+    return {"estimated": list(states), "rule": "estimated (offsets from rest at the first sample)", "records": rows}

@@ -114,6 +114,42 @@ def intervals_figure(result, truth: dict | None = None):
     return fig
 
 
+def comparison_figure(comparison):
+    """The residuals (in units of each channel's noise level) of every compared
+    structure side by side: a column per structure (ranked, best on the left), a row
+    per record and channel, the same vertical scale along a row.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        From :func:`~ema_casadi.identification.compare`.
+    """
+    import matplotlib.pyplot as plt
+
+    cols = [(row, res) for row, res in zip(comparison.rows, comparison.results, strict=True) if res is not None]
+    if not cols:
+        raise ValueError("no compared structure converged: nothing to plot")
+    first = cols[0][1]
+    lines = [(k, c) for k, tr in enumerate(first.trajectories) for c in tr["measured"]]
+    fig, axes = plt.subplots(len(lines), len(cols), figsize=(3.2 * len(cols) + 0.8, 1.8 * len(lines) + 0.9),
+                             sharex="row", sharey="row", squeeze=False)
+    for j, (row, res) in enumerate(cols):
+        for i, (k, c) in enumerate(lines):
+            tr, ax = res.trajectories[k], axes[i, j]
+            ax.plot(tr["t"], (tr["measured"][c] - tr["fitted"][c]) / res.sigma[c], lw=0.5,
+                    color="C0" if row["adequate"] else "C3")
+            ax.axhline(0, color="k", lw=0.5)
+            if j == 0:
+                ax.set_ylabel(f"{Path(tr['record']).name}\n{c} resid. / σ", fontsize=7)
+        label = ", ".join(f"{key}={v}" for key, v in row["variants"].items())
+        verdict = "adequate" if row["adequate"] else "inadequate"
+        axes[0, j].set_title(f"{label}\nBIC {row['bic']:.6g}, {verdict}", fontsize=8)
+        axes[-1, j].set_xlabel("time (s)")
+    fig.suptitle("Compared structures: residuals, best first", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def figures(result, truth: dict | None = None) -> dict:
     """Every figure of the report by name.
 
@@ -137,7 +173,7 @@ def report_names(n_records: int, n_free: int) -> list[str]:
     return names + (["correlation.png"] if n_free > 1 else [])
 
 
-def write_report(result, folder) -> Path:
+def write_report(result, folder, extra: dict | None = None) -> Path:
     """The report folder, assembled aside and moved in whole.
 
     Parameters
@@ -146,11 +182,13 @@ def write_report(result, folder) -> Path:
         The fit.
     folder : str or Path
         The folder.
+    extra : dict, optional
+        More figures by name (``comparison``).
     """
     import matplotlib.pyplot as plt
 
     with atomic_dir(folder) as tmp:
-        for name, fig in figures(result).items():
+        for name, fig in {**figures(result), **(extra or {})}.items():
             fig.savefig(Path(tmp) / f"{name}.png", dpi=110)
             plt.close(fig)
         (Path(tmp) / "summary.json").write_text(json.dumps(plain(result.to_dict()), indent=1) + "\n")

@@ -216,19 +216,41 @@ class Predictor:
         The full parameter vector the free values are put into.
     """
 
-    def __init__(self, model, records, free: Free, base):
+    def __init__(self, model, records, free: Free, base, x0_states=()):
         self.model, self.records, self.free = model, list(records), free
         self.base = np.asarray(base, float)
         self.evaluations = 0
+        self.x0_states = tuple(x0_states)
+        self.x0_index = np.array([model.index(n) for n in self.x0_states], int)
+        #: Units of the estimated initial-state offsets: the states' declared full scale.
+        self.x0_scale = model.full_scale(self.base)[self.x0_index] if self.x0_states else np.zeros(0)
+        #: Per record: the estimated initial-state offsets (in units of :attr:`x0_scale`).
+        self.dx0 = [np.zeros(len(self.x0_states)) for _ in self.records]
+        m = len(self.x0_states)
         for rec in self.records:
-            _check_memory(model, rec, len(free.names))
+            _check_memory(model, rec, len(free.names) + m)
         self.steps = [None] * len(self.records)  # the frozen step sequences (None: choose and record)
         self.rows = [None] * len(self.records)  # steps landing on the table rows (chosen at the first run)
         self._signals = [rec.signals() for rec in self.records]  # built once: the tables are checked then
         self._sig = {}
         self._out = None
         if any(c not in model.states for rec in self.records for c in rec.channels):
-            self._out = _output_sensitivity(model, len(free.names))
+            self._out = _output_sensitivity(model, len(free.names) + m)
+
+    def x0(self, k: int, pv) -> np.ndarray:
+        """Record ``k``'s initial state: at rest (:func:`rest_state`) plus its estimated
+        offsets.
+
+        Parameters
+        ----------
+        k : int
+            The record.
+        pv : array_like
+            The full parameter vector.
+        """
+        x0 = rest_state(self.model, self.records[k], pv)
+        x0[self.x0_index] += self.dx0[k] * self.x0_scale
+        return x0
 
     def refresh(self) -> None:
         """Choose the step sequences anew at the next prediction (error control at the
@@ -249,7 +271,8 @@ class Predictor:
 
     def predict(self, theta, threads: int | None = None) -> list[dict]:
         """Per record: ``{"X": states (nx x n), "y": {channel: values}, "dy": {channel:
-        n x n_free}}`` at ``theta`` (derivatives in optimiser coordinates). Raises
+        n x n_free}, "dy0": {channel: n x n_x0}}`` at ``theta`` (derivatives in optimiser
+        coordinates; ``dy0`` along the record's estimated initial-state offsets). Raises
         RunFailed where a run fails.
 
         Parameters
@@ -286,8 +309,12 @@ class Predictor:
         model = self.model
         rec = self.records[k]
         sig = self._inputs(k, pv)
-        x0 = rest_state(model, rec, pv)
-        S0 = np.zeros((model.nx, W.shape[1]))
+        x0 = self.x0(k, pv)
+        m, ns = len(self.x0_states), W.shape[1]
+        if m:  # the initial-state directions: no parameter change, a unit offset of the state at t0
+            W = np.hstack([W, np.zeros((W.shape[0], m))])
+        S0 = np.zeros((model.nx, ns + m))
+        S0[self.x0_index, ns + np.arange(m)] = self.x0_scale
         if self.rows[k] is None:  # the first run: steps across the table rows, or landing on them if fewer
             X, SX, info = _sensitivity.run(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL)
             if info["steps"] > rec.n:
@@ -312,7 +339,9 @@ class Predictor:
             if c in model.states:
                 k = model.index(c)
                 y[c], dy[c] = X[k], SX[:, :, k]
-        return {"X": X, "y": y, "dy": dy, "info": info}
+        dy0 = {c: d[:, ns:] for c, d in dy.items()}
+        dy = {c: d[:, :ns] for c, d in dy.items()}
+        return {"X": X, "y": y, "dy": dy, "dy0": dy0, "info": info}
 
 
 def sig_value(sig: dict, model, t) -> np.ndarray:
@@ -369,3 +398,14 @@ def _check_memory(model, rec: Record, ns: int) -> None:
         raise IdentificationError(f"{rec.path}: {rec.n} samples x {model.nx} states x {ns} free parameters need "
                                   f"about {need / 1e9:.3g} GB for the sensitivities, above the {limit / 1e9:.3g} GB "
                                   f"this machine allows one fit; use a shorter record or fewer samples")
+
+
+def marginal(J, n: int) -> np.ndarray:
+    """The Jacobian's first ``n`` columns with the directions of the others (the
+    estimated initial states, nuisance parameters) projected out: its Gram matrix is
+    the parameters' Fisher information with the initial states estimated alongside
+    (the Schur complement), so the intervals include what the unknown start costs."""
+    if J.shape[1] == n:
+        return J
+    Jt, Jx = J[:, :n], J[:, n:]
+    return Jt - Jx @ np.linalg.lstsq(Jx, Jt, rcond=1e-12)[0]

@@ -276,6 +276,7 @@ class IdentResult:
                          "interval_when_free": h["interval_when_free"]}
         return {"status": self.status, "adequate": self.adequacy["adequate"],
                 "misfit": self.adequacy["reasons"], "intervals_trustworthy": self.adequacy["adequate"],
+                "consistency": self.adequacy.get("consistency"),
                 "parameters": params, "correlation": {
                     "names": list(self.names), "matrix": np.round(self.correlation, 6).tolist()},
                 "weak_directions": self.weak_directions, "channels": self.channels,

@@ -38,6 +38,10 @@ Each is handled through the parameter vector (the model is never rebuilt):
     the result depends on the smoothing velocity ``v_s`` (slope F_r/v_s, ~1.5e6 N s/m
     with the reference set) and on the blend width; a warning says so. Not available
     for the hybrid variant (its Karnopp law has no meaningful slope).
+``quantisation="off"`` (always: the policy's default)
+    The real sensors' quantisation steps are 0 (``Part.small_signal``), so the linear
+    model keeps a sensor's gain, lag and sample delay and leaves its quantisation (and
+    its noise inputs, 0 by default) to the time-domain analyses.
 Saturations (rate limit, current limit, voltage circle) must be inactive at the
 point: the trim is solved with the limits lifted and then checked against them, so a
 load above what the current limit can hold, or a speed above the rate or voltage

@@ -10,6 +10,7 @@ import numpy as np
 
 from .._util._checks import instance, integer, number, vector
 from ..model.assembly import AssemblyError, Model
+from ..model.components import POLICIES
 from ..model.params import Parameters
 from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
 
@@ -100,7 +101,9 @@ def _policy_vector(model: Model, p: np.ndarray, friction: str, backlash: str) ->
     """The parameter vector with the small-signal policies the parts declare applied."""
     try:
         fr = model.small_signal(friction=friction)
-        overrides = {**model.small_signal(backlash=backlash), **fr}
+        # the policies not chosen here at their defaults (a real sensor's quantisation off)
+        rest = model.small_signal(**{k: v[0] for k, v in POLICIES.items() if k not in ("friction", "backlash")})
+        overrides = {**rest, **model.small_signal(backlash=backlash), **fr}
     except AssemblyError as exc:
         raise LinearizationError(str(exc)) from None
     return _with(model, p, overrides), overrides

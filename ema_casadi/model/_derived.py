@@ -9,7 +9,7 @@ import casadi as ca
 
 from .components import POLICIES, AssemblyError, der
 
-__all__ = ["zoh_split", "projection", "Contract"]
+__all__ = ["zoh_split", "projection", "Contract", "modify"]
 
 
 def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
@@ -129,3 +129,30 @@ class Contract:
     def memory_states(self) -> tuple[str, ...]:
         """States that may be neutral modes of a linearisation (:attr:`State.memory`)."""
         return tuple(n for n, s in self.state_info.items() if s.memory)
+
+
+def modify(parts, providers) -> None:
+    """Apply every part's signal modifiers (:meth:`~ema_casadi.model.components.Part.modify`)
+    to the providers, in assembly order."""
+    for part in parts:
+        for name, fn in part.modify().items():
+            _modify(providers, name, fn, part)
+
+
+def _modify(providers, name, fn, part):
+    """Wrap the provider of ``name`` so that ``fn(bus, value)`` replaces its value
+    (:meth:`~ema_casadi.model.components.Part.modify`)."""
+    if name not in providers:
+        raise AssemblyError(f"{part.family}={part.value} modifies '{name}', which no part provides")
+    key, prov = providers[name]
+
+    def wrapped(b):
+        val = prov(b)
+        if not isinstance(key, tuple):
+            return fn(b, val)
+        vals = list(val)
+        vals[key.index(name)] = fn(b, vals[key.index(name)])
+        return tuple(vals)
+
+    for n in key if isinstance(key, tuple) else (key,):
+        providers[n] = (key, wrapped)

@@ -46,7 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
-from ._derived import Contract
+from ._derived import Contract, modify
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
 from ._switched import switched_split
@@ -378,6 +378,7 @@ def _declarations(parts):
         loads += part.loads
         masses += part.masses
         heat.update(part.heat)
+    modify(parts, providers)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
     providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
     providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
@@ -453,6 +454,9 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     P = SimpleNamespace(**{n: p[i] for i, n in enumerate(names)})
     u = ca.SX.sym("u", len(inputs))
     U = {n: u[i] for i, n in enumerate(inputs)}
+    adjusted = {n: fn(P, U) for part in parts for n, fn in part.adjust().items()}
+    if adjusted:  # parameters some part makes signals (Part.adjust)
+        P = SimpleNamespace(**{**vars(P), **adjusted})
     X = {n: ca.SX.sym(n) for n in states}
     x = ca.vertcat(*X.values())
     roles: dict = {}

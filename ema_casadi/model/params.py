@@ -28,6 +28,7 @@ from .._util._files import write_text
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
+from ._params_faults import FAULT_GROUPS, FaultTables
 from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
@@ -201,7 +202,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
-    "airframe": Airframe,  # the aircraft loop: optional table, every key defaulted
+    "airframe": Airframe, **FAULT_GROUPS,  # the aircraft loop, sensors, faults, monitors: optional tables
 }
 
 #: Loop-closure flags (the paper's "Gain = 1" block), appended to the numeric
@@ -225,7 +226,7 @@ def _variant_table(model, src: str) -> dict[str, str]:
 
 
 @dataclass(frozen=True)
-class Parameters:
+class Parameters(FaultTables):
     """A complete, validated parameter set in SI units.
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
@@ -233,7 +234,7 @@ class Parameters:
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop, airframe : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, airframe, sensor, fault, monitor : dataclass
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -343,10 +344,8 @@ class Parameters:
             for f in fields(cls):
                 val = getattr(getattr(self, g), f.name)
                 val = f"[{', '.join(repr(float(v)) for v in val)}]" if f.metadata.get("table") else repr(val)
-                lines.append(
-                    f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
-                    f'  # {f.metadata["doc"]}'
-                )
+                lines.append(f'{f.name} = {{ value = {val}, unit = "{f.metadata["unit"]}" }}'
+                             f'  # {f.metadata["doc"]}')
         return write_text(path, "\n".join(lines) + "\n")
 
     # -- derived quantities used across the toolkit --------------------------------

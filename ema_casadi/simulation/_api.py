@@ -147,10 +147,16 @@ def simulate(
 def _checked_inputs(model, given, pv, plan, solver) -> dict:
     """The run's input signals, checked against the envelope and the Nyquist rate of
     what samples them (the rk4 step; the output spacing of a variable-step solver)."""
-    sig = _input_signals(model, given, pv)
+    sig = _input_signals(model, given, pv, plan.t_end)
     step = plan.dt if solver == "rk4" else plan.spacing
-    check_inputs(model, sig, plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+    check_inputs(model, _driven(model, sig), plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     return sig
+
+
+def _driven(model, sig) -> dict:
+    """The signals a user drives: the seeded noise sequences (held at their loop's rate,
+    which the run samples by construction) are not checked against the sampling."""
+    return {n: s for n, s in sig.items() if model.input_info[n].noise is None}
 
 
 def _given(x_cmd, f_ext, eta, signals) -> dict:
@@ -202,8 +208,8 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     dt_out = None if every else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, given, pv)
-    check_inputs(model, sig, float(t_end), {f"dt {float(dt):g} s": float(dt)})
+    sig = _input_signals(model, given, pv, float(t_end))
+    check_inputs(model, _driven(model, sig), float(t_end), {f"dt {float(dt):g} s": float(dt)})
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
     out = None if dt_out is None else float(dt_out)

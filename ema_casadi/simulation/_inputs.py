@@ -2,12 +2,43 @@
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 
 from .._util._checks import describe
 from .._util._kwargs import check_keywords
 from ..model.assembly import Model
 from ..signals import Signal, SignalError, check_signal, constant, parse_signal
+
+__all__ = ["noise_signal"]
+
+
+def noise_signal(seed: int, name: str, rate: float, t_end: float) -> Signal:
+    """A seeded unit white-noise sequence held at ``rate`` (Hz) over [0, t_end] s.
+
+    Sample k (held over [k/rate, (k+1)/rate)) is the k-th standard normal value of
+    NumPy's PCG64 generator seeded with ``(seed, crc32(name))``: one independent stream
+    per input name, the same numbers in every run with the same seed. Realised as a
+    table (each held value at both ends of its interval, the next one starting a
+    millionth of a period later), so every solver reads it.
+
+    Parameters
+    ----------
+    seed : int
+        The seed (a whole number >= 0).
+    name : str
+        The input's name (selects the stream).
+    rate : float
+        Sample rate (Hz).
+    t_end : float
+        End of the run (s).
+    """
+    n = int(np.floor(t_end * rate + 1e-9)) + 1
+    values = np.random.default_rng([int(seed), zlib.crc32(name.encode())]).standard_normal(n)
+    k = np.arange(n, dtype=float)
+    t = np.column_stack([k / rate, (k + 1 - 1e-6) / rate]).ravel()
+    return Signal.table(t, np.repeat(values, 2))
 
 
 def _as_signal(value, name: str, kind: str) -> Signal:
@@ -29,15 +60,22 @@ def _as_signal(value, name: str, kind: str) -> Signal:
     raise SignalError(f"{name}: expected a number, a Signal or a signal string, got {describe(value)}")
 
 
-def _input_signals(model: Model, given: dict, pv: np.ndarray) -> dict:
+def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | None = None) -> dict:
     """Every model input that is driven (given, or not an injection) as a Signal, by
-    name; the quantity kind of each input selects its units."""
+    name; the quantity kind of each input selects its units. Undriven noise inputs get
+    their seeded sequence over [0, t_end] (:func:`noise_signal`; the seed from the
+    parameter the input names, the sample rate of the input's loop)."""
     check_keywords("simulate", given, model.inputs)
     P = model.pdict(pv)
     sig = {}
     for name, inp in model.input_info.items():
         value = given.get(name)
         if value is None and inp.injection:
+            continue
+        if value is None and inp.noise is not None and t_end is not None:
+            # built here from checked numbers (Signal.table checks them): no second check
+            seed = int(getattr(P, inp.seed)) if inp.seed else 0
+            sig[name] = noise_signal(seed, name, float(getattr(P, model.loops[inp.noise].rate)), t_end)
             continue
         if value is None:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default

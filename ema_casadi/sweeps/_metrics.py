@@ -236,7 +236,7 @@ def simulate_scenario(model, pv, scenario):
     """The scenario's run of ``model`` at parameter vector ``pv``."""
     from ..simulation import simulate
 
-    kw = {k: scenario[k] for k in ("dt_out", "rtol", "atol", "event_tol") if k in scenario}
+    kw = {k: scenario[k] for k in ("dt_out", "rtol", "atol", "event_tol", "zoh") if k in scenario}
     return simulate(model, scenario["duration"], p=pv, solver=scenario["solver"], dt=scenario["dt"],
                     **kw, **scenario["signals"])
 

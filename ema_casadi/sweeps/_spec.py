@@ -61,7 +61,8 @@ MAX_REDRAWS = 1000
 #: Most runs one sweep may hold.
 MAX_RUNS = 10**6
 _TABLES = ("sweep", "variants", "parameters", "scenario", "metrics")
-_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol")
+_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol",
+                  "zoh")
 _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
@@ -209,7 +210,7 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
                      scenario={}, metrics={}, seed=seed, samples=samples)
     spec.runs = _expand(spec)
     _check_runs(spec, src)
-    spec.scenario = _scenario(_table(data, "scenario", src), params, src)
+    spec.scenario = _scenario(_table(data, "scenario", src), params, src, vspec)
     spec.metrics = check_metrics(spec, metrics, src, SweepError)
     return spec
 
@@ -388,7 +389,7 @@ def _shown(values: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" for k, v in values.items())
 
 
-def _scenario(table: dict, params: Parameters, src: str) -> dict:
+def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
     _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
     where = f"{src} [scenario]"
     out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
@@ -397,6 +398,10 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
             out[key] = _num(where, table, key)
             if not out[key] > 0:  # a zero step or duration means nothing: never replaced by a default
                 raise SweepError(f"{where} {key}: must be positive, got {out[key]:g}")
+    if "zoh" in table:  # the ECU sampled at its rates (rk4)
+        if not isinstance(table["zoh"], bool):
+            raise SweepError(f"{where} zoh: expected true or false, got {table['zoh']!r}")
+        out["zoh"] = table["zoh"]
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
     for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
@@ -405,13 +410,17 @@ def _scenario(table: dict, params: Parameters, src: str) -> dict:
     inputs = table.get("inputs", {})
     if not isinstance(inputs, dict):
         raise SweepError(f"{where} inputs: expected a table input = signal, got {inputs!r}")
-    from ..model.assembly import build_model
+    from ..model.components import parts_for
 
-    model = build_model(params)
+    # the inputs of the swept models' parts (a fault input with faults = on, ...)
+    info = {}
+    for combo in itertools.product(*(variants or {k: [v] for k, v in params.variants.items()}).values()):
+        parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
+        info.update({i.name: i for part in parts for i in part.inputs})
     for name, value in inputs.items():
-        if name in ("x_cmd", "f_ext") or name not in model.input_info:
-            raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, model.inputs)}")
-        sig[name] = _signal(f"{where} inputs {name}", value, model.input_info[name].kind, None, stroke, T)
+        if name in ("x_cmd", "f_ext") or name not in info:
+            raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
+        sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
     out["signals"] = sig
     return out
 

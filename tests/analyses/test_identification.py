@@ -249,7 +249,8 @@ def test_predictor_rebuilds_the_model_never(model_cache, example):
 
 
 def test_a_fit_of_the_right_structure_is_adequate(example_fit):
-    assert example_fit.adequacy == {"adequate": True, "reasons": []}
+    assert example_fit.adequacy["adequate"] is True and example_fit.adequacy["reasons"] == []
+    assert example_fit.adequacy["consistency"]["consistent"] is True
     assert example_fit.to_dict()["intervals_trustworthy"] is True
 
 
@@ -305,6 +306,20 @@ def test_compare_finds_the_ecu_structure(params, tmp_path):
     text = best.write(tmp_path / "fit.toml").read_text()
     assert 'anti_windup = "clamping"' in text
     assert ema.load_parameters(tmp_path / "fit.toml").variants["anti_windup"] == "clamping"
+    import matplotlib.pyplot as plt
+
+    # the residual figures side by side: a column per structure, best first, a row per
+    # channel, each line the (measured - fitted) / sigma of that structure's fit
+    fig = cmp.plot()
+    axes = np.array(fig.axes).reshape(2, 2)  # rows x_rod, i_q (sorted as recorded); columns clamping, backcalc
+    for j, res in enumerate(cmp.results):
+        tr = res.trajectories[0]
+        for i, c in enumerate(tr["measured"]):
+            y = axes[i, j].lines[0].get_ydata()
+            assert np.allclose(y, (tr["measured"][c] - tr["fitted"][c]) / res.sigma[c], rtol=1e-12, atol=1e-12)
+    rms = [np.sqrt(np.mean(axes[0, j].lines[0].get_ydata() ** 2)) for j in range(2)]
+    assert rms[0] < 1.2 < 3 < rms[1]  # clamping at the noise level, back-calculation far above (measured 9.9)
+    plt.close(fig)
 
 
 def test_compare_refuses_unknown_options_and_too_many_fits():

@@ -204,7 +204,7 @@ def test_linearize_returns_named_statespace(model_cache):
     assert list(sys.input_labels) == list(model.inputs)
     assert "x_rod" in sys.output_labels and "P_cu" not in sys.output_labels
     L = lz.loop_transfer(model, "position")
-    assert list(L.input_labels) == ["d_x"] and list(L.output_labels) == ["-x_rod"]
+    assert list(L.input_labels) == ["d_x"] and list(L.output_labels) == ["-x_s"]  # the fed-back (sensed) rod position
 
 
 def _first_harmonic(t, y, f):

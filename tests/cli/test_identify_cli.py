@@ -156,9 +156,48 @@ def test_track_writes_the_trend(params, tmp_path, capsys):
     (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--max-fits", "3"],
      ["--max-fits"]),
     (["--compare", "anti_windup"], ["KEY=V1,V2"]),
+    (["--compare", "anti_windup=backcalc,clamping", "--compare", "limit_shape=clip,smooth", "--compare",
+      "friction_shape=tanh,fermi", "--compare", "stribeck=off,on"], ["16 combinations", "--max-fits 8"]),
+    (["--estimate-x0", "omgea"], ["--estimate-x0 omgea", "did you mean 'omega'"]),
+    (["--starts", "2", "--jobs", "0"], ["--jobs"]),
 ])
 def test_compare_mistakes_exit_2(tmp_path, capsys, record, flags, words):
     code, _, err = _run(["identify", str(record), "--free", "F_seal", *flags, "--out", str(tmp_path / "f.toml")],
                         capsys)
     assert code == 2 and err.count("\n") == 1 and all(w in err for w in words), err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_compare_report_has_the_residuals_side_by_side(tmp_path, capsys, record):
+    code, out, err = _run(["identify", str(record), "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping",
+                           "--report", str(tmp_path / "rep"), "--json", "--no-progress"], capsys)
+    assert code in (0, 3), err
+    names = sorted(p.name for p in (tmp_path / "rep").iterdir())
+    assert "comparison.png" in names and "summary.json" in names
+    assert len(json.loads(out)["comparison"]) == 2
+
+
+def test_a_clamping_ecu_is_inadequate_by_default_and_found_by_compare(params, tmp_path, capsys):
+    """Records of an ECU with clamping anti-windup and a 0.02 W efficiency switch (5 mm
+    and 10 mm steps, the loops saturating), fitted with the default structure: exit 3,
+    chi-square and whiteness both fail, the file written as inadequate. Compared over
+    anti_windup: clamping first and adequate (the switch width left at the file's
+    0.1 W), its estimates within 3 sigma of the truth (measured: F_seal 209.0 +- 0.67
+    for 210), exit 0, the file written under its own name."""
+    truth = {"F_seal": 210.0, "J_m": 1.44e-3}
+    rec = idn.synthetic_record(params, tmp_path / "sat.csv", t_end=0.6, x_cmd="step:5mm@0.05+step:-10mm@0.3",
+                               truth={**truth, "P_blend": 0.02}, seed=1, variants={"anti_windup": "clamping"})
+    base = ["identify", str(rec), "--free", "F_seal,J_m", "--sigma", "x_rod=0.3um", "--sigma", "i_q=0.05A",
+            "--json", "--no-progress"]
+    code, out, err = _run([*base, "--out", str(tmp_path / "f.toml")], capsys)
+    reasons = json.loads(out)["misfit"]
+    assert code == 3 and err.count("\n") == 1 and (tmp_path / "f.inadequate.toml").exists()
+    assert any("chi-square" in r for r in reasons) and any("not white" in r for r in reasons)
+    code, out, err = _run([*base, "--compare", "anti_windup=backcalc,clamping", "--out", str(tmp_path / "g.toml")],
+                          capsys)
+    doc = json.loads(out)
+    assert code == 0, err
+    assert doc["chosen"] == {"anti_windup": "clamping"} and doc["adequate"] is True
+    for n, v in truth.items():
+        assert abs(doc["parameters"][n]["estimate"] - v) <= 3 * doc["parameters"][n]["std"], n
+    assert (tmp_path / "g.toml").exists()

@@ -29,7 +29,7 @@ MODEL_LAYER = ["model"]
 #: The analyses (paths relative to the package), which ask the model only.
 ANALYSES = [
     "linearisation", "sinestream", "mission", "tuning", "sweeps", "simulation",
-    "aircraft", "limitcycle", "export", "frequency",  # export holds fmu/
+    "aircraft", "limitcycle", "export", "frequency", "faults",  # export holds fmu/
 ]
 
 #: Known places still to be moved into the parts' declarations ("path: parameter"):

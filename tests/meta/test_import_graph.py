@@ -18,8 +18,8 @@ The layers, bottom to top (a module may import its own layer and the layers belo
 ``plots``      figures drawn from data (duck-typed results; no analysis imported)
 analyses       ``simulation``, ``linearisation``, ``frequency``, ``export`` (with
                ``fmu/``), ``sinestream``, ``limitcycle``, ``aircraft``, ``mission``,
-               ``tuning``, ``sweeps``, ``identification``: among themselves a DAG (no
-               package cycle)
+               ``tuning``, ``sweeps``, ``identification``, ``faults``: among themselves a DAG
+               (no package cycle)
 ``demo``       the demonstration run (uses everything below)
 ``cli``        the ``ema`` command
 =============  ===========================================================================
@@ -40,7 +40,7 @@ PKG = "ema_casadi"
 ROOT = Path(ema_casadi.__file__).parent
 
 ANALYSES = ("simulation", "linearisation", "frequency", "export", "sinestream", "limitcycle", "aircraft", "mission",
-            "tuning", "sweeps", "identification")
+            "tuning", "sweeps", "identification", "faults")
 #: Layer of each top-level module or package, bottom (0) to top.
 LAYERS = [("_util",), ("signals",), ("model",), ("plots",), ANALYSES, ("demo",), ("cli",)]
 RANK = {name: rank for rank, names in enumerate(LAYERS) for name in names}

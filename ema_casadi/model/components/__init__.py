@@ -1,13 +1,27 @@
 """Components: one module per family, each variant a *part* (docs: physics).
 
-controller (ECU outer loops), motor (with its current controller), inverter (power
-electronics), ballscrew (drive-train mechanics), friction, endstop, thermal, supply. A part declares its
+controller (ECU outer loops), sensor (what the ECU reads), motor (with its current controller),
+inverter (power electronics), ballscrew (drive-train mechanics), friction, endstop,
+thermal, supply, faults (fault injection), monitors (the ECU's fault detection). A part declares its
 states, inputs, outputs, parameters and loops next to its equations
 (:mod:`~ema_casadi.model.components._part`); :data:`REGISTRY` maps every variant key and value
 to its part; :mod:`ema_casadi.model.assembly` composes the chosen parts by signal name.
 """
 
-from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
+from . import (
+    airframe,
+    ballscrew,
+    controller,
+    endstop,
+    faults,
+    friction,
+    inverter,
+    monitors,
+    motor,
+    sensor,
+    supply,
+    thermal,
+)
 from ._part import (
     HEAT_NODES,
     INPUT_KINDS,
@@ -17,6 +31,7 @@ from ._part import (
     AssemblyError,
     Bound,
     Bus,
+    Fault,
     Freeze,
     Gain,
     Hold,
@@ -35,9 +50,10 @@ from ._part import (
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
-    "airframe", "ballscrew", "controller", "endstop", "friction", "inverter", "motor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Freeze", "Gain", "Limit", "Seed",
-    "Bus", "Hold", "Input", "Loop", "Output",
+    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "monitors", "motor", "sensor",
+    "supply", "thermal",
+    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
+    "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",

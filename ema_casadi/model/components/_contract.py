@@ -1,6 +1,6 @@
 """What a part declares for the analyses beyond its equations (the part contract):
-small-signal policies, what the linearisation freezes, trim limits, trim seeds and
-tunable gains. The analyses read these through the model
+small-signal policies, what the linearisation freezes, trim limits, trim seeds,
+tunable gains and the faults a part can inject. The analyses read these through the model
 (:class:`~ema_casadi.model.assembly.Model`), never a part's parameter names.
 """
 
@@ -9,12 +9,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow"]
+__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow", "Fault"]
 
 
 #: Small-signal policies of the linearisation: policy -> allowed values, first the
-#: default. A part states what each value sets (:attr:`Part.small_signal`).
-POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep")}
+#: default. A part states what each value sets (:attr:`Part.small_signal`). Policies
+#: the caller does not choose take their default (``quantisation = "off"``: a real
+#: sensor's quantisation steps 0, so its reading has slope 1).
+POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep"), "quantisation": ("off", "keep")}
 
 
 @dataclass(frozen=True)
@@ -165,3 +167,39 @@ def node_outflow(node: str) -> str:
         The node (``winding``, ``housing``, ``screw``, ``inverter``).
     """
     return f"P_out_{node}"
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault a part can inject: the model input that activates it.
+
+    The input is 0 (healthy) unless driven; a fault schedule drives it from the onset
+    on with the severity (a step, or a ramp to it), so one model serves every case.
+
+    Attributes
+    ----------
+    kind : str
+        The fault kind (``jam``, ``free_run``, ``bias`` ...).
+    input : str
+        The model input that carries the fault's severity (0 when healthy).
+    unit : str
+        The severity's SI unit (what the input's value means).
+    lo, hi : float
+        The severity's allowed range (SI), inclusive.
+    doc : str
+        One line: what the fault does and what its severity is.
+    target : str, optional
+        The signal the fault acts on (sensor faults: the sensed signal), or None.
+    rate : bool
+        The severity is a rate (``unit`` per second): the input ramps from the onset
+        (a drift) instead of stepping to the severity.
+    """
+
+    kind: str
+    input: str
+    unit: str
+    lo: float
+    hi: float
+    doc: str
+    target: str | None = None
+    rate: bool = False

@@ -36,18 +36,19 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Part", "Bus",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
 #: (power dissipated, W), ``power`` (power through a port, W), ``energy`` (J), ``flag``
-#: (a mode indicator) and ``aux`` (an internal quantity exposed for analyses).
-OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux")
+#: (a mode indicator), ``aux`` (an internal quantity exposed for analyses) and ``alarm``
+#: (an ECU monitor's latch: 0 healthy, rising to 1 when it latches; detected at 1/2).
+OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
@@ -196,6 +197,14 @@ class Input:
         A loop-break injection (zero unless driven; listed after the other inputs).
     bound : Bound, optional
         Its physical envelope (None: only checked to be finite).
+    noise : str, optional
+        A unit white-noise input: the name of the loop (:class:`Loop`) at whose sample
+        rate it is held. A time simulation that does not drive it fills it with a seeded
+        sample-and-hold sequence of standard normal values (the parameter named by
+        ``seed``; one stream per input name), so a run is reproducible bit for bit; the
+        linear analyses see its default, 0.
+    seed : str, optional
+        For a noise input: the parameter giving the seed of its sequence.
     """
 
     name: str
@@ -205,6 +214,8 @@ class Input:
     default: float | str = 0.0
     injection: bool = False
     bound: Bound | None = None
+    noise: str | None = None
+    seed: str | None = None
 
 
 @dataclass(frozen=True)
@@ -334,12 +345,32 @@ class Part:
     #: Named operating conditions (the airframe's flight conditions): name -> flat
     #: parameter values (SI) that set it up.
     conditions: ClassVar[dict] = {}
+    #: The faults this part can inject (:class:`Fault`), each through one of its inputs.
+    faults: ClassVar[tuple] = ()
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})
 
     def signals(self) -> dict:
         """Providers: ``{name or tuple of names: fn(bus) -> expr or tuple}``."""
+        return {}
+
+    def modify(self) -> dict:
+        """Modifiers of signals other parts provide: ``{name: fn(bus, value) -> new}``.
+
+        The assembly applies each to the provider's value of ``name`` (in assembly order
+        when several parts modify one signal), so a fault or a reaction acts on a signal
+        without the part that provides it knowing. A model without modifiers is the
+        model of the providers alone, expression for expression.
+        """
+        return {}
+
+    def adjust(self) -> dict:
+        """Parameters that become signals: ``{name: fn(P, u) -> expr}`` of the parameter
+        symbols ``P`` and the model inputs ``u`` (by name). Every part then reads the
+        adjusted value as ``bus.P.name`` (wear growing the friction with time). A model
+        without adjustments reads the parameters themselves.
+        """
         return {}
 
     def project(self, prev: Bus, now: Bus):

@@ -9,7 +9,20 @@ from __future__ import annotations
 
 from ..._util._checks import nearest as _nearest
 from ..params import ParameterError
-from . import airframe, ballscrew, controller, endstop, friction, inverter, motor, supply, thermal
+from . import (
+    airframe,
+    ballscrew,
+    controller,
+    endstop,
+    faults,
+    friction,
+    inverter,
+    monitors,
+    motor,
+    sensor,
+    supply,
+    thermal,
+)
 from ._part import Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
@@ -36,6 +49,9 @@ REGISTRY: dict[str, dict[str, type]] = {
     "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid, "lugre": friction.LuGre},
     "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},
     "thermal": {"off": thermal.Off, "lumped": thermal.Lumped},
+    "sensor": {"ideal": sensor.Ideal, "real": sensor.Real},
+    "faults": {"off": _off("faults"), "on": faults.On},
+    "monitors": {"off": _off("monitors"), "on": monitors.On},
 }
 
 #: Option key -> allowed values (first the default), from the parts that read them.

@@ -321,8 +321,9 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
 
 
 # ---- parts --------------------------------------------------------------------------
-POSITION_LOOP = Loop("position", flag="loop_x", injection="d_x", measured="x_rod", rate="f_s_x")
-VELOCITY_LOOP = Loop("velocity", flag="loop_w", injection="d_w", measured="omega", rate="f_s_w")
+# the loops feed back the sensed signals (the sensor parts provide them)
+POSITION_LOOP = Loop("position", flag="loop_x", injection="d_x", measured="x_s", rate="f_s_x")
+VELOCITY_LOOP = Loop("velocity", flag="loop_w", injection="d_w", measured="omega_s", rate="f_s_w")
 
 
 def _omega_max(P):

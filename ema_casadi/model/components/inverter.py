@@ -11,7 +11,7 @@ import casadi as ca
 
 from ._part import Output, Part
 
-__all__ = ["ideal", "averaged_losses", "current_amplitude", "Ideal"]
+__all__ = ["ideal", "averaged_losses", "current_amplitude", "open_bridge", "Ideal"]
 
 
 def ideal(v):
@@ -72,6 +72,33 @@ def current_amplitude(i_d, i_q):
     return ca.sqrt(s + zero) - zero
 
 
+def open_bridge(b):
+    """Winding voltages (v_d, v_q) (V) with the bridge switched off (all gates off).
+
+    Below the diode clamp the windings are open: the voltage is the one that lets the
+    currents decay through the resistance ``R_open`` alone,
+    ``v = R i + (motional and cross-coupling terms) - R_open i``, so
+    ``L di/dt = -R_open i`` (an open circuit, made a fast decay for the integrator).
+    When that voltage would exceed what the freewheeling diodes allow, the circle
+    ``|v_dq| <= v_dc/sqrt(3)`` (the line-to-line back-EMF above the DC link), it is
+    clamped there and the diodes carry current back into the link: the motor brakes
+    above the speed where its back-EMF reaches the link. Works for both motors (the dc
+    equivalent is the q axis with i_d = 0).
+
+    Parameters
+    ----------
+    b : Bus
+        The signals (reads ``i_d``, ``i_q``, ``omega``, ``R_w``, ``psi_m``, ``v_dc``;
+        parameters ``pp``, ``L_d``, ``L_q``, ``R_open``).
+    """
+    P = b.P
+    i_d, i_q, w_e = b["i_d"], b["i_q"], P.pp * b["omega"]
+    v_d = (b["R_w"] - P.R_open) * i_d - w_e * P.L_q * i_q
+    v_q = (b["R_w"] - P.R_open) * i_q + w_e * (P.L_d * i_d + b["psi_m"])
+    scale = ca.fmin(1, (b["v_dc"] / 3**0.5) / ca.sqrt(v_d**2 + v_q**2 + 1e-12))
+    return scale * v_d, scale * v_q
+
+
 _P_BRIDGE = Output("P_bridge", "W", "power the bridge draws from the DC link: winding power + inverter losses",
                    kind="power")
 
@@ -89,7 +116,8 @@ class Ideal(Part):
         Output("P_inv_sw", "W", "inverter switching loss", kind="loss"),
         _P_BRIDGE,
     )
-    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref")
+    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_dc", "V_sw_ref", "I_sw_ref", "R_open", "pp", "L_d",
+              "L_q")
     heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
 
     def signals(self):
@@ -100,6 +128,7 @@ class Ideal(Part):
             return averaged_losses(current_amplitude(b["i_d"], b["i_q"]), b.P, sq, b["v_dc"])
 
         return {
+            ("v_d_open", "v_q_open"): open_bridge,
             "v_d": lambda b: ideal(b["v_d_ref"]),
             "v_q": lambda b: ideal(b["v_q_ref"]),
             ("P_inv_cond", "P_inv_sw"): losses,
@@ -272,7 +301,8 @@ class Pwm(Part):
         Output("i_dc", "A", "DC-link current the bridge draws, P_bridge / v_dc: v_dc i_dc is the winding power "
                             "plus the inverter losses (with the ideal supply, V_dc i_dc = P_dc)"),
     )
-    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp")
+    params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp", "R_open", "L_d",
+              "L_q")
     heat = {"P_inv_cond": "inverter", "P_inv_sw": "inverter"}
     #: the leg states, and ``sw``: 1 in the switched simulation, 0 in the continuous model
     switched = (*(f"s_{k}" for k in LEGS), "sw")
@@ -323,6 +353,7 @@ class Pwm(Part):
             return P_T, P_D, P_T + P_D, P_sw
 
         return {
+            ("v_d_open", "v_q_open"): open_bridge,
             "theta_e": theta,
             ("d_a", "d_b", "d_c"): duties,
             **{f"s_{k}": (lambda b, k=k: b[f"d_{k}"]) for k in LEGS},

@@ -19,10 +19,10 @@ import math
 import casadi as ca
 
 from . import controller
-from ._part import MARGIN, Bound, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Fault, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
-__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "OMEGA_FE", "Pmsm", "Dc", "CURRENT_LOOP",
-           "CURRENT_BOUND"]
+__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm", "Dc",
+           "CURRENT_LOOP", "CURRENT_BOUND"]
 
 #: Speed (rad/s, ~1 rpm) over which the hysteresis drag, k_h pp psi^2/(2 pi) sign(omega),
 #: is smoothed at standstill (sign -> omega/sqrt(omega^2 + OMEGA_FE^2)). RK4 at 1e-4 s
@@ -50,6 +50,64 @@ def iron_loss(omega, psi, P):
     c = P.pp / (2 * ca.pi)  # f_e per rad/s
     T_fe = P.k_h * c * psi**2 * omega / ca.sqrt(omega**2 + OMEGA_FE**2) + P.k_e * c**2 * psi**2 * omega
     return T_fe, T_fe * omega
+
+
+#: Smallest shorted fraction modelled (-): below it the shorted loop is healthy and its
+#: current decays with TAU_NO_SHORT (a loop of so few turns is too stiff for RK4).
+MU_MIN = 0.02
+TAU_NO_SHORT = 1e-3
+
+
+def winding_short(mu, i_f, i_d, i_q, di_d, di_q, theta_e, omega_e, R, psi, P):
+    """Turn-to-turn short of a fraction ``mu`` of phase a's turns through ``R_f``.
+
+    The shorted sub-winding is a circuit of its own (after Vaseghi, Takorabet and
+    Meibody-Tabar, IEEE Trans. Magn. 45(2), 2009, for L_d = L_q): it carries
+    ``i_a - i_f``, the short ``i_f``. Its MMF ``-mu i_f`` on the a axis adds
+    ``-(2/3) mu i_f c`` to the dq currents' flux, ``c = (cos theta_e, -sin theta_e)``;
+    the sub-winding links ``mu`` of phase a's flux plus its leakage ``mu L_f``. With
+    ``a_h`` the healthy dq current derivatives and ``u_a = R i_a + c.(L a_h + omega_e J
+    psi_dq)`` the healthy phase-a voltage:
+
+    ``mu L_f di_f/dt = mu u_a - (mu R (1 - 2 mu/3) + R_f) i_f``,
+    ``di_dq/dt = a_h + (2/3) mu c (R i_f + L di_f/dt)/L``,
+    ``T_em += pp psi mu i_f sin theta_e``,
+    ``P_short = mu R (i_f^2 - 2 i_a i_f) + R_f i_f^2`` (the extra copper loss, in the
+    winding). With the currents held by the controller the loop is a series circuit:
+    ``mu (L_f + 2 mu L/3) di_f/dt = mu (R i_a + e_a) - (mu R + R_f) i_f``.
+
+    Returns (di_f/dt (A/s), di_d/dt, di_q/dt (A/s), dT (N m), P_short (W)).
+
+    Parameters
+    ----------
+    mu : SX
+        Shorted fraction of phase a's turns (-); below MU_MIN the loop is healthy.
+    i_f : SX
+        Current in the short (A).
+    i_d, i_q, di_d, di_q : SX
+        dq currents (A) and their healthy derivatives (A/s).
+    theta_e, omega_e : SX
+        Electrical angle (rad) and speed (rad/s).
+    R, psi : SX
+        Phase resistance (Ohm), magnet flux (Wb).
+    P : SimpleNamespace
+        Parameter symbols (uses ``L_d``, ``L_q``, ``pp``, ``R_f``, ``L_f``).
+    """
+    c, s = ca.cos(theta_e), ca.sin(theta_e)
+    i_a = i_d * c - i_q * s
+    psi_d, psi_q = P.L_d * i_d + psi, P.L_q * i_q
+    u_a = R * i_a + c * (P.L_d * di_d - omega_e * psi_q) - s * (P.L_q * di_q + omega_e * psi_d)
+    on = mu >= MU_MIN
+    mu_safe = ca.if_else(on, mu, 1)
+    faulty = (mu * u_a - (mu * R * (1 - 2 * mu / 3) + P.R_f) * i_f) / (mu_safe * P.L_f)
+    di_f = ca.if_else(on, faulty, -i_f / TAU_NO_SHORT)
+    mu_on = ca.if_else(on, mu, 0)
+    k = 2 / 3 * mu_on
+    d_d = di_d + k * c * (R * i_f + P.L_d * di_f) / P.L_d
+    d_q = di_q - k * s * (R * i_f + P.L_q * di_f) / P.L_q
+    dT = P.pp * psi * mu_on * i_f * s
+    P_short = mu_on * R * (i_f**2 - 2 * i_a * i_f) + ca.if_else(on, P.R_f * i_f**2, 0)
+    return di_f, d_d, d_q, dT, P_short
 
 
 def dc(i, v, omega, P, R=None, psi=None):
@@ -151,7 +209,7 @@ def no_load_speed(P):
 
 
 # ---- parts: each motor brings its own current controller (FOC or simple PI) ----------
-CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q", rate="f_s_i")
+CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q_s", rate="f_s_i")
 #: Envelope of the winding currents: the speed loop commands at most I_max; a few
 #: times that only flows when the back-EMF runs away from the voltage limit.
 CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
@@ -166,6 +224,7 @@ _COMMON_OUT = (
 )
 _HEAT = {"P_cu": "winding", "P_fe": "housing"}
 _OPTIONS = {"iron_loss": ("off", "on"), **controller.AW_OPTION}
+_SHORT = {"winding_short": ("off", "on")}
 _D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
 
 
@@ -197,7 +256,17 @@ _GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
 
 
 class Pmsm(Part):
-    """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics)."""
+    """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics).
+
+    With the option ``winding_short = "on"`` it also carries the turn-to-turn short
+    (:func:`winding_short`): the state ``i_f``, the fault input ``mu_short`` and the
+    loss ``P_short`` into the winding node.
+
+    Parameters
+    ----------
+    options : dict, optional
+        ``iron_loss`` and ``winding_short`` (default ``"off"`` each).
+    """
 
     family, value = "motor", "pmsm"
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
@@ -206,7 +275,7 @@ class Pmsm(Part):
     params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
     trim_limits = _LIMITS
     gains = _GAINS
-    options = _OPTIONS
+    options = _OPTIONS | _SHORT
     heat = _HEAT
     loops = (CURRENT_LOOP,)
     holds = (Hold("v_d_ref", "V", "current"), Hold("v_q_ref", "V", "current"))
@@ -218,20 +287,44 @@ class Pmsm(Part):
     )
     stored = ("E_mag",)
 
+    def __init__(self, options: dict | None = None):
+        super().__init__(options)
+        if self.opt.get("winding_short", "off") == "on":  # the turn-to-turn short (winding_short)
+            self.states = type(self).states + (State("i_f", "A", "current in the shorted turns' short", scale=_amps),)
+            self.inputs = type(self).inputs + (
+                Input("mu_short", "1", "dimensionless", "fault: shorted fraction of phase a's turns (0 healthy)"),)
+            self.outputs = type(self).outputs + (
+                Output("P_short", "W", "extra copper loss of the turn-to-turn short", kind="loss"),)
+            self.params = type(self).params + ("R_f", "L_f")
+            self.heat = {**type(self).heat, "P_short": "winding"}
+            self.faults = (Fault("short", "mu_short", "1", MU_MIN, 0.5,
+                                 "a fraction of phase a's turns shorted through R_f (winding_short = on)"),)
+
     def signals(self):
         def current_law(b):
-            i_d, i_q = b["i_d"], b["i_q"]
+            # feedback from the current sensors; the decoupling terms from the same readings
+            i_d, i_q = b["i_d_s"], b["i_q_s"]
             return controller.current_law_foc(
-                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega"], b["z_d"], b["z_q"], b.P, b["v_dc"],
-                self.opt.get("anti_windup", controller.ANTI_WINDUP[0]),
+                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega_s"], b["z_d"], b["z_q"], b.P,
+                b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]),
             )
 
         def plant(b):
             return pmsm(b["i_d"], b["i_q"], b["v_d"], b["v_q"], b["omega"], b.P, b["R_w"], b["psi_m"])
 
+        def shorted(b):
+            di_d, di_q, T, P_elec, P_cu, E_mag = plant(b)
+            P = b.P
+            di_f, di_d, di_q, dT, P_short = winding_short(
+                b["mu_short"], b["i_f"], b["i_d"], b["i_q"], di_d, di_q, P.pp * b.state("shaft_angle"),
+                P.pp * b["omega"], b["R_w"], b["psi_m"], P)
+            return di_d, di_q, T + dT, P_elec, P_cu, E_mag, di_f, P_short
+
+        keys = (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag")
+        short = self.opt.get("winding_short", "off") == "on"
         return {
             ("v_d_ref", "v_q_ref", der("z_d"), der("z_q")): current_law,
-            (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag"): plant,
+            (keys + (der("i_f"), "P_short")) if short else keys: shorted if short else plant,
             **_iron(self.opt),
         }
 
@@ -258,7 +351,7 @@ class Dc(Part):
 
     def signals(self):
         def current_law(b):
-            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega"], b["z_i"], b.P,
+            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega_s"], b["z_i"], b.P,
                                                      b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]))
             return 0, v / 1.5, z_dot
 

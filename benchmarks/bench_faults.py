@@ -1,0 +1,55 @@
+"""Benchmark: the reference fault table and the healthy runs of ``ema faults``.
+
+- the reference fault table (``models/faults_reference.toml``: each fault kind at one
+  severity, 0.5 s after its onset, plus the no-fault case; 11 runs of 0.6 s at RK4
+  10 us, sampled ECU, real sensors, monitors), wall time from the call to the rows
+  (model build and the compiled library's load included; its compilation is cached);
+- ``--healthy N`` healthy runs (default 1000) of the same scenario's ``[healthy]``
+  setting (0.3 s, RK4 31.25 us) with sensor noise and +-5 % friction and stiffness,
+  through the sweep engine on 2 local processes: the wall time and the false alarms.
+
+The targets: the table under 10 s, 1000 healthy runs under 30 s on 2 cores. The
+machine's load average is printed beside the times (they move with it).
+
+Usage: python benchmarks/bench_faults.py [--healthy 1000] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+import ema_casadi as ema
+from ema_casadi.faults import healthy_runs, load_faults
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--healthy", type=int, default=1000, help="healthy runs (default 1000)")
+    ap.add_argument("--quick", action="store_true", help="100 healthy runs")
+    args = ap.parse_args()
+    n = 100 if args.quick else args.healthy
+    params = ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
+    spec = load_faults(ROOT / "models" / "faults_reference.toml", params)
+    load0 = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    res = ema.run_faults(faults=spec)
+    t_table = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    h = healthy_runs(spec, n, jobs=2)
+    t_healthy = time.perf_counter() - t0
+    load1 = os.getloadavg()[0]
+    print("| what | runs | wall time (s) | target (s) | load average |")
+    print("|---|---|---|---|---|")
+    print(f"| reference fault table | {len(res.rows)} | {t_table:.1f} | 10 | {load0:.1f} |")
+    print(f"| healthy runs, 2 processes | {n} | {t_healthy:.1f} | {30 * n / 1000:g} | {load1:.1f} |")
+    print(f"false alarms: {h['false_alarms']} of {n} healthy runs ({h['failed']} failed); no-fault case: "
+          f"{res.false_alarms() or 'none'}")
+
+
+if __name__ == "__main__":
+    main()

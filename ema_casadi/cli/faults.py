@@ -1,0 +1,124 @@
+"""Fault studies (docs: faults): every case of a fault file on one model, the ECU's
+detection per monitor, the rod's transient, the coverage matrix.
+
+MODEL.toml comes first, FAULTS.toml second (or by --faults); without them the packaged
+reference set and fault table run. FAULTS.toml holds the [scenario] (command, load,
+duration, sensors) and [[fault]] tables
+(kind, target, onset, severity, ramp; onsets and severities may be lists); its format is
+in the guide ("Faults, sensors and monitors") and in models/faults_reference.toml. The
+model carries every fault kind and the monitors (faults = on, monitors = on, and the
+PMSM's winding_short = on), so no case rebuilds it. Writes OUT/<file>.csv (one row per
+case), OUT/<file>.json and OUT/<file>.png (coverage matrix and transients).
+--healthy-runs N adds the false-alarm count over N healthy runs with sensor noise and
++-5 % friction and stiffness tolerances (the sweep engine, --jobs local workers).
+--list prints the fault kinds the model injects and the monitors.
+Exit status: 2 for a mistake in a file or flag (unknown kind or target, onset outside
+the run, severity out of range, a threshold in the wrong unit), before any run.
+Example: ema faults models/cesa_ema.toml models/faults_reference.toml --healthy-runs 100
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .._util._resources import REFERENCE_FAULTS
+from . import UserError, _jsonable, add_progress, progress_of, second_file
+
+COMMAND = "faults"
+DEFAULT_FAULTS = REFERENCE_FAULTS
+DEFAULT_OUT = "out/faults"
+ORDER = 13
+HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detection per monitor, coverage"
+
+
+def add_arguments(p):
+    p.add_argument("faults", metavar="FAULTS.toml", nargs="?", default=None,
+                   help=f"fault file (scenario, fault cases), after MODEL.toml; default: the packaged {DEFAULT_FAULTS}")
+    p.add_argument("--faults", dest="faults_file", default=None, metavar="FAULTS.toml",
+                   help="the fault file by name (with or without MODEL.toml)")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help=f"folder for <file>.csv, <file>.json and <file>.png (created); default {DEFAULT_OUT}")
+    p.add_argument("--healthy-runs", type=int, default=0, metavar="N",
+                   help="false alarms over N healthy runs (noise, +-5 %% friction and stiffness); default 0")
+    p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers of the healthy runs")
+    p.add_argument("--seed", type=int, default=1, help="seed of the healthy runs' draws; default 1")
+    p.add_argument("--list", action="store_true", help="print the fault kinds and monitors of the model and exit")
+    add_progress(p)
+
+
+def _check(args) -> Path:
+    if args.healthy_runs < 0:
+        raise UserError(f"--healthy-runs must be a non-negative integer, got {args.healthy_runs}")
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be a positive integer, got {args.jobs}")
+    if args.seed < 0:
+        raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
+    out = Path(args.out)
+    for folder in (out, *out.parents):
+        if folder.exists() and not folder.is_dir():
+            raise UserError(f"--out {out}: {folder} exists and is not a folder")
+    return out
+
+
+def _listing(params, variants) -> dict:
+    from ..faults import fault_kinds, fault_variants
+    from ..model.assembly import build_model
+
+    v = fault_variants(params, variants)
+    kinds = {k: {str(t): {"input": f.input, "unit": f.unit, "range": [f.lo, f.hi], "ramp": f.rate, "doc": f.doc}
+                 for t, f in targets.items()} for k, targets in fault_kinds(v).items()}
+    return {"kinds": kinds, "monitors": list(build_model(params, v).outputs_of("alarm")), "written": []}
+
+
+def run(args) -> dict:
+    from ..faults import FaultError, load_faults, run_faults
+    from ..model.params import load_parameters
+
+    out = _check(args)
+    args.faults = second_file(args, args.faults, args.faults_file, flag="--faults", what="fault", key="fault",
+                              default=DEFAULT_FAULTS)
+    params = load_parameters(args.model)
+    if args.list:
+        return _listing(params, dict(args.variant))
+    try:
+        spec = load_faults(args.faults, params, dict(args.variant))
+        res = run_faults(faults=spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
+                         progress=progress_of(args))
+    except FaultError as exc:
+        raise UserError(str(exc)) from None
+    stem = Path(args.faults).stem
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [res.to_csv(out / f"{stem}.csv"), res.to_json(out / f"{stem}.json"), res.plot(out / f"{stem}.png")]
+    summary = res.summary()
+    summary["written"] = [str(p) for p in (paths[0], paths[1], out / f"{stem}.png")]
+    return _jsonable(summary)
+
+
+def report(r: dict) -> None:
+    if "kinds" in r:
+        for kind, targets in r["kinds"].items():
+            for target, f in targets.items():
+                what = kind if target == "None" else f"{kind} target={target}"
+                lo, hi = f["range"]
+                print(f"{what:28s} severity {lo:g}..{hi:g} {f['unit']:6s} ({f['input']}): {f['doc']}")
+        print("monitors: " + ", ".join(r["monitors"]))
+        return
+    mons = r["monitors"]
+    print(f"{r['cases']} cases in {r['wall_time']:.1f} s; detection delay after the onset (ms):")
+    head = " ".join(f"{m.removeprefix('latch_'):>7s}" for m in mons)
+    print(f"{'case':20s} {'status':7s} {'peak dev mm':>11s} {head}")
+    for row in r["rows"]:
+        cells = [row[f"detected_{m}_s"] for m in mons]
+        dev = row["peak_deviation_m"]
+        dev = 1e3 * dev if dev is not None and math.isfinite(dev) else math.nan
+        print(f"{row['case']:20s} {row['status']:7s} {dev:11.3f} "
+              + " ".join(f"{1e3 * c:7.1f}" if c is not None else f"{'-':>7s}" for c in cells))
+    if r["false_alarms_no_fault"]:
+        print("false alarms without a fault: " + ", ".join(r["false_alarms_no_fault"]))
+    h = r.get("healthy_runs")
+    if h:
+        print(f"healthy runs: {h['false_alarms']} of {h['runs']} with a false alarm ({h['failed']} failed) in "
+              f"{h['wall_time']:.1f} s on {h['jobs']} workers")
+    for w in r.get("written", []):
+        print(f"wrote {w}")
