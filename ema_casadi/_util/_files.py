@@ -52,7 +52,9 @@ _on_error: list = []
 
 
 def _temp_name(path: Path, suffix: str = "") -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp{suffix}")
+    # process and thread: two threads writing the same target (a compiled library both
+    # build on a cold cache) must not share the temporary (one renamed it away first)
+    return path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp{suffix}")
 
 
 def _remove(p: Path) -> None:

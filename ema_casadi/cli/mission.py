@@ -130,7 +130,9 @@ def _new_folder(out: Path, names: dict) -> Path | None:
 def report(r: dict) -> None:
     run = r["run"]
     print(f"{r['mission']}: {r['duration_s']:.0f} s of mission in {run['wall_time']:.1f} s "
-          f"({run['steps']} RK4 steps of {run['dt']:g} s, {run['mode_switches']} stick/slip switches)")
+          + (f"({run['steps']} carrier periods of the switched bridge, RK4 at most {run['dt']:g} s per "
+             f"sub-interval, " if run.get("switched") else f"({run['steps']} RK4 steps of {run['dt']:g} s, ")
+          + f"{run['mode_switches']} stick/slip switches)")
     print("peak temperatures (degC):")
     for n, p in r["peaks"].items():
         state = "ok" if p["ok"] else "EXCEEDED"

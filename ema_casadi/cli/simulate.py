@@ -19,7 +19,12 @@ at t = 0 (a load present from the start does not knock the rod back).
 Runs above 1e9 RK4 steps or a 1 GiB result are refused with the estimate.
 With --variant inverter=pwm the model switches: rk4 steps to every switching instant
 (--dt bounds its step inside a sub-interval), --t-end must be whole carrier periods
-and --dt-out is rounded to whole periods.
+and --dt-out is rounded to whole periods (the report and --json say to what); the
+power and loss columns then hold carrier-period averages (each row: the average over
+the window ending there, so that the rows sum to the run's energies), and
+--instantaneous adds their sampled values as <name>_inst columns.
+--json reports the energy of every power and loss output, the stored-energy change and
+the balance residual int P_dc - dE_stored - sum(int losses) - int P_load.
 Example: ema simulate --x-cmd "step:1mm@0.01+sine:0.375mm@1@0.5" --t-end 1 --out run.csv
 """
 
@@ -78,6 +83,9 @@ def add_arguments(p):
     p.add_argument("--event-tol", type=float, default=1e-7,
                    help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); "
                         "default 1e-7")
+    p.add_argument("--instantaneous", action="store_true",
+                   help="switched model: also write the power and loss outputs sampled at the kept instants "
+                        "(<name>_inst; the <name> columns hold carrier-period averages)")
     add_progress(p)
 
 
@@ -134,18 +142,11 @@ def run(args) -> dict:
         raise UserError(flag + str(exc)[len(name):]) from None
     written = []
     if out is not None:
-        writer = {".csv": res.to_csv, ".mat": res.to_mat, ".npz": res.to_npz}[out.suffix.lower()]
+        table = res.with_instantaneous() if args.instantaneous else res
+        writer = {".csv": table.to_csv, ".mat": table.to_mat, ".npz": table.to_npz}[out.suffix.lower()]
         written.append(str(writer(out)))
-    if plot is not None and model.switched:  # the switched waveforms: every sub-interval kept
-        from ..plots._pwm import plot_switched
-
-        full = simulate(model, args.t_end, dt=args.dt, decimate=1, from_trim=args.from_trim,
-                        **{n: s for n, s in given.items() if s is not None})
-        written.append(str(plot_switched(full, plot)))
-    elif plot is not None:
-        from ..plots._base import plot_simulation
-
-        written.append(str(plot_simulation(res, plot)))
+    if plot is not None:
+        written.append(_plot(args, model, res, given, plot))
     info = res.info
     return {
         "model": args.model,
@@ -164,8 +165,50 @@ def run(args) -> dict:
         "steps": info.get("steps"),
         "samples": len(res.t),
         "mode_switches": info.get("mode_switches"),
+        **sampling_report(model, res, dt_out),
+        **energy_report(model, res),
         "written": written,
     }
+
+
+def _plot(args, model, res, given, plot) -> str:
+    """The --plot PNG: a switched model's waveforms (rerun keeping every sub-interval),
+    else the run's signals."""
+    if model.switched:
+        from ..plots._pwm import plot_switched
+
+        full = simulate(model, args.t_end, dt=args.dt, decimate=1, from_trim=args.from_trim,
+                        **{n: s for n, s in given.items() if s is not None})
+        return str(plot_switched(full, plot))
+    from ..plots._base import plot_simulation
+
+    return str(plot_simulation(res, plot))
+
+
+def sampling_report(model, res, dt_out) -> dict:
+    """``dt_out_requested`` (s, or None), ``dt_out_used`` (a switched run's whole carrier
+    periods) and what the power and loss columns hold (``power_columns``)."""
+    info = res.info
+    return {"dt_out_requested": dt_out, "dt_out_used": info.get("dt_out", dt_out) if model.switched else dt_out,
+            "power_columns": info.get("power_columns", "instantaneous")}
+
+
+def energy_report(model, res) -> dict:
+    """``energies_J`` (every power and loss output, :meth:`SimResult.energies`: a switched
+    run's own quadratures, else the trapezoid over the samples), ``stored_energy_change_J``
+    (E_stored at the end minus at the start), ``balance_residual_J`` = int P_dc -
+    dE_stored - sum of the losses - int P_load and ``balance_relative`` (that over int
+    P_dc); None without those outputs."""
+    E = res.energies()
+    out = {"energies_J": E, "stored_energy_change_J": None, "balance_residual_J": None, "balance_relative": None}
+    if "E_stored" in res.outputs:
+        out["stored_energy_change_J"] = float(res["E_stored"][-1] - res["E_stored"][0])
+    if {"P_dc", "P_load"} <= set(E) and out["stored_energy_change_J"] is not None:
+        losses = sum(E[k] for k in model.outputs_of("loss") if k in E)
+        r = E["P_dc"] - out["stored_energy_change_J"] - losses - E["P_load"]
+        out["balance_residual_J"] = float(r)
+        out["balance_relative"] = float(r / E["P_dc"]) if E["P_dc"] else None
+    return out
 
 
 #: Input names as the flags that set them.
@@ -208,6 +251,10 @@ def _named_inputs(items, model, stroke, t_end) -> dict:
     return out
 
 
+def _rel(x) -> str:
+    return "-" if x is None else f"{x:.2e} of int P_dc"
+
+
 def report(r: dict) -> None:
     f = r["final"]
     tol = ", ".join(f"{k} {v:g}" for k, v in (r["tolerance"] or {}).items())
@@ -216,6 +263,13 @@ def report(r: dict) -> None:
           f"(compile {r['compile_time']:.3f} s)")
     if r["mode_switches"] is not None:
         print(f"stick/slip mode switches: {r['mode_switches']}")
+    if (r["dt_out_used"] is not None and r["dt_out_requested"] is not None
+            and not math.isclose(r["dt_out_used"], r["dt_out_requested"], rel_tol=1e-9)):
+        print(f"--dt-out {r['dt_out_requested']:g} s rounded to {r['dt_out_used']:g} s (whole carrier periods); "
+              f"power and loss columns: {r['power_columns']}")
+    if r["balance_residual_J"] is not None:
+        print(f"energy: int P_dc = {r['energies_J']['P_dc']:.6g} J, stored change {r['stored_energy_change_J']:.4g} J, "
+              f"balance residual {r['balance_residual_J']:.3g} J ({_rel(r['balance_relative'])})")
     print(f"final: x_rod = {f['x_rod'] * 1e3:.4f} mm, v_rod = {f['v_rod'] * 1e3:.3f} mm/s, "
           f"i_q = {f['i_q']:.3f} A, F_in = {f['F_in']:.1f} N")
     for w in r["written"]:

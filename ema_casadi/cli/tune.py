@@ -4,7 +4,14 @@ The free gains (--free) are chosen to maximise the closed-loop bandwidth or mini
 the step tracking error (--objective), subject in every load case (--loads) to: gain
 and phase margins on the position, velocity and current loops (--gm/--pm, or a
 sensitivity peak --ms), overshoot (--overshoot), current and voltage within their
-limits on a step of --step, optional minimum bandwidth and eigenvalue bound. The
+limits on a step of --step, optional minimum bandwidth and eigenvalue bound; and the
+cascade's own requirements: each loop with its outer loops open unconditionally stable
+with the same margins, each inner loop's crossover at least --separation times the
+next outer one's (default 3), and the current command's response to position-sensor
+noise bounded (--sensor-noise, --command-noise: by default 1 um may move it by at most
+0.5 % of I_max at any frequency). The default objective maximises the worst-case -3 dB
+bandwidth under all of these, with a small penalty on moving the gains from the file's.
+The
 result is verified independently (fresh linearisation, the toolkit's margins, a
 nonlinear step simulation) and written as a parameter file (--out). From start gains
 that already meet every requirement the result is never worse than the start: should
@@ -23,7 +30,7 @@ from ..signals import SignalError, parse_quantity
 from . import UserError, add_progress, check_output_dir, check_output_path, load, stage
 
 #: The files --plot-dir receives (the folder is replaced whole: it may hold only these).
-PLOT_FILES = ("tune_bode.png", "tune_step.png")
+PLOT_FILES = ("tune_bode.png", "tune_step.png", "tune_cascade.png")
 
 COMMAND = "tune"
 ORDER = 7
@@ -57,6 +64,15 @@ def add_arguments(p):
     p.add_argument("--rate-ratio", type=float, default=10.0, metavar="R",
                    help="keep each loop's gain below 1 above its ECU sample rate / R (the linear model "
                         "has no sample delay); 0 switches it off; default 10")
+    p.add_argument("--separation", type=float, default=3.0, metavar="RATIO",
+                   help="each inner loop's gain crossover (outer loops open) at least RATIO times the next "
+                        "outer loop's; 0 switches it off; default 3")
+    p.add_argument("--sensor-noise", default="1um", metavar="LENGTH",
+                   help="position-sensor noise amplitude the current command must not amplify beyond "
+                        "--command-noise (a bare number is mm); default 1um")
+    p.add_argument("--command-noise", type=float, default=0.5, metavar="PCT",
+                   help="largest current-command amplitude --sensor-noise may cause at any frequency (%% of "
+                        "I_max); 0 switches the bound off; default 0.5")
     p.add_argument("--start-scale", type=float, default=1.0, metavar="FACTOR",
                    help="start from FACTOR times the file's gains (T_i_w kept); default 1")
     p.add_argument("--hessian", choices=("exact", "limited-memory"), default="exact",
@@ -66,9 +82,9 @@ def add_arguments(p):
                    help="nonlinear step simulated before and after (0 skips it); default 1mm")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="parameter file with the tuned gains")
     p.add_argument("--plot-dir", default=None, metavar="DIR",
-                   help="write tune_bode.png and tune_step.png (before/after) into the folder DIR, assembled "
-                        "beside it and moved into place; an existing DIR is replaced whole (refused if it holds "
-                        "other files)")
+                   help="write tune_bode.png, tune_step.png and tune_cascade.png (before/after) into the "
+                        "folder DIR, assembled beside it and moved into place; an existing DIR is replaced "
+                        "whole (refused if it holds other files)")
 
 
 def _length(text, flag, stroke):
@@ -102,6 +118,8 @@ def run(args) -> dict:
         ("--sigma", args.sigma, args.sigma >= 0, "a non-negative rate (1/s)"),
         ("--start-scale", args.start_scale, args.start_scale > 0, "positive"),
         ("--rate-ratio", args.rate_ratio, args.rate_ratio == 0 or args.rate_ratio >= 1, "0 (off) or at least 1"),
+        ("--separation", args.separation, args.separation == 0 or args.separation >= 1, "0 (off) or at least 1"),
+        ("--command-noise", args.command_noise, args.command_noise >= 0, "a non-negative percentage"),
     ):
         if not (math.isfinite(val) and ok):
             raise UserError(f"{flag} must be {what}, got {val:g}")
@@ -118,13 +136,17 @@ def run(args) -> dict:
     if not step > 0:
         raise UserError(f"--step must be a positive length, got {args.step}")
     sim_step = _length(args.sim_step, "--sim-step", stroke)
+    sensor_noise = _length(args.sensor_noise, "--sensor-noise", stroke)
+    if not sensor_noise > 0:
+        raise UserError(f"--sensor-noise must be a positive length, got {args.sensor_noise}")
     if args.free is None:
         free = default_free(model)
     else:
         free = tuple(g.strip() for g in args.free.split(",") if g.strip())
     req = Requirements(gm_db=args.gm, pm_deg=args.pm, ms=args.ms, overshoot=args.overshoot / 100,
                        bandwidth_min_hz=args.bandwidth_min, sigma=args.sigma, step=step,
-                       rate_ratio=args.rate_ratio)
+                       rate_ratio=args.rate_ratio, separation=args.separation, sensor_noise=sensor_noise,
+                       command_noise=args.command_noise / 100)
     try:
         start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
         stage(args, "tune", 0.0, f"IPOPT on {len(loads)} load case(s), then the verification")
@@ -156,6 +178,16 @@ def _fmt(v, spec):
     return "-" if v is None else ("inf" if isinstance(v, float) and math.isinf(v) else format(v, spec))
 
 
+def _margin_text(m: dict) -> str:
+    """Margins named for what they are: GM (the gain may rise by it), the gain-reduction
+    margin (it may fall by it: only a conditionally stable loop has one) and PM."""
+    up, down, pm = (float(m[k]) for k in ("gm_up_db", "gm_down_db", "pm_deg"))  # JSON may carry "inf"
+    text = f"GM {_fmt(up, '.1f')} dB"
+    if math.isfinite(down):
+        text += f", gain-reduction margin {down:.1f} dB"
+    return text + f", PM {_fmt(pm, '.1f')} deg"
+
+
 def report(r: dict) -> None:
     req = r["requirements"]
     if req["ms"] is not None:
@@ -166,13 +198,15 @@ def report(r: dict) -> None:
     print(f"objective {r['objective']}: {r['objective_value']:.4g}{' Hz' if r['objective'] == 'bandwidth' else ''}; "
           f"IPOPT {r['status']}, {r['iterations']} iterations in {r['rounds']} solve(s), "
           f"{r['solve_time_s']:.2f} s (build {r['build_time_s']:.2f} s)")
-    print(f"requirements: {bound}, overshoot <= {100 * req['overshoot']:g} %, limits on a "
-          f"{req['step'] * 1e3:g} mm step; loads {', '.join(f'{f / 1e3:g} kN' for f in r['loads_N'])}")
+    print(f"requirements: {bound} (loop-at-a-time, and unconditionally with the outer loops open), "
+          f"separation >= {req['separation']:g}, overshoot <= {100 * req['overshoot']:g} %, limits on a "
+          f"{req['step'] * 1e3:g} mm step, {req['sensor_noise'] * 1e6:g} um sensor noise -> <= "
+          f"{100 * req['command_noise']:g} % I_max; loads {', '.join(f'{f / 1e3:g} kN' for f in r['loads_N'])}")
     if r["active"]:
         from ..tuning import Requirements, describe_constraint
 
         rq = Requirements(**req)
-        print("limited by: " + "; ".join(describe_constraint(a, rq) for a in r["active"]))
+        print("limited by: " + "; ".join(dict.fromkeys(describe_constraint(a, rq) for a in r["active"])))
     print(f"  {'gain':6s} {'before':>12s} {'after':>12s}")
     for g, v in r["gains_after"].items():
         print(f"  {g:6s} {r['gains_before'][g]:12.5g} {v:12.5g}")
@@ -181,10 +215,18 @@ def report(r: dict) -> None:
         print(f"{key}: worst |GM| {v['worst']['gm_db']:.2f} dB, PM {v['worst']['pm_deg']:.2f} deg, "
               f"bandwidth {v['worst']['bandwidth_hz']:.3g} Hz")
         for label, d in v["loads"].items():
-            loops = ", ".join(f"{n} {_fmt(m['gm_db'], '+.1f')} dB/{_fmt(m['pm_deg'], '.1f')} deg"
-                              for n, m in d["loops"].items())
+            loops = "; ".join(f"{n} {_margin_text(m)}" for n, m in d["loops"].items())
+            print(f"  {label:>7s} loop-at-a-time: {loops}")
+            c = d["outer_open"]
+            fc = ", ".join(f"{n} {'/'.join(f'{f:.3g}' for f in m['gain_crossovers_hz']) or '-'} Hz"
+                           for n, m in c["loops"].items())
+            sep = ", ".join(f"{n} {x:.3g}x" for n, x in c["separation"].items())
+            print(f"  {'':>7s} outer loops open: " + "; ".join(f"{n} {_margin_text(m)}" for n, m in c["loops"].items()))
+            noise = c["noise_gain_A_per_m"]
+            print(f"  {'':>7s} crossovers {fc}; separation {sep}"
+                  + (f"; noise gain {noise:.3g} A/m" if noise is not None else ""))
             st = d["step"]
-            print(f"  {label:>7s}: {loops}; step overshoot {100 * st['overshoot']:.2f} %, "
+            print(f"  {'':>7s} step overshoot {100 * st['overshoot']:.2f} %, "
                   f"settles {_fmt(1e3 * st['settling_time_s'], '.1f')} ms, peaks {st['i_q_peak_A']:.3g} A, "
                   f"{st['v_dq_peak_V']:.4g} V")
         nl = v.get("nonlinear_step")

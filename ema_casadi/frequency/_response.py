@@ -195,6 +195,14 @@ class LoopMargins:
         Whether the nominal closed loop is stable.
     gain_crossovers, phase_crossovers : list of dict
         Every crossover: ``f_hz`` with ``pm_deg`` (signed) or ``gm_db``.
+    gm_up_db, f_up_hz : float
+        The (upper) gain margin: the smallest gain rise (dB, > 0) that puts L on -1, at
+        the phase crossover ``f_up_hz`` (inf and None when the gain may rise without
+        bound).
+    gm_down_db, f_down_hz : float
+        The gain-reduction margin (lower gain margin): the smallest gain fall (dB, > 0)
+        that puts L on -1, at ``f_down_hz``; inf and None for a loop that is not
+        conditionally stable (no phase crossover where |L| > 1).
     outer : str
         ``closed`` or ``open``: how the other loops were taken (:func:`loop_margins`).
     """
@@ -213,9 +221,20 @@ class LoopMargins:
     gain_crossovers: list = field(default_factory=list)   # [{"f_hz", "pm_deg"}], pm signed
     phase_crossovers: list = field(default_factory=list)  # [{"f_hz", "gm_db"}]
     outer: str = "closed"
+    gm_up_db: float = math.inf
+    f_up_hz: float | None = None
+    gm_down_db: float = math.inf
+    f_down_hz: float | None = None
+
+    @property
+    def conditionally_stable(self) -> bool:
+        """A phase crossover where |L| > 1: a gain reduction would destabilise the loop."""
+        return math.isfinite(self.gm_down_db)
 
     def meets(self, gm_db: float = REQUIREMENT["gm_db"], pm_deg: float = REQUIREMENT["pm_deg"]) -> bool:
-        """Stable with |GM| >= gm_db (either direction) and PM >= pm_deg.
+        """Stable with |GM| >= gm_db at every phase crossover (the gain margin and, for a
+        conditionally stable loop, the gain-reduction margin) and PM >= pm_deg at every
+        gain crossover.
 
         Parameters
         ----------
@@ -229,6 +248,7 @@ class LoopMargins:
     def as_dict(self) -> dict:
         d = asdict(self)
         d["meets_requirement"] = self.meets()
+        d["conditionally_stable"] = self.conditionally_stable
         return d
 
 
@@ -273,6 +293,8 @@ def margins(L: LinearModel | control.StateSpace, *, f_min: float = 1e-2, f_max: 
         gm, f_pc = best["gm_db"], best["f_hz"]
     else:
         gm, f_pc = math.inf, None
+    up = min((c for c in pcs if c["gm_db"] > 0), key=lambda c: c["gm_db"], default=None)
+    down = min((c for c in pcs if c["gm_db"] <= 0), key=lambda c: -c["gm_db"], default=None)
     alpha, f_dm = _disk_margin(H, f, Hg) if stable else (0.0, _disk_margin(H, f, Hg)[1])
     dgm = 20 * math.log10((2 + alpha) / (2 - alpha)) if alpha < 2 else math.inf
     dpm = math.degrees(2 * math.atan(alpha / 2))
@@ -280,6 +302,8 @@ def margins(L: LinearModel | control.StateSpace, *, f_min: float = 1e-2, f_max: 
         loop=loop, gm_db=gm, f_pc_hz=f_pc, pm_deg=pm, f_gc_hz=f_gc, disk_margin=alpha,
         disk_gm_db=dgm, disk_pm_deg=dpm, f_disk_hz=f_dm, delay_margin_s=delay, stable=stable,
         gain_crossovers=gcs, phase_crossovers=pcs,
+        gm_up_db=up["gm_db"] if up else math.inf, f_up_hz=up["f_hz"] if up else None,
+        gm_down_db=-down["gm_db"] if down else math.inf, f_down_hz=down["f_hz"] if down else None,
     )
 
 

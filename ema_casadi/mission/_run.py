@@ -195,7 +195,8 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
         for n in keep:
             chunks[n].append(np.asarray(res[n], float)[first:])
         x = np.array([res.states[n][-1] for n in model.states])
-        steps += res.info["steps"]
+        # RK4 steps; a switched (PWM) run counts carrier periods instead
+        steps += res.info.get("steps") or res.info.get("carrier_periods", 0)
         switches += res.info.get("mode_switches") or 0
         if b == 0:  # the rollout is compiled (or loaded) once, by the first block
             compile_time = res.info.get("compile_time", 0.0)
@@ -205,5 +206,5 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
                   time.perf_counter() - wall0)
     info = {"solver": used, "solver_reason": why, "from_trim": from_trim, "dt": dt, "dt_out": dt_out,
             "steps": steps, "mode_switches": switches, "blocks": len(blocks),
-            "compile_time": compile_time}
+            "compile_time": compile_time, "switched": bool(model.switched)}
     return np.concatenate(times), {n: np.concatenate(chunks[n]) for n in keep}, info

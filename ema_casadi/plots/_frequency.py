@@ -35,10 +35,15 @@ def _mark_margins(ax_m, ax_p, bode: dict, m) -> None:
         g_pc = at(mag, m.f_pc_hz)
         ax_m.annotate("", xy=(m.f_pc_hz, g_pc), xytext=(m.f_pc_hz, 0.0),
                       arrowprops={"arrowstyle": "<->", "color": "C2", "lw": 1.2})
-        ax_m.text(m.f_pc_hz * 1.15, g_pc / 2, f"GM {m.gm_db:+.1f} dB\n@ {m.f_pc_hz:.3g} Hz",
+        ax_m.text(m.f_pc_hz * 1.15, g_pc / 2, f"{_gm_text(m.gm_db)}\n@ {m.f_pc_hz:.3g} Hz",
                   color="C2", fontsize=8, va="center")
-    ax_m.set_title(f"{m.loop} loop: GM {m.gm_db:+.1f} dB, PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}"
+    ax_m.set_title(f"{m.loop} loop: {_gm_text(m.gm_db)}, PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}"
                    + ("" if m.stable else " (closed loop UNSTABLE)"), fontsize=9)
+
+
+def _gm_text(gm_db: float) -> str:
+    """A signed gain margin named for what it is: a rise (GM) or a fall (gain-reduction margin)."""
+    return f"GM {gm_db:.1f} dB" if gm_db > 0 else f"gain-reduction margin {-gm_db:.1f} dB"
 
 
 def plot_bode(curves, path: str | Path | None = None, *, title: str = "", margins=None,

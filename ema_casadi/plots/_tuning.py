@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["draw_bode", "draw_step"]
+__all__ = ["draw_bode", "draw_step", "cascade_figure"]
 
 
 def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path | None = None):
@@ -78,5 +78,50 @@ def draw_step(steps: dict, path: str | Path | None = None):
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)
     ax[0].set_title(f"nonlinear {amp * 1e3:g} mm step (full model, no load)", fontsize=10)
+    fig.tight_layout()
+    return finish(fig, path)
+
+
+def cascade_figure(f, curves: dict, loops: list, suptitle: str, path: str | Path | None = None):
+    """One column per loop (with its outer loops open), gain over phase, one colour per
+    gain set, each gain crossover marked.
+
+    Parameters
+    ----------
+    f : ndarray
+        Frequencies (Hz).
+    curves : dict
+        ``{label: [(bode dict, gain crossovers in Hz, PM in deg) per loop]}``.
+    loops : list of str
+        The loop names, in the order of the curves.
+    suptitle : str
+        Figure title.
+    path : str or Path, optional
+        PNG file, written atomically; without it the Figure is returned.
+    """
+    import matplotlib.pyplot as plt
+
+    from ._base import finish  # first: it selects the Agg backend
+
+
+    fig, ax = plt.subplots(2, len(loops), figsize=(5 * len(loops), 6.5), sharex=True, squeeze=False)
+    for k, (lbl, per_loop) in enumerate(curves.items()):
+        for j, (b, fcs, pm) in enumerate(per_loop):
+            fc = ", ".join(f"{x:.3g}" for x in fcs)
+            ax[0, j].semilogx(f, b["mag_db"], color=f"C{k}", label=f"{lbl}: crossover {fc} Hz, PM {pm:.0f} deg")
+            ax[1, j].semilogx(f, b["phase_deg"], color=f"C{k}")
+            for x in fcs:
+                ax[0, j].plot(x, 0.0, "o", color=f"C{k}")
+    for j, n in enumerate(loops):
+        ax[0, j].set_title(f"L, {n} loop (outer loops open)", fontsize=9)
+        ax[0, j].axhline(0, color="k", lw=0.6)
+        ax[1, j].axhline(-180, color="k", lw=0.6)
+        ax[1, j].set_xlabel("frequency (Hz)")
+        ax[0, j].legend(fontsize=7)
+        for a in ax[:, j]:
+            a.grid(True, which="both", alpha=0.3)
+    ax[0, 0].set_ylabel("magnitude (dB)")
+    ax[1, 0].set_ylabel("phase (deg)")
+    fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
     return finish(fig, path)

@@ -48,8 +48,15 @@ _SOURCE = Path(__file__).read_bytes()
 
 
 def energy_outputs(model: Model) -> tuple[str, ...]:
-    """The outputs integrated as quadratures: every loss and power output."""
+    """The outputs whose quadratures are energies: every loss and power output."""
     return model.outputs_of("loss") + model.outputs_of("power")
+
+
+def quadrature_outputs(model: Model) -> tuple[str, ...]:
+    """The outputs integrated as quadratures: :func:`energy_outputs`, and the DC-link
+    current ``i_dc`` (its charge), so that its carrier-period average is written too
+    (V_dc times it is then the average power drawn)."""
+    return energy_outputs(model) + (("i_dc",) if "i_dc" in model.outputs else ())
 
 
 def _update(model: Model, pv) -> bool:
@@ -121,7 +128,7 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
     """One carrier period ``(xa, U2, F2, p, hmax) -> xa_next`` (with ``resolve`` also the
     augmented state at the start of each sub-interval, their lengths and switched values).
 
-    ``xa`` = [x, held controller outputs, quadratures of :func:`energy_outputs`];
+    ``xa`` = [x, held controller outputs, quadratures of :func:`quadrature_outputs`];
     ``U2`` the inputs at the period's start and end (interpolated linearly in between);
     ``F2`` the loop flags at its start and at T/2 (used with ``double``); ``hmax`` the
     longest RK4 step. Each sub-interval of length D takes ceil(D / hmax) equal steps (at
@@ -141,7 +148,7 @@ def pwm_period_function(model: Model, n: int, double: bool, resolve: bool = Fals
         Also return the sub-interval starts.
     """
     nx, nh = model.nx, len(model.holds)
-    qi = [model.yindex(n_) for n_ in energy_outputs(model)]
+    qi = [model.yindex(n_) for n_ in quadrature_outputs(model)]
     steps_of = _steps(_substep(model, qi), n)
     xa = ca.MX.sym("x", nx + nh + len(qi))
     hmax = ca.MX.sym("hmax")
@@ -257,7 +264,7 @@ def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) ->
     ``dt_out`` is rounded to whole carrier periods (None: every sub-interval kept)."""
     g = _Grid(model, pv, t_end, dt, dt_out)
     nx, nh = model.nx, len(model.holds)
-    names_q = energy_outputs(model)
+    names_q = quadrature_outputs(model)
     monitor = monitor_for(model, pv)
     x0, _ = _initial_projection(model, sig, pv, x0)
     bad = monitor.first([0.0], x0, None, _input_matrix(model, sig, [0.0]))
@@ -352,7 +359,8 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
         Y[:, 0] = np.asarray(model.f(X[:, 0], U[:, 0], pv)[1]).ravel()
     info = {"status": "completed", "carrier_periods": g.periods, "rk4_max_per_subinterval": g.n,
             "update": "double" if g.double else "single", "compute_time": time.perf_counter() - t_comp,
-            "energies": dict(zip(names_q, map(float, Q_end), strict=True)), "switched": True,
+            "energies": {n: float(q) for n, q in zip(names_q, Q_end, strict=True) if n in energy_outputs(model)},
+            "switched": True,
             # the running integrals at the kept samples (window energies: differences)
             "energy_series": {n: Xa[nx + nh + i].copy() for i, n in enumerate(names_q)},
             "dt_out": None if g.resolve else g.k_req * g.T, "zoh": True, **cinfo}
@@ -365,4 +373,27 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
                         outputs={k: v[keep] for k, v in res.outputs.items()},
                         states={k: v[keep] for k, v in res.states.items()}, info=info, unit_table=res.unit_table,
                         kinds=res.kinds)
+    if not g.resolve:
+        _window_averages(res)
     return res
+
+
+def _window_averages(res: SimResult) -> None:
+    """Replace every power and loss output (and the DC-link current) of a run kept at
+    whole carrier periods by its
+    average over the window that ends at each sample, (E_k - E_(k-1)) / (t_k - t_(k-1))
+    from the run's own quadratures (row 0: the first window's average), so that the
+    samples sum to the energy: sum_k P_k (t_k - t_(k-1)) = E exactly. Sampled at the
+    carrier instants (the zero vector) the instantaneous values are the least
+    representative of the period; they are kept in ``info["instantaneous"]``
+    (:meth:`~ema_casadi.simulation.SimResult.with_instantaneous` adds them as columns)."""
+    series = res.info["energy_series"]
+    inst = {}
+    for name, E in series.items():
+        if name not in res.outputs or len(res.t) < 2:
+            continue
+        avg = np.diff(E) / np.diff(res.t)
+        inst[name] = res.outputs[name].copy()
+        res.outputs[name] = np.concatenate([avg[:1], avg])
+    res.info["instantaneous"] = inst
+    res.info["power_columns"] = "carrier-period averages over the window ending at each sample"

@@ -72,6 +72,19 @@ class SimResult:
         names = [n for n, k in self.kinds.items() if k in ("loss", "power")]
         return {n: float(np.trapezoid(self.outputs[n], self.t)) for n in names}
 
+    def with_instantaneous(self) -> SimResult:
+        """This result with the instantaneous samples of a switched run's power and loss
+        outputs added as columns ``<name>_inst`` (its ``<name>`` columns hold the
+        carrier-period averages); the result itself when it has none."""
+        inst = self.info.get("instantaneous") or {}
+        if not inst:
+            return self
+        outputs = dict(self.outputs) | {f"{k}_inst": v for k, v in inst.items()}
+        units = dict(self.unit_table) | {f"{k}_inst": self.unit_table.get(k, "") for k in inst}
+        kinds = dict(self.kinds) | {f"{k}_inst": "aux" for k in inst}
+        return SimResult(t=self.t, inputs=self.inputs, outputs=outputs, states=self.states, info=self.info,
+                         unit_table=units, kinds=kinds)
+
     def final(self) -> dict:
         """Last value of every output."""
         return {k: float(v[-1]) for k, v in self.outputs.items()}

@@ -48,6 +48,11 @@ Hybrid (stick-slip) friction needs the model's own stepping with its stick proje
 those points run :func:`ema_casadi.simulation.simulate` (compiled RK4) period by period,
 on the same worker threads (the compiled rollouts keep one call buffer per thread).
 
+The switched bridge (``inverter = "pwm"``) runs carrier synchronously, also through
+:func:`ema_casadi.simulation.simulate` period by period: each sine period is a whole
+number N = round(f_sw / f) of carrier periods (the command at f_sw / N, within 0.5/N
+of the asked frequency), sampled at every carrier period's end.
+
 Layout
 ------
 :func:`sine_stream` (``_run``) checks the request, builds the starting states and the

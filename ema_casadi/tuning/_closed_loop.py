@@ -39,9 +39,22 @@ class _ClosedLoop:
 
     def __init__(self, model: Model, jac: ca.Function, scaling: _GainScaling, cases: list):
         self.jac, self.scaling = jac, scaling
+        self.model = model
         self.names = list(model.param_names)
         self.ins, self.outs = _io(model)
+        #: the current command, whose response to position-sensor noise is bounded
+        self.i_cmd = model.outputs.index("i_cmd") if "i_cmd" in model.outputs else None
         self._reduce(cases)
+
+    def _opened(self, op, opened) -> tuple[np.ndarray, np.ndarray]:
+        """(u_lin, p_lin) of ``op`` with the loops ``opened`` broken (flag 0, injection at
+        the measured value), as :func:`ema_casadi.linearisation.linear_model` opens them."""
+        u, p = op.u_lin.copy(), op.p_lin.copy()
+        for name in opened:
+            loop = self.model.loops[name]
+            p[self.names.index(loop.flag)] = 0.0
+            u[self.model.inputs.index(loop.injection)] = op.output(loop.measured)
+        return u, p
 
     def _reduce(self, cases):
         """States kept in the frequency and step responses: those the injections and the
@@ -72,12 +85,15 @@ class _ClosedLoop:
         self.scale = scale
         self.A_norm = float(np.linalg.norm(Ak * (1 / scale)[:, None] * scale[None, :], 1))
 
-    def matrices(self, op):
+    def matrices(self, op, opened=()):
         """Closed-loop matrices at ``op`` as functions of the gains: the full A; the
         balanced, reduced (A, B3, C3, D3) for the three loop injections/measurements
         (diagonal of D3); and (b, Cs, ds) for the command x_cmd and the outputs x_rod,
-        i_q, v_d, v_q."""
-        _, _, A, B, C, D = self.jac(op.x, op.u_lin, self.scaling.p(self.names, op.p_lin))
+        i_q, v_d, v_q. With ``opened`` (loop names) those loops are broken first (the
+        cascade view of a loop inside them: its injection/measurement pair then gives the
+        loop transfer with its outer loops open)."""
+        u, p = self._opened(op, opened)
+        _, _, A, B, C, D = self.jac(op.x, u, self.scaling.p(self.names, p))
         ins, outs = self.ins, self.outs
         k, s = self.keep, self.scale
         Ak = A[k, k] * ca.DM(np.outer(1 / s, s))  # T^-1 A T, T = diag(s)
@@ -90,3 +106,16 @@ class _ClosedLoop:
         Cs = ca.vertcat(*[Ck[o, :] for o in rows])
         ds = ca.vertcat(*[D[o, ins[3]] for o in rows])
         return A, (Ak, B3, C3, D3), (Bk[:, ins[3]], Cs, ds)
+
+    def noise_matrices(self, op):
+        """Balanced, reduced (A, b, c, d) of the closed loop from the position loop's
+        injection (where the position-sensor noise enters: the controller sees
+        measurement + injection) to the current command i_cmd, or None without i_cmd."""
+        if self.i_cmd is None:
+            return None
+        _, _, A, B, C, D = self.jac(op.x, op.u_lin, self.scaling.p(self.names, op.p_lin))
+        k, s = self.keep, self.scale
+        Ak = A[k, k] * ca.DM(np.outer(1 / s, s))
+        b = B[k, self.ins[0]] * ca.DM(1 / s)
+        c = C[self.i_cmd, k] * ca.DM(s).T
+        return Ak, b, c, D[self.i_cmd, self.ins[0]]

@@ -16,7 +16,8 @@ from ._requirements import Requirements, exclusion_disk
 #: ECU sample-rate parameter of each loop.
 _RATE = {"position": "f_s_x", "velocity": "f_s_w", "current": "f_s_i"}
 #: constraint kinds that depend only on the linear dynamics (shared by equal load cases)
-_SHARED = ("margin", "rate", "bandwidth", "bandwidth_min", "eigenvalue")
+_SHARED = ("margin", "rate", "bandwidth", "bandwidth_min", "eigenvalue", "cascade_margin", "unconditional",
+           "separation", "noise")
 
 
 @dataclass
@@ -29,6 +30,22 @@ class _Group:
     expr: ca.MX
     freqs: np.ndarray | None = None
     case: int = -1   # index of the distinct linearisation it was built for
+
+
+def _disk_expr(G, j: int, c: float, R: float):
+    """(|L + c|^2 - R^2) / (|L|^2 + c^2 + R^2) of loop j (in [-1, 2] whatever the disk),
+    from G = S - 1 (rows real and imaginary part, the loops interleaved): >= 0 outside
+    the exclusion disk."""
+    Sr, Si = 1 + G[0, j::3], G[1, j::3]
+    s2 = Sr**2 + Si**2
+    l2 = (1 - Sr) ** 2 + Si**2  # |1 - S|^2 = |L|^2 |S|^2
+    u2 = (1 + (c - 1) * Sr) ** 2 + ((c - 1) * Si) ** 2  # |1 + (c-1) S|^2 = |L + c|^2 |S|^2
+    return (u2 - R**2 * s2) / (l2 + (c**2 + R**2) * s2)
+
+
+def _current_limit(ref: dict) -> float:
+    """The current limit I_max (A) of a parameter set (flat names)."""
+    return float(ref["I_max"])
 
 
 def _rate_floor(ref: dict, loop: str, req: Requirements) -> float:
@@ -45,9 +62,7 @@ def _loop_groups(G, freqs: np.ndarray, req: Requirements, ref: dict, F: float, c
         Sr, Si = 1 + G[0, j::3], G[1, j::3]  # S_j = 1 + G_jj
         s2 = Sr**2 + Si**2
         l2 = (1 - Sr) ** 2 + Si**2  # |1 - S|^2 = |L|^2 |S|^2
-        u2 = (1 + (c - 1) * Sr) ** 2 + ((c - 1) * Si) ** 2  # |1 + (c-1) S|^2 = |L + c|^2 |S|^2
-        # (|L + c|^2 - R^2) / (|L|^2 + c^2 + R^2), in [-1, 2] whatever the disk
-        groups.append(_Group("margin", [F], loop, ((u2 - R**2 * s2) / (l2 + (c**2 + R**2) * s2)).T, freqs, case))
+        groups.append(_Group("margin", [F], loop, _disk_expr(G, j, c, R).T, freqs, case))
         if req.rate_ratio > 0:
             sel = np.nonzero(freqs >= _rate_floor(ref, loop, req))[0]
             if len(sel):  # -log|L|^2 >= 0

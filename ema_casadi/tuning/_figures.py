@@ -10,21 +10,22 @@ from ..frequency import bode, closed_loop, frequency_grid
 from ..linearisation import loop_model, operating_point
 from ..model.assembly import Model
 from ..model.params import Parameters
-from ..plots._tuning import draw_bode, draw_step
+from ..plots._tuning import cascade_figure, draw_bode, draw_step
 from ._requirements import _load_label
 from ._verify import step_metrics
 
 if TYPE_CHECKING:
     from ._solve import TuneResult
 
-__all__ = ["plot_tuning"]
+__all__ = ["plot_tuning", "cascade_bode_figure"]
 
 
 def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, folder,
                 reference: Parameters | None = None) -> list:
     """Bode plots (closed loop x_rod/x_cmd and the three loop transfers, first load case)
     and the nonlinear step (no load) before and after, optionally with a reference gain
-    set; PNGs ``tune_bode.png`` and ``tune_step.png`` written atomically.
+    set, and the cascade view (:func:`cascade_bode_figure`); PNGs ``tune_bode.png``,
+    ``tune_step.png`` and ``tune_cascade.png`` written atomically.
 
     Parameters
     ----------
@@ -42,7 +43,7 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
     Returns
     -------
     list of Path or of matplotlib.figure.Figure
-        The two PNG files (or, without a folder, the figures).
+        The three PNG files (or, without a folder, the figures).
     """
     folder = None if folder is None else Path(folder)
     sets = {"before": (params_before, "--"), "after": (result.params, "-")}
@@ -58,7 +59,41 @@ def plot_tuning(result: TuneResult, model: Model, params_before: Parameters, fol
         curves[lbl] = (ls, [bode(sys_, f) for sys_ in systems])
     bode_png = draw_bode(f, curves, titles, f"gain tuning ({result.objective}), linearised at {_load_label(F)}",
                          None if folder is None else folder / "tune_bode.png")
-    return [bode_png, draw_step(_steps(result, model, sets), None if folder is None else folder / "tune_step.png")]
+    cascade = cascade_bode_figure(model, {k: v[0] for k, v in sets.items()}, F,
+                                  path=None if folder is None else folder / "tune_cascade.png")
+    return [bode_png, draw_step(_steps(result, model, sets), None if folder is None else folder / "tune_step.png"),
+            cascade]
+
+
+def cascade_bode_figure(model: Model, sets: dict, f_ext: float = 0.0, f=None, path=None):
+    """Bode plots of every loop with its outer loops open (the cascade view), one
+    column per loop, for each gain set, the gain crossovers marked.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    sets : dict
+        Label -> Parameters (the gain sets to compare).
+    f_ext : float
+        Load (N) of the operating point.
+    f : array_like, optional
+        Frequencies (Hz; default 0.1 Hz - 10 kHz).
+    path : str or Path, optional
+        PNG file, written atomically; without it the Figure is returned.
+    """
+    from ..frequency import margins
+
+    f = frequency_grid(0.1, 1e4, 60) if f is None else f
+    curves = {}
+    for lbl, ps in sets.items():
+        op = operating_point(model, f_ext=f_ext, p=ps.vector())
+        curves[lbl] = []
+        for n in model.loops:
+            L = loop_model(model, n, op, outer="open")
+            m = margins(L)
+            curves[lbl].append((bode(L, f), [c["f_hz"] for c in m.gain_crossovers], m.pm_deg))
+    return cascade_figure(f, curves, list(model.loops), f"the cascade view, linearised at {_load_label(f_ext)}", path)
 
 
 def _steps(result, model, sets) -> dict:

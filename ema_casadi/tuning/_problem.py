@@ -13,6 +13,16 @@ from ..linearisation import LinearizationError, jacobian_function, operating_poi
 from ..model.assembly import Model
 from ..model.params import Parameters
 from ._callbacks import spectral_abscissa
+from ._cascade import (
+    OUTER_OPEN,
+    dense_checks,
+    gap_start,
+    noise_gain_bound,
+    noise_group,
+    open_grid,
+    outer_open_groups,
+    separation_groups,
+)
 from ._closed_loop import _LOOP_ORDER, _ClosedLoop
 from ._constraints import (
     _SHARED,
@@ -24,6 +34,7 @@ from ._constraints import (
     _loop_groups,
     _overshoot_group,
 )
+from ._inspect import _Inspection
 from ._kernels import _sensitivity_function, _soft_min, _step_states
 from ._requirements import Requirements, TuneError, _goal, _load_label, _request
 from ._scaling import _GainScaling
@@ -51,7 +62,7 @@ _THETA_MAX = 0.3
 _FEAS_TOL = 1e-6
 
 
-class TuningProblem:
+class TuningProblem(_Inspection):
     """The Opti problem for one model, set of free gains, load cases and requirements
     (the formulation: :mod:`ema_casadi.tuning`).
 
@@ -112,8 +123,10 @@ class TuningProblem:
         self._trajectories: list = []
         self._case_step: list[int] = []
         self._bandwidth_variable(objective)
+        self._gap_variables()
         self._loop = _ClosedLoop(model, jacobian_function(model), self._scaling, self.cases)
         self._S = _sensitivity_function(len(self._loop.keep), 3)
+        self._S1 = _sensitivity_function(len(self._loop.keep), 1)
         self._S_grid = self._S.map(len(self.freqs))
         ise = [e for e in (self._add_case(op) for op in self.cases) if e is not None]
         self._objective(objective, ise)
@@ -138,6 +151,20 @@ class TuningProblem:
             self._fb_log0 = math.log(self._initial_bandwidth() / 10.0)
             opti.set_initial(self._fb_log, self._fb_log0)
 
+    def _gap_variables(self) -> None:
+        """g_k (Hz) = 10 exp(zeta_k): between each pair of neighbouring loops (outer loops
+        open) the frequency that the outer loop's crossover lies below g_k / sqrt(s) and
+        the inner one's above g_k sqrt(s) (separation s); started at the geometric mean of
+        the start's crossovers."""
+        self._zeta, self._zeta0 = ca.MX.sym("unused_zeta", 0), np.zeros(0)
+        if self.requirements.separation <= 0:
+            return
+        g0 = gap_start(self.model, self.cases[0])
+        self._zeta = self._opti.variable(len(g0))
+        self._zeta0 = np.log(np.array(g0) / 10.0)
+        self._opti.subject_to(self._opti.bounded(math.log(1e-3), self._zeta, math.log(1e3)))
+        self._opti.set_initial(self._zeta, self._zeta0)
+
     def _initial_bandwidth(self) -> float:
         fb = min(bandwidth(closed_loop(self.model, op), f_min=0.01, f_max=1e4) for op in self.cases)
         return fb if math.isfinite(fb) else 10.0
@@ -149,8 +176,7 @@ class TuningProblem:
         be met."""
         opti, theta = self._opti, self._scaling.theta
         self._g = ca.vertcat(*[_soft_min(grp.expr) for grp in self.groups])
-        self._group_function = ca.Function(
-            "groups", [theta, self._fb_log if self._fb is not None else ca.MX.sym("unused")], [self._g])
+        self._group_function = ca.Function("groups", [theta, self._fb_sym, self._zeta], [self._g])
         # the start is a feasible point of the elastic problem: each slack starts at its
         # group's violation there (zero for a feasible start)
         self.start_values = np.atleast_1d(np.array(opti.debug.value(self._g, opti.initial()), float).ravel())
@@ -163,24 +189,27 @@ class TuningProblem:
         effort = _EFFORT * ca.sumsqr(ca.vertcat(*logs)) if logs else 0
         worst_ise = ca.mmax(ca.vertcat(*ise)) if len(ise) > 1 else ise[0]
         self._J_main = -self._fb_log if objective == "bandwidth" else worst_ise
-        self._J_function = ca.Function(
-            "main_objective", [theta, self._fb_log if self._fb is not None else ca.MX.sym("unused")], [self._J_main])
+        self._J_function = ca.Function("main_objective", [theta, self._fb_sym, self._zeta], [self._J_main])
         opti.minimize(self._J_main + effort + _PENALTY * ca.sum1(self._slack))
         self._iterates: list = []
         opti.callback(self._record)
 
+    @property
+    def _fb_sym(self):  # the bandwidth variable's symbol (a stand-in without the bandwidth objective)
+        return self._fb_log if self._fb is not None else self.__dict__.setdefault("_fb_dummy", ca.MX.sym("unused"))
+
     def _record(self, _iteration) -> None:
-        """Keep every IPOPT iterate (theta, fb_log) for :meth:`feasible_iterates`."""
+        """Keep every IPOPT iterate (theta, fb_log, zeta) for :meth:`feasible_iterates`."""
         dv = self._opti.debug.value
         fb_log = float(dv(self._fb_log)) if self._fb is not None else 0.0
-        self._iterates.append((np.atleast_1d(np.array(dv(self._scaling.theta), float).ravel()), fb_log))
+        zeta = np.atleast_1d(np.array(dv(self._zeta), float).ravel()) if self._zeta.numel() else self._zeta0
+        self._iterates.append((np.atleast_1d(np.array(dv(self._scaling.theta), float).ravel()), fb_log, zeta))
 
     @property
     def start_feasible(self) -> bool:
         """Every constraint group holds at the start gains (optimiser's model)."""
         return bool(np.all(self.start_values >= -_FEAS_TOL))
 
-    # -- load cases ---------------------------------------------------------------
     def _same(self, key: str, exprs) -> int | None:
         """Index of an earlier load case whose ``exprs`` (MX of the gains) are numerically
         equal at the start gains and at random gains, else None (and remember these).
@@ -212,11 +241,13 @@ class TuningProblem:
         A, loop_matrices, (b, Cs, ds) = self._loop.matrices(op)
         Ak = loop_matrices[0]
         A_eig = A[self._loop.keep_eig, self._loop.keep_eig]
-        j = self._same("frequency", [A_eig, *loop_matrices])
+        opened = {loop: self._loop.matrices(op, OUTER_OPEN[loop])[1] for loop in _LOOP_ORDER if OUTER_OPEN[loop]}
+        noise = self._loop.noise_matrices(op)
+        j = self._same("frequency", [A_eig, *loop_matrices, *sum(opened.values(), ()), *(noise or ())])
         if j is not None:
             self._share(_SHARED, j, F)
         else:
-            self._frequency_groups(op, len(self._signatures["frequency"]) - 1, A_eig, loop_matrices)
+            self._frequency_groups(op, len(self._signatures["frequency"]) - 1, A_eig, loop_matrices, opened, noise)
         j = self._same("step", [Ak, b])
         if j is None:
             self._trajectories.append(_step_states(Ak, b, req.step, req.t_step, self._loop.A_norm))
@@ -233,17 +264,30 @@ class TuningProblem:
         self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, self._names))
         return ise
 
-    def _frequency_groups(self, op, case, A_eig, loop_matrices):
-        """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints."""
+    def _frequency_groups(self, op, case, A_eig, loop_matrices, opened, noise):
+        """Margin disks, ECU-rate ceilings, bandwidth and eigenvalue constraints; the
+        cascade's (outer loops open: margins, unconditional stability, separation) and
+        the noise bound."""
         req, F = self.requirements, op.f_ext
-        G = self._S_grid(*loop_matrices, (2 * np.pi * self.freqs).reshape(1, -1))  # 2 x 3N
+        w = (2 * np.pi * self.freqs).reshape(1, -1)
+        G = self._S_grid(*loop_matrices, w)  # 2 x 3N
         self.groups.extend(_loop_groups(G, self.freqs, req, self._ref, F, case))
+        G_open = {"position": (G, self.freqs)}
+        for loop, m in opened.items():
+            f = open_grid(loop, self.freqs)
+            G_open[loop] = (self._S.map(len(f))(*m, (2 * np.pi * f).reshape(1, -1)), f)
+        self.groups.extend(outer_open_groups(G_open, req, F, case))
+        if self._zeta.numel():
+            cfg = {"position": loop_matrices} | opened
+            self.groups.extend(separation_groups(self._S, cfg, 10.0 * ca.exp(self._zeta), req, F, case))
+        bound = noise_gain_bound(req, self._ref)
+        if noise is not None and bound is not None:
+            self.groups.append(noise_group(self._S1, noise, self.freqs, bound, F, case))
         self.groups.extend(_bandwidth_groups(self._S, loop_matrices, self._fb, self.freqs, req, F, case))
         cb = spectral_abscissa(A_eig.shape[0], f"spectral_abscissa_{len(self._callbacks)}")
         self._callbacks.append(cb)  # keep the callback alive as long as the problem
         self.groups.append(_eigenvalue_group(cb(A_eig), req, F, case))
 
-    # -- solve --------------------------------------------------------------------
     def solve(self, max_iter: int = 200, hessian: str = "exact", warm: tuple | None = None) -> dict:
         """Solve by IPOPT.
 
@@ -318,7 +362,7 @@ class TuningProblem:
                          "slack": float(sl), "at_hz": float(grp.freqs[j]) if grp.freqs is not None else None})
         return rows
 
-    def groups_at(self, gains: dict, f_b: float | None = None) -> list[dict]:
+    def groups_at(self, gains: dict, f_b: float | None = None, zeta=None) -> list[dict]:
         """The constraint groups (as ``groups`` of :meth:`solve`, no slack) at these gains.
 
         Parameters
@@ -328,14 +372,16 @@ class TuningProblem:
         f_b : float, optional
             Value (Hz) of the bandwidth variable (``bandwidth`` objective; default the
             start's, the -3 dB frequency at the start gains).
+        zeta : array_like, optional
+            The gap variables log(g_k / 10 Hz) of the separation (default the start's).
         """
         theta = self._scaling.theta_of(gains)
         fb_log = math.log(f_b / 10.0) if f_b is not None else (self._fb_log0 if self._fb is not None else 0.0)
+        zeta = self._zeta0 if zeta is None else np.asarray(zeta, float)
         exprs = [grp.expr for grp in self.groups]
-        fb = self._fb_log if self._fb is not None else ca.MX.sym("unused")
-        f = ca.Function("group_values", [self._scaling.theta, fb], exprs)
-        values = [np.atleast_1d(np.array(v, float).ravel()) for v in f(theta, fb_log)] if len(exprs) > 1 else \
-            [np.atleast_1d(np.array(f(theta, fb_log), float).ravel())]
+        f = ca.Function("group_values", [self._scaling.theta, self._fb_sym, self._zeta], exprs)
+        values = [np.atleast_1d(np.array(v, float).ravel()) for v in f(theta, fb_log, zeta)] if len(exprs) > 1 else \
+            [np.atleast_1d(np.array(f(theta, fb_log, zeta), float).ravel())]
         return self._group_rows(values, np.zeros(len(self.groups)))
 
     def main_objective(self, gains: dict, f_b: float | None = None) -> float:
@@ -351,7 +397,7 @@ class TuningProblem:
         """
         theta = self._scaling.theta_of(gains)
         fb_log = math.log(f_b / 10.0) if f_b is not None else (self._fb_log0 if self._fb is not None else 0.0)
-        return float(self._J_function(theta, fb_log))
+        return float(self._J_function(theta, fb_log, self._zeta0))
 
     @property
     def start_bandwidth(self) -> float | None:
@@ -365,27 +411,27 @@ class TuningProblem:
         Parameters
         ----------
         iterates : list, optional
-            (theta, fb_log) pairs (default those of this problem's solves).
+            (theta, fb_log, zeta) of iterates (default those of this problem's solves).
 
         Returns
         -------
         list of dict
-            ``gains`` (SI, by name), ``objective`` (the main cost, as in :meth:`solve`) and
-            ``f_b`` (Hz, or None).
+            ``gains`` (SI, by name), ``objective`` (the main cost, as in :meth:`solve`),
+            ``f_b`` (Hz, or None) and ``zeta`` (the separation's gap variables).
         """
         out = []
-        for theta, fb_log in (self._iterates if iterates is None else iterates):
-            g = np.array(self._group_function(theta, fb_log), float).ravel()
+        for theta, fb_log, zeta in (self._iterates if iterates is None else iterates):
+            g = np.array(self._group_function(theta, fb_log, zeta), float).ravel()
             if not np.all(np.isfinite(g)) or np.any(g < -_FEAS_TOL):
                 continue
             out.append({"gains": dict(zip(self.free, map(float, self._scaling.values(theta)), strict=False)),
-                        "objective": float(self._J_function(theta, fb_log)),
+                        "objective": float(self._J_function(theta, fb_log, zeta)), "zeta": zeta,
                         "f_b": 10.0 * math.exp(fb_log) if self._fb is not None else None})
         return sorted(out, key=lambda c: c["objective"])
 
     @property
     def iterates(self) -> list:
-        """(theta, fb_log) of every IPOPT iterate of this problem's solves."""
+        """(theta, fb_log, zeta) of every IPOPT iterate of this problem's solves."""
         return list(self._iterates)
 
     def grid_gaps(self, gains: dict, per_decade: int = 100) -> np.ndarray:
@@ -407,69 +453,26 @@ class TuningProblem:
         for case in range(len(self.cases)):
             for loop, S in self._sensitivities(case, f, theta).items():
                 out.extend(_dense_minima(f, 1 / S - 1, self.requirements, self._ref, loop))
+            L_open = {loop: (1 / self._sensitivities(case, open_grid(loop, f), theta, OUTER_OPEN[loop])[loop] - 1,
+                             open_grid(loop, f)) for loop in _LOOP_ORDER}
+            out.extend(dense_checks(L_open, self.requirements))
+            out.extend(self._noise_gaps(case, f, theta))
         new = [x for x in out if np.min(np.abs(np.log(self.freqs / x))) > 1e-6]
         return np.unique(np.array(new))
 
-    # -- inspection ---------------------------------------------------------------
-    def _sensitivities(self, case: int, f: np.ndarray, theta: np.ndarray) -> dict:
-        _, loop_matrices, _ = self._loop.matrices(self.cases[case])
+    def _noise_gaps(self, case: int, f: np.ndarray, theta: np.ndarray) -> list[float]:
+        """Frequencies (Hz) of local maxima of |i_cmd / n_x| above the noise bound on f."""
+        bound, noise = noise_gain_bound(self.requirements, self._ref), self._loop.noise_matrices(self.cases[case])
+        if bound is None or noise is None:
+            return []
+        H = self._S1.map(len(f))(*noise, (2 * np.pi * f).reshape(1, -1))
+        H = np.array(ca.Function("noise", [self._scaling.theta], [H])(theta))
+        h = np.abs(H[0] + 1j * H[1])
+        high = (h > bound) & (h >= np.r_[-np.inf, h[:-1]]) & (h >= np.r_[h[1:], -np.inf])
+        return f[high].tolist()
+
+    def _sensitivities(self, case: int, f: np.ndarray, theta: np.ndarray, opened=()) -> dict:
+        _, loop_matrices, _ = self._loop.matrices(self.cases[case], opened)
         G = self._S.map(len(f))(*loop_matrices, (2 * np.pi * f).reshape(1, -1))
         G = np.array(ca.Function("dense", [self._scaling.theta], [G])(theta))
         return {loop: 1 + G[0, j::3] + 1j * G[1, j::3] for j, loop in enumerate(_LOOP_ORDER)}
-
-    def loop_sensitivities(self, case: int = 0, gains: dict | None = None, freqs=None) -> dict:
-        """The optimiser's loop sensitivities S = 1/(1 + L), each loop broken with the
-        others closed, from its reduced, balanced closed loop.
-
-        Parameters
-        ----------
-        case : int
-            Index of the load case (into :attr:`cases`).
-        gains : dict, optional
-            Values of the free gains (SI, by name; default the start).
-        freqs : array_like, optional
-            Frequencies (Hz; default the problem's grid).
-
-        Returns
-        -------
-        dict
-            Per loop (position, velocity, current): S at ``freqs`` (complex, dimensionless).
-        """
-        theta = self._scaling.theta0 if gains is None else self._scaling.theta_of(gains)
-        f = self.freqs if freqs is None else np.asarray(freqs, float)
-        return self._sensitivities(case, f, theta)
-
-    def step_response(self, case: int = 0, gains: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The optimiser's closed-loop response to the step of ``requirements.step``
-        (exact at the samples: matrix exponential on the doubling time grid).
-
-        Parameters
-        ----------
-        case : int
-            Index of the load case (into :attr:`cases`).
-        gains : dict, optional
-            Values of the free gains (SI, by name; default the start).
-
-        Returns
-        -------
-        t : ndarray
-            Sample times (s) from the step.
-        Y : ndarray
-            Rows x_rod (m), i_q (A), v_d (V), v_q (V): deviations from the operating point.
-        """
-        theta = self._scaling.theta0 if gains is None else self._scaling.theta_of(gains)
-        X, t = self._trajectories[self._case_step[case]]
-        _, _, (_, Cs, ds) = self._loop.matrices(self.cases[case])
-        Y = Cs @ X + ca.repmat(ds * self.requirements.step, 1, X.shape[1])
-        return t, np.array(ca.Function("Y", [self._scaling.theta], [Y])(theta))
-
-    @property
-    def n_linearisations(self) -> int:
-        """Distinct linear dynamics among the load cases (each with its own frequency,
-        bandwidth and eigenvalue constraints)."""
-        return len(self._signatures["frequency"])
-
-    @property
-    def n_step_responses(self) -> int:
-        """Distinct closed-loop state responses to the step among the load cases."""
-        return len(self._trajectories)

@@ -35,8 +35,15 @@ def describe_constraint(v: dict, req: Requirements | None = None) -> str:
         "current": f"current limit on a {r.step * 1e3:g} mm step",
         "voltage": f"voltage limit on a {r.step * 1e3:g} mm step",
         "eigenvalue": f"closed-loop eigenvalues left of -{r.sigma:g} 1/s",
+        "cascade_margin": f"{margin} with the outer loops open",
+        "unconditional": f"unconditional stability (no phase crossover above -{r.margin_targets()[0]:g} dB) "
+                         "with the outer loops open",
+        "separation": f"loop separation >= {r.separation:g} x the next outer loop's crossover",
+        "noise": (f"current-command response to {r.sensor_noise * 1e6:g} um of position-sensor noise "
+                  f"<= {100 * r.command_noise:g} % of I_max"),
     }.get(v["kind"], v["kind"])
-    where = f"{v['loop']} loop, " if v.get("loop") and v["kind"] in ("margin", "rate") else ""
+    where = f"{v['loop']} loop, " if v.get("loop") and v["kind"] in (
+        "margin", "rate", "cascade_margin", "unconditional", "separation") else ""
     at = f" near {v['at_hz']:.3g} Hz" if v.get("at_hz") else ""
     return f"{text} ({where}{_loads_text(v['loads'])}{at})"
 

@@ -75,6 +75,21 @@ class Requirements:
         Horizon of the step response (s).
     rate_ratio : float
         Loop gain below 1 above (ECU sample rate)/rate_ratio; 0 switches it off.
+    separation : float
+        Loop separation of the cascade: each inner loop's gain crossover, with its outer
+        loops open, at least ``separation`` times the next outer loop's (default 3; 0
+        switches it off). With its outer loops open every loop must also be
+        unconditionally stable with the margins: every gain crossover at least PM away
+        from -1 and, at every phase crossover, |L| <= 10^(-GM/20) (no lower gain margin).
+    sensor_noise : float
+        Amplitude (m) of the position-sensor noise the current command must not amplify
+        beyond ``command_noise`` (default 1 um, the resolution of a linear position
+        sensor on this stroke).
+    command_noise : float
+        Largest current-command amplitude that ``sensor_noise`` may cause at any
+        frequency, as a fraction of I_max (default 0.005: 0.12 A for 24 A): the peak of
+        |i_cmd / n_x| (closed loop, A/m) is bounded by command_noise I_max / sensor_noise.
+        0 switches the bound off.
     """
 
     gm_db: float = 6.0
@@ -86,13 +101,16 @@ class Requirements:
     step: float = 1e-4
     t_step: float = 0.2
     rate_ratio: float = 10.0
+    separation: float = 3.0
+    sensor_noise: float = 1e-6
+    command_noise: float = 0.005
 
     def check(self) -> None:
         """Raise :class:`TuneError` naming the first invalid field."""
         def bad(name, what):
             raise TuneError(f"{name} must be {what}, got {getattr(self, name)!r}")
 
-        for name in ("gm_db", "pm_deg", "overshoot", "sigma", "rate_ratio"):
+        for name in ("gm_db", "pm_deg", "overshoot", "sigma", "rate_ratio", "separation", "command_noise"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 bad(name, "a non-negative number")
@@ -111,6 +129,22 @@ class Requirements:
                 bad(name, "positive")
         if 0 < self.rate_ratio < 1:
             bad("rate_ratio", "0 (off) or at least 1")
+        if 0 < self.separation < 1:
+            bad("separation", "0 (off) or at least 1")
+        if not (isinstance(self.sensor_noise, (int, float)) and math.isfinite(self.sensor_noise)
+                and self.sensor_noise > 0):
+            bad("sensor_noise", "a positive length (m)")
+
+    def noise_gain_max(self, i_limit: float) -> float | None:
+        """Bound (A/m) on the peak gain from position-sensor noise to the current command,
+        command_noise I_max / sensor_noise, or None when switched off.
+
+        Parameters
+        ----------
+        i_limit : float
+            Current limit I_max (A) of the model.
+        """
+        return self.command_noise * i_limit / self.sensor_noise if self.command_noise > 0 else None
 
     def margin_targets(self) -> tuple[float, float]:
         """(GM dB, PM deg) every loop must reach: the requested ones, or with ``ms`` the

@@ -123,8 +123,9 @@ class TuneResult:
         }
 
     def plot(self, model: Model | None = None, reference: Parameters | None = None) -> list:
-        """The Bode plots (closed loop and the loop transfers, first load case) and the
-        nonlinear step before and after tuning, as two matplotlib Figures.
+        """The Bode plots (closed loop and the loop transfers, first load case), the
+        nonlinear step and the cascade view (each loop with its outer loops open) before
+        and after tuning, as three matplotlib Figures.
 
         Parameters
         ----------
@@ -281,7 +282,7 @@ def _result(model, params, loads, req, objective, start, out, verify_step, prob,
                     ver_after["nonlinear_step"] = step_metrics(model, params.replace(**gains), verify_step)
                 text = ("returning the best verified-feasible gains among its iterates ("
                         + _objective_text(objective, ver_after, J, ver_before, prob.main_objective(before_gains)) + ")")
-            groups = prob.groups_at(gains, f_b)
+            groups = prob.groups_at(gains, f_b, picked["zeta"] if picked is not None else None)
             violations = []
             success = ver_after["meets"]
             message = f"tuned (safety net): IPOPT {why}; from the verified-feasible start, {text}"

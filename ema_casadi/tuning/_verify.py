@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from ..frequency import bandwidth, closed_loop, margins
+from ..frequency import LoopMargins, bandwidth, closed_loop, freqresp, margins
 from ..linearisation import LinearizationError, linear_model, loop_transfer, operating_point
 from ..model.assembly import Model
 from ..model.params import Parameters
@@ -18,15 +18,16 @@ from ..simulation import simulate, step_response_metrics
 from ._requirements import Requirements, _load_label
 
 _F_MS = np.logspace(-2, 5, 701)  # Hz, 100 per decade for the sensitivity peak
+_F_NOISE = np.logspace(-2, 4, 601)  # Hz, 100 per decade for the noise gain
 
 
-def _loop_margins(L) -> dict:
+def _loop_margins(L) -> dict:  # L: a loop transfer or its LoopMargins
     """Margins of a SISO loop transfer (:func:`ema_casadi.frequency.margins`, crossovers
     in 0.01 Hz - 100 kHz): ``gm_db`` (signed, the smallest in magnitude: positive = the
     gain may rise by that much, negative = fall), ``f_pc_hz``, ``gm_up_db`` /
     ``gm_down_db`` (the smallest rise / fall, inf if none), ``pm_deg`` (smallest angular
     distance of L to -1 at a gain crossover) and ``f_gc_hz``."""
-    m = margins(L)
+    m = L if isinstance(L, LoopMargins) else margins(L)
     gms = [c["gm_db"] for c in m.phase_crossovers]
     up, down = [g for g in gms if g > 0], [-g for g in gms if g <= 0]
     return {"gm_db": float(m.gm_db), "f_pc_hz": None if m.f_pc_hz is None else float(m.f_pc_hz),
@@ -62,6 +63,49 @@ def _check_loops(model, op, label, req, worst, failures) -> dict:
         if req.ms is not None and m["ms"] > req.ms * (1 + 1e-3):
             failures.append(f"{where}: sensitivity peak {m['ms']:.4g} > Ms = {req.ms:g}")
     return loops
+
+
+def _check_cascade(model, op, label, req, failures) -> dict:
+    """Every loop with its outer loops open (the cascade view): margins at every
+    crossing, unconditional stability (no phase crossover where |L| > 10^(-GM/20)),
+    the separation of neighbouring gain crossovers and the noise gain. Returns
+    ``loops`` (per loop: as :func:`_loop_margins` plus ``gain_crossovers_hz``),
+    ``separation`` (per inner loop: the ratio of its lowest gain crossover to the
+    outer loop's highest) and ``noise_gain_A_per_m`` (peak |i_cmd / n_x|, 0.01 Hz -
+    10 kHz, the tuner's grid ends there and the response is flat above)."""
+    gm_up, pm_req = req.margin_targets()
+    loops, fcs = {}, {}
+    for name in model.loops:
+        m = margins(loop_transfer(model, name, op, outer="open"))
+        d = _loop_margins(m)
+        d["gain_crossovers_hz"] = [c["f_hz"] for c in m.gain_crossovers]
+        loops[name], fcs[name] = d, d["gain_crossovers_hz"]
+        where = f"{name} loop (outer loops open) at {label}"
+        if d["gm_down_db"] < math.inf:
+            failures.append(f"{where}: conditionally stable (gain-reduction margin {d['gm_down_db']:.2f} dB); "
+                            "unconditional stability required")
+        if d["gm_up_db"] < gm_up - 1e-6:
+            failures.append(f"{where}: GM {d['gm_up_db']:.2f} dB < {gm_up:.3g} dB required")
+        if d["pm_deg"] < pm_req - 1e-6:
+            failures.append(f"{where}: PM {d['pm_deg']:.2f} deg < {pm_req:.3g} deg required")
+    names = list(model.loops)
+    sep = {}
+    for outer, inner in zip(names[:-1], names[1:], strict=True):
+        ratio = min(fcs[inner]) / max(fcs[outer]) if fcs[inner] and fcs[outer] else math.nan
+        sep[inner] = ratio
+        if req.separation > 0 and not ratio >= req.separation * (1 - 1e-6):
+            failures.append(f"{label}: {inner} loop crossover only {ratio:.3g} x the {outer} loop's "
+                            f"(outer loops open); separation {req.separation:g} required")
+    out = {"loops": loops, "separation": sep, "noise_gain_A_per_m": None}
+    if "i_cmd" in model.outputs:
+        H = freqresp(linear_model(model, op, inputs=[model.loops[names[0]].injection], outputs=["i_cmd"]), _F_NOISE)
+        gain = out["noise_gain_A_per_m"] = float(np.max(np.abs(H)))
+        bound = req.noise_gain_max(float(op.p[model.param_names.index("I_max")]))
+        if bound is not None and gain > bound * (1 + 1e-4):
+            n = req.sensor_noise
+            failures.append(f"{label}: current command moves {gain * n:.3g} A on {n * 1e6:g} um of "
+                            f"position-sensor noise > {bound * n:.3g} A")
+    return out
 
 
 def _linear_step(model, op, amp, t_end):
@@ -101,6 +145,10 @@ def _check_load(model, op, F, req, limits, worst, failures) -> dict:
     worst["bandwidth_hz"] = min(worst["bandwidth_hz"], bw)
     if req.bandwidth_min_hz is not None and bw < req.bandwidth_min_hz * (1 - 1e-6):
         failures.append(f"{label}: bandwidth {bw:.3g} Hz < {req.bandwidth_min_hz:g} Hz required")
+    cascade = _check_cascade(model, op, label, req, failures)
+    worst["separation"] = min([worst["separation"], *cascade["separation"].values()])
+    if cascade["noise_gain_A_per_m"] is not None:
+        worst["noise_gain_A_per_m"] = max(worst["noise_gain_A_per_m"], cascade["noise_gain_A_per_m"])
     st = _linear_step(model, op, req.step, req.t_step)
     I_max, v_lim = limits
     if st["overshoot"] > req.overshoot + 1e-4:
@@ -111,7 +159,7 @@ def _check_load(model, op, F, req, limits, worst, failures) -> dict:
     if st["v_dq_peak_V"] > v_lim * (1 + 1e-4):
         failures.append(f"{label}: voltage peak {st['v_dq_peak_V']:.4g} V > {v_lim:.4g} V on a "
                         f"{req.step * 1e3:g} mm step")
-    return {"f_ext_N": F, "loops": loops, "bandwidth_hz": bw, "spectral_abscissa": alpha,
+    return {"f_ext_N": F, "loops": loops, "outer_open": cascade, "bandwidth_hz": bw, "spectral_abscissa": alpha,
             "stable": stable, "step": st}
 
 
@@ -144,8 +192,10 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     -------
     dict
         ``loads`` (per load label: ``loops`` -> gm_db, f_pc_hz, gm_up_db, gm_down_db,
-        pm_deg, f_gc_hz, ms, stable; ``bandwidth_hz``, ``spectral_abscissa``, ``step``),
-        ``worst`` (smallest |GM|, PM, bandwidth, largest Ms over all), ``meets`` (bool),
+        pm_deg, f_gc_hz, ms, stable; ``outer_open`` -> the cascade view: ``loops`` with
+        their outer loops open, ``separation`` per inner loop, ``noise_gain_A_per_m``;
+        ``bandwidth_hz``, ``spectral_abscissa``, ``step``), ``worst`` (smallest |GM|, PM,
+        bandwidth, separation, largest Ms and noise gain over all), ``meets`` (bool),
         ``failures`` (list of one-line texts) and ``nonlinear_step`` (or None).
     """
     req = requirements or Requirements()
@@ -153,7 +203,8 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     pv = dict(zip(model.param_names, p, strict=False))
     limits = (pv["I_max"], pv["k_v"] * pv["V_dc"] / math.sqrt(3))
     out, failures = {}, []
-    worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf}
+    worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf, "separation": math.inf,
+             "noise_gain_A_per_m": 0.0}
     for F in loads:
         label = _load_label(F)
         try:

@@ -22,6 +22,8 @@ from ema_casadi import tuning as T
 from ema_casadi.cli import main
 
 LOADS = (0.0, 15e3, 30e3)
+#: the requirements of the tunes from a poor start (gains x 0.2)
+POOR_START = T.Requirements(separation=0.0, command_noise=0.0)
 
 
 def _margins(L):
@@ -155,10 +157,12 @@ def test_trim_is_gain_independent_and_loads_share_dynamics(params, model_cache, 
 @pytest.fixture(scope="module")
 def tuned(params, model_cache):
     """Tune from every gain x 0.2 over 0, 15, 30 kN (bandwidth objective, GM 6 dB,
-    PM 45 deg, overshoot 5 %)."""
+    PM 45 deg, overshoot 5 %, the outer-open margins; without the loop separation and the
+    noise bound: from this start IPOPT does not find their feasible set, which the
+    reference gains show exists - the cascade tests start from the reference)."""
     model = model_cache()
     start = T.scaled_gains(params, 0.2, T.default_free(model))
-    res = T.tune(params, model=model, loads=LOADS, start=start, verify_step=0.0)
+    res = T.tune(params, model=model, loads=LOADS, start=start, verify_step=0.0, requirements=POOR_START)
     return model, res
 
 
@@ -213,13 +217,15 @@ def test_tuned_file_round_trip(tuned, tmp_path):
 
 
 def test_tuned_result_plots_before_and_after(tuned):
-    """TuneResult.plot(): the Bode figure (closed loop and each loop transfer) and the
-    step figure, one line per gain set (before, after)."""
+    """TuneResult.plot(): the Bode figure (closed loop and each loop transfer), the
+    step figure, one line per gain set (before, after), and the cascade view (each loop
+    with its outer loops open)."""
     from matplotlib.figure import Figure
 
     model, res = tuned
-    bode_fig, step_fig = res.plot(model)
-    assert isinstance(bode_fig, Figure) and isinstance(step_fig, Figure)
+    bode_fig, step_fig, cascade_fig = res.plot(model)
+    assert isinstance(bode_fig, Figure) and isinstance(step_fig, Figure) and isinstance(cascade_fig, Figure)
+    assert len(cascade_fig.axes) == 2 * len(model.loops)
     assert len(bode_fig.axes) == 2 * (1 + len(model.loops))
     assert {line.get_label().split(":")[0] for line in step_fig.axes[0].lines} >= {"before", "after"}
     assert repr(res).startswith("TuneResult(success=True")
@@ -273,9 +279,10 @@ def test_cli_json_writes_file_and_plots(tmp_path, capsys):
     ({}, {"objective": "tracking", "loads": LOADS}),
     ({"controller": "PI"}, {"loads": (0.0, 30e3)}),
     ({"motor": "dc", "screw": "rigid"}, {"loads": (0.0, 30e3)}),
-    ({}, {"requirements": T.Requirements(ms=1.6)}),
-    ({}, {"requirements": T.Requirements(sigma=50.0)}),
-    ({}, {"objective": "tracking", "requirements": T.Requirements(bandwidth_min_hz=30.0)}),
+    ({}, {"requirements": T.Requirements(ms=1.6, separation=0.0, command_noise=0.0)}),
+    ({}, {"requirements": T.Requirements(sigma=50.0, separation=0.0, command_noise=0.0)}),
+    ({}, {"objective": "tracking",
+          "requirements": T.Requirements(bandwidth_min_hz=30.0, separation=0.0, command_noise=0.0)}),
 ])
 def test_other_variants_and_requirements_converge(params, model_cache, variants, kwargs):
     """From gains x 0.2: IPOPT converges, no slack, and the independent check passes
@@ -284,6 +291,7 @@ def test_other_variants_and_requirements_converge(params, model_cache, variants,
     start = T.scaled_gains(params, 0.2, T.default_free(model))
     if "K_i_x" in start:
         start["K_i_x"] = 0.0
+    kwargs.setdefault("requirements", POOR_START)
     res = T.tune(params, model=model, start=start, verify_step=0.0, **kwargs)
     assert res.success, res.message
 
@@ -317,6 +325,7 @@ def _independent_failures(model, params, loads, req, start_bandwidth=None):
                 mag = np.abs(ct.frequency_response(L, 2 * np.pi * f).complex.ravel())
                 if np.max(mag) > 1 + 1e-3:
                     fails.append(f"{F:g} N {loop}: |L| {np.max(mag):.4f} above the ECU-rate floor")
+        fails.extend(_cascade_failures(model, op, req, pv["I_max"]))
         lin = lz.linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod", "i_q", "v_d", "v_q"])
         keep = [i for i in range(lin.A.shape[0]) if np.any(lin.A[:, i] != 0)]
         alpha = np.max(np.linalg.eigvals(lin.A[np.ix_(keep, keep)]).real)
@@ -339,6 +348,52 @@ def _independent_failures(model, params, loads, req, start_bandwidth=None):
             bw = _bandwidth_hz(sys_[0, 0])
             if not bw >= start_bandwidth * (1 - 1e-3):
                 fails.append(f"{F:g} N: bandwidth {bw:.4g} Hz below the start's {start_bandwidth:.4g} Hz")
+    return fails
+
+
+def _outer_open_loop(lin, loop):
+    """python-control loop transfer L = -G(injection -> measurement) of a loop from a
+    linear model (A, B, C, D with names) exported with that loop and its outer loops open."""
+    inj, meas = {"position": ("d_x", "x_rod"), "velocity": ("d_w", "omega"), "current": ("d_i", "i_q")}[loop]
+    i, o = list(lin.inputs).index(inj), list(lin.outputs).index(meas)
+    return ct.ss(lin.A, lin.B[:, [i]], -lin.C[[o], :], -lin.D[[o]][:, [i]])
+
+
+def _cascade_failures(model, op, req, I_max):
+    """The cascade requirements by python-control: each loop with its outer loops open
+    closed-loop stable, unconditionally stable (every phase crossover with |L| <=
+    10^(-GM/20), none where the gain may only fall), PM at every gain crossover; the
+    lowest gain crossover of each inner loop at least req.separation x the highest of
+    the next outer one; the peak of |i_cmd / d_x| (0.01 Hz - 10 kHz) within the bound."""
+    fails, fcs = [], {}
+    order = list(model.loops)
+    for k, loop in enumerate(order):
+        lin = lz.linear_model(model, op, open_loops=order[:k + 1])
+        L = _outer_open_loop(lin, loop)
+        gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
+        gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(v, float)) for v in (gm, pm, wpc, wgc))
+        sel_pc = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5) & np.isfinite(gm)
+        sel_gc = (wgc > 2 * np.pi * 1e-2) & (wgc < 2 * np.pi * 1e5)
+        gm_db = 20 * np.log10(gm[sel_pc])
+        pm_dist = np.abs((pm[sel_gc] + 180) % 360 - 180)
+        fcs[loop] = wgc[sel_gc] / (2 * np.pi)
+        closed = ct.feedback(L, 1)
+        if np.max(closed.poles().real) > 1e-6 * max(1.0, np.max(np.abs(closed.poles()))):
+            fails.append(f"{op.f_ext:g} N {loop} (outer open): closed loop unstable")
+        if np.any(gm_db < req.gm_db - 1e-6):
+            fails.append(f"{op.f_ext:g} N {loop} (outer open): phase crossovers at GM {gm_db} dB")
+        if not (pm_dist.size and np.min(pm_dist) >= req.pm_deg - 1e-6):
+            fails.append(f"{op.f_ext:g} N {loop} (outer open): PM {pm_dist}")
+    for outer, inner in zip(order[:-1], order[1:], strict=True):
+        if req.separation > 0 and not np.min(fcs[inner]) >= req.separation * np.max(fcs[outer]) * (1 - 1e-6):
+            fails.append(f"{op.f_ext:g} N: {inner} crossovers {fcs[inner]} Hz not {req.separation:g} x "
+                         f"the {outer} loop's {fcs[outer]} Hz")
+    bound = req.noise_gain_max(I_max)
+    if bound is not None:
+        lin = lz.linear_model(model, op, inputs=["d_x"], outputs=["i_cmd"])
+        H = ct.frequency_response(ct.ss(lin.A, lin.B, lin.C, lin.D), 2 * np.pi * np.logspace(-2, 4, 601))
+        if np.max(np.abs(H.complex)) > bound * (1 + 1e-4):
+            fails.append(f"{op.f_ext:g} N: noise gain {np.max(np.abs(H.complex)):.4g} A/m > {bound:.4g} A/m")
     return fails
 
 
@@ -388,7 +443,7 @@ def test_plain_ema_tune_succeeds_from_the_reference(capsys):
     code = main(["tune", str(REFERENCE), "--json", "--sim-step", "0"])
     r = json.loads(capsys.readouterr().out)
     assert code == 0 and r["success"] and r["status"] == "Solve_Succeeded" and r["fallback"] is None, r["message"]
-    assert r["iterations"] < 100
+    assert r["iterations"] < 200  # the cascade's constraints: 121 measured (was < 100 without them)
     params = load_parameters(REFERENCE)
     model = build_model(params)
     tuned = params.replace(**r["gains_after"])

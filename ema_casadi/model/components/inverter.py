@@ -296,7 +296,10 @@ class Pwm(Part):
         *(Output(f"v_{k}n", "V", f"phase-{k} voltage (to the star point)") for k in LEGS),
         Output("v_ab", "V", "line voltage a-b"),
         Output("v_bc", "V", "line voltage b-c"),
-        Output("i_dc", "A", "DC-link current of the bridge, sum s_k i_k"),
+        Output("i_sw", "A", "current through the ideal switches into the legs, sum s_k i_k (v_dc i_sw: the "
+                            "winding power, without the inverter losses)"),
+        Output("i_dc", "A", "DC-link current the bridge draws, P_bridge / v_dc: v_dc i_dc is the winding power "
+                            "plus the inverter losses (with the ideal supply, V_dc i_dc = P_dc)"),
     )
     params = ("V_CE0", "V_F0", "r_CE", "r_F", "f_sw", "E_sw", "V_sw_ref", "I_sw_ref", "t_dead", "pp", "R_open", "L_d",
               "L_q")
@@ -360,12 +363,13 @@ class Pwm(Part):
             ("v_d", "v_q"): winding_voltages,
             "v_ab": lambda b: b["v_an"] - b["v_bn"],
             "v_bc": lambda b: b["v_bn"] - b["v_cn"],
-            "i_dc": lambda b: b["s_a"] * b["i_a"] + b["s_b"] * b["i_b"] + b["s_c"] * b["i_c"],
+            "i_sw": lambda b: b["s_a"] * b["i_a"] + b["s_b"] * b["i_b"] + b["s_c"] * b["i_c"],
+            "i_dc": lambda b: b["P_bridge"] / b["v_dc"],
             ("P_cond_T", "P_cond_D", "P_inv_cond", "P_inv_sw"): losses,
             "sw": lambda b: 0,
-            # the continuous model draws the winding power itself (v_dc i_dc equals it but
+            # the continuous model draws the winding power itself (v_dc i_sw equals it but
             # for round-off that would depend on the rotor angle)
-            "P_bridge": lambda b: (b["sw"] * b["v_dc"] * b["i_dc"] + (1 - b["sw"]) * b["P_elec"] + b["P_inv_cond"]
+            "P_bridge": lambda b: (b["sw"] * b["v_dc"] * b["i_sw"] + (1 - b["sw"]) * b["P_elec"] + b["P_inv_cond"]
                                    + b["P_inv_sw"]),
         }
 
