@@ -134,10 +134,11 @@ def noise_group(S1: ca.Function, noise, freqs: np.ndarray, bound: float, F: floa
     return _Group("noise", [F], None, ca.log(bound**2 / (h2 + 1e-300)).T, freqs, case)
 
 
-def noise_gain_bound(req: Requirements, ref: dict) -> float | None:
-    """The bound (A/m) of :func:`noise_group` for the set's current limit I_max (A),
-    :data:`_NOISE_MARGIN` inside the requirement's."""
-    bound = req.noise_gain_max(_current_limit(ref))
+def noise_gain_bound(req: Requirements, limits: dict) -> float | None:
+    """The bound (A/m) of :func:`noise_group` for the current limit (A) of ``limits``
+    (:func:`~ema_casadi.tuning._constraints.ecu_limits`), :data:`_NOISE_MARGIN` inside
+    the requirement's."""
+    bound = req.noise_gain_max(_current_limit(limits))
     return None if bound is None else bound * (1 - _NOISE_MARGIN)
 
 

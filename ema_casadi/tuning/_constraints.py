@@ -4,7 +4,6 @@ eigenvalue bound, overshoot, current and voltage limits along the step."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -13,8 +12,6 @@ import numpy as np
 from ._closed_loop import _LOOP_ORDER
 from ._requirements import Requirements, exclusion_disk
 
-#: ECU sample-rate parameter of each loop.
-_RATE = {"position": "f_s_x", "velocity": "f_s_w", "current": "f_s_i"}
 #: constraint kinds that depend only on the linear dynamics (shared by equal load cases)
 _SHARED = ("margin", "rate", "bandwidth", "bandwidth_min", "eigenvalue", "cascade_margin", "unconditional",
            "separation", "noise")
@@ -43,17 +40,27 @@ def _disk_expr(G, j: int, c: float, R: float):
     return (u2 - R**2 * s2) / (l2 + (c**2 + R**2) * s2)
 
 
-def _current_limit(ref: dict) -> float:
-    """The current limit I_max (A) of a parameter set (flat names)."""
-    return float(ref["I_max"])
+def ecu_limits(model, p=None) -> dict:
+    """What the tuning keeps within, from the parts' declarations: the current limit
+    (A) and the voltage limit (V) of the model's trim limits, and each loop's ECU
+    sample rate (Hz, the parameter its :class:`~ema_casadi.model.components.Loop`
+    names), at the parameter vector ``p`` (default the model's set)."""
+    P, limit = vars(model.pdict(p)), model.limit_values(p)
+    return {"current": limit["current"], "voltage": limit["voltage"],
+            "rate": {name: float(P[loop.rate]) for name, loop in model.loops.items()}}
 
 
-def _rate_floor(ref: dict, loop: str, req: Requirements) -> float:
+def _current_limit(limits: dict) -> float:
+    """The current limit (A) of :func:`ecu_limits`."""
+    return float(limits["current"])
+
+
+def _rate_floor(limits: dict, loop: str, req: Requirements) -> float:
     """Frequency (Hz) above which the loop's gain must stay below 1."""
-    return ref[_RATE[loop]] / req.rate_ratio
+    return limits["rate"][loop] / req.rate_ratio
 
 
-def _loop_groups(G, freqs: np.ndarray, req: Requirements, ref: dict, F: float, case: int) -> list[_Group]:
+def _loop_groups(G, freqs: np.ndarray, req: Requirements, limits: dict, F: float, case: int) -> list[_Group]:
     """Margin disk and ECU-rate ceiling of each loop from G = S - 1 (2 x 3N: real and
     imaginary parts, the loops interleaved) on the grid ``freqs`` (Hz)."""
     c, R = exclusion_disk(req)
@@ -64,7 +71,7 @@ def _loop_groups(G, freqs: np.ndarray, req: Requirements, ref: dict, F: float, c
         l2 = (1 - Sr) ** 2 + Si**2  # |1 - S|^2 = |L|^2 |S|^2
         groups.append(_Group("margin", [F], loop, _disk_expr(G, j, c, R).T, freqs, case))
         if req.rate_ratio > 0:
-            sel = np.nonzero(freqs >= _rate_floor(ref, loop, req))[0]
+            sel = np.nonzero(freqs >= _rate_floor(limits, loop, req))[0]
             if len(sel):  # -log|L|^2 >= 0
                 groups.append(_Group("rate", [F], loop, ca.log(s2[sel] / l2[sel]).T, freqs[sel], case))
     return groups
@@ -104,28 +111,27 @@ def _overshoot_group(X, t: np.ndarray, c_rod, d_rod, req: Requirements, F: float
     return group, ise
 
 
-def _limit_groups(op, X, Cs, ds, req: Requirements, names: list) -> list[_Group]:
-    """Current and voltage limits along the step (rows of Cs/ds: i_q, v_d, v_q;
-    operating values added)."""
+def _limit_groups(op, X, Cs, ds, req: Requirements, limits: dict) -> list[_Group]:
+    """Current and voltage limits (:func:`ecu_limits`) along the step (rows of Cs/ds:
+    i_q, v_d, v_q; operating values added)."""
     F = op.f_ext
     Y = Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])
     i_q = op.output("i_q") + Y[0, :]
     v_d, v_q = op.output("v_d") + Y[1, :], op.output("v_q") + Y[2, :]
-    pv = dict(zip(names, op.p, strict=False))
-    v_lim = pv["k_v"] * pv["V_dc"] / math.sqrt(3)
-    r_i = (i_q / pv["I_max"]) ** 2
+    v_lim = limits["voltage"]
+    r_i = (i_q / limits["current"]) ** 2
     r_v = (v_d**2 + v_q**2) / v_lim**2
     return [_Group("current", [F], None, ca.log((1 + 1e-3) / (r_i + 1e-3)).T),
             _Group("voltage", [F], None, ca.log((1 + 1e-3) / (r_v + 1e-3)).T)]
 
 
-def _dense_minima(f: np.ndarray, L: np.ndarray, req: Requirements, ref: dict, loop: str) -> list[float]:
+def _dense_minima(f: np.ndarray, L: np.ndarray, req: Requirements, limits: dict, loop: str) -> list[float]:
     """Frequencies (Hz) of the local minima below zero of the margin-disk and ECU-rate
     checks of the loop transfer L (complex, on the grid f)."""
     c, R = exclusion_disk(req)
     checks = [np.abs(L + c) ** 2 - R**2]
     if req.rate_ratio > 0:
-        checks.append(np.where(f >= _rate_floor(ref, loop, req), 1 - np.abs(L) ** 2, 1.0))
+        checks.append(np.where(f >= _rate_floor(limits, loop, req), 1 - np.abs(L) ** 2, 1.0))
     out = []
     for m in checks:
         low = (m < 0) & (m <= np.r_[np.inf, m[:-1]]) & (m <= np.r_[m[1:], np.inf])

@@ -33,6 +33,7 @@ from ._constraints import (
     _limit_groups,
     _loop_groups,
     _overshoot_group,
+    ecu_limits,
 )
 from ._inspect import _Inspection
 from ._kernels import _sensitivity_function, _soft_min, _step_states
@@ -113,6 +114,7 @@ class TuningProblem(_Inspection):
         self.model, self.params, self.free, self.requirements = model, params, free, req
         self._names = list(model.param_names)
         self._ref = params.as_dict()
+        self._limits = ecu_limits(model, params.vector())
         self.freqs = freqs
         self._callbacks = []
         self.cases = self._trim(loads, params.vector(**start))
@@ -261,7 +263,7 @@ class TuningProblem(_Inspection):
         else:
             grp, ise = _overshoot_group(X, t, Cs[0, :], ds[0], req, F, len(self._signatures["x_rod"]) - 1)
             self.groups.append(grp)
-        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, self._names))
+        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, ecu_limits(self.model, op.p)))
         return ise
 
     def _frequency_groups(self, op, case, A_eig, loop_matrices, opened, noise):
@@ -271,7 +273,7 @@ class TuningProblem(_Inspection):
         req, F = self.requirements, op.f_ext
         w = (2 * np.pi * self.freqs).reshape(1, -1)
         G = self._S_grid(*loop_matrices, w)  # 2 x 3N
-        self.groups.extend(_loop_groups(G, self.freqs, req, self._ref, F, case))
+        self.groups.extend(_loop_groups(G, self.freqs, req, self._limits, F, case))
         G_open = {"position": (G, self.freqs)}
         for loop, m in opened.items():
             f = open_grid(loop, self.freqs)
@@ -280,7 +282,7 @@ class TuningProblem(_Inspection):
         if self._zeta.numel():
             cfg = {"position": loop_matrices} | opened
             self.groups.extend(separation_groups(self._S, cfg, 10.0 * ca.exp(self._zeta), req, F, case))
-        bound = noise_gain_bound(req, self._ref)
+        bound = noise_gain_bound(req, self._limits)
         if noise is not None and bound is not None:
             self.groups.append(noise_group(self._S1, noise, self.freqs, bound, F, case))
         self.groups.extend(_bandwidth_groups(self._S, loop_matrices, self._fb, self.freqs, req, F, case))
@@ -452,7 +454,7 @@ class TuningProblem(_Inspection):
         out = []
         for case in range(len(self.cases)):
             for loop, S in self._sensitivities(case, f, theta).items():
-                out.extend(_dense_minima(f, 1 / S - 1, self.requirements, self._ref, loop))
+                out.extend(_dense_minima(f, 1 / S - 1, self.requirements, self._limits, loop))
             L_open = {loop: (1 / self._sensitivities(case, open_grid(loop, f), theta, OUTER_OPEN[loop])[loop] - 1,
                              open_grid(loop, f)) for loop in _LOOP_ORDER}
             out.extend(dense_checks(L_open, self.requirements))
@@ -462,7 +464,7 @@ class TuningProblem(_Inspection):
 
     def _noise_gaps(self, case: int, f: np.ndarray, theta: np.ndarray) -> list[float]:
         """Frequencies (Hz) of local maxima of |i_cmd / n_x| above the noise bound on f."""
-        bound, noise = noise_gain_bound(self.requirements, self._ref), self._loop.noise_matrices(self.cases[case])
+        bound, noise = noise_gain_bound(self.requirements, self._limits), self._loop.noise_matrices(self.cases[case])
         if bound is None or noise is None:
             return []
         H = self._S1.map(len(f))(*noise, (2 * np.pi * f).reshape(1, -1))

@@ -15,6 +15,7 @@ from ..model.assembly import Model
 from ..model.params import Parameters
 from ..signals import Signal
 from ..simulation import simulate, step_response_metrics
+from ._constraints import ecu_limits
 from ._requirements import Requirements, _load_label
 
 _F_MS = np.logspace(-2, 5, 701)  # Hz, 100 per decade for the sensitivity peak
@@ -100,7 +101,7 @@ def _check_cascade(model, op, label, req, failures) -> dict:
     if "i_cmd" in model.outputs:
         H = freqresp(linear_model(model, op, inputs=[model.loops[names[0]].injection], outputs=["i_cmd"]), _F_NOISE)
         gain = out["noise_gain_A_per_m"] = float(np.max(np.abs(H)))
-        bound = req.noise_gain_max(float(op.p[model.param_names.index("I_max")]))
+        bound = req.noise_gain_max(ecu_limits(model, op.p)["current"])
         if bound is not None and gain > bound * (1 + 1e-4):
             n = req.sensor_noise
             failures.append(f"{label}: current command moves {gain * n:.3g} A on {n * 1e6:g} um of "
@@ -129,7 +130,7 @@ def _linear_step(model, op, amp, t_end):
 
 
 def _check_load(model, op, F, req, limits, worst, failures) -> dict:
-    """Every check at the operating point of load case F (N); ``limits`` = (I_max A,
+    """Every check at the operating point of load case F (N); ``limits`` = (current limit A,
     v_lim V)."""
     label = _load_label(F)
     loops = _check_loops(model, op, label, req, worst, failures)
@@ -150,11 +151,11 @@ def _check_load(model, op, F, req, limits, worst, failures) -> dict:
     if cascade["noise_gain_A_per_m"] is not None:
         worst["noise_gain_A_per_m"] = max(worst["noise_gain_A_per_m"], cascade["noise_gain_A_per_m"])
     st = _linear_step(model, op, req.step, req.t_step)
-    I_max, v_lim = limits
+    i_lim, v_lim = limits
     if st["overshoot"] > req.overshoot + 1e-4:
         failures.append(f"{label}: linear step overshoot {100 * st['overshoot']:.2f} % > {100 * req.overshoot:g} %")
-    if st["i_q_peak_A"] > I_max * (1 + 1e-4):
-        failures.append(f"{label}: current peak {st['i_q_peak_A']:.3g} A > I_max {I_max:g} A on a "
+    if st["i_q_peak_A"] > i_lim * (1 + 1e-4):
+        failures.append(f"{label}: current peak {st['i_q_peak_A']:.3g} A > the current limit {i_lim:g} A on a "
                         f"{req.step * 1e3:g} mm step")
     if st["v_dq_peak_V"] > v_lim * (1 + 1e-4):
         failures.append(f"{label}: voltage peak {st['v_dq_peak_V']:.4g} V > {v_lim:.4g} V on a "
@@ -200,8 +201,8 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     """
     req = requirements or Requirements()
     p = params.vector()
-    pv = dict(zip(model.param_names, p, strict=False))
-    limits = (pv["I_max"], pv["k_v"] * pv["V_dc"] / math.sqrt(3))
+    lim = ecu_limits(model, p)
+    limits = (lim["current"], lim["voltage"])
     out, failures = {}, []
     worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf, "separation": math.inf,
              "noise_gain_A_per_m": 0.0}
