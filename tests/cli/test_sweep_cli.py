@@ -18,7 +18,7 @@ from ema_casadi.sweeps import load_sweep, sweep
 
 SPEC = """[sweep]
 seed = 5
-samples = 4
+samples = 10
 [variants]
 friction = "hybrid"
 [parameters]
@@ -28,12 +28,16 @@ F_seal = { distribution = "uniform", low = 0.5, high = 1.5, relative = true }
 duration = 1.0
 x_cmd = "step:1mm@0.01"
 solver = "rk4"
-dt = 1e-4
+dt = 1e-5
 dt_out = 1e-3
 [metrics]
 step = {}
 hunting = {}
 """
+#: rows of SPEC (3 values of B x 10 draws): with the compiled solvers a row takes
+#: milliseconds (50 ms at dt = 1e-5 s), so the sweep must be long enough that an interrupt after 3 rows lands
+#: before the last one (with 12 rows, all were done by then on an idle machine)
+RUNS = 30
 
 
 def _start(tmp_path, *args):
@@ -59,20 +63,20 @@ def _interrupt_after_rows(proc, journal, rows, limit=120.0):
 def test_interrupted_and_resumed_equals_the_uninterrupted_sweep(params, tmp_path):
     (tmp_path / "s.toml").write_text(SPEC)
     full = sweep(load_sweep(tmp_path / "s.toml", params), tmp_path / "full.csv", jobs=1)
-    assert len(full) == 12 and full.info["failed"] == 0
+    assert len(full) == RUNS and full.info["failed"] == 0
     journal = tmp_path / ".r.csv.journal"
     status, err, took = _interrupt_after_rows(_start(tmp_path, "--jobs", "1"), journal, 3)
     assert status == 130 and err == "ema sweep: interrupted\n", err
     assert took < 2.0
     assert not (tmp_path / "r.csv").exists()
     kept = len(journal.read_text().splitlines()) - 1
-    assert 3 <= kept < 12
+    assert 3 <= kept < RUNS
     proc = subprocess.run([sys.executable, "-m", "ema_casadi.cli", "sweep", str(REFERENCE), "s.toml", "--out",
                            "r.csv", "--jobs", "1", "--resume", "--json"], cwd=tmp_path, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
-    assert result["resumed"] == kept and result["runs"] == 12
+    assert result["resumed"] == kept and result["runs"] == RUNS
     assert (tmp_path / "r.csv").read_bytes() == (tmp_path / "full.csv").read_bytes()
     assert not journal.exists()
 
