@@ -61,6 +61,10 @@ def _trajectories():
     return _cache["npz"]
 
 
+#: relative tolerance of the tuned gains (see test_tuned_gains_match_reference)
+TUNED_REL = 1e-5
+
+
 def _check(name, value, ref, abs_floor):
     """|value - ref| <= max(REL |ref|, abs_floor); non-finite and None must match exactly."""
     if ref is None or value is None or not (math.isfinite(ref) and math.isfinite(value)):
@@ -136,11 +140,20 @@ def test_tuned_gains_match_reference():
     start = ema.tuning.scaled_gains(params, tr["factor"], free)
     for g, v in tr["start"].items():
         _check(f"start {g}", start[g], v, 0.0)
-    res = ema.tune(params, model=model, loads=tr["loads"], start=start, objective=tr["objective"])
+    # the reference was made before the cascade requirements (loop separation with the
+    # outer loops open, the sensor-noise bound on the current command) existed: the same
+    # problem is the one with both switched off (the poor start cannot reach them anyway)
+    old_problem = ema.tuning.Requirements(separation=0.0, command_noise=0.0)
+    res = ema.tune(params, model=model, loads=tr["loads"], start=start, objective=tr["objective"],
+                   requirements=old_problem)
     assert res.status == tr["status"]
     # every gain is positive and far from 0 (smallest 0.016 s, T_i_w): no absolute floor
     assert set(res.gains_before) == set(tr["gains_before"]) and set(res.gains_after) == set(tr["gains_after"])
     for g, v in tr["gains_before"].items():
         _check(f"before {g}", res.gains_before[g], v, 0.0)
+    # IPOPT stops at a scaled NLP error of 1e-6 (ipopt.tol): a formulation with more (here
+    # inactive) constraint groups reaches the same optimum only within that. Measured after
+    # the cascade requirements were added: at most 2.0e-6 relative (T_i_w), 5e-8 on the
+    # others; tolerance 1e-5 (5x the largest)
     for g, v in tr["gains_after"].items():
-        _check(f"after {g}", res.gains_after[g], v, 0.0)
+        _check(f"after {g}", res.gains_after[g], v, TUNED_REL * abs(v))
