@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import ema_casadi as ema
 from ema_casadi.aircraft import aircraft_margins, aircraft_point, pitch_step
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params, {"airframe": "transport"})
 op = aircraft_point(model, "cruise_sl")
 am = aircraft_margins(model, "cruise_sl", op)

@@ -19,7 +19,7 @@ import numpy as np
 
 import ema_casadi as ema
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
 for ax, (controller, p) in zip(axes, (("P", params), ("PI", params.replace(K_i_x=400.0))), strict=True):
     for law in ("backcalc", "clamping"):

@@ -11,7 +11,7 @@ inputs are driven from the onset on; nothing is rebuilt).
 
 import ema_casadi as ema
 
-params = ema.load_parameters("models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 study = {
     "scenario": {"duration": 0.25, "x_cmd": "ramp:40mm/s", "sensor": "real"},
     "fault": [

@@ -18,7 +18,7 @@ import numpy as np
 
 import ema_casadi as ema
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 stroke = params.actuator.stroke                       # 0.075 m
 freqs = np.geomspace(0.1, 10.0, 10)
 

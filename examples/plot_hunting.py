@@ -19,7 +19,7 @@ import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi.simulation import hunting_metrics
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 step = Signal.step(1e-3, 0.01)
 
 fig, ax = plt.subplots(figsize=(9, 4))

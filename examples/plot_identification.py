@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import ema_casadi as ema
 from ema_casadi import identification as idn
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 folder = tempfile.mkdtemp()
 paths, truth = idn.example_records(params, folder)  # steps.csv, chirp_loaded.csv
 res = ema.identify(params, paths, free=list(truth))

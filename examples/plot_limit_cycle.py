@@ -19,7 +19,7 @@ import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, refine
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params, {"controller": "PI", "friction": "hybrid"})
 p = model.p(K_i_x=3000.0)
 kw = dict(p=p, x0=model.x0(), dt=1e-4)

@@ -15,7 +15,7 @@ import ema_casadi as ema
 from ema_casadi.frequency import frequency_grid
 from ema_casadi.linearisation import loop_model
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params)
 op = ema.operating_point(model)
 

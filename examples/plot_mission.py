@@ -44,7 +44,7 @@ f_ext = "-8kN+sine:-1.5kN@0.3"
 T_amb = [30.0, -40.0]
 """
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 mission = parse_mission(tomllib.loads(MISSION), params, "example mission")
 res = run_mission(params, mission)
 

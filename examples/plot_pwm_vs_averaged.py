@@ -15,7 +15,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import Signal
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 pwm = ema.build_model(params, {"inverter": "pwm"})
 avg = ema.build_model(params, {"inverter": "ideal"})
 

@@ -15,7 +15,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import Signal
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params)
 
 small = ema.simulate(model, 0.15, x_cmd=Signal.step(1e-3, 0.01), solver="rosenbrock", dt_out=1e-4)

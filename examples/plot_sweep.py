@@ -16,7 +16,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi.sweeps import parse_sweep
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 description = {
     "sweep": {"seed": 1, "samples": 3},
     "variants": {"friction": "hybrid", "controller": "PI"},

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt
 import ema_casadi as ema
 from ema_casadi import Signal
 
-params = ema.load_parameters("../models/cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 result = ema.tune(params, loads=[0.0])
 print(result.status, "-", result.message)
 before, after = result.verification_before["worst"], result.verification_after["worst"]

@@ -11,13 +11,11 @@ The tuned gains below are the output of ``ema tune models/cesa_ema.toml --out
 tuned.toml`` (seconds to a minute; this script only draws them, to stay fast).
 """
 
-from pathlib import Path
 
 import ema_casadi as ema
 from ema_casadi.tuning import cascade_bode_figure
 
-root = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd()
-params = ema.load_parameters(root / "models" / "cesa_ema.toml")
+params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params)
 tuned = params.replace(K_x=161.18, K_p_w=0.48171, T_i_w=0.0045859, K_p_i=15.146, K_i_i=20046.0)
 fig = cascade_bode_figure(model, {"reference gains": params, "ema tune": tuned})

@@ -28,8 +28,8 @@ class FaultResult:
         The model's alarm outputs (``latch_<monitor>``), in order.
     rows : list of dict
         One per case: ``case``, ``kind``, ``target``, ``onset_s``, ``severity``,
-        ``unit``, ``status``, ``reason``, ``peak_deviation_m`` (max |x_rod - x_rod of
-        the no-fault run| from the onset; in the aircraft loop also ``peak_theta_dev``,
+        ``unit``, ``status``, ``reason``, ``peak_deviation_m`` (the largest absolute
+        difference of x_rod from the no-fault run's, from the onset; in the aircraft loop also ``peak_theta_dev``,
         rad, and ``peak_n_z_dev``, -), ``detected_<monitor>_s`` (delay from the
         onset to the latch, None if not detected; for the no-fault case the time of a
         false alarm), ``first_monitor``.
