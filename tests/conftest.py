@@ -8,6 +8,18 @@ from ema_casadi import build_model, load_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "models" / "cesa_ema.toml"
+#: A two-run sweep file (two backlash values, 10 ms at RK4 0.1 ms, one metric): the
+#: smallest valid description, the base the bad-input batteries alter one key at a time
+SMALL_SWEEP = """[parameters]
+B = { values = [2e-5, 1e-4] }
+[scenario]
+duration = 0.01
+x_cmd = "step:1mm@0.001"
+solver = "rk4"
+dt = 1e-4
+[metrics]
+peak = {}
+"""
 
 
 @pytest.fixture(scope="session")

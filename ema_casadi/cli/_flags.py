@@ -1,12 +1,54 @@
 """Shared checks of the commands' flags: parameter values set by flags (checked as a
-parameter file's values, named by the flag), flags given where they do not apply, and
-the airframe chosen by ``--variant airframe=...`` or ``--airframe``."""
+parameter file's values, named by the flag), flags given where they do not apply, the
+airframe chosen by ``--variant airframe=...`` or ``--airframe``, and an output folder
+of several files written whole or not at all."""
 
 from __future__ import annotations
 
-from . import UserError
+import contextlib
+from pathlib import Path
 
-__all__ = ["overrides", "refuse_unused", "fill_defaults", "airframe_variant"]
+from . import UserError, check_output_dir, check_output_path
+
+__all__ = ["overrides", "refuse_unused", "fill_defaults", "airframe_variant", "new_output_folder",
+           "output_folder"]
+
+
+def new_output_folder(out: Path, names, flag: str = "--out") -> Path | None:
+    """Check an output folder of the files ``names`` before any work; return the highest
+    folder of ``out`` that does not exist yet (assembled aside with what lies below it
+    and moved in at the end by :func:`output_folder`: a failure leaves no empty folder),
+    or None when ``out`` exists (each file is then written aside and renamed).
+
+    Raises
+    ------
+    UserError
+        The outputs cannot be written there (one line naming ``flag``).
+    """
+    names = list(names)
+    missing = [p for p in (out, *out.parents) if not p.exists()]
+    if not missing:
+        for name in names:
+            check_output_path(str(out / name), (Path(name).suffix,), flag)
+        return None
+    check_output_dir(str(missing[-1]), names if missing[-1] == out else (), flag)
+    return missing[-1]
+
+
+@contextlib.contextmanager
+def output_folder(out: Path, top: Path | None):
+    """The folder to write the outputs into: ``out`` itself when it existed, else its
+    place inside the copy of ``top`` (from :func:`new_output_folder`) that is assembled
+    aside and moved in whole when the block ends without an error."""
+    from .._util._files import atomic_dir
+
+    if top is None:
+        yield out
+        return
+    with atomic_dir(top) as tmp:
+        folder = tmp / out.relative_to(top)
+        folder.mkdir(parents=True, exist_ok=True)
+        yield folder
 
 
 def overrides(params, flags: dict) -> dict:

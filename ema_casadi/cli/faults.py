@@ -24,6 +24,7 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_FAULTS
 from . import UserError, _jsonable, add_progress, progress_of, second_file
+from ._flags import new_output_folder, output_folder
 
 COMMAND = "faults"
 DEFAULT_FAULTS = REFERENCE_FAULTS
@@ -54,11 +55,7 @@ def _check(args) -> Path:
         raise UserError(f"--jobs must be a positive integer, got {args.jobs}")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
-    out = Path(args.out)
-    for folder in (out, *out.parents):
-        if folder.exists() and not folder.is_dir():
-            raise UserError(f"--out {out}: {folder} exists and is not a folder")
-    return out
+    return Path(args.out)
 
 
 def _listing(params, variants) -> dict:
@@ -78,6 +75,9 @@ def run(args) -> dict:
     out = _check(args)
     args.faults = second_file(args, args.faults, args.faults_file, flag="--faults", what="fault", key="fault",
                               default=DEFAULT_FAULTS)
+    stem = Path(args.faults).stem
+    names = [f"{stem}.csv", f"{stem}.json", f"{stem}.png"]
+    top = None if args.list else new_output_folder(out, names)  # the outputs checked before any work
     params = load_parameters(args.model)
     if args.list:
         return _listing(params, dict(args.variant))
@@ -87,11 +87,12 @@ def run(args) -> dict:
                          progress=progress_of(args))
     except FaultError as exc:
         raise UserError(str(exc)) from None
-    stem = Path(args.faults).stem
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [res.to_csv(out / f"{stem}.csv"), res.to_json(out / f"{stem}.json"), res.plot(out / f"{stem}.png")]
+    with output_folder(out, top) as folder:  # whole, or not at all
+        res.to_csv(folder / names[0])
+        res.to_json(folder / names[1])
+        res.plot(folder / names[2])
     summary = res.summary()
-    summary["written"] = [str(p) for p in (paths[0], paths[1], out / f"{stem}.png")]
+    summary["written"] = [str(out / n) for n in names]
     return _jsonable(summary)
 
 

@@ -18,7 +18,6 @@ Example: ema mission models/cesa_ema.toml models/mission_regional.toml --out out
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import sys
@@ -26,7 +25,8 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
-from . import UserError, _jsonable, add_progress, check_output_dir, check_output_path, progress_of, second_file
+from . import UserError, _jsonable, add_progress, progress_of, second_file
+from ._flags import new_output_folder, output_folder
 
 COMMAND = "mission"
 #: The mission run without a MISSION.toml (packaged): ~20 minutes of a regional-jet flight.
@@ -89,7 +89,7 @@ def run(args) -> dict:
     stem = Path(args.mission).stem
     names = {"csv": f"{stem}.csv", "png": f"{stem}.png", "json": f"{stem}_summary.json"}
     paths = {k: out / n for k, n in names.items()}
-    top = _new_folder(out, names)  # the outputs checked before any work
+    top = new_output_folder(out, names.values())  # the outputs checked before any work
     params = load_parameters(args.model)
     try:
         mission = load_mission(args.mission, params)
@@ -100,31 +100,15 @@ def run(args) -> dict:
     except MissionFailed as exc:
         sys.stderr.write(f"ema mission: failed: {exc}\n")
         raise SystemExit(3) from None
-    from .._util._files import atomic_dir, write_text
+    from .._util._files import write_text
 
     summary = res.summary()
     summary["written"] = [str(p) for p in paths.values()]
-    with atomic_dir(top) if top is not None else contextlib.nullcontext(None) as tmp:  # whole, or not at all
-        folder = out if tmp is None else tmp / out.relative_to(top)
-        folder.mkdir(parents=True, exist_ok=True)  # inside the folder being assembled
+    with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names["csv"], dt=args.csv_dt)
         res.plot(folder / names["png"])
         write_text(folder / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
     return summary
-
-
-def _new_folder(out: Path, names: dict) -> Path | None:
-    """The highest folder of ``out`` that does not exist yet (assembled aside with what
-    lies below it and moved in at the end: a failure leaves no empty folder), or None
-    when ``out`` exists (each file is then written aside and renamed at the end);
-    UserError when the outputs cannot be written."""
-    missing = [p for p in (out, *out.parents) if not p.exists()]
-    if not missing:
-        for name in names.values():
-            check_output_path(str(out / name), (Path(name).suffix,), "--out")
-        return None
-    check_output_dir(str(missing[-1]), names.values() if missing[-1] == out else (), "--out")
-    return missing[-1]
 
 
 def report(r: dict) -> None:

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
-from conftest import REFERENCE
+from conftest import REFERENCE, SMALL_SWEEP
 from ema_casadi.cli import main
 
 REF = str(REFERENCE)
@@ -409,16 +409,7 @@ for cmd, cases in OWN.items():
         files = {"afile": "x"} if case_id in ("out-is-a-file", "plot-dir-is-a-file") else {}
         add(f"{cmd}-{case_id}", Case(cmd, args, message, files))
 # -- ema sweep: the description file ------------------------------------------------------
-SWEEP_OK = """[parameters]
-B = { values = [2e-5, 1e-4] }
-[scenario]
-duration = 0.01
-x_cmd = "step:1mm@0.001"
-solver = "rk4"
-dt = 1e-4
-[metrics]
-peak = {}
-"""
+SWEEP_OK = SMALL_SWEEP
 SWEEP = {
     "not-toml": (SWEEP_OK.replace("[metrics]", "[metrics"), ["s.toml", "not valid TOML"]),
     "unknown-table": (SWEEP_OK + "[plots]\n", ["s.toml", "unknown table 'plots'"]),

@@ -15,21 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REFERENCE
+from conftest import REFERENCE, SMALL_SWEEP
 from ema_casadi.cli import main
 
 REF = str(REFERENCE)
 MISSION = '[mission]\nname = "m"\n[[segment]]\nname = "a"\nduration = 2.0\nx_cmd = "sine:1mm@1"\nT_amb = 20.0\n'
-SWEEP = """[parameters]
-B = { values = [2e-5, 1e-4] }
-[scenario]
-duration = 0.01
-x_cmd = "step:1mm@0.001"
-solver = "rk4"
-dt = 1e-4
-[metrics]
-peak = {}
-"""
+SWEEP = SMALL_SWEEP
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from conftest import REFERENCE
+from conftest import REFERENCE, SMALL_SWEEP
 from ema_casadi.cli import main
 
 REF = str(REFERENCE)
@@ -63,16 +63,7 @@ def mission(*segments: str, head: str = '[mission]\nname = "m"\n') -> str:
 
 SEG = 'name = "{name}"\nduration = {duration}\nx_cmd = "0"\nf_ext = "0"\nT_amb = 20.0'
 OK_MISSION = mission(SEG.format(name="a", duration=1.0))
-SWEEP = """[parameters]
-B = { values = [2e-5, 1e-4] }
-[scenario]
-duration = 0.01
-x_cmd = "step:1mm@0.001"
-solver = "rk4"
-dt = 1e-4
-[metrics]
-peak = {}
-"""
+SWEEP = SMALL_SWEEP
 SPAN = "1um,2um"
 LC = ["limit-cycle", "{model}", "--amplitudes", SPAN, "--freqs", "5,6", "--t-end", "0", "--periods", "4"]
 MISSION = ["mission", "{model}", "{tmp}/m.toml", "--out", "{tmp}/out", "--no-progress", "--fast"]
