@@ -15,7 +15,7 @@ import os
 import threading
 
 __all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard",
-           "die_with_parent", "worker_init", "process_map"]
+           "die_with_parent", "worker_init", "process_pool", "end_pool", "process_map"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -249,6 +249,37 @@ def dask_map(address: str, function, chunks_of, each, error: type) -> None:
         client.close(timeout=2)
 
 
+def process_pool(jobs: int):
+    """A pool of ``jobs`` worker processes (spawn) whose workers leave Ctrl-C to this
+    process and die with it (:func:`worker_init`: killed, no orphans).
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=worker_init, initargs=(os.getpid(),))
+
+
+def end_pool(pool) -> None:
+    """Stop a pool at once (on an interrupt or an error): nothing more is started, the
+    pending work is cancelled and a process pool's workers are ended.
+
+    Parameters
+    ----------
+    pool : concurrent.futures.Executor
+        A process or thread pool.
+    """
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.terminate()
+
+
 def process_map(function, items, jobs: int) -> list:
     """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
     the items' order. On an interrupt (or any error) nothing more is started, the pending
@@ -264,21 +295,13 @@ def process_map(function, items, jobs: int) -> list:
     jobs : int
         Worker processes (at most ``len(items)``).
     """
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     items = list(items)
-    pool = ProcessPoolExecutor(max_workers=max(1, min(jobs, len(items))),
-                               mp_context=multiprocessing.get_context("spawn"), initializer=worker_init,
-                               initargs=(os.getpid(),))
+    pool = process_pool(max(1, min(jobs, len(items))))
     try:
         futures = [pool.submit(function, item) for item in items]
         out = [f.result() for f in futures]
     except BaseException:
-        procs = list(getattr(pool, "_processes", {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in procs:
-            proc.terminate()
+        end_pool(pool)
         raise
     pool.shutdown(wait=True)
     return out

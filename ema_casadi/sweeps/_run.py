@@ -21,7 +21,7 @@ import numpy as np
 
 from .._util import _interrupts
 from .._util._files import after_commit, on_error
-from .._util._parallel import check_main_guard, cores, dask_map
+from .._util._parallel import check_main_guard, cores, dask_map, end_pool, process_pool
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
 from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
@@ -281,17 +281,8 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
         _STOP.clear()
         pool = ThreadPoolExecutor(max_workers=jobs)
     else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
         _quiet_resource_tracker()
-        import os
-
-        from .._util._parallel import worker_init
-
-        # the workers leave Ctrl-C to this process and die with it (killed: no orphans)
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=worker_init, initargs=(os.getpid(),))
+        pool = process_pool(jobs)  # the workers leave Ctrl-C to this process and die with it
     try:
         pending = {pool.submit(_run_batch, spec, b) for b in batches}
         while pending:
@@ -300,10 +291,7 @@ def _run_pool(spec, batches, jobs, backend, finished) -> None:
                 finished(fut.result())
     except BaseException:
         _STOP.set()
-        procs = list(getattr(pool, "_processes", {}).values()) if backend == "processes" else []
-        pool.shutdown(wait=False, cancel_futures=True)
-        for p in procs:
-            p.terminate()
+        end_pool(pool)
         raise
     pool.shutdown(wait=True)
 
