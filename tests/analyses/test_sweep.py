@@ -171,8 +171,16 @@ def test_the_slurm_example_builds_its_cluster_and_job_script(capsys):
     """studies/sweep_slurm.py (docs: sweeps): dask-jobqueue builds the SLURMCluster here
     without SLURM, and its batch script asks for what the flags say and starts a Dask
     worker of this Python on the cluster's scheduler."""
-    pytest.importorskip("dask_jobqueue")
     import importlib.util
+    import signal
+
+    # dask_jobqueue installs a SIGINT handler (sys.exit) when imported: put Python's own
+    # back, or a later test in this process that expects KeyboardInterrupt gets SystemExit
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        pytest.importorskip("dask_jobqueue")
+    finally:
+        signal.signal(signal.SIGINT, before)
 
     path = Path(__file__).resolve().parents[2] / "studies" / "sweep_slurm.py"
     mod_spec = importlib.util.spec_from_file_location("sweep_slurm", path)
