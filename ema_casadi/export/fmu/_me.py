@@ -11,8 +11,10 @@ module applies, measured on CasADi 3.8.2:
 2. states visible and settable: causality ``output``, ``initial="exact"`` with the
    model's initial state as start value (and out of ``InitialUnknowns``), nominal =
    the declared full scale (also returned by ``fmi3GetNominalsOfContinuousStates``);
-3. event indicators: ``fmi3GetEventIndicators`` returns OK when there are none (CasADi
-   returns fmi3Fatal, which stops FMPy's solvers);
+3. event indicators: one per switch of the right-hand side (:mod:`._events`), computed
+   as extra variables ``switch_NN`` (causality local) and returned by
+   ``fmi3GetEventIndicators`` (CasADi's wrapper declares none and returns fmi3Fatal,
+   which stops FMPy's solvers), listed as ``<EventIndicator>`` in the description;
 4. units: every variable carries its SI unit and ``UnitDefinitions`` lists them with
    their base-unit exponents (CasADi writes neither), descriptions from the parts.
 
@@ -35,6 +37,7 @@ from ..._util._files import scratch_dir
 from ...model.assembly import Model
 from .._errors import ExportError
 from ._cbuild import BuildClock, build_all, targets
+from ._events import switch_indicators
 from ._layout import Layout, layout
 from ._pack import check_target, identifier, write_zip
 from ._units import derivative_unit, unit_definition
@@ -42,6 +45,7 @@ from ._units import derivative_unit, unit_definition
 __all__ = ["export_fmu_me"]
 
 _CWD_LOCK = threading.Lock()  # DaeBuilder.export_fmu writes into the working directory
+_SWITCH = "switch_{:02d}"  # the event indicators' variable names
 
 
 def _check(model: Model) -> None:
@@ -66,6 +70,9 @@ def _dae(model: Model, lay: Layout, name: str) -> ca.DaeBuilder:
         dae.eq(dae.der(xi), xdot[i])
     for v in lay.outputs:
         dae.eq(dae.add(v.name, "output", "continuous", {}), y[v.index])
+    z = switch_indicators(model)[0](ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P))
+    for k in range(z.shape[0]):  # outputs here (so the wrapper computes them), local in the description
+        dae.eq(dae.add(_SWITCH.format(k), "output", "continuous", {}), z[k])
     return dae
 
 
@@ -87,9 +94,16 @@ def _patch(text: str, old: str, new: str, what: str) -> str:
     return text.replace(old, new)
 
 
-def _patch_wrapper(path: Path, lay: Layout) -> None:
+def _patch_wrapper(path: Path, lay: Layout, indicator_vrs: list[int]) -> None:
     text = path.read_text()
-    text = _patch(text, "  // No zero crossings\n  return fmi3Fatal;", "  // No zero crossings\n  return fmi3OK;",
+    n = len(indicator_vrs)
+    vrs = ", ".join(map(str, indicator_vrs)) or "0"
+    text = _patch(text, "  if (nEventIndicators) *nEventIndicators = N_ZERO;",
+                  f"  if (nEventIndicators) *nEventIndicators = {n};", "fmi3GetNumberOfEventIndicators")
+    text = _patch(text, "  // No zero crossings\n  return fmi3Fatal;",
+                  f"  static const fmi3ValueReference ei_vr[{max(n, 1)}] = {{{vrs}}};\n"
+                  f"  if (nEventIndicators < {n}) return fmi3Error;\n"
+                  f"  return {n} ? fmi3GetFloat64(instance, ei_vr, {n}, eventIndicators, {n}) : fmi3OK;",
                   "fmi3GetEventIndicators")
     nominals = ", ".join(repr(v.nominal) for v in lay.states)
     text = _patch(text, "for (i = 0; i < nContinuousStates; ++i) nominals[i] = 1;",
@@ -107,8 +121,11 @@ def unit_definitions(units) -> ET.Element:
     return el
 
 
-def _fix_description(path: Path, lay: Layout, description: str) -> None:
-    """Apply fixes 1, 2 and 4 of the module docstring to the ``modelDescription.xml``."""
+def _fix_description(path: Path, lay: Layout, description: str, switches: list[str]) -> list[int]:
+    """Apply fixes 1-4 of the module docstring to the ``modelDescription.xml``.
+
+    ``switches`` describes each event indicator; returns their value references.
+    """
     tree = ET.parse(path)
     root = tree.getroot()
     root.set("variableNamingConvention", "flat")
@@ -118,10 +135,18 @@ def _fix_description(path: Path, lay: Layout, description: str) -> None:
     info = {v.name: v for v in (*lay.states, *lay.inputs, *lay.parameters, *lay.outputs)}
     mv = root.find("ModelVariables")
     units, state_vrs = [], set()
+    indicators = {_SWITCH.format(k): what for k, what in enumerate(switches)}
+    indicator_vrs = {}
     for var in list(mv):
         name = var.get("name")
         if name.startswith("__assign__"):
             mv.remove(var)
+            continue
+        if name in indicators:
+            var.set("causality", "local")
+            var.set("description", f"event indicator: its sign decides a switch ({indicators[name]}) "
+                                   "of the right-hand side")
+            indicator_vrs[name] = var.get("valueReference")
             continue
         v = info.get(name)
         if name.startswith("der(") and name[4:-1] in states:
@@ -141,6 +166,11 @@ def _fix_description(path: Path, lay: Layout, description: str) -> None:
     for el in list(ms):
         if el.tag == "InitialUnknown" and el.get("valueReference") in state_vrs:
             ms.remove(el)
+        elif el.tag in ("Output", "InitialUnknown") and el.get("valueReference") in indicator_vrs.values():
+            ms.remove(el)
+    vrs = [indicator_vrs[_SWITCH.format(k)] for k in range(len(switches))]
+    for vr in vrs:
+        ET.SubElement(ms, "EventIndicator", valueReference=vr)
     kids = list(root)
     pos = next(i for i, el in enumerate(kids) if el.tag == "ModelVariables")
     root.insert(pos, ET.Element("DefaultExperiment", startTime="0.0", stopTime="1.0", tolerance="1e-06"))
@@ -148,6 +178,7 @@ def _fix_description(path: Path, lay: Layout, description: str) -> None:
     root.insert(first, unit_definitions(units))
     ET.indent(tree, space="    ")
     tree.write(path, encoding="UTF-8", xml_declaration=True)
+    return [int(vr) for vr in vrs]
 
 
 def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict:
@@ -176,13 +207,15 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
     tgts = targets(platforms)
     lay = layout(model)
     dae = _dae(model, lay, name)
+    switches = switch_indicators(model)[1]
     variants = ", ".join(f"{k}={v}" for k, v in sorted(model.variants.items()))
     with scratch_dir(near=path.parent) as tmp:  # removed on an interrupt too
         tmp = Path(tmp)
         with _in_folder(tmp):
             files = dae.export_fmu({"no_warning": True})
-        _patch_wrapper(tmp / f"{name}_wrap.c", lay)
-        _fix_description(tmp / "modelDescription.xml", lay, f"EMA (ema_casadi), model exchange: {variants}")
+        vrs = _fix_description(tmp / "modelDescription.xml", lay, f"EMA (ema_casadi), model exchange: {variants}",
+                               switches)
+        _patch_wrapper(tmp / f"{name}_wrap.c", lay, vrs)
         sources = [tmp / f"{name}.c", tmp / f"{name}_wrap.c"]
         jobs = [(t, sources, tmp / f"{t.key}{t.suffix}") for t in tgts]
         t_cc = build_all(jobs)
@@ -194,4 +227,5 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
     return {"path": path, "model_identifier": name, "fmi_version": "3.0", "kind": "model exchange",
             "platforms": [t.key for t in tgts], "compile_time": t_cc, **clock.times(),
             "states": len(lay.states), "inputs": [v.name for v in lay.inputs], "parameters": len(lay.parameters),
-            "outputs": len(lay.outputs) + len(lay.state_outputs)}
+            "outputs": len(lay.outputs) + len(lay.state_outputs),
+            "event_indicators": len(switches)}
