@@ -28,15 +28,28 @@ negative) are kept once. A switch reached only through a branch chosen by a para
 (``if_else(P_blend > 0, tanh(..), sign(q))``) is an event only while that branch is
 taken: its indicator is ``if_else(guard, z, 1)``, constant where the branch is off.
 The outputs ``y`` are not searched: a switch there does not affect the integration.
+
+Between events the switches are *held* (:func:`switches`), as FMI intends for
+relations: each has a mode (the sign of its indicator, or the integer of a floor) and
+the right-hand side the importer integrates takes the branch the mode selects instead
+of deciding the switch itself, so it is smooth between events. The importer's solver
+then cannot see a switch flip inside a step, a difference-quotient Jacobian or a
+Newton iterate; this matters most where the solution rests on a switch (the rigid
+screw's play, engaged while the nut pushes: the gap stays at B/2 to the last bit, and
+a Jacobian column that steps across it reads an infinite slope). The modes are chosen
+anew at every event from the state there; an indicator exactly 0 takes the side the
+held model moves it to (and keeps its mode where it does not move).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import casadi as ca
 
 from ...model.assembly import Model
 
-__all__ = ["switch_indicators"]
+__all__ = ["switch_indicators", "switches", "Switches"]
 
 _DIFF = (ca.OP_FMAX, ca.OP_FMIN, ca.OP_LT, ca.OP_LE, ca.OP_EQ, ca.OP_NE)
 _SELF = (ca.OP_FABS, ca.OP_SIGN)
@@ -100,8 +113,138 @@ def _guarded(z: ca.SX, guards) -> ca.SX:
     return ca.if_else(on, z, 1)
 
 
+def _branch(op, m, new):
+    """The value of a switch node in the branch its mode ``m`` (+1 or -1) selects."""
+    if op == ca.OP_FMAX:
+        return ca.if_else(m > 0, new[0], new[1])
+    if op == ca.OP_FMIN:
+        return ca.if_else(m > 0, new[1], new[0])
+    if op in (ca.OP_LT, ca.OP_LE):
+        return ca.if_else(m > 0, 0, 1)
+    if op in (ca.OP_EQ, ca.OP_NE):
+        return ca.SX(float(op == ca.OP_NE))
+    if op == ca.OP_FABS:
+        return ca.if_else(m > 0, new[0], -new[0])
+    return m  # sign
+
+
+def _apply(op, new):
+    return ca.SX.unary(op, new[0]) if len(new) == 1 else ca.SX.binary(op, new[0], new[1])
+
+
+def _rebuild(roots: list[ca.SX], replace: dict) -> list[ca.SX]:
+    """``roots`` rebuilt node by node, the nodes whose hash is in ``replace`` by
+    ``replace[hash](node, new_deps)`` (post-order, each node once)."""
+    memo, stack = {}, [(r, False) for r in roots]
+    while stack:
+        node, ready = stack.pop()
+        key = node.element_hash()
+        if key in memo:
+            continue
+        if node.is_leaf():
+            memo[key] = node
+            continue
+        deps = [node.dep(i) for i in range(node.n_dep())]
+        if not ready:
+            stack.append((node, True))
+            stack.extend((d, False) for d in deps if d.element_hash() not in memo)
+            continue
+        new = [memo[d.element_hash()] for d in deps]
+        memo[key] = replace[key](node, new) if key in replace else _apply(node.op(), new)
+    return [memo[r.element_hash()] for r in roots]
+
+
+class Switches(NamedTuple):
+    """The switches of a model's right-hand side (:func:`switches`)."""
+
+    #: ``(x, u, p) -> z``: the event indicators, one per switch (and per distinct quantity).
+    z: ca.Function
+    #: the operation each indicator decides (``"fmax"``, ``"<="``, ``"floor"``, ...).
+    what: list[str]
+    #: ``(x, u, p, m) -> m``: the modes the switches take at a point, held in ``m`` so
+    #: far: the sign of each indicator (for floor and ceil: the floor of the argument);
+    #: where an indicator is exactly 0, the side the held model moves it to, and where
+    #: it does not move it, the mode held so far (an exact 0 is where the solution
+    #: rests on a switch, such as the rigid screw's play while the nut pushes).
+    select: ca.Function
+    #: ``(x, u, p, m) -> (xdot, y)``: the model with every switch held in the branch its
+    #: mode selects (a mode 0 leaves its switch to decide itself).
+    f: ca.Function
+
+
+def _held(node, new, m):
+    """A switch node held in the branch its mode ``m`` selects (``m`` = 0: the node itself)."""
+    op = node.op()
+    if op in _STEPS:  # the mode is floor(argument); ceil is one more between the integers
+        return m + (1 if op == ca.OP_CEIL else 0)
+    return ca.if_else(m == 0, _apply(op, new), _branch(op, m, new))
+
+
+def _select(z, arg, held, x, xdot):
+    """The mode of a switch at a point (:attr:`Switches.select`); ``arg``: the argument of
+    a floor or ceil, None for the others; ``xdot``: the held model's rate."""
+    if arg is not None:  # on an integer and moving down: the interval below
+        n = ca.floor(arg)
+        return ca.if_else(ca.logic_and(arg == n, ca.jtimes(arg, x, xdot) < 0), n - 1, n)
+    zdot = ca.jtimes(z, x, xdot)
+    return ca.if_else(z != 0, ca.sign(z), ca.if_else(zdot != 0, ca.sign(zdot), held))
+
+
+def switches(model: Model) -> Switches:
+    """The event indicators of ``model.f``'s right-hand side and the model with its switches held.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+
+    Returns
+    -------
+    Switches
+        The indicators, their descriptions, the mode selection and the held model.
+        Between events an importer integrates the held model (smooth: no switch can
+        flip inside a step, in a difference-quotient Jacobian or a Newton iterate);
+        at each event the modes are selected anew at the event's state.
+    """
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    p = ca.SX.sym("p", len(model.param_names))
+    xdot, y = model.f(x, u, p)
+    xu = ca.vertcat(x, u)
+    z, what, sel, keys, held = [], [], [], {}, {}  # held: node hash -> (mode index, sign)
+    for node, guards in _switch_nodes([xdot[i] for i in range(model.nx)], xu):
+        e = _indicator(node)
+        if e is None or not ca.depends_on(e, xu) or node.op() == ca.OP_FMOD:
+            continue  # fmod (no model uses it) is left to decide itself
+        e = _guarded(e, guards)
+        key, neg = e.element_hash(), (-e).element_hash()
+        if key in keys or neg in keys:
+            held[node.element_hash()] = (keys[key], 1) if key in keys else (keys[neg], -1)
+            continue
+        keys[key] = len(z)
+        held[node.element_hash()] = (len(z), 1)
+        z.append(e)
+        what.append(_NAMES[node.op()])
+        sel.append(node.dep(0) if node.op() in _STEPS else None)
+    m = ca.SX.sym("m", len(z))
+    replace = {h: (lambda node, new, k=k, s=s: _held(node, new, -m[k] if s < 0 else m[k]))
+               for h, (k, s) in held.items()}
+    roots = [xdot[i] for i in range(model.nx)] + [y[i] for i in range(model.ny)]
+    out = _rebuild(roots, replace)
+    rate = ca.vertcat(*out[:model.nx])
+    sel = [_select(zk, a, m[k], x, rate) for k, (zk, a) in enumerate(zip(z, sel, strict=True))]
+    vec = ca.vertcat(*z) if z else ca.SX(0, 1)
+    opts = {"cse": True}
+    return Switches(
+        ca.Function("ema_z", [x, u, p], [vec], ["x", "u", "p"], ["z"], opts), what,
+        ca.Function("ema_modes", [x, u, p, m], [ca.vertcat(*sel) if sel else ca.SX(0, 1)], ["x", "u", "p", "m"],
+                    ["m_now"], opts),
+        ca.Function("ema_held", [x, u, p, m], [ca.vertcat(*out[:model.nx]), ca.vertcat(*out[model.nx:])],
+                    ["x", "u", "p", "m"], ["xdot", "y"], opts))
+
+
 def switch_indicators(model: Model) -> tuple[ca.Function, list[str]]:
-    """The event indicators of ``model.f``'s right-hand side.
+    """The event indicators of ``model.f``'s right-hand side (:func:`switches`).
 
     Parameters
     ----------
@@ -114,23 +257,5 @@ def switch_indicators(model: Model) -> tuple[ca.Function, list[str]]:
         ``z(x, u, p) -> z`` (one entry per switch, in the order found) and a short
         description of each (the operation it decides, e.g. ``"fmax"``).
     """
-    x = ca.SX.sym("x", model.nx)
-    u = ca.SX.sym("u", model.nu)
-    p = ca.SX.sym("p", len(model.param_names))
-    xdot = model.f(x, u, p)[0]
-    xu = ca.vertcat(x, u)
-    z, what, keys = [], [], set()
-    for node, guards in _switch_nodes([xdot[i] for i in range(model.nx)], xu):
-        e = _indicator(node)
-        if e is None or not ca.depends_on(e, xu):
-            continue
-        e = _guarded(e, guards)
-        key, neg = e.element_hash(), (-e).element_hash()
-        if key in keys or neg in keys:
-            continue
-        keys.add(key)
-        z.append(e)
-        what.append(_NAMES[node.op()])
-    fn = ca.Function("ema_z", [x, u, p], [ca.vertcat(*z) if z else ca.SX(0, 1)], ["x", "u", "p"], ["z"],
-                     {"cse": True})
-    return fn, what
+    sw = switches(model)
+    return sw.z, sw.what

@@ -15,6 +15,13 @@ module applies, measured on CasADi 3.8.2:
    as extra variables ``switch_NN`` (causality local) and returned by
    ``fmi3GetEventIndicators`` (CasADi's wrapper declares none and returns fmi3Fatal,
    which stops FMPy's solvers), listed as ``<EventIndicator>`` in the description;
+   and the switches *held* between events, as FMI intends for relations: each switch
+   has a mode ``mode_NN`` (local, discrete) that the right-hand side uses in place of
+   deciding the switch itself, set from ``mode_NN_now`` (the mode at the current
+   state) when initialisation ends and at every event (``fmi3UpdateDiscreteStates``).
+   So the importer's solver integrates a smooth function between events: a switch on
+   which the solution rests (the rigid screw's play, engaged while the nut pushes)
+   cannot flip inside its difference-quotient Jacobian or Newton iterates;
 4. units: every variable carries its SI unit and ``UnitDefinitions`` lists them with
    their base-unit exponents (CasADi writes neither), descriptions from the parts.
 
@@ -37,7 +44,7 @@ from ..._util._files import scratch_dir
 from ...model.assembly import Model
 from .._errors import ExportError
 from ._cbuild import BuildClock, build_all, targets
-from ._events import switch_indicators
+from ._events import switches
 from ._layout import Layout, layout
 from ._pack import check_target, identifier, write_zip
 from ._units import derivative_unit, unit_definition
@@ -46,6 +53,8 @@ __all__ = ["export_fmu_me"]
 
 _CWD_LOCK = threading.Lock()  # DaeBuilder.export_fmu writes into the working directory
 _SWITCH = "switch_{:02d}"  # the event indicators' variable names
+_MODE = "mode_{:02d}"  # the held modes of the switches
+_NOW = "mode_{:02d}_now"  # the mode each switch takes at the current state
 
 
 def _check(model: Model) -> None:
@@ -55,8 +64,9 @@ def _check(model: Model) -> None:
             "stick-slip map (it is a discrete projection, not an ODE); export it with --format fmu-cs")
 
 
-def _dae(model: Model, lay: Layout, name: str) -> ca.DaeBuilder:
-    """The DaeBuilder of ``f``: states, signal inputs, used parameters as tunable, outputs."""
+def _dae(model: Model, lay: Layout, name: str) -> tuple[ca.DaeBuilder, list[str]]:
+    """The DaeBuilder of ``f`` with its switches held: states, signal inputs, used
+    parameters as tunable, outputs, the switches' variables; and what each switch is."""
     dae = ca.DaeBuilder(name)
     X = [dae.add(v.name, "output", "continuous", {"start": v.start}) for v in lay.states]
     U = [ca.MX(float(val)) for val in lay.u_default]
@@ -65,15 +75,19 @@ def _dae(model: Model, lay: Layout, name: str) -> ca.DaeBuilder:
     P = [ca.MX(float(val)) for val in lay.p_default]
     for v in lay.parameters:
         P[v.index] = dae.add(v.name, "parameter", "tunable", {"start": v.start})
-    xdot, y = model.f(ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P))
+    sw = switches(model)
+    M = [dae.add(_MODE.format(k), "parameter", "tunable", {"start": 0.0}) for k in range(len(sw.what))]
+    xdot, y = sw.f(ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P), ca.vertcat(*M))
     for i, xi in enumerate(X):
         dae.eq(dae.der(xi), xdot[i])
     for v in lay.outputs:
         dae.eq(dae.add(v.name, "output", "continuous", {}), y[v.index])
-    z = switch_indicators(model)[0](ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P))
+    z = sw.z(ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P))
+    now = sw.select(ca.vertcat(*X), ca.vertcat(*U), ca.vertcat(*P), ca.vertcat(*M))
     for k in range(z.shape[0]):  # outputs here (so the wrapper computes them), local in the description
         dae.eq(dae.add(_SWITCH.format(k), "output", "continuous", {}), z[k])
-    return dae
+        dae.eq(dae.add(_NOW.format(k), "output", "continuous", {}), now[k])
+    return dae, sw.what
 
 
 @contextlib.contextmanager
@@ -94,14 +108,45 @@ def _patch(text: str, old: str, new: str, what: str) -> str:
     return text.replace(old, new)
 
 
-def _patch_wrapper(path: Path, lay: Layout, indicator_vrs: list[int]) -> None:
+def _modes_code(vrs: dict) -> str:
+    """C of ``ema_update_modes``: every held mode set to the mode at the current state."""
+    n = len(vrs["mode"])
+    held, now = (", ".join(map(str, vrs[k])) or "0" for k in ("mode", "now"))
+    return (f"static const fmi3ValueReference ema_mode_vr[{max(n, 1)}] = {{{held}}};\n"
+            f"static const fmi3ValueReference ema_now_vr[{max(n, 1)}] = {{{now}}};\n"
+            "/* ema_casadi: the switches are held between events; at the end of initialisation\n"
+            "   and at every event each takes the mode it has at the current state. */\n"
+            "static int ema_update_modes(casadi_fmi_memory* m) {\n"
+            "  size_t k;\n"
+            "  if (!m->up_to_date) {\n"
+            "    if (evaluate(m)) return 1;\n"
+            "    m->up_to_date = 1;\n"
+            "  }\n"
+            f"  for (k = 0; k < {n}; ++k) m->v[var_offset[ema_mode_vr[k]]] = m->v[var_offset[ema_now_vr[k]]];\n"
+            "  m->up_to_date = 0;\n"
+            "  return 0;\n"
+            "}\n")
+
+
+def _patch_wrapper(path: Path, lay: Layout, vrs: dict) -> None:
     text = path.read_text()
-    n = len(indicator_vrs)
-    vrs = ", ".join(map(str, indicator_vrs)) or "0"
+    n = len(vrs["z"])
+    text = _patch(text, "FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {",
+                  _modes_code(vrs) + "FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {", "fmi3Reset")
+    text = _patch(text, "fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {\n"
+                        "  // Unused variables\n  (void)instance;  // unused\n",
+                  "fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {\n"
+                  "  if (ema_update_modes((casadi_fmi_memory*)instance)) return fmi3Error;\n",
+                  "fmi3ExitInitializationMode")
+    text = _patch(text, "  // Discrete variables not yet supported\n",
+                  "  // The held switches take their modes at this state (one pass: the modes are\n"
+                  "  // read off the switches' own arguments, which do not depend on them)\n"
+                  "  if (ema_update_modes(m)) return fmi3Error;\n", "fmi3UpdateDiscreteStates")
+    ind = ", ".join(map(str, vrs["z"])) or "0"
     text = _patch(text, "  if (nEventIndicators) *nEventIndicators = N_ZERO;",
                   f"  if (nEventIndicators) *nEventIndicators = {n};", "fmi3GetNumberOfEventIndicators")
     text = _patch(text, "  // No zero crossings\n  return fmi3Fatal;",
-                  f"  static const fmi3ValueReference ei_vr[{max(n, 1)}] = {{{vrs}}};\n"
+                  f"  static const fmi3ValueReference ei_vr[{max(n, 1)}] = {{{ind}}};\n"
                   f"  if (nEventIndicators < {n}) return fmi3Error;\n"
                   f"  return {n} ? fmi3GetFloat64(instance, ei_vr, {n}, eventIndicators, {n}) : fmi3OK;",
                   "fmi3GetEventIndicators")
@@ -121,10 +166,24 @@ def unit_definitions(units) -> ET.Element:
     return el
 
 
-def _fix_description(path: Path, lay: Layout, description: str, switches: list[str]) -> list[int]:
+def _switch_variables(switches: list[str]) -> dict:
+    """Name -> (kind, index, description) of the variables of the switches (all local)."""
+    out = {}
+    for k, what in enumerate(switches):
+        z = _SWITCH.format(k)
+        out[z] = ("z", k, f"event indicator: its sign decides a switch ({what}) of the right-hand side")
+        out[_MODE.format(k)] = ("mode", k, f"mode in which the switch of {z} ({what}) is held between events: the "
+                                           f"sign of {z} at the last event (floor: the integer; on an exact 0, "
+                                           "the side it moves to)")
+        out[_NOW.format(k)] = ("now", k, f"mode the switch of {z} ({what}) has at the current state")
+    return out
+
+
+def _fix_description(path: Path, lay: Layout, description: str, switches: list[str]) -> dict:
     """Apply fixes 1-4 of the module docstring to the ``modelDescription.xml``.
 
-    ``switches`` describes each event indicator; returns their value references.
+    ``switches`` describes each event indicator; returns the value references of the
+    indicators (``z``), the held modes (``mode``) and the modes now (``now``).
     """
     tree = ET.parse(path)
     root = tree.getroot()
@@ -135,18 +194,22 @@ def _fix_description(path: Path, lay: Layout, description: str, switches: list[s
     info = {v.name: v for v in (*lay.states, *lay.inputs, *lay.parameters, *lay.outputs)}
     mv = root.find("ModelVariables")
     units, state_vrs = [], set()
-    indicators = {_SWITCH.format(k): what for k, what in enumerate(switches)}
-    indicator_vrs = {}
+    special = _switch_variables(switches)
+    vrs = {kind: [None] * len(switches) for kind in ("z", "mode", "now")}
     for var in list(mv):
         name = var.get("name")
         if name.startswith("__assign__"):
             mv.remove(var)
             continue
-        if name in indicators:
+        if name in special:
+            kind, k, text = special[name]
             var.set("causality", "local")
-            var.set("description", f"event indicator: its sign decides a switch ({indicators[name]}) "
-                                   "of the right-hand side")
-            indicator_vrs[name] = var.get("valueReference")
+            var.set("description", text)
+            if kind == "mode":  # computed at the end of initialisation and at events
+                var.set("variability", "discrete")
+                var.set("initial", "calculated")
+                var.attrib.pop("start", None)
+            vrs[kind][k] = var.get("valueReference")
             continue
         v = info.get(name)
         if name.startswith("der(") and name[4:-1] in states:
@@ -162,15 +225,7 @@ def _fix_description(path: Path, lay: Layout, description: str, switches: list[s
                 var.set("nominal", repr(v.nominal))
         if var.get("unit"):
             units.append(var.get("unit"))
-    ms = root.find("ModelStructure")
-    for el in list(ms):
-        if el.tag == "InitialUnknown" and el.get("valueReference") in state_vrs:
-            ms.remove(el)
-        elif el.tag in ("Output", "InitialUnknown") and el.get("valueReference") in indicator_vrs.values():
-            ms.remove(el)
-    vrs = [indicator_vrs[_SWITCH.format(k)] for k in range(len(switches))]
-    for vr in vrs:
-        ET.SubElement(ms, "EventIndicator", valueReference=vr)
+    _fix_structure(root.find("ModelStructure"), state_vrs, vrs)
     kids = list(root)
     pos = next(i for i, el in enumerate(kids) if el.tag == "ModelVariables")
     root.insert(pos, ET.Element("DefaultExperiment", startTime="0.0", stopTime="1.0", tolerance="1e-06"))
@@ -178,7 +233,20 @@ def _fix_description(path: Path, lay: Layout, description: str, switches: list[s
     root.insert(first, unit_definitions(units))
     ET.indent(tree, space="    ")
     tree.write(path, encoding="UTF-8", xml_declaration=True)
-    return [int(vr) for vr in vrs]
+    return {kind: [int(vr) for vr in v] for kind, v in vrs.items()}
+
+
+def _fix_structure(ms: ET.Element, state_vrs: set, vrs: dict) -> None:
+    """States (exact) out of the initial unknowns; the switches' variables out of the
+    outputs; the indicators listed as ``<EventIndicator>``."""
+    local = set(vrs["z"]) | set(vrs["now"]) | set(vrs["mode"])
+    for el in list(ms):
+        if el.tag == "InitialUnknown" and el.get("valueReference") in state_vrs:
+            ms.remove(el)
+        elif el.tag in ("Output", "InitialUnknown") and el.get("valueReference") in local:
+            ms.remove(el)
+    for vr in vrs["z"]:
+        ET.SubElement(ms, "EventIndicator", valueReference=vr)
 
 
 def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict:
@@ -188,7 +256,9 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
     ----------
     model : Model
         An assembled model without a discrete map (``friction = "smooth"``); a hybrid
-        model raises :class:`~ema_casadi.export.ExportError`.
+        model raises :class:`~ema_casadi.export.ExportError`. A switched PWM bridge
+        is exported as the continuous model carries it, its carrier-period average
+        (the leg states are the duty cycles; the description says so).
     path : str or Path
         The ``.fmu`` file; its stem (made a C identifier) is the model identifier.
     platforms : sequence of str
@@ -206,15 +276,17 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
     name = identifier(path.stem, "ema_me")
     tgts = targets(platforms)
     lay = layout(model)
-    dae = _dae(model, lay, name)
-    switches = switch_indicators(model)[1]
+    dae, what = _dae(model, lay, name)
     variants = ", ".join(f"{k}={v}" for k, v in sorted(model.variants.items()))
+    if model.switched:
+        variants += f"; switched signals {', '.join(model.switched)} as in the continuous model: the carrier-period " \
+                    "average, no switching in this FMU"
     with scratch_dir(near=path.parent) as tmp:  # removed on an interrupt too
         tmp = Path(tmp)
         with _in_folder(tmp):
             files = dae.export_fmu({"no_warning": True})
         vrs = _fix_description(tmp / "modelDescription.xml", lay, f"EMA (ema_casadi), model exchange: {variants}",
-                               switches)
+                               what)
         _patch_wrapper(tmp / f"{name}_wrap.c", lay, vrs)
         sources = [tmp / f"{name}.c", tmp / f"{name}_wrap.c"]
         jobs = [(t, sources, tmp / f"{t.key}{t.suffix}") for t in tgts]
@@ -228,4 +300,4 @@ def export_fmu_me(model: Model, path, *, platforms=("linux64", "win64")) -> dict
             "platforms": [t.key for t in tgts], "compile_time": t_cc, **clock.times(),
             "states": len(lay.states), "inputs": [v.name for v in lay.inputs], "parameters": len(lay.parameters),
             "outputs": len(lay.outputs) + len(lay.state_outputs),
-            "event_indicators": len(switches)}
+            "event_indicators": len(what)}

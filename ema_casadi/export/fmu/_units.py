@@ -24,6 +24,8 @@ _SYMBOLS = {
     "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
     "Wb": {"kg": 1, "m": 2, "s": -2, "A": -1},
     "H": {"kg": 1, "m": 2, "s": -2, "A": -2},
+    "F": {"kg": -1, "m": -2, "s": 4, "A": 2},
+    "C": {"s": 1, "A": 1},
     "Hz": {"s": -1},
 }
 #: Symbols with a factor/offset to their base units (value_SI = factor * value + offset).
