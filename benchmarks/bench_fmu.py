@@ -7,7 +7,7 @@
    against the toolkit itself: one timed run of each after one warm-up run (the ratio
    required), and the median of --repeat runs.
 
-- FMPy, co-simulation FMU: dt_internal 1e-5 s (its default) and 5e-6 s (smooth), 1e-4 s
+- FMPy, co-simulation FMU: dt_internal 1e-5 s (the default before 2e-6 s) and 5e-6 s (smooth), 1e-4 s
   (hybrid friction), communication step 1 ms; the input table holds x_cmd every 1 ms
   (and both sides of the step's edge): FMPy interpolates it, the FMU holds it over each
   communication step.
