@@ -22,7 +22,7 @@ import time
 from ..._util._files import write_with
 from ...model.assembly import Model
 from .._errors import ExportError
-from ._csource import C_DIR, default_dt, layout_doc, write_c_sources
+from ._csource import C_DIR, layout_doc, write_c_sources
 from ._functions import SIM_STEPS, fixed_step_functions
 from ._pack import check_target, export_folder
 
