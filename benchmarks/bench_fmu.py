@@ -142,19 +142,11 @@ def main():
 def me_every_call(path, inp):
     """FMPy's CVode on the model-exchange FMU with the inputs set at every right-hand-side
     call (docs: exports): FMPy's own driver sets them only at its output points."""
-    import fmpy.sundials
+    import fmpy
 
-    class EveryCall(fmpy.sundials.CVodeSolver):
-        def f(self, t, y, ydot, user_data):
-            self.input.apply(t)
-            return super().f(t, y, ydot, user_data)
-
-    plain, fmpy.sundials.CVodeSolver = fmpy.sundials.CVodeSolver, EveryCall
-    try:
+    with fmu.inputs_at_every_call():
         return fmpy.simulate_fmu(path, stop_time=T_END, input=inp, output=["x_rod"], output_interval=DT_OUT,
                                  relative_tolerance=1e-8, validate=False)
-    finally:
-        fmpy.sundials.CVodeSolver = plain
 
 
 if __name__ == "__main__":

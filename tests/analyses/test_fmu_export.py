@@ -18,7 +18,6 @@ Reference scenario: a 1 mm step of x_cmd at 0.01 s, every other input at its def
   amplitude within 1 % of the toolkit's (measured 1e-5 relative).
 """
 
-import contextlib
 import subprocess
 
 import casadi as ca
@@ -141,38 +140,6 @@ def scenario_reference(model_cache):
     return simulate(model_cache(), 1.0, SCENARIO, solver="cvodes", rtol=1e-10, atol=1e-13, dt_out=1e-3)
 
 
-@contextlib.contextmanager
-def inputs_at_every_rhs():
-    """FMPy's CVode with the continuous inputs set at every right-hand-side evaluation.
-
-    ``fmpy.simulate_fmu`` sets continuous inputs of a model-exchange FMU only at its
-    communication points and inside the root function: between them CVode integrates
-    with the inputs held from wherever they were last set (a staircase that depends on
-    CVode's own steps). An importer that integrates a model with a time-varying input
-    (Simulink's FMU block, Dymola, OpenModelica) evaluates the input at every
-    right-hand-side call; this makes FMPy's CVode do the same. Yields a counter of the
-    solver objects made, to check that the patch took effect.
-    """
-    import fmpy.sundials
-
-    base, made = fmpy.sundials.CVodeSolver, []
-
-    class EveryRhs(base):
-        def __init__(self, *args, **kw):
-            super().__init__(*args, **kw)
-            made.append(self)
-
-        def f(self, t, y, ydot, user_data):
-            self.input.apply(t)
-            return super().f(t, y, ydot, user_data)
-
-    fmpy.sundials.CVodeSolver = EveryRhs
-    try:
-        yield made
-    finally:
-        fmpy.sundials.CVodeSolver = base
-
-
 def on_grid(res, dt=1e-3):
     """The rows of an FMPy result at the multiples of dt (the last row where an event
     recorded a time twice)."""
@@ -192,7 +159,7 @@ def test_model_exchange_converges_on_the_reference_scenario(me, scenario_referen
     model, info = me
     ref = scenario_reference
     errors = []
-    with inputs_at_every_rhs() as made:
+    with fmu.inputs_at_every_call() as made:
         for rtol in (1e-6, 1e-8, 1e-10):
             res = on_grid(fmpy.simulate_fmu(str(info["path"]), stop_time=1.0, input=scenario_table(),
                                             output=["x_rod"], relative_tolerance=rtol, output_interval=1e-3))

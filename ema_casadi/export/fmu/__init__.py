@@ -18,6 +18,10 @@
     The serialised Functions (right-hand side, init, step, outputs, rollout) with
     their layout as JSON.
 
+:func:`inputs_at_every_call` runs a model-exchange FMU in FMPy with a time-varying
+input the way Simulink or Dymola do (FMPy's own driver sets continuous inputs only at
+its output points).
+
 FMU binaries: linux64 always (needs a C compiler); win64 when Debian's MinGW-w64
 cross-compiler ``x86_64-w64-mingw32-gcc`` is installed. Every export is whole or
 absent: files are written to temporary names and renamed, folders assembled beside
@@ -34,6 +38,7 @@ from .._errors import ExportError
 from ._cbuild import MINGW, pe_exports, targets
 from ._cs import export_fmu_cs
 from ._csource import DT_DEFAULT, DT_SMOOTH, default_dt
+from ._fmpy import inputs_at_every_call
 from ._folders import export_c, export_casadi
 from ._functions import SIM_STEPS, augmented_names, fixed_step_functions
 from ._layout import Layout, Var, layout
@@ -44,7 +49,7 @@ __all__ = [
     "FORMATS", "DEFAULTS", "ExportError", "export", "check_output", "export_fmu_me", "export_fmu_cs", "export_c",
     "export_casadi",
     "fixed_step_functions", "augmented_names", "layout", "Layout", "Var", "pe_exports", "targets", "MINGW",
-    "DT_DEFAULT", "DT_SMOOTH", "default_dt", "SIM_STEPS",
+    "DT_DEFAULT", "DT_SMOOTH", "default_dt", "SIM_STEPS", "inputs_at_every_call",
 ]
 
 #: Export formats of this package and whether each writes a file or a folder.
