@@ -9,7 +9,7 @@ of x, u, p and y.
 Nonlinear model for other tools (ema_casadi.export.fmu): --format fmu-me (FMI 3.0 model
 exchange, smooth friction), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
 co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets its
-internal step, default 1e-5 s), c (a
+internal step, default 2e-6 s, with hybrid friction 1e-5 s), c (a
 folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
 casadi (a folder: serialised Functions and their layout) when --out is a folder.
 Examples::
@@ -43,7 +43,8 @@ def add_arguments(p):
                    help="output; default ema_lin.<format> (linear), ema_me.fmu / ema_cs.fmu, the folders "
                         "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
     p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
-                   help="fmu-cs: internal fixed step; c, casadi: default step of the simulator (default 1e-5)")
+                   help="fmu-cs: internal fixed step; c, casadi: default step of the simulator "
+                        "(default 2e-6; with hybrid friction 1e-5)")
     p.add_argument("--fmi-version", choices=["2.0", "3.0"], default=None,
                    help="fmu-cs: FMI version of the co-simulation FMU (default 2.0; fmu-me is always 3.0)")
     p.add_argument("--open", action="append", choices=list(LOOPS), default=[], metavar="LOOP",

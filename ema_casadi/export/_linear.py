@@ -314,7 +314,8 @@ def export_model(model: Model, path: str | Path, fmt: str, *, dt: float | None =
         The ``.fmu`` file (``fmu-me``, ``fmu-cs``) or the folder (``c``, ``casadi``).
     fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
     dt : float, optional
-        Internal step of ``fmu-cs``, default step of ``c`` and ``casadi`` (s; 1e-5).
+        Internal step of ``fmu-cs``, default step of ``c`` and ``casadi`` (s; 2e-6, with
+        hybrid friction 1e-5).
     fmi_version : {"2.0", "3.0"}, optional
         FMI version of ``fmu-cs`` (default 2.0; ``fmu-me`` is FMI 3.0).
     platforms : sequence of str

@@ -8,7 +8,8 @@
 ``fmu-cs`` (:func:`export_fmu_cs`)
     FMI 2.0 (or 3.0) co-simulation containing generated C of the toolkit's own
     fixed-step RK4 step (hybrid stick-slip projection and switch counting inside),
-    sub-stepped with the internal step ``dt_internal`` (default 1e-5 s); no Python on
+    sub-stepped with the internal step ``dt_internal`` (default :func:`default_dt`: 2e-6 s
+    with a continuous friction law, 1e-5 s with hybrid friction); no Python on
     the importing side.
 ``c`` (:func:`export_c`)
     A self-contained C folder: model functions, fixed-step simulator, layout header,
@@ -16,6 +17,10 @@
 ``casadi`` (:func:`export_casadi`)
     The serialised Functions (right-hand side, init, step, outputs, rollout) with
     their layout as JSON.
+
+:func:`inputs_at_every_call` runs a model-exchange FMU in FMPy with a time-varying
+input the way Simulink or Dymola do (FMPy's own driver sets continuous inputs only at
+its output points).
 
 FMU binaries: linux64 always (needs a C compiler); win64 when Debian's MinGW-w64
 cross-compiler ``x86_64-w64-mingw32-gcc`` is installed. Every export is whole or
@@ -32,7 +37,8 @@ from ...model.assembly import Model
 from .._errors import ExportError
 from ._cbuild import MINGW, pe_exports, targets
 from ._cs import export_fmu_cs
-from ._csource import DT_DEFAULT
+from ._csource import DT_DEFAULT, DT_SMOOTH, default_dt
+from ._fmpy import inputs_at_every_call
 from ._folders import export_c, export_casadi
 from ._functions import SIM_STEPS, augmented_names, fixed_step_functions
 from ._layout import Layout, Var, layout
@@ -43,7 +49,7 @@ __all__ = [
     "FORMATS", "DEFAULTS", "ExportError", "export", "check_output", "export_fmu_me", "export_fmu_cs", "export_c",
     "export_casadi",
     "fixed_step_functions", "augmented_names", "layout", "Layout", "Var", "pe_exports", "targets", "MINGW",
-    "DT_DEFAULT", "SIM_STEPS",
+    "DT_DEFAULT", "DT_SMOOTH", "default_dt", "SIM_STEPS", "inputs_at_every_call",
 ]
 
 #: Export formats of this package and whether each writes a file or a folder.
@@ -83,7 +89,8 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version
     fmt : {"fmu-me", "fmu-cs", "c", "casadi"}
     dt : float, optional
         Internal step of ``fmu-cs`` / default step of ``c`` and ``casadi`` (s);
-        default 1e-5 s. ``fmu-me`` has none (the importer's solver chooses): an error.
+        default :func:`default_dt` (2e-6 s, hybrid friction 1e-5 s). ``fmu-me`` has none
+        (the importer's solver chooses): an error.
     fmi_version : {"2.0", "3.0"}, optional
         FMI version of ``fmu-cs`` (default 2.0); ``fmu-me`` is FMI 3.0 only.
     platforms : sequence of str
@@ -101,7 +108,7 @@ def export(model: Model, path, fmt: str, *, dt: float | None = None, fmi_version
     if fmi_version is not None and fmt != "fmu-cs" and not (fmt == "fmu-me" and fmi_version == "3.0"):
         raise ExportError(f"fmi_version {fmi_version}: only fmu-cs has a choice (2.0 or 3.0); "
                           "fmu-me is FMI 3.0")
-    step = DT_DEFAULT if dt is None else dt
+    step = default_dt(model) if dt is None else dt
     if not (isinstance(step, (int, float)) and 0 < step < 1):
         raise ExportError(f"dt must be a step in seconds between 0 and 1, got {dt!r}")
     if fmt == "fmu-me":

@@ -7,7 +7,7 @@ switch counting are inside), the driver ``ema_sim.c``, the FMI-independent insta
 ``fmu_core.c`` and the FMI 2.0 (``fmi2_cs.c``) or 3.0 (``fmi3_cs.c``) interface
 (``_c/``), compiled for linux64 and, where MinGW-w64 is installed, win64. A step
 sub-steps each communication step with the internal step ``dt_internal`` (a tunable
-parameter, default 1e-5 s), see ``fmu_core.h``.
+parameter, default 2e-6 s, with hybrid friction 1e-5 s), see ``fmu_core.h``.
 
 Variables: the states (outputs with settable start values), the signal inputs, the
 parameters the variant uses (tunable), ``dt_internal``, every model output and, with
@@ -29,7 +29,7 @@ from ..._util._files import scratch_dir, write_text, write_with
 from ...model.assembly import Model
 from .._errors import ExportError
 from ._cbuild import BuildClock, build_all, targets
-from ._csource import C_DIR, DT_DEFAULT, layout_doc, write_c_sources
+from ._csource import C_DIR, default_dt, layout_doc, write_c_sources
 from ._layout import Layout, layout
 from ._me import unit_definitions
 from ._pack import check_target, identifier, write_zip
@@ -177,7 +177,7 @@ def _build_description(name: str, sources) -> str:
             "    </SourceFileSet>\n  </BuildConfiguration>\n</fmiBuildDescription>\n")
 
 
-def export_fmu_cs(model: Model, path, *, dt_internal: float = DT_DEFAULT, fmi_version: str = "2.0",
+def export_fmu_cs(model: Model, path, *, dt_internal: float | None = None, fmi_version: str = "2.0",
                   platforms=("linux64", "win64")) -> dict:
     """Write a co-simulation FMU (FMI 2.0, or 3.0) of the toolkit's fixed-step RK4 (any variant).
 
@@ -188,8 +188,10 @@ def export_fmu_cs(model: Model, path, *, dt_internal: float = DT_DEFAULT, fmi_ve
         projection runs inside every internal step).
     path : str or Path
         The ``.fmu`` file; its stem (made a C identifier) is the model identifier.
-    dt_internal : float
+    dt_internal : float, optional
         Default internal step (s); the FMU parameter ``dt_internal`` changes it.
+        Without it :func:`~ema_casadi.export.fmu.default_dt` (2e-6 s with a
+        continuous friction law, 1e-5 s with hybrid friction).
     fmi_version : {"2.0", "3.0"}
         FMI 2.0 (default; also takes first input derivatives) or FMI 3.0 (Step Mode).
     platforms : sequence of str
@@ -202,6 +204,7 @@ def export_fmu_cs(model: Model, path, *, dt_internal: float = DT_DEFAULT, fmi_ve
         ``build_cpu_time`` and ``compile_time`` (s), the variable counts.
     """
     clock = BuildClock()
+    dt_internal = default_dt(model) if dt_internal is None else dt_internal
     if not (isinstance(dt_internal, (int, float)) and 0 < dt_internal < 1):
         raise ExportError(f"dt_internal must be a step in seconds between 0 and 1, got {dt_internal!r}")
     if fmi_version not in FMI_VERSIONS:

@@ -22,7 +22,7 @@ import time
 from ..._util._files import write_with
 from ...model.assembly import Model
 from .._errors import ExportError
-from ._csource import C_DIR, DT_DEFAULT, layout_doc, write_c_sources
+from ._csource import C_DIR, layout_doc, write_c_sources
 from ._functions import SIM_STEPS, fixed_step_functions
 from ._pack import check_target, export_folder
 
@@ -37,7 +37,7 @@ _SIGNATURES = {
 }
 
 
-def export_c(model: Model, folder, *, dt: float = DT_DEFAULT) -> dict:
+def export_c(model: Model, folder, *, dt: float | None = None) -> dict:
     """Write the self-contained C folder (see the module docstring).
 
     Parameters
@@ -47,8 +47,9 @@ def export_c(model: Model, folder, *, dt: float = DT_DEFAULT) -> dict:
         ``ema_step``).
     folder : str or Path
         The folder to create (an earlier export folder there is replaced).
-    dt : float
-        Default step (s) of ``main.c`` (``EMA_DT_DEFAULT``).
+    dt : float, optional
+        Default step (s) of ``main.c`` (``EMA_DT_DEFAULT``); without it
+        :func:`~ema_casadi.export.fmu.default_dt`.
 
     Returns
     -------
@@ -66,7 +67,7 @@ def export_c(model: Model, folder, *, dt: float = DT_DEFAULT) -> dict:
     return {"path": folder, "files": files + ["ema_layout.json"], "build_time": time.perf_counter() - t0}
 
 
-def export_casadi(model: Model, folder, *, n_sim: int = SIM_STEPS, dt: float = DT_DEFAULT) -> dict:
+def export_casadi(model: Model, folder, *, n_sim: int = SIM_STEPS, dt: float | None = None) -> dict:
     """Write the serialised Functions and their layout (see the module docstring).
 
     Parameters
@@ -77,8 +78,9 @@ def export_casadi(model: Model, folder, *, n_sim: int = SIM_STEPS, dt: float = D
         The folder to create (an earlier export folder there is replaced).
     n_sim : int
         Steps per call of ``ema_sim``.
-    dt : float
-        Default step (s) recorded in the layout.
+    dt : float, optional
+        Default step (s) recorded in the layout; without it
+        :func:`~ema_casadi.export.fmu.default_dt`.
 
     Returns
     -------
