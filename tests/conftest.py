@@ -1,7 +1,8 @@
-"""Shared fixtures: the reference parameter set and its models (built once)."""
+"""Shared fixtures (the reference parameter set and its models, built once) and helpers."""
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ema_casadi import build_model, load_parameters
@@ -38,3 +39,12 @@ def model_cache(params):
         return cache[key]
 
     return get
+
+
+def on_grid(res, dt=1e-3):
+    """The rows of an FMPy result at the multiples of dt (the last row where an event
+    recorded a time twice)."""
+    k = np.abs(res["time"] / dt - np.round(res["time"] / dt)) < 1e-6
+    res = res[k]
+    i = np.round(res["time"] / dt).astype(int)
+    return res[np.r_[i[1:] != i[:-1], True]]

@@ -7,7 +7,7 @@ Reference scenario: a 1 mm step of x_cmd at 0.01 s, every other input at its def
   1e-9 m (measured 1.3e-12 m; the acceptance bound);
 - model exchange on the scenario of the acceptance (step, then a 1 Hz sine from 0.5 s,
   1 s), FMPy CVode with the inputs set at every right-hand-side evaluation against
-  CVODES at rtol 1e-10: 0.1 um at rtol 1e-8 (the acceptance bound; measured 3.8e-10 m)
+  CVODES at rtol 1e-10: 0.1 um at rtol 1e-8 (the acceptance bound; measured 7.6e-10 m)
   and smaller at each tightening 1e-6 -> 1e-8 -> 1e-10;
 - co-simulation against the toolkit's RK4 at the same internal step, inputs held over
   each communication step as the FMU holds them: 1e-12 m (measured 2e-19 m); on the
@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from conftest import on_grid
 from ema_casadi import Signal, simulate
 from ema_casadi._util import _compiled as compiled
 from ema_casadi.export import fmu
@@ -140,20 +141,11 @@ def scenario_reference(model_cache):
     return simulate(model_cache(), 1.0, SCENARIO, solver="cvodes", rtol=1e-10, atol=1e-13, dt_out=1e-3)
 
 
-def on_grid(res, dt=1e-3):
-    """The rows of an FMPy result at the multiples of dt (the last row where an event
-    recorded a time twice)."""
-    k = np.abs(res["time"] / dt - np.round(res["time"] / dt)) < 1e-6
-    res = res[k]
-    i = np.round(res["time"] / dt).astype(int)
-    return res[np.r_[i[1:] != i[:-1], True]]
-
-
 @NEEDS_CC
 def test_model_exchange_converges_on_the_reference_scenario(me, scenario_reference):
     """FMPy's CVode on the model-exchange FMU, the step and the 1 Hz sine, against the
     toolkit's CVODES at rtol 1e-10: below 0.1 um at rtol 1e-8 and smaller at every
-    tightening (measured 1.9e-8 / 3.8e-10 / 5.0e-11 m at 1e-6 / 1e-8 / 1e-10). Plain
+    tightening (measured 5.1e-8 / 7.6e-10 / 3.2e-11 m at 1e-6 / 1e-8 / 1e-10). Plain
     ``simulate_fmu``, which sets the inputs only at its output points and in its root
     function, was 14 um off at 1e-6 and stopped at 1e-8 (docs: exports)."""
     model, info = me

@@ -28,6 +28,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from conftest import on_grid
 from ema_casadi import Signal, simulate
 from ema_casadi._util import _compiled as compiled
 from ema_casadi.export import fmu
@@ -40,15 +41,6 @@ pytestmark = pytest.mark.skipif(compiled.compiler() is None, reason="no C compil
 T_END = 0.2
 RTOL = 1e-8  # FMPy's CVode
 FACTOR = 10.0  # tolerance = FACTOR x MEASURED (module docstring)
-
-
-def on_grid(res, dt=1e-3):
-    """The rows of an FMPy result at the multiples of dt (the last row where an event
-    recorded a time twice)."""
-    k = np.abs(res["time"] / dt - np.round(res["time"] / dt)) < 1e-6
-    res = res[k]
-    i = np.round(res["time"] / dt).astype(int)
-    return res[np.r_[i[1:] != i[:-1], True]]
 
 
 def events(res) -> int:
