@@ -147,7 +147,8 @@ def test_model_exchange_converges_on_the_reference_scenario(me, scenario_referen
     toolkit's CVODES at rtol 1e-10: below 0.1 um at rtol 1e-8 and smaller at every
     tightening (measured 5.1e-8 / 7.6e-10 / 3.2e-11 m at 1e-6 / 1e-8 / 1e-10). Plain
     ``simulate_fmu``, which sets the inputs only at its output points and in its root
-    function, was 14 um off at 1e-6 and stopped at 1e-8 (docs: exports)."""
+    function, was 0.15-21 um off at 1e-6 (by the input table's spacing) and stopped at
+    1e-8 (docs: exports)."""
     model, info = me
     ref = scenario_reference
     errors = []
