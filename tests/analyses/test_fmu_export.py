@@ -168,10 +168,11 @@ def test_event_indicators_mark_the_switches(model_cache):
     """One indicator per switch of f: the dead zone's edges (delta -+ B/2) and the
     contact test are among them; a switch under a parameter branch that is off (the
     exact efficiency switch while P_blend > 0) is constant, and live when P_blend = 0."""
-    from ema_casadi.export.fmu._events import switch_indicators
+    from ema_casadi.export.fmu._events import switches
 
     model = model_cache()
-    z, what = switch_indicators(model)
+    sw = switches(model)
+    z, what = sw.z, sw.what
     assert len(what) == z.size1_out(0) and {"fmax", "fmin", "<="} <= set(what)
     x = model.x0()
     B = model.params.screw.B

@@ -49,7 +49,7 @@ import casadi as ca
 
 from ...model.assembly import Model
 
-__all__ = ["switch_indicators", "switches", "Switches"]
+__all__ = ["switches", "Switches"]
 
 _DIFF = (ca.OP_FMAX, ca.OP_FMIN, ca.OP_LT, ca.OP_LE, ca.OP_EQ, ca.OP_NE)
 _SELF = (ca.OP_FABS, ca.OP_SIGN)
@@ -242,20 +242,3 @@ def switches(model: Model) -> Switches:
         ca.Function("ema_held", [x, u, p, m], [ca.vertcat(*out[:model.nx]), ca.vertcat(*out[model.nx:])],
                     ["x", "u", "p", "m"], ["xdot", "y"], opts))
 
-
-def switch_indicators(model: Model) -> tuple[ca.Function, list[str]]:
-    """The event indicators of ``model.f``'s right-hand side (:func:`switches`).
-
-    Parameters
-    ----------
-    model : Model
-        The assembled model.
-
-    Returns
-    -------
-    (Function, list of str)
-        ``z(x, u, p) -> z`` (one entry per switch, in the order found) and a short
-        description of each (the operation it decides, e.g. ``"fmax"``).
-    """
-    sw = switches(model)
-    return sw.z, sw.what
