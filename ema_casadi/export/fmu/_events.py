@@ -19,8 +19,9 @@ operation                   indicator
 ``a < b``, ``a <= b``, ==   ``a - b``
 ``fabs(a)``, ``sign(a)``    ``a``
 ``floor(a)``, ``ceil(a)``   ``sin(pi a)`` (a zero at every integer)
-``fmod(a, b)``              ``sin(pi a / b)``
 ==========================  ========================
+
+(``fmod``, which no part uses, is left to decide itself.)
 
 Only indicators that depend on the states or the inputs are kept (a switch on a
 parameter alone cannot change during a run); duplicates (the same expression, or its
@@ -55,8 +56,7 @@ _DIFF = (ca.OP_FMAX, ca.OP_FMIN, ca.OP_LT, ca.OP_LE, ca.OP_EQ, ca.OP_NE)
 _SELF = (ca.OP_FABS, ca.OP_SIGN)
 _STEPS = (ca.OP_FLOOR, ca.OP_CEIL)
 _NAMES = {ca.OP_FMAX: "fmax", ca.OP_FMIN: "fmin", ca.OP_LT: "<", ca.OP_LE: "<=", ca.OP_EQ: "==",
-          ca.OP_NE: "!=", ca.OP_FABS: "fabs", ca.OP_SIGN: "sign", ca.OP_FLOOR: "floor", ca.OP_CEIL: "ceil",
-          ca.OP_FMOD: "fmod"}
+          ca.OP_NE: "!=", ca.OP_FABS: "fabs", ca.OP_SIGN: "sign", ca.OP_FLOOR: "floor", ca.OP_CEIL: "ceil"}
 
 
 def _indicator(node: ca.SX):
@@ -67,8 +67,6 @@ def _indicator(node: ca.SX):
         return node.dep(0)
     if op in _STEPS:
         return ca.sin(ca.pi * node.dep(0))
-    if op == ca.OP_FMOD:
-        return ca.sin(ca.pi * node.dep(0) / node.dep(1))
     return None
 
 
@@ -214,8 +212,8 @@ def switches(model: Model) -> Switches:
     z, what, sel, keys, held = [], [], [], {}, {}  # held: node hash -> (mode index, sign)
     for node, guards in _switch_nodes([xdot[i] for i in range(model.nx)], xu):
         e = _indicator(node)
-        if e is None or not ca.depends_on(e, xu) or node.op() == ca.OP_FMOD:
-            continue  # fmod (no model uses it) is left to decide itself
+        if e is None or not ca.depends_on(e, xu):
+            continue
         e = _guarded(e, guards)
         key, neg = e.element_hash(), (-e).element_hash()
         if key in keys or neg in keys:
