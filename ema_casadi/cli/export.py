@@ -7,7 +7,8 @@ read back with casadi.Function.load) or c (generated C code NAME.c + NAME.h) whe
 --out names a .casadi / .c file; they write a sidecar FILE.json naming the entries
 of x, u, p and y.
 Nonlinear model for other tools (ema_casadi.export.fmu): --format fmu-me (FMI 3.0 model
-exchange, smooth friction), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
+exchange, smooth friction; an event indicator per switch, the switches held between
+events), fmu-cs (FMI 2.0, or 3.0 with --fmi-version 3.0,
 co-simulation of the fixed-step RK4 with the hybrid friction inside; --dt sets its
 internal step, default 2e-6 s, with hybrid friction 1e-5 s), c (a
 folder: generated C, fixed-step simulator, layout header, main.c, Makefile) and
