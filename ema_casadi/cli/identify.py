@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 
 from .._util._parallel import cores
-from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
+from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
 
 COMMAND = "identify"
 ORDER = 12
@@ -124,34 +124,32 @@ def _quantities(items, flag, model) -> dict:
     return out
 
 
-def _split(args):
-    """(model file, records): a first positional that is not a .toml file is a record."""
+def _split(args) -> list:
+    """The records; a first positional that is not a .toml file is a record (then the
+    model is the packaged reference, args.model set to None)."""
     records = list(args.records)
     if args.model is not None and Path(args.model).suffix.lower() != ".toml":
         records.insert(0, args.model)
         args.model = None
-    return model_path(args), records
+    return records
 
 
 def run(args) -> dict:
     from ..identification import IdentificationError
-    from ..model.assembly import build_model
-    from ..model.params import load_parameters
 
     out = check_output_path(args.out, (".toml",), "--out")
-    model_file, records = _split(args)
+    records = _split(args)
     if args.starts < 1:
         raise UserError(f"--starts must be at least 1, got {args.starts}")
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
-    params = load_parameters(model_file, dict(args.variant))
-    model = build_model(params)
+    params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
     try:
         if not records:
-            return _example(args, params, out, progress)
+            return _example(args, params, model, out, progress)
         if args.free is None:
             raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
         free = [s.strip() for s in args.free.split(",") if s.strip()]
@@ -160,7 +158,7 @@ def run(args) -> dict:
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
         if args.track:
-            return _track(args, params, records, free, kw)
+            return _track(args, params, model, records, free, kw)
         if args.compare:
             return _compare(args, params, model, records, free, kw, out)
         return _fit(args, params, model, records, free, kw, out)
@@ -287,10 +285,10 @@ def identify_api(params, recs, free, **kw):
     return identify(params, recs, free, **kw)
 
 
-def _track(args, params, records, free, kw) -> dict:
+def _track(args, params, model, records, free, kw) -> dict:
     from ..identification import track
 
-    limits = _quantities(args.limit, "--limit", __import__("ema_casadi").build_model(params))
+    limits = _quantities(args.limit, "--limit", model)
     report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
     if args.out is not None:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
@@ -304,7 +302,7 @@ def _track(args, params, records, free, kw) -> dict:
     return doc
 
 
-def _example(args, params, out, progress) -> dict:
+def _example(args, params, model, out, progress) -> dict:
     """The built-in example: records simulated with worn parameters, fitted."""
     from .._util._files import scratch_dir
     from ..identification import example_records
@@ -312,7 +310,6 @@ def _example(args, params, out, progress) -> dict:
     with scratch_dir() as tmp:
         paths, truth = example_records(params, tmp)
         free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
-        model = __import__("ema_casadi").build_model(params)
         doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
                                                       "max_evaluations": args.max_evaluations,
                                                       "hold_unidentifiable": not args.keep_unidentifiable,
