@@ -40,7 +40,7 @@ from ..simulation import RunFailed, simulate
 from ._df import cycle_of
 from ._setup import setup
 
-__all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit"]
+__all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit", "continue_orbit", "Continuation"]
 
 #: Integrator tolerances of the shooting runs (relative; absolute, in full-scale units).
 RTOL = 1e-11
@@ -128,6 +128,16 @@ class _Flow:
     def _fheld(self, x, m):
         return np.asarray(self._sw.f(x, self.u, self.pv, m)[0], float).ravel()
 
+    def _jheld(self, x, m):
+        if not hasattr(self, "_jh"):
+            X = ca.SX.sym("x", self.model.nx)
+            U = ca.SX.sym("u", self.model.nu)
+            Pp = ca.SX.sym("p", len(self.pv))
+            mm = ca.SX.sym("m", self._held.nz)
+            xd = self._sw.f(X, U, Pp, mm)[0]
+            self._jh = ca.Function("jh", [X, U, Pp, mm], [ca.jacobian(xd, X)])
+        return np.asarray(self._jh(x, self.u, self.pv, m), float)
+
     def modes(self, x) -> np.ndarray:
         sw, _ = self._events()
         nz = sw.z.size1_out(0)
@@ -174,9 +184,9 @@ class _Flow:
                 tt = (grid[j] - ta) * za / (za - zb)
                 if tau is None or tt < tau:
                     k, tau = int(kk), tt
-            def to(tau, xa=xa, Sa=Sa, pm=pm):
-                if tau <= 1e-14 * T:
-                    return xa, Sa
+            def to(tau, xa=xa, Sa=Sa, pm=pm, m=m):
+                if tau <= 1e-9 * T:  # too short a step for the driver: first order (error ~ tau^2)
+                    return xa + tau * self._fheld(xa, m), Sa + tau * self._jheld(xa, m) @ Sa
                 Xe, SXe, _ = sens(held, self.sig, np.array([0.0, tau]), pm, xa, W, Sa, RTOL, ATOL)
                 return Xe[:, -1], SXe[-1].T
 
@@ -542,3 +552,245 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     D = model.full_scale(s["p"])
     return PeriodicOrbit(loop, float(T), x, mu, M, float(np.max(np.abs((xT - x) / D))), summ, t, X, Y,
                          tuple(model.states), tuple(model.outputs), units, pred, info)
+
+
+@dataclass
+class Continuation:
+    """A branch of periodic orbits over one parameter (:func:`continue_orbit`).
+
+    Attributes
+    ----------
+    name : str
+        The parameter continued (SI unit ``unit``).
+    values, periods : ndarray
+        The parameter and the period (s) at each point of the branch.
+    amplitudes : ndarray
+        First-harmonic amplitude of ``signal`` at each point.
+    multipliers : list of ndarray
+        Floquet multipliers at each point (trivial one first).
+    stable : ndarray of bool
+        Stability at each point.
+    bifurcations : list of dict
+        Detected points: ``kind`` (``fold``, ``period doubling``, ``torus``, ``birth``),
+        ``value`` (the parameter), ``amplitude``, ``index`` (the point after it).
+    """
+
+    name: str
+    unit: str
+    signal: str
+    values: np.ndarray
+    periods: np.ndarray
+    amplitudes: np.ndarray
+    multipliers: list
+    stable: np.ndarray
+    bifurcations: list
+    info: dict = field(default_factory=dict)
+
+    @property
+    def onset(self) -> float | None:
+        """The parameter value where the orbit is born (a birth or the fold that ends the branch), if found."""
+        for b in self.bifurcations:
+            if b["kind"] in ("birth", "fold"):
+                return b["value"]
+        return None
+
+    def as_dict(self) -> dict:
+        """JSON-ready."""
+        return {"parameter": self.name, "unit": self.unit, "signal": self.signal, "values": self.values.tolist(),
+                "periods_s": self.periods.tolist(), "freqs_hz": (1 / self.periods).tolist(),
+                "amplitudes": self.amplitudes.tolist(), "stable": self.stable.tolist(),
+                "max_multiplier": [float(np.max(np.abs(m[1:]))) for m in self.multipliers],
+                "bifurcations": self.bifurcations, "onset": self.onset, "info": self.info}
+
+    def plot(self, path=None):
+        """Bifurcation diagram: amplitude against the parameter, stable branches solid,
+        unstable dashed, the detected points marked (a Figure, or saved to ``path``)."""
+        from ..plots._limitcycle import plot_bifurcation
+
+        return plot_bifurcation(self, path)
+
+
+def _amplitude(flow: _Flow, x, T, signal: str, n: int = 200) -> float:
+    t, X, Y = flow.series(x, T, n)
+    return _summaries(flow, t, X, Y, (signal,))[signal]["amplitude"]
+
+
+def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "position", *, p=None,
+                   condition: str = "cruise_sl", orbit: PeriodicOrbit | None = None, ds: float = 0.05,
+                   ds_max: float = 0.2, steps: int = 200, tol: float = 1e-9, birth_amplitude: float = 1e-3,
+                   stop=None, progress=None, **orbit_kw) -> Continuation:
+    """Continue a periodic orbit over the parameter ``name`` between ``lo`` and ``hi`` by
+    pseudo-arclength, with its multipliers, folds, period doubling, torus points and birth.
+
+    The unknowns are the scaled state at the section, the period and the parameter; the
+    section is re-anchored at each point (normal to the flow at the last orbit's start),
+    the step is along the tangent of the branch (the null vector of the shooting
+    matrix), and its length adapts to the Newton iterations. The branch ends where the
+    parameter leaves [lo, hi], where the amplitude falls below ``birth_amplitude`` of
+    the largest met (the orbit's birth from the equilibrium), or after ``steps`` points;
+    the branch is followed both ways from the first orbit.
+
+    Parameters
+    ----------
+    model : Model
+    name : str
+        A parameter of ``model.param_names`` (SI).
+    lo, hi : float
+        The range of the parameter (SI).
+    loop, p, condition
+        As in :func:`periodic_orbit`.
+    orbit : PeriodicOrbit, optional
+        The first orbit (at ``p``); computed by :func:`periodic_orbit` otherwise (with
+        ``orbit_kw``).
+    ds, ds_max : float
+        First and largest step along the branch (scaled units: parameter by its range).
+    steps : int
+        Points at most.
+    tol : float
+        Periodicity residual of each point.
+    birth_amplitude : float
+        Relative amplitude below which the branch is taken to be born.
+    stop, progress : callable, optional
+        ``stop()`` before each point (raises to interrupt); ``progress(fraction, text)``.
+    """
+    if name not in model.param_names:
+        raise ValueError(f"continue: no parameter {name!r} in the model")
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"continue: range {lo!r}..{hi!r}: need lo < hi")
+    k = list(model.param_names).index(name)
+    pv0 = (model.p() if p is None else np.asarray(p, float)).copy()
+    if orbit is None:
+        orbit = periodic_orbit(model, loop, p=pv0, condition=condition, **orbit_kw)
+    s = setup(model, loop, pv0, condition)
+    pv = s["p"].copy()
+    if not lo <= pv[k] <= hi:
+        raise ValueError(f"continue: {name} = {pv[k]:g} of the first orbit outside {lo:g}..{hi:g}")
+    method = orbit.info.get("method", "sensitivities")
+    flow = _Flow(model, _held(model, loop, s), pv, method, orbit_kw.get("dt") or 1e-5)
+    sig = s["signal"]
+    D = model.full_scale(pv)
+    L = hi - lo
+    T_ref = orbit.T
+    nx = model.nx
+
+    def unpack(u):
+        return u[:nx] * D, u[nx] * T_ref, lo + u[nx + 1] * L
+
+    def system(u, c, xs):
+        x, T, lam = unpack(u)
+        pp = pv.copy()
+        pp[k] = lam
+        flow.set_p(pp)
+        xT, M, dp = flow.run(x, T, k)
+        r = np.concatenate([(xT - x) / D, [c @ (x - xs)]])
+        J = np.zeros((nx + 1, nx + 2))
+        J[:nx, :nx] = (M - np.eye(nx)) * D[None, :] / D[:, None]
+        J[:nx, nx] = flow.f(xT) / D * T_ref
+        J[:nx, nx + 1] = dp / D * L
+        J[nx, :nx] = c * D
+        return r, J, M, xT
+
+    def section(x):
+        c = flow.f(x) / D
+        return c / np.linalg.norm(c) / D
+
+    def tangent(J, prev=None):
+        _, _, vt = np.linalg.svd(J)
+        t = vt[-1]
+        if prev is not None and t @ prev < 0:
+            t = -t
+        return t
+
+    u0 = np.concatenate([orbit.x0 / D, [1.0, (pv[k] - lo) / L]])
+    r, J, M, xT = system(u0, section(orbit.x0), orbit.x0)
+    t_first = tangent(J)
+    first = (u0.copy(), orbit.multipliers, orbit.signals[sig]["amplitude"] if sig in orbit.signals else
+             _amplitude(flow, orbit.x0, orbit.T, sig))
+    t0 = time.perf_counter()
+    a_max = [first[2]]
+    done = [0]
+
+    def branch(t):
+        """Points along the branch from the first orbit in the direction t, and why it ended."""
+        u, h, pts = u0.copy(), ds, []
+        for _ in range(steps):
+            if stop is not None:
+                stop()
+            u_prev, x_prev = u.copy(), unpack(u)[0]
+            c = section(x_prev)
+            ok = False
+            while h >= 1e-4:
+                v = u_prev + h * t
+                for _it in range(8):
+                    try:
+                        r, J, M, xT = system(v, c, x_prev)
+                    except (RunFailed, OrbitNotFound, np.linalg.LinAlgError):
+                        break
+                    res = float(np.max(np.abs(r[:nx])))
+                    if res < tol and abs(r[nx]) < tol:
+                        ok = True
+                        break
+                    A = np.vstack([J, t])
+                    rr = np.concatenate([r, [t @ (v - u_prev) - h]])
+                    try:
+                        v = v - np.linalg.solve(A, rr)
+                    except np.linalg.LinAlgError:
+                        break
+                if ok:
+                    break
+                h /= 2
+            if not ok:
+                return pts, "no convergence"
+            u = v
+            t = tangent(J, t)
+            x, T, lam = unpack(u)
+            mu = _multipliers(M, flow.f(xT))
+            amp = _amplitude(flow, x, T, sig)
+            a_max[0] = max(a_max[0], amp)
+            pts.append((u.copy(), mu, amp))
+            done[0] += 1
+            h = min(ds_max, h * (1.5 if _it <= 2 else 1.0 if _it <= 4 else 0.5))
+            if progress is not None:
+                progress(min(1.0, done[0] / steps), f"{name} = {lam:.6g}, amplitude {amp:.4g}")
+            if not lo <= lam <= hi:
+                return pts, "range"
+            if amp < birth_amplitude * a_max[0]:
+                return pts, "birth"
+        return pts, "steps"
+
+    down, end_down = branch(-t_first if t_first[nx + 1] > 0 else t_first)
+    up, end_up = branch(t_first if t_first[nx + 1] > 0 else -t_first)
+    pts = [*down[::-1], first, *up]
+    end = {"decreasing": end_down, "increasing": end_up}
+    flow.set_p(pv)
+    vals = np.array([lo + q[0][nx + 1] * L for q in pts])
+    Ts = np.array([q[0][nx] * T_ref for q in pts])
+    amps = np.array([q[2] for q in pts])
+    mus = [q[1] for q in pts]
+    stab = np.array([bool(np.all(np.abs(m[1:]) < 1.0)) for m in mus])
+    bif = _bifurcations(vals, amps, mus)
+    if end_down == "birth":
+        bif.insert(0, {"kind": "birth", "value": float(vals[0]), "amplitude": float(amps[0]), "index": 0})
+    if end_up == "birth":
+        bif.append({"kind": "birth", "value": float(vals[-1]), "amplitude": float(amps[-1]), "index": len(vals) - 1})
+    unit = "m" if name == "B" else ""
+    return Continuation(name, unit, sig, vals, Ts, amps, mus, stab, bif,
+                        {"end": end, "points": len(vals), "runs": flow.runs, "wall_time": time.perf_counter() - t0})
+
+
+def _bifurcations(vals, amps, mus) -> list:
+    """Folds (the parameter turns), period doubling (a real multiplier through -1) and
+    torus points (a complex pair through the unit circle) between successive points."""
+    out = []
+    for i in range(1, len(vals)):
+        if i >= 2 and (vals[i] - vals[i - 1]) * (vals[i - 1] - vals[i - 2]) < 0:
+            out.append({"kind": "fold", "value": float(vals[i - 1]), "amplitude": float(amps[i - 1]), "index": i - 1})
+        a, b = mus[i - 1][1:], mus[i][1:]
+        for kind, sel in (("period doubling", lambda m: m[(np.abs(m.imag) < 1e-9) & (m.real < 0)]),
+                          ("torus", lambda m: m[np.abs(m.imag) >= 1e-9])):
+            ra, rb = sel(a), sel(b)
+            na, nb = int(np.sum(np.abs(ra) > 1)), int(np.sum(np.abs(rb) > 1))
+            if na != nb:
+                out.append({"kind": kind, "value": float(0.5 * (vals[i] + vals[i - 1])),
+                            "amplitude": float(0.5 * (amps[i] + amps[i - 1])), "index": i})
+    return out
