@@ -120,7 +120,7 @@ def _continuation(args, params, model):
         for v in (lo, hi):
             checked(name, v, f"--continue {name}={v:g}")
     except (SignalError, ValueError, ParameterError) as exc:
-        raise UserError(f"--continue: {str(exc).split(', got ')[0]}") from None
+        raise UserError(str(exc).split(", got ")[0]) from None
     if not lo < hi:
         raise UserError(f"--continue {args.cont}: need LO < HI")
     return name, lo, hi
