@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import field
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,6 +45,7 @@ __all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit", "summaries", "mul
 MIN_START = 1e-9
 
 
+@dataclass
 class PeriodicOrbit:
     """A periodic orbit of a closed loop (from :func:`periodic_orbit`).
 
