@@ -38,7 +38,7 @@ from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
-from ._inputs import _input_signals, check_inputs
+from ._inputs import check_inputs, input_signals
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -147,7 +147,7 @@ def simulate(
 def _checked_inputs(model, given, pv, plan, solver) -> dict:
     """The run's input signals, checked against the envelope and the Nyquist rate of
     what samples them (the rk4 step; the output spacing of a variable-step solver)."""
-    sig = _input_signals(model, given, pv, plan.t_end)
+    sig = input_signals(model, given, pv, plan.t_end)
     step = plan.dt if solver == "rk4" else plan.spacing
     check_inputs(model, _driven(model, sig), plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     return sig
@@ -208,7 +208,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     dt_out = None if every else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, given, pv, float(t_end))
+    sig = input_signals(model, given, pv, float(t_end))
     check_inputs(model, _driven(model, sig), float(t_end), {f"dt {float(dt):g} s": float(dt)})
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
