@@ -154,8 +154,8 @@ def transport_rates(V, alpha, theta, q, h, delta_t, delta_e, w_g, P):
 
 AIRCRAFT_LOOP = Loop("aircraft", flag="loop_a", injection="d_fcs", measured="x_cmd_fcs", rate="f_s_a")
 _INPUTS = (
-    Input("theta_cmd", "rad", "angle", "commanded pitch attitude"),
-    Input("w_g", "m/s", "rate", "vertical gust velocity, up positive"),
+    Input("theta_cmd", "rad", "angle", "commanded pitch attitude", roles=("attitude_command",)),
+    Input("w_g", "m/s", "rate", "vertical gust velocity, up positive", roles=("gust",)),
     Input("d_fcs", "m", "length", "injection at the actuator command (aircraft loop break)", injection=True),
 )
 _OUTPUTS = (
