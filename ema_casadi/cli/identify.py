@@ -105,8 +105,7 @@ def _bounds(items) -> dict:
 
 def _quantities(items, flag, model) -> dict:
     """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
-    from ..identification._records import _KIND_OF_UNIT
-    from ..signals import SignalError, parse_quantity
+    from ..signals import KIND_OF_UNIT, SignalError, parse_quantity
 
     units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
     out = {}
@@ -115,7 +114,7 @@ def _quantities(items, flag, model) -> dict:
             from .._util._checks import nearest
 
             raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
-        kind = _KIND_OF_UNIT.get(units[name])
+        kind = KIND_OF_UNIT.get(units[name])
         try:
             out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
         except (SignalError, ValueError):
@@ -167,8 +166,7 @@ def run(args) -> dict:
 
 
 def _fit(args, params, model, records, free, kw, out) -> dict:
-    from ..identification import is_frequency_record, profile, read_record, validate
-    from ..identification._plot import report_names
+    from ..identification import is_frequency_record, profile, read_record, report_names, validate
 
     kinds = {is_frequency_record(r) for r in records}
     if len(kinds) > 1:
@@ -222,7 +220,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    from ..identification._plot import report_names
+    from ..identification import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
     res = identify_frequency(params, records, free, sigma={k: v for k, v in kw["sigma"].items()},
@@ -254,7 +252,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     combinations(options, dict(args.variant), max_fits)  # checked before any work
     for r in records:
         read_record(r, model)
-    from ..identification._plot import report_names
+    from ..identification import report_names
 
     report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
@@ -325,7 +323,7 @@ def report(result: dict) -> None:
     """Print the parameter table and the channels' residuals."""
     w = sys.stdout.write
     if "trend" in result:
-        from ..identification._track import report_text
+        from ..identification import report_text
 
         w(report_text(result))
         return

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 
-from ..simulation._api import check_run
+from ..simulation import check_run
 from . import UserError, add_progress, check_output_path, load, stage
 from ._flags import airframe_variant, overrides, refuse_unused
 

@@ -13,9 +13,16 @@ import numpy as np
 from ..model.assembly import Model, build_model
 from ..model.components import node_outflow
 from ..model.params import Parameters
-from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, progress_bar, simulate
-from ..simulation._api import check_run
-from ..simulation._choice import choose_solver, trimmed_start
+from ..simulation import (
+    STEPS_PER_CALL,
+    RunFailed,
+    SimulationError,
+    check_run,
+    choose_solver,
+    progress_bar,
+    simulate,
+    trimmed_start,
+)
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 

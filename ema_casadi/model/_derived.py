@@ -59,7 +59,68 @@ def projection(parts, bus, x, u, p):
 class Contract:
     """What the model's parts declare for the analyses (the part contract), merged:
     a base of :class:`~ema_casadi.model.assembly.Model` (it reads ``parts``, ``state_info``,
-    ``outputs`` and :meth:`pdict`)."""
+    ``input_info``, ``output_info``, ``outputs`` and :meth:`pdict`)."""
+
+    # -- signals by role -----------------------------------------------------------
+    def inputs_with(self, role: str) -> tuple[str, ...]:
+        """Names of the inputs that declare ``role``.
+
+        Parameters
+        ----------
+        role : str
+            An input role (:data:`~ema_casadi.model.components.INPUT_ROLES`), e.g. ``load``.
+        """
+        return tuple(n for n, i in self.input_info.items() if role in i.roles)
+
+    def input_with(self, role: str) -> str:
+        """The name of the one input with ``role`` (``command`` -> ``x_cmd``); AssemblyError
+        if there is not exactly one (``command`` behind an airframe: its law drives the rod).
+
+        Parameters
+        ----------
+        role : str
+            An input role (:data:`~ema_casadi.model.components.INPUT_ROLES`).
+        """
+        return _one(self.inputs_with(role), role, "inputs")
+
+    def outputs_with(self, role: str) -> tuple[str, ...]:
+        """Names of the outputs that declare ``role``.
+
+        Parameters
+        ----------
+        role : str
+            An output role (:data:`~ema_casadi.model.components.OUTPUT_ROLES`), e.g. ``rod_position``.
+        """
+        return tuple(n for n, o in self.output_info.items() if role in o.roles)
+
+    def output_with(self, role: str) -> str:
+        """The name of the one output with ``role``; AssemblyError if there is not exactly one.
+
+        Parameters
+        ----------
+        role : str
+            An output role (:data:`~ema_casadi.model.components.OUTPUT_ROLES`).
+        """
+        return _one(self.outputs_with(role), role, "outputs")
+
+    def input_name(self, key: str) -> str:
+        """The input a key names: an input's name as is, else the one input with that role.
+
+        Parameters
+        ----------
+        key : str
+            An input name (``f_ext``) or role (``load``).
+        """
+        if key in self.input_info:
+            return key
+        from .components import INPUT_ROLES
+
+        if key in INPUT_ROLES:
+            return self.input_with(key)
+        from .._util._checks import nearest
+
+        raise AssemblyError(f"'{key}' is neither an input of this model nor an input role"
+                            f"{nearest(key, [*self.input_info, *INPUT_ROLES])}")
 
     def small_signal(self, **policies: str) -> dict[str, float]:
         """The parameter overrides of small-signal policies, merged from the parts.
@@ -129,6 +190,12 @@ class Contract:
     def memory_states(self) -> tuple[str, ...]:
         """States that may be neutral modes of a linearisation (:attr:`State.memory`)."""
         return tuple(n for n, s in self.state_info.items() if s.memory)
+
+
+def _one(names: tuple, role: str, what: str) -> str:
+    if len(names) != 1:
+        raise AssemblyError(f"the model has {len(names)} {what} with role '{role}', expected one")
+    return names[0]
 
 
 def modify(parts, providers) -> None:

@@ -162,11 +162,6 @@ class Model(Contract):
             self.cache["units"] = table
         return dict(table)
 
-    @property
-    def state_units(self) -> dict:
-        """State name -> SI unit."""
-        return {n: s.unit for n, s in self.state_info.items()}
-
     def index(self, name: str) -> int:
         """Index of a state by name.
 

@@ -19,8 +19,7 @@ from .._util._compiled import BufferCall
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..signals import Signal
-from ..simulation import STEPS_PER_CALL, RunFailed, simulate
-from ..simulation._envelope import GaveUp, Monitor, captured_stderr, integrator_failure
+from ..simulation import STEPS_PER_CALL, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure, simulate
 
 #: Largest contraction ratio assumed for a settling transient (also the value taken
 #: while only one period-to-period change is known).

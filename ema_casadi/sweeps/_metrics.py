@@ -195,7 +195,7 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
         The exception raised.
     """
     from ..model.assembly import build_model
-    from ..simulation._api import check_run
+    from ..simulation import check_run
 
     models = [build_model(spec.params, dict(v)) for v in sorted({r.variant for r in spec.runs})]
     out = {}

@@ -32,13 +32,6 @@ ANALYSES = [
     "aircraft", "limitcycle", "export", "frequency", "faults",  # export holds fmu/
 ]
 
-#: Known places still to be moved into the parts' declarations ("path: parameter"):
-#: the tuner's current and voltage limits and loop rates (the tuning requirements are
-#: being reworked on another branch). The guard fails on any other place, and on an
-#: entry here that no longer occurs (so the list shrinks).
-PENDING: dict = {}
-PENDING_IMPORTS: dict = {}
-
 #: Parameter groups that describe the whole actuator rather than one part: the stroke
 #: is the actuator's rating, used to scale requests (amplitudes in % of the stroke).
 MODEL_WIDE_GROUPS = ("actuator",)
@@ -182,14 +175,9 @@ def _split(found: list[str]):
 
 
 def test_no_family_module_is_imported_outside_the_model_layer():
-    found = _split(family_imports())
-    assert found - set(PENDING_IMPORTS.items()) == set()
-    assert set(PENDING_IMPORTS.items()) <= found, "a pending import is gone: remove it from PENDING_IMPORTS"
+    assert _split(family_imports()) == set()
 
 
 def test_no_analysis_names_a_part_parameter():
-    found = _split(parameter_names_in_analyses())
-    pending = {(path, n) for path, names in PENDING.items() for n in names}
-    assert found - pending == set()
-    assert pending <= found, f"pending entries gone, remove them from PENDING: {sorted(pending - found)}"
+    assert _split(parameter_names_in_analyses()) == set()
 

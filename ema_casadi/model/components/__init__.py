@@ -25,8 +25,10 @@ from . import (
 from ._part import (
     HEAT_NODES,
     INPUT_KINDS,
+    INPUT_ROLES,
     MARGIN,
     OUTPUT_KINDS,
+    OUTPUT_ROLES,
     POLICIES,
     AssemblyError,
     Bound,
@@ -52,7 +54,8 @@ from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantErr
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "monitors", "motor", "sensor",
     "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
+    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES",
+    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
