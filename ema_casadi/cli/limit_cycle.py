@@ -99,7 +99,7 @@ def _orders(text: str) -> tuple:
 
 def _continuation(args, params, model):
     """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work."""
-    from ..model._flat import checked
+    from ..model import checked
     from ..model.params import ParameterError
     from ..signals import SignalError, parse_quantity
 

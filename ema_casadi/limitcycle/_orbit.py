@@ -139,7 +139,7 @@ class PeriodicOrbit:
         path : str or Path
             The CSV file.
         """
-        from ..signals._tables import write_series
+        from ..signals import write_series
 
         extra = [s for s in self.states if s not in self.outputs]
         cols = [*self.outputs, *extra]
