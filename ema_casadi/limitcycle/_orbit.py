@@ -175,7 +175,7 @@ def summaries(flow: Flow, t, X, Y, names) -> dict:
         yy = y[:-1]
         c = 2 * np.mean(yy * np.exp(-2j * np.pi * (t[:-1] - t[0]) / T))
         out[n] = {"amplitude": float(abs(c)), "peak_to_peak": float(np.ptp(y)), "mean": float(np.mean(yy)),
-                  "unit": model.units.get(n, "") if hasattr(model, "units") and isinstance(model.units, dict) else ""}
+                  "unit": model.units.get(n, "")}
     return out
 
 
@@ -337,7 +337,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     t, X, Y = flow.series(x, T)
     summ = summaries(flow, t, X, Y, names)
     pred = _compare(prediction, summ, sig_name, T)
-    units = {n: model.output_info[n].unit for n in model.outputs} | dict(model.state_units)
+    units = dict(model.units)
     info = {"iterations": its, "runs": flow.runs, "method": method, "residuals": residuals,
             "wall_time": time.perf_counter() - t_start, "start": "given" if warm is None else
             {"t_warm_s": t_warm, "freq_hz": warm["freq_hz"], "amplitude": warm["amplitude"]}}
