@@ -431,8 +431,8 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
     # far beyond what the actuator can hold or reach there is no point to solve for (and
     # the Newton iteration meets overflowing numbers): refused by the model's envelope
     bounds = model.envelope(pv)
-    for label, val, info in (("f_ext", f_ext, model.input_info.get("f_ext")),
-                             ("v_rod", v_rod, model.output_info.get("v_rod"))):
+    load, speed = model.input_with("load"), model.output_with("rod_velocity")
+    for label, val, info in ((load, f_ext, model.input_info[load]), (speed, v_rod, model.output_info[speed])):
         if info is not None and info.bound is not None and abs(val) > bounds[label]:
             raise OperatingPointError(f"{label} = {val:.4g} {info.unit} is beyond the physical envelope "
                                       f"{bounds[label]:.4g} {info.unit} ({info.bound.why}); no operating point "

@@ -1,5 +1,6 @@
 """Functions the assembly derives from the parts' declarations besides ``f``: the
-sampled-ECU split (``f_held`` and ``sample``) and the hybrid parts' discrete map
+sampled-ECU split (``f_held`` and ``sample``), the switched split of a PWM bridge
+(``f_switched`` and the carrier-period ``schedule``) and the hybrid parts' discrete map
 (``project``); and :class:`Contract`, the parts' declarations for the analyses merged
 (a base of the Model). Used by :mod:`ema_casadi.model.assembly` only."""
 
@@ -9,7 +10,7 @@ import casadi as ca
 
 from .components import POLICIES, AssemblyError, der
 
-__all__ = ["zoh_split", "projection", "Contract", "modify"]
+__all__ = ["zoh_split", "switched_split", "projection", "Contract", "modify"]
 
 
 def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
@@ -37,6 +38,29 @@ def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
         ["x", "u", "p", "h", "flags"], ["x_next", "h_next"],
     )
     return f_held, sample
+
+
+def switched_split(parts, bus, evaluate, x, u, p, holds, integrators) -> dict:
+    """The switched split of a model with a switched part (see :class:`Model`): the held
+    plant with the switched signals as an input, and the carrier-period schedule."""
+    switched = [n for part in parts for n in part.switched]
+    owners = [part for part in parts if part.switched]
+    if not owners:
+        return {}
+    if len(owners) > 1:
+        raise AssemblyError(f"two switched parts: {', '.join(f'{o.family}={o.value}' for o in owners)}")
+    h = ca.SX.sym("h", len(holds))
+    held = {hd.name: h[i] for i, hd in enumerate(holds)}
+    frozen = {der(n): 0 for n in integrators}
+    sw = ca.SX.sym("s", len(switched))
+    dots, y = evaluate(bus(overrides={**held, **frozen, **{n: sw[i] for i, n in enumerate(switched)}}))
+    f_switched = ca.Function("f_switched", [x, u, p, h, sw], [dots, y], ["x", "u", "p", "h", "s"], ["xdot", "y"])
+    halves = owners[0].schedule(bus(overrides=dict(held)))
+    D = ca.horzcat(*[ca.vertcat(*dur) for dur, _ in halves]).T
+    S = ca.horzcat(*[ca.vertcat(*vals) for _, states in halves for vals in states])
+    schedule = ca.Function("schedule", [x, u, p, h], [D, S], ["x", "u", "p", "h"], ["D", "S"])
+    return {"switched": tuple(switched), "carrier": owners[0].carrier, "f_switched": f_switched,
+            "schedule": schedule}
 
 
 def projection(parts, bus, x, u, p):

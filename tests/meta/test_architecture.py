@@ -17,6 +17,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import ema_casadi
 from ema_casadi.model.components import REGISTRY, VARIANTS
 
@@ -181,3 +183,24 @@ def test_no_family_module_is_imported_outside_the_model_layer():
 def test_no_analysis_names_a_part_parameter():
     assert _split(parameter_names_in_analyses()) == set()
 
+
+
+def test_the_registry_refuses_an_option_declared_twice_with_other_values():
+    """Two parts may share one option declaration; a second, different one (or an option
+    named like a variant key) is refused instead of silently merged."""
+    from ema_casadi.model.components import OPTIONS, REGISTRY, AssemblyError, Part
+    from ema_casadi.model.components._registry import merge_options
+
+    def part(family, value, options):
+        return type(f"{family}{value}", (Part,), {"family": family, "value": value, "options": options})
+
+    assert merge_options(REGISTRY) == OPTIONS
+    same = {"a": {"x": part("a", "x", {"shape": ("clip", "smooth")})},
+            "b": {"y": part("b", "y", {"shape": ("clip", "smooth")})}}
+    assert merge_options(same) == {"shape": ("clip", "smooth")}
+    other = {"a": {"x": part("a", "x", {"shape": ("clip", "smooth")})},
+             "b": {"y": part("b", "y", {"shape": ("smooth", "clip")})}}
+    with pytest.raises(AssemblyError, match="option 'shape' declared twice: a = x"):
+        merge_options(other)
+    with pytest.raises(AssemblyError, match="option 'b' of a = x has the name of a variant key"):
+        merge_options({"a": {"x": part("a", "x", {"b": ("0", "1")})}, "b": {}})
