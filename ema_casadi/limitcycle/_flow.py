@@ -155,7 +155,7 @@ class Flow:
             k, tau = None, None
             for kk in ks:
                 za, zb = Z[kk, j - 1], Z[kk, j]
-                tt = (grid[j] - ta) * za / (za - zb)
+                tt = (grid[j] - ta) * (za / (za - zb) if za != zb else 0.5)
                 if tau is None or tt < tau:
                     k, tau = int(kk), tt
             def to(tau, xa=xa, Sa=Sa, pm=pm, m=m):
