@@ -23,7 +23,7 @@ ATOL = 1e-12
 #: Samples per period at which the event indicators are checked for a sign change.
 EVENT_GRID = 2000
 #: Most switch events in one period.
-MAX_EVENTS = 400
+MAX_EVENTS = 100
 #: Samples of the orbit's time series over one period.
 SAMPLES = 400
 
