@@ -50,7 +50,7 @@ def main(argv=None):
     ema.periodic_orbit(model, "position", p=p)  # warm-up: builds or loads the compiled drivers
     ema.simulate(model, 0.1, x_cmd=step, p=p, dt=1e-5, dt_out=1e-3, solver="rk4")
     t_orb, orb = _timed(lambda: ema.periodic_orbit(model, "position", p=p))
-    t_ros, _ = _timed(lambda: ema.simulate(model, 4.0, x_cmd=step, p=p, dt_out=2e-6, rtol=1e-9, atol=1e-12))
+    t_ros, _ = _timed(lambda: ema.simulate(model, 4.0, x_cmd=step, p=p, dt_out=1e-5, rtol=1e-9, atol=1e-12))
     t_rk4, _ = _timed(lambda: ema.simulate(model, 6.0, x_cmd=step, p=p, dt=1e-5, dt_out=1e-3, solver="rk4"))
     out = {"hunting orbit by shooting (2 s start run included) s": t_orb,
            "hunting 4 s RODAS4 run (rtol 1e-9) s": t_ros, "hunting 6 s RK4 run at 1e-5 s s": t_rk4,
