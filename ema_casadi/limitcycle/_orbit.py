@@ -238,7 +238,7 @@ def _start_from_simulation(model, s, t_warm, signal, dt):
 def held_inputs(model: Model, loop: str, s: dict) -> dict:
     """The loop's inputs held constant at the end of its confirming run."""
     if loop == "position":
-        return {"x_cmd": 1e-3}  # the confirming run's 1 mm step, held
+        return {model.input_with("command"): 1e-3}  # the confirming run's 1 mm step, held
     return dict(s["inputs"])
 
 
@@ -322,7 +322,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     s = setup(model, loop, p, condition)
     dt = dt or (1e-5 if loop == "position" else 1e-4)
     sig_name = s["signal"]
-    names = tuple(signals) if signals else tuple(dict.fromkeys(["x_rod", sig_name]))
+    names = tuple(signals) if signals else tuple(dict.fromkeys([model.output_with("rod_position"), sig_name]))
     for n in names:
         if n not in model.outputs and n not in model.states:
             raise ValueError(f"signals: no signal {n!r} in the model")
