@@ -193,6 +193,13 @@ class EndStop:
     d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
 
 
+@dataclass(frozen=True)
+class Load:
+    """The load on the rod besides f_ext, used by ``load = "aero_spring"``."""
+
+    k_aero: float = _p("N/m", NONNEG, "surface hinge-moment stiffness referred to the rod (N/m)", default=1.0e5)
+
+
 GROUPS: dict[str, type] = {
     "actuator": Actuator,
     "screw": Screw,
@@ -202,6 +209,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
+    "load": Load,
     "airframe": Airframe, **FAULT_GROUPS,  # the aircraft loop, sensors, faults, monitors: optional tables
 }
 
@@ -234,7 +242,7 @@ class Parameters(FaultTables):
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop, airframe, sensor, fault, monitor : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, load, airframe, sensor, fault, monitor : object
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -256,6 +264,7 @@ class Parameters(FaultTables):
     thermal: Thermal
     endstop: EndStop
     airframe: Airframe = Airframe()
+    load: Load = Load(k_aero=1.0e5)
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
     missing: tuple = ()

@@ -16,6 +16,7 @@ from . import (
     faults,
     friction,
     inverter,
+    load,
     monitors,
     motor,
     sensor,
@@ -52,8 +53,8 @@ from ._part import (
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
-    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "monitors", "motor", "sensor",
-    "supply", "thermal",
+    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
+    "sensor", "supply", "thermal",
     "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES",
     "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
