@@ -64,10 +64,12 @@ from ._envelope import Monitor, RunFailed
 from ._inputs import noise_signal
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
+from ._sensitivity import REPLAY_LIMIT, forward_sensitivities, sensitivity_library
 
 __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
     "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
     "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal",
+    "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
 ]
