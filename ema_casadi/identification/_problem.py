@@ -24,8 +24,7 @@ from .._util._checks import nearest
 from .._util._compiled import BufferCall, compile_function
 from .._util._parallel import cores
 from ..model.params import GROUPS, NONNEG, POS
-from ..simulation import forward_sensitivities
-from ..simulation._inputs import _input_signals
+from ..simulation import forward_sensitivities, input_signals
 from ._records import IdentificationError, Record, available_bytes
 
 #: Tolerances of the prediction runs (RODAS4, the CVODES error norm). Measured on the
@@ -302,7 +301,7 @@ class Predictor:
         key = (k, defaults)
         if key not in self._sig:
             self._sig = {kk: v for kk, v in self._sig.items() if kk[0] != k}
-            self._sig[key] = _input_signals(model, self._signals[k], pv)
+            self._sig[key] = input_signals(model, self._signals[k], pv)
         return self._sig[key]
 
     def _one(self, k: int, pv, W) -> dict:
@@ -346,9 +345,9 @@ class Predictor:
 
 def sig_value(sig: dict, model, t) -> np.ndarray:
     """Inputs (nu x n) of the signals at ``t``."""
-    from ..simulation._inputs import _input_matrix
+    from ..simulation import input_matrix
 
-    return _input_matrix(model, sig, t)
+    return input_matrix(model, sig, t)
 
 
 _CHUNK = 512
