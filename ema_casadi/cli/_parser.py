@@ -12,7 +12,7 @@ import sys
 from ._options import DEFAULT_MODEL
 
 __all__ = ["VariantHelpFormatter", "variant_help", "add_common", "build_parser", "get_parser",
-           "join_negative_values"]
+           "join_negative_values", "unknown_flag"]
 
 #: The ``--variant`` help as declared; :class:`VariantHelpFormatter` shows the registry's keys and
 #: values in its place (another formatter shows this sentence).
@@ -149,3 +149,40 @@ def join_negative_values(argv: list[str], parser) -> list[str]:
         out.append(tok)
         i += 1
     return out
+
+
+def unknown_flag(argv: list[str], parser) -> str | None:
+    """The one-line error for the first flag no parser knows (before argparse, whose
+    message for ``ema --versoin`` is "arguments are required: COMMAND" and for
+    ``ema simulate --tend 1`` has no suggestion), with the nearest flag; None when
+    every flag is known. A flag is known by its name or an unambiguous prefix (as
+    argparse abbreviates); nothing after ``--`` is looked at.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments after the program name.
+    parser : argparse.ArgumentParser
+        The ``ema`` parser.
+    """
+    from .._util._checks import nearest
+
+    choices = _subparsers(parser).choices
+    prog, sub = "ema", parser
+    for tok in argv:
+        if tok == "--":
+            return None
+        if sub is parser and tok in choices:
+            prog, sub = f"ema {tok}", choices[tok]
+            continue
+        if not tok.startswith("--") or len(tok) < 3:
+            continue
+        name = tok.split("=", 1)[0]
+        known = [o for a in sub._actions for o in a.option_strings if o.startswith("--")]
+        if name in known or sum(o.startswith(name) for o in known) == 1:
+            continue
+        hint = nearest(name, known)
+        if sum(o.startswith(name) for o in known) > 1:
+            hint = f" (ambiguous: {', '.join(o for o in known if o.startswith(name))})"
+        return f"{prog}: error: unknown flag {name}{hint}"
+    return None

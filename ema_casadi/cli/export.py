@@ -33,6 +33,9 @@ from .linearize import add_operating_point_arguments, op_summary, operating_poin
 COMMAND = "export"
 ORDER = 8
 HELP = "export the linear model (mat/npz/json) or the nonlinear one (fmu-me/fmu-cs/c/casadi)"
+#: The operating-point flags (ema linearize's) with their defaults: only the linear formats use them.
+OPERATING_POINT_FLAGS = {"--x-cmd": ("x_cmd", "0"), "--f-ext": ("f_ext", "0"), "--v-rod": ("v_rod", "0"),
+                         "--friction": ("friction", "off"), "--backlash": ("backlash", "off")}
 SUFFIX = {"mat": ".mat", "npz": ".npz", "json": ".json", "casadi": ".casadi", "c": ".c"}
 
 
@@ -89,6 +92,11 @@ def _applicable(args) -> None:
                       f"to --format {args.format} (a linear model: nothing steps, no FMI)")
     else:
         refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
+        for flag, (attr, default) in OPERATING_POINT_FLAGS.items():
+            if getattr(args, attr) != default:
+                raise UserError(f"{flag} has no effect on ema export --format {args.format}: the nonlinear model "
+                                "takes x_cmd and f_ext as inputs and keeps every nonlinearity (an operating point "
+                                "is for the linear formats mat, npz, json)")
 
 
 def run(args) -> dict:
