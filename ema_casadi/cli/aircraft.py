@@ -14,6 +14,7 @@ import time
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
 from ._flags import airframe_variant, fill_defaults, refuse_dt, refuse_unused
+from ._options import seconds
 
 COMMAND = "aircraft"
 ORDER = 11
@@ -30,9 +31,9 @@ def add_arguments(p):
                    help="flight condition (500 ft/s sea level, 800 ft/s at 30 000 ft, 250 ft/s landing); default all")
     p.add_argument("--step-deg", type=float, default=None, help="theta_cmd step (deg); default 1")
     p.add_argument("--gust", type=float, default=None, help="1-cosine gust peak (m/s, up); default 5")
-    p.add_argument("--gust-time", type=float, default=None, help="gust length (s); default 1")
-    p.add_argument("--t-end", type=float, default=None, help="response length (s); default 20")
-    p.add_argument("--dt", type=float, default=None,
+    p.add_argument("--gust-time", type=seconds, default=None, help="gust length (s); default 1")
+    p.add_argument("--t-end", type=seconds, default=None, help="response length (s); default 20")
+    p.add_argument("--dt", type=seconds, default=None,
                    help="RK4 step of the responses (s; RK4 runs with --zoh or hybrid friction, else --dt is "
                         "refused); default 1e-4")
     p.add_argument("--zoh", action="store_true", help="sampled flight-control computer (80 Hz) and ECU")

@@ -28,6 +28,7 @@ from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
 from ._flags import refuse_unused
+from ._options import seconds
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
@@ -46,7 +47,7 @@ def add_arguments(p):
     p.add_argument("--out", default=None, metavar="PATH",
                    help="output; default ema_lin.<format> (linear), ema_me.fmu / ema_cs.fmu, the folders "
                         "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
-    p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
+    p.add_argument("--dt", type=seconds, default=None, metavar="SECONDS",
                    help="fmu-cs: internal fixed step; c, casadi: default step of the simulator "
                         "(default 2e-6; with hybrid friction 1e-5)")
     p.add_argument("--fmi-version", choices=["2.0", "3.0"], default=None,

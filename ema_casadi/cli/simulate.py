@@ -37,6 +37,7 @@ from ..signals import SignalError, parse_signal
 from ..simulation import DT_OUT, SOLVERS, check_inputs, check_run, check_switched, choose_solver, simulate
 from . import UserError, add_progress, check_output_path, load, progress_of
 from ._flags import refuse_dt
+from ._options import seconds
 
 COMMAND = "simulate"
 #: A rod command beyond this many strokes means nothing (the end stops hold the rod at
@@ -61,10 +62,10 @@ def add_arguments(p):
     p.add_argument("--input", action="append", default=[], metavar="NAME=SIGNAL",
                    help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
-    p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
-    p.add_argument("--dt", type=float, default=None,
+    p.add_argument("--t-end", type=seconds, default=0.2, help="end time (s); default 0.2")
+    p.add_argument("--dt", type=seconds, default=None,
                    help=f"RK4 step (s), where rk4 runs (refused where another solver runs); default {DEFAULT_DT:g}")
-    p.add_argument("--dt-out", type=float, default=None,
+    p.add_argument("--dt-out", type=seconds, default=None,
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
     p.add_argument("--solver", choices=SOLVERS, default="auto",
@@ -81,7 +82,7 @@ def add_arguments(p):
     p.add_argument("--plot", default=None, metavar="FILE.png",
                    help="plot command, position, velocity, current, voltage (a switched inverter=pwm model: phase "
                         "currents, leg states, phase and line voltages over the last carrier periods, DC link)")
-    p.add_argument("--event-tol", type=float, default=1e-7,
+    p.add_argument("--event-tol", type=seconds, default=1e-7,
                    help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); "
                         "default 1e-7")
     p.add_argument("--instantaneous", action="store_true",
