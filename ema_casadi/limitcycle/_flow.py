@@ -13,7 +13,7 @@ import numpy as np
 
 from ..model.assembly import Model
 from ..signals import constant
-from ..simulation import simulate
+from ..simulation import forward_sensitivities, simulate
 
 __all__ = ["OrbitNotFound", "Flow", "RTOL", "ATOL", "EVENT_GRID", "MAX_EVENTS", "SAMPLES"]
 
@@ -23,22 +23,12 @@ ATOL = 1e-12
 #: Samples per period at which the event indicators are checked for a sign change.
 EVENT_GRID = 2000
 #: Most switch events in one period.
-MAX_EVENTS = 400
+MAX_EVENTS = 100
 #: Samples of the orbit's time series over one period.
 SAMPLES = 400
 
 class OrbitNotFound(RuntimeError):
     """Newton did not converge to a periodic orbit from the start given (a named failure)."""
-
-
-def _forward_sensitivities():
-    try:  # the shared numeric sensitivity interface
-        from ..simulation import forward_sensitivities
-    except ImportError:  # pragma: no cover - before the interface moved into simulation
-        from ..identification import _sensitivity
-
-        forward_sensitivities = _sensitivity.run
-    return forward_sensitivities
 
 
 def _signals(model: Model, held: dict, pv) -> dict:
@@ -125,7 +115,7 @@ class Flow:
         if self.method == "rk4":
             return self._run_fd(x0, T, k_param)
         sw, held = self._events()
-        sens = _forward_sensitivities()
+        sens = forward_sensitivities
         nd = nx + (k_param is not None)
         W = np.zeros((npar + held.nz, nd))
         if k_param is not None:
@@ -155,7 +145,7 @@ class Flow:
             k, tau = None, None
             for kk in ks:
                 za, zb = Z[kk, j - 1], Z[kk, j]
-                tt = (grid[j] - ta) * za / (za - zb)
+                tt = (grid[j] - ta) * (za / (za - zb) if za != zb else 0.5)
                 if tau is None or tt < tau:
                     k, tau = int(kk), tt
             def to(tau, xa=xa, Sa=Sa, pm=pm, m=m):
@@ -226,7 +216,7 @@ class Flow:
             grid = np.asarray(res.t)
         else:
             nx = self.model.nx
-            X, _, _ = _forward_sensitivities()(self.model, self.sig, grid, self.pv, np.asarray(x0, float),
+            X, _, _ = forward_sensitivities(self.model, self.sig, grid, self.pv, np.asarray(x0, float),
                                                np.zeros((len(self.pv), 1)), np.zeros((nx, 1)), RTOL, ATOL)
         fm = self.model.f.map(X.shape[1])
         Y = np.asarray(fm(X, np.tile(self.u[:, None], X.shape[1]), np.tile(self.pv[:, None], X.shape[1]))[1])

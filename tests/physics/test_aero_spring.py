@@ -58,3 +58,37 @@ def test_simulate_and_margins_take_it_unchanged(params):
     m = ema.loop_margins(model, ema.operating_point(model))["position"]
     m0 = ema.loop_margins(ema.build_model(params), ema.operating_point(ema.build_model(params)))["position"]
     assert m.pm_deg == pytest.approx(m0.pm_deg, rel=1e-2) and m.stable
+
+
+def test_identification_and_sweeps_take_it_unchanged(params, tmp_path):
+    """No analysis knows the part: a record simulated with k_aero = 3e5 N/m is fitted back
+    from the default 1e5 (the spring shows in the motor current that holds the rod), and a
+    sweep draws k_aero like any parameter (the peak spring force after a 1 mm step is
+    k_aero times the peak rod position)."""
+    from ema_casadi.identification import synthetic_record
+    from ema_casadi.sweeps import parse_sweep, sweep
+
+    v = {"load": "aero_spring"}
+    noise = {"x_rod": 0.3e-6, "i_q": 0.05}
+    rec = synthetic_record(params, tmp_path / "r.csv", t_end=0.3, x_cmd=ema.Signal.step(5e-3, 0.01),
+                           truth={"k_aero": 3e5}, noise=noise, variants=v)
+    fit = ema.identify(params, [rec], ["k_aero"], variants=v, sigma=noise).to_dict()["parameters"]["k_aero"]
+    lo, hi = fit["interval"]
+    assert lo < 3e5 < hi and hi - lo < 0.02 * 3e5  # measured 2.989e5..3.006e5 (0.6 % wide)
+    spec = parse_sweep({"sweep": {"name": "k_aero", "seed": 1, "samples": 3},
+                        "parameters": {"k_aero": {"distribution": "uniform", "low": 1e5, "high": 5e5}},
+                        "scenario": {"duration": 0.1, "x_cmd": "step:1mm@0.01"},
+                        "metrics": {"peak": {"signals": ["x_rod", "F_aero"]}}}, params, variants=v)
+    for row in sweep(spec, jobs=1, backend="threads").rows:
+        assert row["peak_F_aero"] == pytest.approx(row["k_aero"] * row["peak_x_rod"], rel=1e-9)
+
+
+@pytest.mark.slow
+def test_a_mission_takes_it_unchanged(params):
+    """The regional mission (thermal network, load profile) runs with the spring (~30 s)."""
+    from ema_casadi._util._resources import packaged_file
+    from ema_casadi.mission import FAST_DT, run_mission
+
+    r = run_mission(params, packaged_file("mission_regional.toml"), {"load": "aero_spring"}, dt=FAST_DT)
+    s = r.summary()
+    assert s["variants"]["load"] == "aero_spring" and s["limits_ok"]
