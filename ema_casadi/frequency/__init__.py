@@ -14,11 +14,12 @@ from ._response import (
     freqresp,
     frequency_grid,
     loop_margins,
+    margin_text,
     margins,
     modes,
 )
 
 __all__ = [
-    "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
+    "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins", "margin_text",
     "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes", "check_points", "MAX_FREQ_POINTS",
 ]

@@ -27,7 +27,11 @@ def _gain_crossovers(H, f, Hg) -> list[dict]:
             continue  # touches 1 without crossing
         x = _root(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
         fc = 10**x
-        out.append({"f_hz": fc, "pm_deg": _wrap180(math.degrees(np.angle(H(fc))) + 180.0)})
+        phase = math.degrees(np.angle(H(fc)))  # (-180, 180]
+        # pm_deg >= 0: the smallest phase rotation (either way) that puts L on -1;
+        # lag_deg: the extra phase lag that does (what a loop delay adds)
+        out.append({"f_hz": fc, "phase_deg": phase, "pm_deg": abs(_wrap180(phase + 180.0)),
+                    "lag_deg": (phase + 180.0) % 360.0})
     return _dedupe(out)
 
 
@@ -45,7 +49,9 @@ def _phase_crossovers(H, f, Hg) -> list[dict]:
 
         x = _root(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
         fc = 10**x
-        out.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
+        # gain_db = 20 log10 |L| there: < 0 the gain may rise by -gain_db (an upper gain
+        # margin), > 0 it may fall by gain_db (a gain-reduction margin)
+        out.append({"f_hz": fc, "gain_db": 20 * math.log10(abs(H(fc)))})
     return _dedupe(out)
 
 
