@@ -130,8 +130,8 @@ def test_every_metric_equals_the_single_analysis(params, tmp_path, capsys):
     for loop, lm in m.items():
         for k in ("gm_db", "gm_down_db", "pm_deg", "f_gc_hz", "f_pc_hz", "f_down_hz", "disk_margin"):
             want = math.nan if lm[k] is None else float(lm[k])  # None: no such crossover; JSON may carry "inf"
-            assert row[f"margins_{loop}_{k}"] == want or (math.isnan(want) and math.isnan(row[f"margins_{loop}_{k}"])), \
-                (loop, k)
+            got = row[f"margins_{loop}_{k}"]
+            assert got == want or (math.isnan(want) and math.isnan(got)), (loop, k)
     fr = _json(["freqresp", str(model_file), *var, "--amplitudes", "1mm", "--freqs", "5"], capsys)["points"][0]
     assert row["sine_5Hz_gain_db"] == fr["gain_db"] and row["sine_5Hz_phase_deg"] == fr["phase_deg"]
     model = ema.build_model(moved, lumped)
