@@ -2,6 +2,7 @@
 and stability margins of the linearised model (``_response``), the margin arithmetic
 (``_margins``) and the frequency grid (``_grid``)."""
 
+from ._margins import margin_text
 from ._response import (
     MAX_FREQ_POINTS,
     LoopMargins,
@@ -14,7 +15,6 @@ from ._response import (
     freqresp,
     frequency_grid,
     loop_margins,
-    margin_text,
     margins,
     modes,
 )

@@ -97,3 +97,40 @@ def _dedupe(items):
         if not out or abs(it["f_hz"] - out[-1]["f_hz"]) > 1e-9 * it["f_hz"]:
             out.append(it)
     return out
+
+
+def margin_text(m, digits: int = 1) -> str:
+    """One line naming each margin for what it is: ``GM`` (the gain may rise by it),
+    ``gain-reduction margin`` (it may fall by it; only a conditionally stable loop has
+    one), ``PM`` (the smallest over every gain crossover), each with its frequency, and
+    every gain crossover where there are several. No margin is printed negative.
+
+    Parameters
+    ----------
+    m : LoopMargins or dict
+        Margins, or their ``as_dict`` / JSON form (``gm_db``, ``f_pc_hz``,
+        ``gm_down_db``, ``f_down_hz``, ``pm_deg``, ``f_gc_hz``, optionally
+        ``gain_crossovers``); JSON may carry inf as the text "inf".
+    digits : int
+        Decimals of the dB and degree values.
+    """
+    d = m.as_dict() if hasattr(m, "as_dict") else m
+
+    def val(key):
+        v = d.get(key)
+        return math.inf if v is None else float(v)
+
+    def at(key):
+        v = d.get(key)
+        return f" at {float(v):.3g} Hz" if v is not None else ""
+
+    gm, down, pm = val("gm_db"), val("gm_down_db"), val("pm_deg")
+    text = f"GM {gm:.{digits}f} dB{at('f_pc_hz')}" if math.isfinite(gm) else "GM inf"
+    if math.isfinite(down):
+        text += f", gain-reduction margin {down:.{digits}f} dB{at('f_down_hz')}"
+    text += f", PM {pm:.{digits}f} deg{at('f_gc_hz')}" if math.isfinite(pm) else ", PM inf"
+    gcs = d.get("gain_crossovers") or []
+    if len(gcs) > 1:
+        text += " (gain crossovers " + ", ".join(f"{float(c['f_hz']):.3g} Hz PM {float(c['pm_deg']):.{digits}f} deg"
+                                                 for c in gcs) + ")"
+    return text
