@@ -170,3 +170,28 @@ def test_value_and_unit_apart_joined(argv, joined):
     from ema_casadi.cli._parser import join_unit_values
 
     assert join_unit_values(argv, PARSER) == joined
+
+
+def test_interrupt_message_names_resume(capsys):
+    """An interrupted sweep that writes a table (its journal beside it) says how to go
+    on: --resume, in the one line."""
+    import argparse
+    import signal
+
+    from ema_casadi.cli import sweep
+    from ema_casadi.cli._run import _Stop
+
+    stop = _Stop(["sweep"])
+    stop.hint = sweep.interrupt_hint(argparse.Namespace(out="table.csv"))
+    assert stop.report(signal.SIGINT) == 130
+    line = capsys.readouterr().err
+    assert line.count("\n") == 1 and line.startswith("ema sweep: interrupted") and "--resume" in line, line
+    assert sweep.interrupt_hint(argparse.Namespace(out=None)) == ""  # nothing kept without --out
+
+
+@pytest.mark.parametrize(("t", "text"), [(1.234, "settling 1.23 s"), (float("inf"), "not settled"),
+                                         (None, "not settled"), ("inf", "not settled")])
+def test_aircraft_settling_never_inf(t, text):
+    from ema_casadi.cli.aircraft import _settling
+
+    assert _settling(t).startswith(text) and "inf" not in _settling(t)
