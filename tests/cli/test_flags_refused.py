@@ -195,3 +195,13 @@ def test_aircraft_settling_never_inf(t, text):
     from ema_casadi.cli.aircraft import _settling
 
     assert _settling(t).startswith(text) and "inf" not in _settling(t)
+
+
+def test_from_trim_named_by_its_flag(tmp_path, capsys):
+    """The trim that cannot be found is reported under --from-trim, not simulate()'s
+    argument name; 80 kN is beyond the ~54.5 kN the current limit holds."""
+    out = tmp_path / "run.csv"
+    status = main(["simulate", "--from-trim", "--f-ext", "80kN", "--t-end", "0.01", "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line and line.startswith("ema simulate: error: --from-trim:"), line
+    assert not out.exists()
