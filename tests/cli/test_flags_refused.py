@@ -205,3 +205,20 @@ def test_from_trim_named_by_its_flag(tmp_path, capsys):
     line = capsys.readouterr().err.strip()
     assert status == 2 and "\n" not in line and line.startswith("ema simulate: error: --from-trim:"), line
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ('[scenario]\nduration = 0.6\nf_ext = 5kN\n[[fault]]\nkind = "jam"\n',
+     ["not valid TOML", "key 'f_ext'", "line 3", 'quoted: "5kN"']),
+    ('[scenario]\nduration = 0.6,\n', ["key 'duration'", "line 2"]),
+    ("[scenario\n", ["line 1", "[scenario"]),
+])
+def test_toml_syntax_error_names_the_key(tmp_path, capsys, text, words):
+    (tmp_path / "f.toml").write_text(text)
+    out = tmp_path / "out"
+    status = main(["faults", "--faults", str(tmp_path / "f.toml"), "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line, line
+    for w in words:
+        assert w in line, (w, line)
+    assert not out.exists()
