@@ -63,7 +63,7 @@ def overrides(params, flags: dict) -> dict:
     flags : dict
         Flag -> (flat parameter name, value or None, factor to SI).
     """
-    from ..model._flat import checked
+    from ..model import checked
     from ..model.params import ParameterError
 
     out = {}

@@ -102,7 +102,7 @@ def run(args) -> dict:
     default = ("ema_lin" if linear else "ema_f") + SUFFIX[args.format]
     out = check_output_path(args.out or default, (SUFFIX[args.format],), "--out")
     if not linear:  # the header and the sidecar beside it must be writable too
-        from ..export._linear import sidecar_path
+        from ..export import sidecar_path
 
         for extra in [out.with_suffix(".h")] * (args.format == "c") + [sidecar_path(out)]:
             check_output_path(str(extra), (extra.suffix,), "--out")

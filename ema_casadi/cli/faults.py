@@ -23,7 +23,7 @@ import math
 from pathlib import Path
 
 from .._util._resources import REFERENCE_FAULTS
-from . import UserError, _jsonable, add_progress, progress_of, second_file
+from . import UserError, add_progress, jsonable, progress_of, second_file
 from ._flags import new_output_folder, output_folder
 
 COMMAND = "faults"
@@ -93,7 +93,7 @@ def run(args) -> dict:
         res.plot(folder / names[2])
     summary = res.summary()
     summary["written"] = [str(out / n) for n in names]
-    return _jsonable(summary)
+    return jsonable(summary)
 
 
 def report(r: dict) -> None:

@@ -53,8 +53,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..frequency import loop_margins
-    from ..frequency._response import REQUIREMENT
+    from ..frequency import REQUIREMENT, loop_margins
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     check_window(args, per_decade=200)

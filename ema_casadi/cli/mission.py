@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
-from . import UserError, _jsonable, add_progress, progress_of, second_file
+from . import UserError, add_progress, jsonable, progress_of, second_file
 from ._flags import new_output_folder, output_folder
 
 COMMAND = "mission"
@@ -107,7 +107,7 @@ def run(args) -> dict:
     with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names["csv"], dt=args.csv_dt)
         res.plot(folder / names["png"])
-        write_text(folder / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
+        write_text(folder / names["json"], json.dumps(jsonable(summary), indent=1) + "\n")
     return summary
 
 

@@ -34,10 +34,7 @@ import math
 import time
 
 from ..signals import SignalError, parse_signal
-from ..simulation import DT_OUT, SOLVERS, simulate
-from ..simulation._api import check_run
-from ..simulation._inputs import check_inputs
-from ..simulation._pwm import check_switched
+from ..simulation import DT_OUT, SOLVERS, check_inputs, check_run, check_switched, simulate
 from . import UserError, add_progress, check_output_path, load, progress_of
 
 COMMAND = "simulate"

@@ -291,7 +291,7 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
     """The parameter set with the fault file's [monitor] values (checked like a file's)."""
     from dataclasses import fields
 
-    from ..model._param_units import raw_value
+    from ..model import raw_value
     from ..model.params import GROUPS
 
     if not isinstance(table, dict):

@@ -4,6 +4,7 @@ and stability margins of the linearised model (``_response``), the margin arithm
 
 from ._response import (
     MAX_FREQ_POINTS,
+    REQUIREMENT,
     LoopMargins,
     bandwidth,
     bode,
@@ -21,4 +22,5 @@ from ._response import (
 __all__ = [
     "LoopMargins", "frequency_grid", "freqresp", "bode", "margins", "loop_margins",
     "closed_loop", "compliance", "dynamic_stiffness", "bandwidth", "modes", "check_points", "MAX_FREQ_POINTS",
+    "REQUIREMENT",
 ]

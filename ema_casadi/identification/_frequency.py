@@ -25,8 +25,7 @@ import numpy as np
 
 from .._util._checks import nearest
 from ..model.assembly import build_model
-from ..signals import SignalError
-from ..signals._tables import _table_rows
+from ..signals import SignalError, table_rows
 from ._lm import levenberg_marquardt
 from ._problem import free_parameters
 from ._records import IdentificationError, Record, _fields
@@ -46,7 +45,7 @@ def is_frequency_record(path) -> bool:
         The file.
     """
     try:
-        rows = _table_rows(path)
+        rows = table_rows(path)
     except SignalError:
         return False
     return bool(rows) and rows[0][1][0].strip().lower().startswith("freq_hz")
@@ -67,7 +66,7 @@ def read_frequency_record(path, model) -> Record:
     from pathlib import Path
 
     path = Path(path)
-    rows = _table_rows(path)
+    rows = table_rows(path)
     if not rows:
         raise IdentificationError(f"{path}: empty frequency record")
     first = [c.strip() for c in rows[0][1]]

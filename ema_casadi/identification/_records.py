@@ -27,9 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import nearest
-from ..signals import Signal, SignalError
-from ..signals._signal import SI_UNIT
-from ..signals._tables import _header, _table_rows, _unit_scale, read_text
+from ..signals import KIND_OF_UNIT, Signal, SignalError, read_text, table_header, table_rows, unit_scale
 
 __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
 
@@ -38,7 +36,6 @@ __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
 #: when the machine has less memory available.
 MAX_BYTES = 2**31
 
-_KIND_OF_UNIT = {unit: kind for kind, unit in SI_UNIT.items() if kind != "rate"} | {"m/s": "rate"}
 _FIELD = re.compile(r"^#\s*([A-Za-z_][\w.]*)\s*[:=]\s*(\S.*?)\s*$")
 
 
@@ -178,10 +175,10 @@ def read_record(path: str | Path, model, extra=()) -> Record:
 
 def _read_csv(path: Path):
     text = read_text(path, "record")
-    rows = _table_rows(path)
+    rows = table_rows(path)
     if not rows:
         raise IdentificationError(f"{path}: empty record; expected a header 'time,NAME,...' and rows of numbers")
-    names, bracket, unit_row, data = _header(path, rows)
+    names, bracket, unit_row, data = table_header(path, rows)
     units = []
     for j, name in enumerate(names):
         u = bracket[j]
@@ -252,7 +249,7 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
     if not np.all(np.isfinite(data)):
         i, j = np.argwhere(~np.isfinite(data))[0]
         raise IdentificationError(f"{path}: non-finite value in column '{names[j]}' (sample {i + 1})")
-    t = data[:, 0] * _unit_scale(units[0], "time", f"{path}: column '{names[0]}'", None)
+    t = data[:, 0] * unit_scale(units[0], "time", f"{path}: column '{names[0]}'", None)
     bad = np.nonzero(np.diff(t) <= 0)[0]
     if len(bad):
         k = bad[0] + 1
@@ -281,10 +278,10 @@ def _scale(unit: str, si: str, where: str, model) -> float:
     """Factor to SI of a column's unit for a signal whose SI unit is ``si``."""
     if unit in ("", si):
         return 1.0
-    kind = _KIND_OF_UNIT.get(si)
+    kind = KIND_OF_UNIT.get(si)
     if kind is None:
         raise IdentificationError(f"{where}: unit '{unit}' is not '{si}', the signal's unit")
     try:
-        return _unit_scale(unit, kind, where, float(model.params.actuator.stroke))
+        return unit_scale(unit, kind, where, float(model.params.actuator.stroke))
     except SignalError as exc:
         raise IdentificationError(str(exc)) from None
