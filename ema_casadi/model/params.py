@@ -48,6 +48,7 @@ POS = "positive"  # > 0
 NONNEG = "non-negative"  # >= 0
 FRAC = "fraction"  # 0 < x <= 1
 INT = "positive integer"
+WHOLE = "whole number"  # 0, 1, 2, ... (a seed, a count of bits)
 NONPOS = "non-positive"  # <= 0
 FLAG = "switch"  # 0 or 1 (false or true)
 TEMP = "temperature"  # degC, above absolute zero
@@ -410,6 +411,8 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: must be in (0, 1], got {value}")
     if check == INT and not (value >= 1 and value == int(value)):
         raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    if check == WHOLE and not (value >= 0 and value == int(value)):
+        raise ParameterError(f"{where}: must be a whole number (0, 1, 2, ...), got {value:g}")
     if check == NONPOS and value > 0:
         raise ParameterError(f"{where}: must be zero or negative, got {value}")
     if check == FLAG and value not in (0.0, 1.0):
