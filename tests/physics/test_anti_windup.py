@@ -177,11 +177,14 @@ def _gate(d, w):
     return s * s * (3 - 2 * s)
 
 
-def test_pmsm_clamping_rates_follow_the_equations(params):
+@pytest.mark.parametrize("w_aw", [0.01, 0.04])
+def test_pmsm_clamping_rates_follow_the_equations(params, w_aw):
     """The PMSM's per-axis clamping (docs: each axis's excess v_k_u - v_k on the voltage
     circle) and the speed PI's, at random states that put the loops on and off their
     limits: the integrator rates of the model against NumPy from the documented
-    equations (rtol 1e-12: the same arithmetic up to reordering)."""
+    equations (rtol 1e-12: the same arithmetic up to reordering), at the reference band
+    and at a band four times wider (the band is the parameter w_aw)."""
+    params = params.replace(w_aw=w_aw)
     model = ema.build_model(params, {"anti_windup": "clamping"})
     P = params.as_dict()
     r = P["p"] / (2 * np.pi)
