@@ -35,8 +35,7 @@ __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parame
 
 
 class ParameterError(ValueError):
-    """A parameter file or variant choice is invalid. The message is one line that
-    names the file and the key and says what was expected."""
+    """A parameter file or variant choice is invalid (one line: the file, the key, what was expected)."""
 
 
 class UnknownParameterError(ParameterError, TypeError):
@@ -61,12 +60,8 @@ TABLE_MAX = 6
 def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
     """A parameter field. ``default``: the value taken when a file lacks the key (keys added
     after files were written); ``table``: a list of 2 to TABLE_MAX values, each checked."""
-    meta = {"unit": unit, "check": check, "doc": doc}
-    if default is not None:
-        meta["default"] = default
-    if table:
-        meta["table"] = True
-    return field(metadata=meta)
+    meta = {"unit": unit, "check": check, "doc": doc, **({} if default is None else {"default": default})}
+    return field(metadata={**meta, "table": True} if table else meta)
 
 
 @dataclass(frozen=True)
@@ -160,6 +155,9 @@ class Control:
     f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
     f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
     f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
+    w_aw: float = _p("1", FRAC, "clamping anti-windup band, fraction of the output limit (-)", default=0.01)
+    k_bc: float = _p("1", POS, "back-calculation tracking rate in units of K_i/K_p (-)", default=1.0)
+    w_knee: float = _p("1", FRAC, "smooth limit's knee half-width, fraction of the limit (-)", default=0.05)
 
 
 @dataclass(frozen=True)
