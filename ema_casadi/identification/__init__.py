@@ -4,7 +4,7 @@ Named parameters of a parameter file are fitted to measured time series by weigh
 least squares (maximum likelihood under Gaussian sensor noise): Levenberg-Marquardt
 (``_lm``, with a statistical stopping rule) whose residuals and exact Jacobian come
 from one run per record of the compiled RODAS4 solver with forward sensitivities
-(``_sensitivity``; the model is built once, the parameters are its input). Positive
+(``simulation.forward_sensitivities``; the model is built once, the parameters are its input). Positive
 parameters are fitted in log scale, bounds honoured, noise levels per channel given
 or estimated from the residuals. The result
 carries the Fisher-information covariance, 95 % intervals, the correlation, the

@@ -45,6 +45,10 @@ KEPT = ("x_cmd", "x_rod", "f_ext", "T_amb", "i_q", "R_w", "psi_m", "eta_screw", 
         "E_th", "E_stored")
 
 
+#: The mission file's segment signals (the file's keys, unchanged) and the input roles they drive.
+SEGMENT_ROLES = {"x_cmd": "command", "f_ext": "load", "T_amb": "ambient_temperature"}
+
+
 class MissionFailed(RuntimeError):
     """The run left the physical envelope or the integration failed (not a converged answer)."""
 
@@ -180,7 +184,7 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
     x = model.x0()
     for n in temps:
         x[model.index(n)] = mission.T_start
-    sig = {name: mission.signal(name) for name in ("x_cmd", "f_ext", "T_amb")}
+    sig = {model.input_with(role): mission.signal(key) for key, role in SEGMENT_ROLES.items()}
     if from_trim:
         x = trimmed_start(model, sig, model.p(), x)
     used, why = choose_solver(model, solver)

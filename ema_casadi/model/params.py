@@ -31,7 +31,7 @@ from ._params_airframe import Airframe
 from ._params_faults import FAULT_GROUPS, FaultTables
 from ._relations import check_relations
 
-__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
+__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked"]
 
 
 class ParameterError(ValueError):
@@ -194,6 +194,13 @@ class EndStop:
     d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
 
 
+@dataclass(frozen=True)
+class Load:
+    """The load on the rod besides f_ext, used by ``load = "aero_spring"``."""
+
+    k_aero: float = _p("N/m", NONNEG, "surface hinge-moment stiffness referred to the rod (N/m)", default=1.0e5)
+
+
 GROUPS: dict[str, type] = {
     "actuator": Actuator,
     "screw": Screw,
@@ -203,6 +210,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
+    "load": Load,
     "airframe": Airframe, **FAULT_GROUPS,  # the aircraft loop, sensors, faults, monitors: optional tables
 }
 
@@ -235,7 +243,7 @@ class Parameters(FaultTables):
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop, airframe, sensor, fault, monitor : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, load, airframe, sensor, fault, monitor : object
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -257,6 +265,7 @@ class Parameters(FaultTables):
     thermal: Thermal
     endstop: EndStop
     airframe: Airframe = Airframe()
+    load: Load = Load(k_aero=1.0e5)
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
     missing: tuple = ()
@@ -498,3 +507,30 @@ def load_parameters(path: str | Path | None = None, variants: dict[str, str] | N
     merged.update(given)
     # the registry checks the names when a model is built, blaming the file or `variants`
     return replace(_build(data, merged, src), overrides=tuple(given))
+
+
+# -- one flat value set from outside a file (a command-line flag) -----------------------
+def checked(name: str, value, where: str | None = None) -> float:
+    """``value`` (SI) for the flat parameter ``name``, checked as a parameter file's
+    value is (a finite number in the field's range), else :class:`ParameterError`
+    naming ``where``; a loop flag only as a finite number.
+
+    Parameters
+    ----------
+    name : str
+        Flat parameter name (``B``, ``K_i_x``, ``T_eta_2``); an unknown one raises
+        :class:`UnknownParameterError`.
+    value : float
+        The value (SI).
+    where : str, optional
+        How to name it in the message (default the name; the command line passes its flag).
+    """
+    where = where or name
+    rules = {n: {k: v for k, v in f.metadata.items() if k != "table"}
+             for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
+    if name in LOOP_FLAGS:
+        return number(value, where, ParameterError)
+    if name not in rules:
+        raise UnknownParameterError(_unknown("checked", name, rules))
+    value = value.item() if isinstance(value, np.generic) else value
+    return _check_value(where, "", "", rules[name], value, plain=True, bare=True)

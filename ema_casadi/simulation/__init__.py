@@ -65,6 +65,7 @@ from ._inputs import as_signal, check_inputs, input_matrix, input_signals, noise
 from ._pwm import check_switched
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
+from ._sensitivity import REPLAY_LIMIT, forward_sensitivities, sensitivity_library
 
 __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
@@ -74,4 +75,5 @@ __all__ = [
     # the interfaces other packages build on: request checks, inputs, the start, integrator failures
     "check_run", "check_inputs", "check_switched", "trimmed_start", "as_signal", "input_signals", "input_matrix",
     "GaveUp", "captured_stderr", "integrator_failure",
+    "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
 ]

@@ -265,7 +265,7 @@ def compute_metrics(name: str, opts: dict, model, params, pv, res) -> dict:
 def _c_step(o, model, params, pv, res):
     from ..simulation import step_response_metrics
 
-    t, x = res.t, res["x_rod"]
+    t, x = res.t, res[model.output_with("rod_position")]
     x0 = float(np.interp(o["at"], t, x))
     after = (t >= o["at"]) & (t <= o.get("until", math.inf))
     m = step_response_metrics(t[after] - o["at"], (x[after] - x0) / o["amplitude"], o["band"])
@@ -276,7 +276,7 @@ def _c_step(o, model, params, pv, res):
 def _c_hunting(o, model, params, pv, res):
     from ..simulation import hunting_metrics
 
-    h = hunting_metrics(res.t, res["x_rod"] - res["x_cmd"], o["from"])
+    h = hunting_metrics(res.t, res[model.output_with("rod_position")] - res[model.input_with("command")], o["from"])
     return {"hunting_amplitude_m": h["amplitude"],
             "hunting_frequency_hz": math.nan if h["frequency"] is None else h["frequency"]}
 
@@ -285,7 +285,7 @@ def _c_margins(o, model, params, pv, res):
     from ..frequency import loop_margins
     from ..linearisation import operating_point
 
-    op = operating_point(model, f_ext=o["f_ext"], p=pv)
+    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
     lm = loop_margins(model, op, o["loops"], outer=o["outer"])
     return {f"margins_{lp}_{k}": (math.nan if getattr(m, k) is None else float(getattr(m, k)))
             for lp, m in lm.items() for k, _ in _LOOP_FIELDS}
@@ -295,7 +295,7 @@ def _c_bandwidth(o, model, params, pv, res):
     from ..frequency import bandwidth, closed_loop
     from ..linearisation import operating_point
 
-    op = operating_point(model, f_ext=o["f_ext"], p=pv)
+    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
     return {"bandwidth_hz": float(bandwidth(closed_loop(model, op), o["level_db"]))}
 
 

@@ -15,9 +15,8 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi import identification as idn
-from ema_casadi.identification import _sensitivity
 from ema_casadi.identification._problem import Predictor, free_parameters
-from ema_casadi.simulation._inputs import input_signals
+from ema_casadi.simulation import forward_sensitivities, input_signals
 
 
 @pytest.fixture(scope="module")
@@ -52,13 +51,13 @@ def test_sensitivities_are_the_derivatives_of_the_trajectory(model_cache):
     xc = np.where(t > 0.02, 1e-3, 0.0)
     sig = input_signals(m, {"x_cmd": ema.Signal.table(t, xc), "f_ext": ema.Signal.table(t, 5e3 * (t > 0.15))}, pv)
     S0 = np.zeros((m.nx, len(idx)))
-    _, SX, _ = _sensitivity.run(m, sig, t, pv, m.x0(), W, S0, 1e-10, 1e-13)
+    _, SX, _ = forward_sensitivities(m, sig, t, pv, m.x0(), W, S0, 1e-10, 1e-13)
     for j, i in enumerate(idx):
         X = []
         for s in (1, -1):
             pp = pv.copy()
             pp[i] *= np.exp(s * 1e-4)
-            X.append(_sensitivity.run(m, sig, t, pp, m.x0(), W, S0, 1e-10, 1e-13)[0])
+            X.append(forward_sensitivities(m, sig, t, pp, m.x0(), W, S0, 1e-10, 1e-13)[0])
         for k in (m.index("x_rod"), m.index("i_q")):
             fd = (X[0][k] - X[1][k]) / 2e-4
             tol = 1e-2 if names[j] == "psi" else 1e-5
@@ -74,8 +73,8 @@ def test_the_frozen_step_sequence_reproduces_the_adaptive_run(model_cache):
     sig = input_signals(m, {"x_cmd": ema.Signal.table(t, 1e-3 * (t > 0.01))}, pv)
     W = np.zeros((len(pv), 1))
     W[m.param_names.index("F_seal"), 0] = 1.0
-    X1, S1, info = _sensitivity.run(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8)
-    X2, S2, _ = _sensitivity.run(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8, info["step_sizes"])
+    X1, S1, info = forward_sensitivities(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8)
+    X2, S2, _ = forward_sensitivities(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8, info["step_sizes"])
     assert np.array_equal(X1, X2) and np.array_equal(S1, S2)
 
 

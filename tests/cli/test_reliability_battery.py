@@ -277,7 +277,7 @@ def _api_cases():
     import ema_casadi as E
     from ema_casadi import frequency, signals
     from ema_casadi._util import _checks
-    from ema_casadi.model._flat import checked
+    from ema_casadi.model import checked
     from ema_casadi.simulation._inputs import check_inputs
 
     nan = float("nan")

@@ -190,9 +190,21 @@ MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 80
 #: Reviewed long modules: path -> (ceiling in lines, why it stays one module).
 LONG_MODULES = {
+    "ema_casadi/model/params.py": (560, "the typed parameters: the groups, their fields' rules, reading a file "
+                                        "and checking one value by the same rules"),
+    "ema_casadi/model/components/_part.py": (560, "the part contract: what every part declares (states, inputs, "
+                                                  "outputs with their roles, loops, holds, bounds) and the Part and "
+                                                  "Bus they meet through"),
     "ema_casadi/signals/_signal.py": (560, "the signal algebra and its quantities (the Signal class, the unit "
                                            "table and the parsers of a quantity are one vocabulary)"),
 }
+
+
+def _docstring_lines(node) -> int:
+    first = node.body[0] if node.body else None
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+        return first.end_lineno - first.lineno + 1
+    return 0
 
 
 def test_the_long_module_list_is_needed():
@@ -212,7 +224,7 @@ def test_module_and_function_sizes():
             long_modules.append(f"{rel}: {text.count(chr(10))} lines")
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                n = node.end_lineno - node.lineno + 1
+                n = node.end_lineno - node.lineno + 1 - _docstring_lines(node)  # the code, not its documentation
                 if n > MAX_FUNCTION_LINES:
                     long_functions.append(f"{rel}:{node.lineno} {node.name}: {n} lines")
     assert not long_modules, f"modules over {MAX_MODULE_LINES} lines (split, or review into LONG_MODULES): " \

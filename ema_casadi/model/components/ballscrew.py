@@ -247,8 +247,9 @@ def held_at_rest(P):
 #: (``held_load``: what a mission's load profile is checked against before it runs).
 _LIMITS = {"overtravel": lambda P: OVERTRAVEL, "held_load": held_at_rest}
 
-F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE)
-ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta")
+F_EXT = Input("f_ext", "N", "force", "external rod force, positive pushes the rod in", bound=_FORCE, roles=("load",))
+ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model may drive it)", default="eta",
+            roles=("efficiency",))
 # declared by the thermal parts, which pass it on as eta_screw (or replace it by eta(T_s))
 
 
@@ -284,11 +285,11 @@ def _shaft_states(contact: bool):
 
 def _outputs(rod_speed: Bound) -> tuple:
     return (
-        Output("x_rod", "m", "rod position, the sensor signal", bound=_TRAVEL),
-        Output("v_rod", "m/s", "rod velocity", bound=rod_speed),
+        Output("x_rod", "m", "rod position, the sensor signal", bound=_TRAVEL, roles=("rod_position",)),
+        Output("v_rod", "m/s", "rod velocity", bound=rod_speed, roles=("rod_velocity",)),
         Output("x_in", "m", "nut-side position phi*p/(2 pi)", bound=_TRAVEL),
-        Output("omega", "rad/s", "motor speed", bound=_SPEED),
-        Output("F_in", "N", "screw force on the rod"),
+        Output("omega", "rad/s", "motor speed", bound=_SPEED, roles=("motor_speed",)),
+        Output("F_in", "N", "screw force on the rod", roles=("screw_force",)),
         Output("g_screw", "1", "screw-nut torque factor T_load/(F p/2pi): 1/eta driving, eta_inv back-driven",
                kind="aux"),
         Output("P_screw_nut", "W", "screw-nut efficiency loss", kind="loss"),

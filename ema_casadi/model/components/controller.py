@@ -350,7 +350,7 @@ class PositionP(Part):
     family, value = "controller", "P"
     doc = "position P loop -> speed PI loop -> current command"
     inputs = (
-        Input("x_cmd", "m", "length", "commanded rod position"),
+        Input("x_cmd", "m", "length", "commanded rod position", roles=("command",)),
         Input("d_x", "m", "length", "injection at the position feedback (loop break)", injection=True),
         Input("d_w", "rad/s", "angular_velocity", "injection at the speed feedback (loop break)", injection=True),
     )

@@ -216,7 +216,7 @@ CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
 
 _COMMON_OUT = (
     Output("i_d", "A", "d-axis current (0 for the dc motor)", bound=CURRENT_BOUND),
-    Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND),
+    Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND, roles=("motor_current",)),
     Output("T_m", "N*m", "motor torque on the shaft (electromagnetic, less the iron-loss drag)"),
     Output("P_elec", "W", "electrical power into the windings", kind="power"),
     Output("P_cu", "W", "copper loss", kind="loss"),
