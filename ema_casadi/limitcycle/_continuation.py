@@ -187,19 +187,24 @@ class _Branch:
         br, flow = self, self.flow
         ds, ds_max, steps, stop, progress = (opts[k] for k in ("ds", "ds_max", "steps", "stop", "progress"))
         lo, hi, name = self.lo, self.hi, opts["name"]
-        u, h, pts = u0.copy(), ds, []
+        u, h, pts, natural = u0.copy(), ds, [], False
         sign = np.sign(t[-1]) or 1.0
         for _ in range(steps):
             if stop is not None:
                 stop()
             got = None
+            lam_prev = br.unpack(u)[2]
+            bound = hi if t[-1] > 0 else lo
+            if t[-1] != 0 and (bound - lam_prev) / (t[-1] * br.L) < h:  # land on the range's end
+                h = max((bound - lam_prev) / (t[-1] * br.L), 0.0)
+            room = (hi - lam_prev) if sign > 0 else (lam_prev - lo)
             while got is None and h >= ds / 16:
-                got = br.correct(u, t, h)
+                got = None if natural else br.correct(u, t, h)
+                if got is None and room > 1e-6 * br.L:  # a non-smooth stretch: a natural step inside the range
+                    got = br.natural(u, sign, min(h * abs(t[-1]) * br.L, 0.5 * room))
+                    natural = got is not None
+                    state["natural"] += natural
                 h = h if got is not None else h / 2
-            if got is None:  # a non-smooth stretch: a natural-parameter step
-                got = br.natural(u, sign, ds * br.L / 4)
-                state["natural"] += got is not None
-                h = ds / 4
             if got is None:
                 return pts, "no convergence"
             u, J, M, xT, its = got
@@ -213,7 +218,7 @@ class _Branch:
             h = min(ds_max, h * (1.5 if its <= 2 else 1.0 if its <= 4 else 0.5))
             if progress is not None:
                 progress(min(1.0, state["done"] / opts["total"]), f"{name} = {lam:.6g}, amplitude {amp:.4g}")
-            if not lo <= lam <= hi:
+            if not lo + 1e-9 * br.L < lam < hi - 1e-9 * br.L:
                 return pts, "range"
             if amp < opts["birth_amplitude"] * state["a_max"]:
                 return pts, "birth"

@@ -23,7 +23,7 @@ ATOL = 1e-12
 #: Samples per period at which the event indicators are checked for a sign change.
 EVENT_GRID = 2000
 #: Most switch events in one period.
-MAX_EVENTS = 400
+MAX_EVENTS = 100
 #: Samples of the orbit's time series over one period.
 SAMPLES = 400
 
@@ -145,7 +145,7 @@ class Flow:
             k, tau = None, None
             for kk in ks:
                 za, zb = Z[kk, j - 1], Z[kk, j]
-                tt = (grid[j] - ta) * za / (za - zb)
+                tt = (grid[j] - ta) * (za / (za - zb) if za != zb else 0.5)
                 if tau is None or tt < tau:
                     k, tau = int(kk), tt
             def to(tau, xa=xa, Sa=Sa, pm=pm, m=m):

@@ -10,8 +10,8 @@ step               step_overshoot (-), step_rise_time_s,           ``simulation.
                                                                    change of x_cmd, or the end)
 hunting            hunting_amplitude_m, hunting_frequency_hz       ``simulation.hunting_metrics`` of
                                                                    x_rod - x_cmd over t >= ``from``
-margins            margins_<loop>_gm_db, _pm_deg, _f_gc_hz,        ``frequency.loop_margins`` at the
-                   _f_pc_hz, _disk_margin                          operating point under ``f_ext``
+margins            margins_<loop>_gm_db, _gm_down_db, _pm_deg,     ``frequency.loop_margins`` at the
+                   _f_gc_hz, _f_pc_hz, _f_down_hz, _disk_margin    operating point under ``f_ext``
 bandwidth          bandwidth_hz                                    ``frequency.bandwidth`` of the
                                                                    closed loop (``level_db``)
 sine_stream        sine_<f>Hz_gain_db, sine_<f>Hz_phase_deg        ``sinestream.sine_stream`` at
@@ -38,7 +38,8 @@ __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "Poi
 class PointFailed(Exception):
     """A metric whose analysis reported a failed point (the run is failed)."""
 
-_LOOP_FIELDS = (("gm_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"), ("disk_margin", "1"))
+_LOOP_FIELDS = (("gm_db", "dB"), ("gm_down_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"),
+                ("f_down_hz", "Hz"), ("disk_margin", "1"))
 
 
 def _opts(where, given, allowed, error) -> dict:
