@@ -12,7 +12,7 @@ import sys
 from ._options import DEFAULT_MODEL
 
 __all__ = ["VariantHelpFormatter", "variant_help", "add_common", "build_parser", "get_parser",
-           "join_negative_values"]
+           "join_negative_values", "join_unit_values", "unknown_flag"]
 
 #: The ``--variant`` help as declared; :class:`VariantHelpFormatter` shows the registry's keys and
 #: values in its place (another formatter shows this sentence).
@@ -145,6 +145,89 @@ def join_negative_values(argv: list[str], parser) -> list[str]:
             if len(match) == 1 and flags[match[0]]:
                 out.append(f"{tok}={argv[i + 1]}")
                 i += 2
+                continue
+        out.append(tok)
+        i += 1
+    return out
+
+
+def unknown_flag(argv: list[str], parser) -> str | None:
+    """The one-line error for the first flag no parser knows (before argparse, whose
+    message for ``ema --versoin`` is "arguments are required: COMMAND" and for
+    ``ema simulate --tend 1`` has no suggestion), with the nearest flag; None when
+    every flag is known. A flag is known by its name or an unambiguous prefix (as
+    argparse abbreviates); nothing after ``--`` is looked at.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments after the program name.
+    parser : argparse.ArgumentParser
+        The ``ema`` parser.
+    """
+    from .._util._checks import nearest
+
+    choices = _subparsers(parser).choices
+    prog, sub = "ema", parser
+    for tok in argv:
+        if tok == "--":
+            return None
+        if sub is parser and tok in choices:
+            prog, sub = f"ema {tok}", choices[tok]
+            continue
+        if not tok.startswith("--") or len(tok) < 3:
+            continue
+        name = tok.split("=", 1)[0]
+        known = [o for a in sub._actions for o in a.option_strings if o.startswith("--")]
+        if name in known or sum(o.startswith(name) for o in known) == 1:
+            continue
+        hint = nearest(name, known)
+        if sum(o.startswith(name) for o in known) > 1:
+            hint = f" (ambiguous: {', '.join(o for o in known if o.startswith(name))})"
+        return f"{prog}: error: unknown flag {name}{hint}"
+    return None
+
+
+#: Unit words a flag's value may be followed by, apart (``--f-ext 30 kN``).
+UNIT_WORDS = ("N", "kN", "MN", "m", "mm", "um", "%", "m/s", "mm/s", "us", "ms", "s", "min", "h", "deg", "rad",
+              "Hz", "kHz", "V", "A", "K", "degC")
+
+
+def join_unit_values(argv: list[str], parser) -> list[str]:
+    """``--f-ext 30 kN`` -> ``--f-ext 30kN``: a number after a flag that takes a value,
+    followed by a unit word of :data:`UNIT_WORDS`, is one value (argparse alone reads
+    ``kN`` as the parameter file). Nothing after ``--`` is touched.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments after the program name (after :func:`join_negative_values`).
+    parser : argparse.ArgumentParser
+        The ``ema`` parser.
+    """
+    import re
+
+    number = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+    choices = _subparsers(parser).choices
+    out, sub = [], None
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            return out + argv[i:]
+        if sub is None and tok in choices:
+            sub = choices[tok]
+        elif sub is not None and tok.startswith("--") and i + 1 < len(argv):
+            takes = {o for a in sub._actions for o in a.option_strings if a.nargs is None}
+            flag, eq, value = tok.partition("=")
+            if eq and flag in takes and number.fullmatch(value) and argv[i + 1] in UNIT_WORDS:
+                out.append(tok + argv[i + 1])
+                i += 2
+                continue
+            if not eq and flag in takes and i + 2 < len(argv) and number.fullmatch(argv[i + 1]) \
+                    and argv[i + 2] in UNIT_WORDS:
+                out += [tok, argv[i + 1] + argv[i + 2]]
+                i += 3
                 continue
         out.append(tok)
         i += 1

@@ -10,7 +10,7 @@ import threading
 from .._util import _interrupts
 from ._common import EXIT_FAILED, jsonable, user_errors
 from ._options import model_path
-from ._parser import build_parser, join_negative_values
+from ._parser import build_parser, join_negative_values, join_unit_values, unknown_flag
 
 
 def _reader_gone() -> int:
@@ -30,6 +30,7 @@ class _Stop:
     def __init__(self, words):
         self.command = words[0] if words and not words[0].startswith("-") else None
         self.reported = False
+        self.hint = ""  # what the interrupted command can do next (a resumable one: --resume)
         self.stderr = None
         self._once = threading.Lock()  # the main thread and the watchdog may both report
 
@@ -51,7 +52,7 @@ class _Stop:
                 self.reported = True
                 _files.remove_temporaries()
                 stream = self.stderr or sys.stderr
-                stream.write(f"ema {self.command}: interrupted\n" if self.command else "ema: interrupted\n")
+                stream.write(f"ema {self.command}: interrupted{self.hint}\n" if self.command else "ema: interrupted\n")
                 stream.flush()
         return _interrupts.exit_status(signum)
 
@@ -83,12 +84,18 @@ def _run(argv, stop) -> int:
     from ..simulation import RunFailed
 
     parser, mods = build_parser()
-    argv = join_negative_values(list(sys.argv[1:] if argv is None else argv), parser)
+    argv = join_unit_values(join_negative_values(list(sys.argv[1:] if argv is None else argv), parser), parser)
+    unknown = unknown_flag(argv, parser)
+    if unknown:
+        sys.stderr.write(unknown + "\n")
+        return 2
     args = parser.parse_args(argv)
     stop.command = args.command
     args.model_given = args.model is not None
     args.model = model_path(args)
     mod = mods[args.command]
+    hint = getattr(mod, "interrupt_hint", None)
+    stop.hint = hint(args) if hint else ""
     errors = user_errors()
     try:
         with _files.transaction():

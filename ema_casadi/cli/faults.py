@@ -49,8 +49,14 @@ def add_arguments(p):
 
 
 def _check(args) -> Path:
+    from ..model.components import validate_variants
+    from ..sweeps import MAX_RUNS
+
     if args.healthy_runs < 0:
         raise UserError(f"--healthy-runs must be a non-negative integer, got {args.healthy_runs}")
+    if args.healthy_runs > MAX_RUNS:
+        raise UserError(f"--healthy-runs {args.healthy_runs}: above the limit of {MAX_RUNS} runs (MAX_RUNS)")
+    validate_variants(dict(args.variant), "--variant")  # before the fault file's choices join them
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be a positive integer, got {args.jobs}")
     if args.seed < 0:

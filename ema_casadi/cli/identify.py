@@ -29,9 +29,12 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
+from ._flags import refuse_unused
 
 COMMAND = "identify"
 ORDER = 12
+#: The records' time-stamp field of --track when --stamp is not given.
+STAMP = "flight_hours"
 HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
 
 
@@ -67,7 +70,7 @@ def add_arguments(p):
                    help="records not used in the fit, predicted with the estimates (NRMSE, residual whiteness)")
     p.add_argument("--track", action="store_true",
                    help="health trend: fit each record alone in the order of its time stamp")
-    p.add_argument("--stamp", default="flight_hours", metavar="FIELD",
+    p.add_argument("--stamp", default=STAMP, metavar="FIELD",
                    help="--track: the records' time-stamp field or column; default flight_hours")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
@@ -133,9 +136,30 @@ def _split(args) -> list:
     return records
 
 
+def _combinations(args) -> None:
+    """The options that have no effect in the combination given are refused, not dropped:
+    --track fits each record alone (no comparison, profile or validation), --compare
+    ranks combinations (no profile or validation), --limit and --stamp belong to
+    --track, --max-fits to --compare."""
+    if args.track:
+        refuse_unused(args, {"--compare": "compare", "--max-fits": "max_fits", "--profile": "profile",
+                             "--validate": "validate"}, "with --track (each record is fitted alone, in order)")
+    else:
+        refuse_unused(args, {"--limit": "limit"}, "without --track (the limit is what a health trend runs to)")
+        if args.stamp != STAMP:
+            raise UserError(f"--stamp {args.stamp}: does not apply without --track (it orders the records of a "
+                            "health trend)")
+    if args.compare:
+        refuse_unused(args, {"--profile": "profile", "--validate": "validate"},
+                      "with --compare (the combinations are ranked; profile or validate the best one's fit)")
+    else:
+        refuse_unused(args, {"--max-fits": "max_fits"}, "without --compare (it caps the combinations compared)")
+
+
 def run(args) -> dict:
     from ..identification import IdentificationError
 
+    _combinations(args)
     out = check_output_path(args.out, (".toml",), "--out")
     records = _split(args)
     if args.starts < 1:

@@ -22,6 +22,7 @@ import time
 from ..simulation import check_run
 from . import UserError, add_progress, check_output_path, load, stage
 from ._flags import airframe_variant, overrides, refuse_unused
+from ._options import seconds
 
 COMMAND = "limit-cycle"
 ORDER = 12
@@ -44,9 +45,9 @@ def add_arguments(p):
                                                  "0.3-5:8 (aircraft)")
     p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
-    p.add_argument("--dt", type=float, default=1e-4, help="RK4 step (s); default 1e-4")
+    p.add_argument("--dt", type=seconds, default=1e-4, help="RK4 step (s); default 1e-4")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
-    p.add_argument("--t-end", type=float, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
+    p.add_argument("--t-end", type=seconds, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
                    help="higher harmonics balanced after the describing function's root (orders 2..31, "
                         "comma-separated; 'none': first harmonic only); default 3,5,7")

@@ -35,8 +35,7 @@ __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parame
 
 
 class ParameterError(ValueError):
-    """A parameter file or variant choice is invalid. The message is one line that
-    names the file and the key and says what was expected."""
+    """A parameter file or variant choice is invalid (one line: the file, the key, what was expected)."""
 
 
 class UnknownParameterError(ParameterError, TypeError):
@@ -49,6 +48,7 @@ POS = "positive"  # > 0
 NONNEG = "non-negative"  # >= 0
 FRAC = "fraction"  # 0 < x <= 1
 INT = "positive integer"
+WHOLE = "whole number"  # 0, 1, 2, ... (a seed, a count of bits)
 NONPOS = "non-positive"  # <= 0
 FLAG = "switch"  # 0 or 1 (false or true)
 TEMP = "temperature"  # degC, above absolute zero
@@ -60,12 +60,8 @@ TABLE_MAX = 6
 def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
     """A parameter field. ``default``: the value taken when a file lacks the key (keys added
     after files were written); ``table``: a list of 2 to TABLE_MAX values, each checked."""
-    meta = {"unit": unit, "check": check, "doc": doc}
-    if default is not None:
-        meta["default"] = default
-    if table:
-        meta["table"] = True
-    return field(metadata=meta)
+    meta = {"unit": unit, "check": check, "doc": doc, **({} if default is None else {"default": default})}
+    return field(metadata={**meta, "table": True} if table else meta)
 
 
 @dataclass(frozen=True)
@@ -159,6 +155,9 @@ class Control:
     f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
     f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
     f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
+    w_aw: float = _p("1", FRAC, "clamping anti-windup band, fraction of the output limit (-)", default=0.01)
+    k_bc: float = _p("1", POS, "back-calculation tracking rate in units of K_i/K_p (-)", default=1.0)
+    w_knee: float = _p("1", FRAC, "smooth limit's knee half-width, fraction of the limit (-)", default=0.05)
 
 
 @dataclass(frozen=True)
@@ -412,6 +411,8 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: must be in (0, 1], got {value}")
     if check == INT and not (value >= 1 and value == int(value)):
         raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    if check == WHOLE and not (value >= 0 and value == int(value)):
+        raise ParameterError(f"{where}: must be a whole number (0, 1, 2, ...), got {value:g}")
     if check == NONPOS and value > 0:
         raise ParameterError(f"{where}: must be zero or negative, got {value}")
     if check == FLAG and value not in (0.0, 1.0):
