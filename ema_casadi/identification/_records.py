@@ -170,7 +170,20 @@ def read_record(path: str | Path, model, extra=()) -> Record:
             names, units, data, fields = _read_csv(path)
     except SignalError as exc:
         raise IdentificationError(str(exc)) from None
+    _check_fields(path, fields)
     return _record(path, model, names, units, data, fields, tuple(extra))
+
+
+def _check_fields(path: Path, fields: dict) -> None:
+    """A channel's noise field ``sigma_<channel>`` is a positive finite number (SI):
+    a typo (``abc``) or a sign slip (``-3e-7``) is refused, never read as absent."""
+    for key, value in fields.items():
+        if not key.startswith("sigma_"):
+            continue
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+        if not ok:
+            raise IdentificationError(f"{path}: field '# {key}: {value}' is not a positive number "
+                                      f"(the channel's noise, 1 sigma, in SI units, e.g. '# {key}: 3e-7')")
 
 
 def _read_csv(path: Path):

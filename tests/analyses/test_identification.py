@@ -197,6 +197,10 @@ def test_records_in_other_units_and_mat_files(params, model_cache, tmp_path):
     ("time,x_rood\n0,0\n1,0\n", ["x_rood", "did you mean 'x_rod'"]),
     ("", ["empty"]),
     ("time,x_rod\n0,0\n", ["at least two"]),
+    # a record's noise field is typed: a typo or a sign slip is refused, not ignored
+    ("# sigma_x_rod: abc\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "abc", "positive number"]),
+    ("# sigma_x_rod: -3e-7\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "-3e-07", "positive number"]),
+    ("# sigma_x_rod: 0\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "positive number"]),
 ])
 def test_bad_records_are_refused(model_cache, tmp_path, content, words):
     (tmp_path / "bad.csv").write_text(content)
