@@ -192,6 +192,9 @@ def test_records_in_other_units_and_mat_files(params, model_cache, tmp_path):
 
 @pytest.mark.parametrize("content, words", [
     ("x,x_rod\n0,0\n1,0\n", ["first column must be the time"]),
+    ("time_ms,x_rod\n0,0\n1,0\n", ["first column must be the time", "'time [ms]'", "time_ms"]),
+    ("time;x_rod\n0;0\n1;0\n", ["first column must be the time", "';'-separated"]),
+    ("time\tx_rod\n0\t0\n1\t0\n", ["first column must be the time", "tab-separated"]),
     ("time,x_rod\n0,0\n0,0\n", ["increase strictly"]),
     ("time,x_rod [kN]\n0,0\n1,0\n", ["x_rod", "kN"]),
     ("time,x_rood\n0,0\n1,0\n", ["x_rood", "did you mean 'x_rod'"]),
