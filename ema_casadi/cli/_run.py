@@ -30,6 +30,7 @@ class _Stop:
     def __init__(self, words):
         self.command = words[0] if words and not words[0].startswith("-") else None
         self.reported = False
+        self.hint = ""  # what the interrupted command can do next (a resumable one: --resume)
         self.stderr = None
         self._once = threading.Lock()  # the main thread and the watchdog may both report
 
@@ -51,7 +52,7 @@ class _Stop:
                 self.reported = True
                 _files.remove_temporaries()
                 stream = self.stderr or sys.stderr
-                stream.write(f"ema {self.command}: interrupted\n" if self.command else "ema: interrupted\n")
+                stream.write(f"ema {self.command}: interrupted{self.hint}\n" if self.command else "ema: interrupted\n")
                 stream.flush()
         return _interrupts.exit_status(signum)
 
@@ -93,6 +94,8 @@ def _run(argv, stop) -> int:
     args.model_given = args.model is not None
     args.model = model_path(args)
     mod = mods[args.command]
+    hint = getattr(mod, "interrupt_hint", None)
+    stop.hint = hint(args) if hint else ""
     errors = user_errors()
     try:
         with _files.transaction():

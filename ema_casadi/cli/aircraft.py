@@ -119,10 +119,18 @@ def report(r: dict) -> None:
         if "step" in d:
             s, g = d["step"], d["gust"]
             print(f"  {'':11s} step {s['step_deg']:g} deg: overshoot {s.get('overshoot', float('nan')) * 100:.1f} %, "
-                  f"settling {s.get('settling_time_s', float('nan')):.2f} s; gust {g['peak_m_s']:g} m/s: "
+                  f"{_settling(s.get('settling_time_s'))}; gust {g['peak_m_s']:g} m/s: "
                   f"|d n_z| {g['n_z_dev']:.3f}, |d theta| {math.degrees(g['theta_dev_rad']):.2f} deg")
     for w in r["written"]:
         print(f"wrote {w}")
+
+
+def _settling(t) -> str:
+    """``settling 1.23 s``, or ``not settled`` for a response that never stays in its
+    band within the run (an infinite or missing settling time), never ``inf s``."""
+    if isinstance(t, (int, float)) and math.isfinite(t):
+        return f"settling {t:.2f} s"
+    return "not settled within --t-end"
 
 
 def _loop_curves(model, condition, am) -> dict:

@@ -34,7 +34,16 @@ import math
 import time
 
 from ..signals import SignalError, parse_signal
-from ..simulation import DT_OUT, SOLVERS, check_inputs, check_run, check_switched, choose_solver, simulate
+from ..simulation import (
+    DT_OUT,
+    SOLVERS,
+    SimulationError,
+    check_inputs,
+    check_run,
+    check_switched,
+    choose_solver,
+    simulate,
+)
 from . import UserError, add_progress, check_output_path, load, progress_of
 from ._flags import refuse_dt
 from ._options import seconds
@@ -144,6 +153,11 @@ def run(args) -> dict:
         name = str(exc).split(" ", 1)[0]
         flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
         raise UserError(flag + str(exc)[len(name):]) from None
+    except SimulationError as exc:  # an argument of simulate() is the flag that set it (from_trim: -> --from-trim:)
+        name = str(exc).split(":", 1)[0]
+        if name not in FLAGS:
+            raise
+        raise UserError(FLAGS[name] + str(exc)[len(name):]) from None
     written = []
     if out is not None:
         table = res.with_instantaneous() if args.instantaneous else res

@@ -170,3 +170,95 @@ def test_value_and_unit_apart_joined(argv, joined):
     from ema_casadi.cli._parser import join_unit_values
 
     assert join_unit_values(argv, PARSER) == joined
+
+
+def test_interrupt_message_names_resume(capsys):
+    """An interrupted sweep that writes a table (its journal beside it) says how to go
+    on: --resume, in the one line."""
+    import argparse
+    import signal
+
+    from ema_casadi.cli import sweep
+    from ema_casadi.cli._run import _Stop
+
+    stop = _Stop(["sweep"])
+    stop.hint = sweep.interrupt_hint(argparse.Namespace(out="table.csv"))
+    assert stop.report(signal.SIGINT) == 130
+    line = capsys.readouterr().err
+    assert line.count("\n") == 1 and line.startswith("ema sweep: interrupted") and "--resume" in line, line
+    assert sweep.interrupt_hint(argparse.Namespace(out=None)) == ""  # nothing kept without --out
+
+
+@pytest.mark.parametrize(("t", "text"), [(1.234, "settling 1.23 s"), (float("inf"), "not settled"),
+                                         (None, "not settled"), ("inf", "not settled")])
+def test_aircraft_settling_never_inf(t, text):
+    from ema_casadi.cli.aircraft import _settling
+
+    assert _settling(t).startswith(text) and "inf" not in _settling(t)
+
+
+def test_from_trim_named_by_its_flag(tmp_path, capsys):
+    """The trim that cannot be found is reported under --from-trim, not simulate()'s
+    argument name; 80 kN is beyond the ~54.5 kN the current limit holds."""
+    out = tmp_path / "run.csv"
+    status = main(["simulate", "--from-trim", "--f-ext", "80kN", "--t-end", "0.01", "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line and line.startswith("ema simulate: error: --from-trim:"), line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ('[scenario]\nduration = 0.6\nf_ext = 5kN\n[[fault]]\nkind = "jam"\n',
+     ["not valid TOML", "key 'f_ext'", "line 3", 'quoted: "5kN"']),
+    ('[scenario]\nduration = 0.6,\n', ["key 'duration'", "line 2"]),
+    ("[scenario\n", ["line 1", "[scenario"]),
+])
+def test_toml_syntax_error_names_the_key(tmp_path, capsys, text, words):
+    (tmp_path / "f.toml").write_text(text)
+    out = tmp_path / "out"
+    status = main(["faults", "--faults", str(tmp_path / "f.toml"), "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line, line
+    for w in words:
+        assert w in line, (w, line)
+    assert not out.exists()
+
+
+#: Pages whose Python blocks still read the repository's models/ folder (another change
+#: rewrites the identification page; it runs from the repository until then).
+PENDING_MODEL_PATHS = {"identification.md"}
+
+
+def test_doc_python_blocks_use_the_packaged_files():
+    """A new user runs the docs' code from any folder: the packaged reference files
+    (ema.load_parameters(), ema.packaged_file(NAME)), never a path into the repository's
+    models/ folder (which exists only in a clone)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2] / "docs"
+    offenders = []
+    for page in sorted([*root.glob("*.md"), *root.glob("guide/*.md")]):
+        if page.name in PENDING_MODEL_PATHS:
+            continue
+        for block in re.findall(r"```python\n(.*?)```", page.read_text(), re.S):
+            offenders += [f"{page.name}: {line.strip()}" for line in block.splitlines() if '"models/' in line]
+    assert not offenders, offenders
+
+
+@pytest.mark.parametrize(("rows", "words"), [
+    ("1,0,-5\n2,abc,-10\n3,-1,-20\n", ["line 3", "gain_db 'abc'"]),
+    ("1,0,-5\n-2,-0.5,-10\n3,-1,-20\n", ["line 3", "freq_hz -2", "increasing"]),
+    ("1,0,-5\n2,nan,-10\n", ["line 3", "gain_db 'nan'"]),
+    ("1,0,-5\n2,-1\n", ["line 3", "three numbers"]),
+])
+def test_frequency_record_error_names_the_value(tmp_path, capsys, rows, words):
+    rec = tmp_path / "frf.csv"
+    rec.write_text("freq_hz,gain_db,phase_deg\n" + rows)
+    out = tmp_path / "fit.toml"
+    status = main(["identify", str(rec), "--free", "F_seal", "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line, line
+    for w in words:
+        assert w in line, (w, line)
+    assert not out.exists()
