@@ -106,7 +106,10 @@ def table_header(path: Path, rows):
         names.append(name)
         bracket.append((unit or "").strip())
     if names[0].lower() not in TIME_NAMES:
-        raise SignalError(f"{path}: the first column must be the time, named 'time' or 't', got '{names[0]}'")
+        sep = next((f"; the columns are separated by ',' (this header looks {n}-separated)"
+                    for c, n in ((";", "';'"), ("\t", "tab")) if c in names[0]), "")
+        raise SignalError(f"{path}: the first column must be the time, named 'time' or 't' with its unit in "
+                          f"brackets if not s ('time [ms]'), got {names[0]!r}{sep}")
     seen = set()
     for j, name in enumerate(names):
         if j and name.lower() in TIME_NAMES:

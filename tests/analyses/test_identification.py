@@ -192,11 +192,20 @@ def test_records_in_other_units_and_mat_files(params, model_cache, tmp_path):
 
 @pytest.mark.parametrize("content, words", [
     ("x,x_rod\n0,0\n1,0\n", ["first column must be the time"]),
+    ("time_ms,x_rod\n0,0\n1,0\n", ["first column must be the time", "'time [ms]'", "time_ms"]),
+    ("time;x_rod\n0;0\n1;0\n", ["first column must be the time", "';'-separated"]),
+    ("time\tx_rod\n0\t0\n1\t0\n", ["first column must be the time", "tab-separated"]),
     ("time,x_rod\n0,0\n0,0\n", ["increase strictly"]),
     ("time,x_rod [kN]\n0,0\n1,0\n", ["x_rod", "kN"]),
     ("time,x_rood\n0,0\n1,0\n", ["x_rood", "did you mean 'x_rod'"]),
+    # a measurement-like name is offered the measured channels of its symbol, not the input x_cmd
+    ("time,x_act\n0,0\n1,0\n", ["x_act", "measured channels of 'x'", "'x_rod'"]),
     ("", ["empty"]),
     ("time,x_rod\n0,0\n", ["at least two"]),
+    # a record's noise field is typed: a typo or a sign slip is refused, not ignored
+    ("# sigma_x_rod: abc\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "abc", "positive number"]),
+    ("# sigma_x_rod: -3e-7\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "-3e-07", "positive number"]),
+    ("# sigma_x_rod: 0\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "positive number"]),
 ])
 def test_bad_records_are_refused(model_cache, tmp_path, content, words):
     (tmp_path / "bad.csv").write_text(content)

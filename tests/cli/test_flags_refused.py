@@ -222,3 +222,43 @@ def test_toml_syntax_error_names_the_key(tmp_path, capsys, text, words):
     for w in words:
         assert w in line, (w, line)
     assert not out.exists()
+
+
+#: Pages whose Python blocks still read the repository's models/ folder (another change
+#: rewrites the identification page; it runs from the repository until then).
+PENDING_MODEL_PATHS = {"identification.md"}
+
+
+def test_doc_python_blocks_use_the_packaged_files():
+    """A new user runs the docs' code from any folder: the packaged reference files
+    (ema.load_parameters(), ema.packaged_file(NAME)), never a path into the repository's
+    models/ folder (which exists only in a clone)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2] / "docs"
+    offenders = []
+    for page in sorted([*root.glob("*.md"), *root.glob("guide/*.md")]):
+        if page.name in PENDING_MODEL_PATHS:
+            continue
+        for block in re.findall(r"```python\n(.*?)```", page.read_text(), re.S):
+            offenders += [f"{page.name}: {line.strip()}" for line in block.splitlines() if '"models/' in line]
+    assert not offenders, offenders
+
+
+@pytest.mark.parametrize(("rows", "words"), [
+    ("1,0,-5\n2,abc,-10\n3,-1,-20\n", ["line 3", "gain_db 'abc'"]),
+    ("1,0,-5\n-2,-0.5,-10\n3,-1,-20\n", ["line 3", "freq_hz -2", "increasing"]),
+    ("1,0,-5\n2,nan,-10\n", ["line 3", "gain_db 'nan'"]),
+    ("1,0,-5\n2,-1\n", ["line 3", "three numbers"]),
+])
+def test_frequency_record_error_names_the_value(tmp_path, capsys, rows, words):
+    rec = tmp_path / "frf.csv"
+    rec.write_text("freq_hz,gain_db,phase_deg\n" + rows)
+    out = tmp_path / "fit.toml"
+    status = main(["identify", str(rec), "--free", "F_seal", "--out", str(out)])
+    line = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in line, line
+    for w in words:
+        assert w in line, (w, line)
+    assert not out.exists()
