@@ -44,7 +44,7 @@ def main(argv=None):
     from ema_casadi.limitcycle import setup
 
     params = ema.load_parameters(MODEL)
-    model = ema.build_model(params, {"controller": "PI", "friction": "smooth"})
+    model = ema.build_model(params, {"controller": "PI", "friction": "smooth", "screw_lock": "blend"})
     p = model.p(K_i_x=3000.0)
     step = Signal.step(1e-3, 0.01)
     ema.periodic_orbit(model, "position", p=p)  # warm-up: builds or loads the compiled drivers

@@ -16,7 +16,7 @@ import ema_casadi as ema
 from ema_casadi.limitcycle import continue_orbit
 
 params = ema.load_parameters()
-model = ema.build_model(params, {"controller": "PI", "friction": "smooth"})
+model = ema.build_model(params, {"controller": "PI", "friction": "smooth", "screw_lock": "blend"})
 p = model.p(K_i_x=3000.0)
 
 orbit = ema.periodic_orbit(model, "position", p=p)

@@ -158,6 +158,8 @@ class Flow:
                 xe, _ = to(tau)
                 z, g, zp = (np.asarray(v, float) for v in self._zfun(xe, self.u, self.pv))
                 zdot = float(g[k] @ self._fheld(xe, m))
+                if zdot == 0:  # the indicator does not move along the flow: its crossing is where found
+                    break
                 dtau = -float(z.ravel()[k]) / zdot
                 tau = min(max(tau + dtau, 0.0), grid[j] - ta)
                 if abs(dtau) < 1e-13 * T:
@@ -169,8 +171,9 @@ class Flow:
             fm, fp = self._fheld(xe, m), self._fheld(xe, m_new)
             gk = g[k]
             den = float(gk @ fm)
-            # saltation: S+ = S- + (f- - f+) dt_e/d(.), dt_e/d(.) = -(g S- + z_p W)/(g f-)
-            dte = -(gk @ Se + np.concatenate([zp[k], np.zeros(held.nz)]) @ W) / den
+            # saltation: S+ = S- + (f- - f+) dt_e/d(.), dt_e/d(.) = -(g S- + z_p W)/(g f-); none where the
+            # flow does not move the indicator (den = 0)
+            dte = -(gk @ Se + np.concatenate([zp[k], np.zeros(held.nz)]) @ W) / den if den else np.zeros(W.shape[1])
             S = Se + np.outer(fm - fp, dte)
             self.events.append((t + ta + tau, k, m[k]))
             x, m, t = xe, m_new, t + ta + tau

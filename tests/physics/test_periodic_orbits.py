@@ -20,7 +20,7 @@ def params():
 def hunting(params):
     # PI position loop K_i_x = 3000 1/s^2, smooth friction, the reference set otherwise
     # (elastic screw, B = 20 um): the hunting study's smooth case
-    model = ema.build_model(params, {"controller": "PI", "friction": "smooth"})
+    model = ema.build_model(params, {"controller": "PI", "friction": "smooth", "screw_lock": "blend"})
     p = model.p(K_i_x=3000.0)
     return model, p, periodic_orbit(model, "position", p=p)
 
@@ -74,7 +74,7 @@ def test_orbit_csv_layout(hunting, tmp_path):
 
 
 def test_no_orbit_and_bad_input(params):
-    model = ema.build_model(params, {"controller": "PI", "friction": "smooth"})
+    model = ema.build_model(params, {"controller": "PI", "friction": "smooth", "screw_lock": "blend"})
     with pytest.raises(OrbitNotFound, match="no oscillation"):
         periodic_orbit(model, "position", p=model.p(K_i_x=0.0))  # the P-like loop settles
     with pytest.raises(ValueError, match="loop"):
