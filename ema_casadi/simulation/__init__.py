@@ -62,6 +62,7 @@ from ._choice import AUTO_ATOL, AUTO_RTOL, choose_solver
 from ._cvodes import BDF_MAX_ORDER
 from ._envelope import Monitor, RunFailed
 from ._inputs import noise_signal
+from ._interval import interval_function
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
 
@@ -69,5 +70,5 @@ __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
     "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
-    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal",
+    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal", "interval_function",
 ]
