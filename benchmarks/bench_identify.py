@@ -126,10 +126,10 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         paths, truth = recovery_records(params, tmp, seed=100)
         free = list(truth)
-        from ema_casadi.identification import _sensitivity
+        from ema_casadi.simulation import sensitivity_library
 
         model = ema.build_model(params)  # the compiled libraries built or loaded from the disk cache (not timed)
-        _sensitivity.library(model, len(free))
+        sensitivity_library(model, len(free))
         ema.simulate(model, 1e-3, solver="rosenbrock")
         ours_log, peer_log = [], []
         ours = _ours(params, paths, free, ours_log)

@@ -41,6 +41,7 @@ _EXPORTS = {
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
     ".identification": ("IdentificationError", "IdentResult", "identify"),
     ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
+    ".limitcycle": ("OrbitNotFound", "PeriodicOrbit", "periodic_orbit"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -75,4 +76,5 @@ __all__ = [
     "SweepError", "SweepResult", "load_sweep", "sweep",
     "IdentificationError", "IdentResult", "identify",
     "FaultError", "FaultResult", "load_faults", "run_faults",
+    "OrbitNotFound", "PeriodicOrbit", "periodic_orbit",
 ]

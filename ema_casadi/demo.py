@@ -245,12 +245,20 @@ def _write_summary(summary: dict, out: Path) -> None:
     for load, c in summary["small_signal"]["closed_loop"].items():
         cells = [f"{v['mag_db']:.2f} dB / {v['phase_deg']:.1f}°" for v in c["at_hz"].values()]
         lines.append(f"| {load} | {c['bandwidth_3db_hz']:.1f} | " + " | ".join(cells) + " |")
-    lines += ["", "| loop | GM (dB) | at (Hz) | PM (deg) | at (Hz) | disk margin α | meets GM ≥ 6 dB, PM ≥ 45° |",
-              "|---|---|---|---|---|---|---|"]
+    lines += ["", "| loop | GM (dB) | at (Hz) | gain-reduction margin (dB) | at (Hz) | PM (deg) | at (Hz) | "
+              "gain crossovers (Hz: PM deg) | disk margin α | meets GM, gain-reduction margin ≥ 6 dB, PM ≥ 45° |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+
+    def hz(v):
+        return "-" if v is None else f"{v:.3g}"
+
     for k, m in summary["margins"].items():
-        lines.append(f"| {k} | {m['gm_db']:.1f} | {m['f_pc_hz'] or float('nan'):.3g} | {m['pm_deg']:.1f} | "
-                     f"{m['f_gc_hz'] or float('nan'):.3g} | {m['disk_margin']:.2f} | "
+        gcs = ", ".join(f"{c['f_hz']:.3g}: {c['pm_deg']:.1f}" for c in m["gain_crossovers"]) or "-"
+        lines.append(f"| {k} | {m['gm_db']:.1f} | {hz(m['f_pc_hz'])} | {m['gm_down_db']:.1f} | {hz(m['f_down_hz'])} | "
+                     f"{m['pm_deg']:.1f} | {hz(m['f_gc_hz'])} | {gcs} | {m['disk_margin']:.2f} | "
                      f"{'yes' if m['meets_requirement'] else 'NO'} |")
+    lines += ["", "GM: the gain may rise by that much; gain-reduction margin: it may fall by that much (only a "
+              "conditionally stable loop has one; inf otherwise). PM: the smallest over every gain crossover.", ""]
     lines.append("")
     nl = summary["nonlinear_frequency_response"]
     lines += ["## Nonlinear frequency response (sine stream, paper Fig. 14)", "",

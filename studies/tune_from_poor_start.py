@@ -42,8 +42,9 @@ LOADS = (0.0, 15e3, 30e3)
 
 
 def independent_margins(model, params, loads):
-    """Per load and loop: python-control (GM dB of smallest magnitude, PM deg) on a fresh
-    linearisation, crossovers outside 0.01 Hz - 100 kHz dropped."""
+    """Per load and loop: python-control on a fresh linearisation (GM: the smallest gain
+    rise that destabilises, gain-reduction margin: the smallest fall, both dB >= 0,
+    inf if none; PM deg), crossovers outside 0.01 Hz - 100 kHz dropped."""
     out = {}
     for F in loads:
         op = lz.operating_point(model, f_ext=F, p=params.vector())
@@ -55,7 +56,8 @@ def independent_margins(model, params, loads):
             kg = (wgc > 2 * np.pi * 1e-2) & (wgc < 2 * np.pi * 1e5)
             gm_db = 20 * np.log10(gm[kp])
             pms = np.abs((pm[kg] + 180) % 360 - 180)
-            row[loop] = {"gm_db": float(gm_db[np.argmin(np.abs(gm_db))]) if gm_db.size else float("inf"),
+            row[loop] = {"gm_db": float(min(gm_db[gm_db > 0], default=np.inf)),
+                         "gm_down_db": float(min(-gm_db[gm_db <= 0], default=np.inf)),
                          "pm_deg": float(pms.min()) if pms.size else float("inf")}
         out[F] = row
     return out
@@ -97,7 +99,9 @@ def main(argv=None):
         ver = T.verify(model, ps, LOADS, res.requirements)
         steps = {F: T.step_metrics(model, ps, 1e-3, f_ext=F) for F in (0.0, 30e3)}
         for F in LOADS:
-            cells = " | ".join(f"{m[F][k]['gm_db']:+.1f} dB / {m[F][k]['pm_deg']:.1f} deg" for k in lz.LOOPS)
+            cells = " | ".join((f"{m[F][k]['gm_db']:.1f} dB" + (f" (GRM {m[F][k]['gm_down_db']:.1f} dB)"
+                                                     if np.isfinite(m[F][k]["gm_down_db"]) else "")
+                              + f" / {m[F][k]['pm_deg']:.1f} deg") for k in lz.LOOPS)
             bw = ver["loads"][f"{F / 1e3:g} kN"]["bandwidth_hz"]
             print(f"| {name} | {F / 1e3:g} kN | {cells} | {bw:.3g} |")
         summary["sets"][name] = {

@@ -194,7 +194,27 @@ def read_toml(path, what: str, error: type) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise error(f"{path}: not valid TOML ({exc})") from None
+        raise error(f"{path}: not valid TOML{_toml_where(text, str(exc))} ({exc})") from None
+
+
+def _toml_where(text: str, message: str) -> str:
+    """`` at key 'f_ext' (line 3: f_ext = 5kN; a text value is quoted: "5kN")`` for a
+    TOML error at a line that assigns a key; the key and the line as written."""
+    import re
+
+    m = re.search(r"at line (\d+)", message)
+    lines = text.splitlines()
+    if not m or not 0 < int(m.group(1)) <= len(lines):
+        return ""
+    line = lines[int(m.group(1)) - 1].split("#", 1)[0].strip()
+    key, eq, value = line.partition("=")
+    if not eq or not key.strip():
+        return f" at line {m.group(1)}: {line[:80]}" if line else ""
+    value = value.strip()
+    bare_text = re.fullmatch(r"[-+]?[0-9.]+\s*[A-Za-z%/]+[\w/]*|[A-Za-z_][\w:@.+%/-]*", value) and \
+        value not in ("true", "false", "nan", "inf")  # 5kN, sine:1mm@2, real: text without its quotes
+    quote = f"; a text value is quoted: \"{value}\"" if bare_text else ""
+    return f" at key '{key.strip()}' (line {m.group(1)}: {line[:80]}{quote})"
 
 
 def size_text(n: float) -> str:

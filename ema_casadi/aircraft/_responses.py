@@ -75,7 +75,7 @@ def pitch_step(model: Model, op: OperatingPoint, condition: str = "cruise_sl", s
         Flat parameter values (SI), e.g. ``B`` or ``K_i_x``.
     """
     p = _params(model, condition, overrides)
-    th0 = float(op.u[model.inputs.index("theta_cmd")])
+    th0 = float(op.u[model.inputs.index(model.input_with("attitude_command"))])
     out = _run(model, op, p, t_end, dt, dt_out, zoh, theta_cmd=Signal.step(step, t_step) + constant(th0))
     on = out["t"] >= t_step
     out["metrics"] = None
@@ -107,7 +107,7 @@ def gust_response(model: Model, op: OperatingPoint, condition: str = "cruise_sl"
         Flat parameter values (SI).
     """
     p = _params(model, condition, overrides)
-    th0 = float(op.u[model.inputs.index("theta_cmd")])
+    th0 = float(op.u[model.inputs.index(model.input_with("attitude_command"))])
     out = _run(model, op, p, t_end, dt, dt_out, zoh, w_g=one_minus_cosine(amplitude, duration, t0), theta_cmd=th0)
     out["peaks"] = {"theta_dev_rad": float(np.max(np.abs(out["theta"] - op.state("theta")))),
                     "n_z_dev": float(np.max(np.abs(out["n_z"] - op.output("n_z")))),

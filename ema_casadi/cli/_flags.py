@@ -10,7 +10,7 @@ from pathlib import Path
 
 from . import UserError, check_output_dir, check_output_path
 
-__all__ = ["overrides", "refuse_unused", "fill_defaults", "airframe_variant", "new_output_folder",
+__all__ = ["overrides", "refuse_unused", "refuse_dt", "fill_defaults", "airframe_variant", "new_output_folder",
            "output_folder"]
 
 
@@ -63,7 +63,7 @@ def overrides(params, flags: dict) -> dict:
     flags : dict
         Flag -> (flat parameter name, value or None, factor to SI).
     """
-    from ..model._flat import checked
+    from ..model import checked
     from ..model.params import ParameterError
 
     out = {}
@@ -94,6 +94,24 @@ def refuse_unused(args, flags: dict, why: str) -> None:
     for flag, attr in flags.items():
         if getattr(args, attr, None) not in (None, False, []):
             raise UserError(f"{flag}: does not apply {why}")
+
+
+def refuse_dt(dt, solver, hint: str = "give --solver rk4 or drop --dt") -> None:
+    """``--dt`` is the RK4 step: given while another solver runs (``solver`` the one
+    chosen, or True where the model switches and RK4 always steps) it would be dropped
+    without a word, so it is refused.
+
+    Parameters
+    ----------
+    dt : float or None
+        The --dt given (None: not given).
+    solver : str or bool
+        The solver that runs (``"rk4"``, ``"rosenbrock"``, ``"cvodes"``), or True.
+    hint : str
+        What to do instead.
+    """
+    if dt is not None and solver not in (True, "rk4"):
+        raise UserError(f"--dt is the RK4 step; the solver chosen is {solver}: {hint}")
 
 
 def fill_defaults(args, defaults: dict) -> None:

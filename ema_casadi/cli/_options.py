@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["add_progress", "progress_of", "stage", "model_path"]
+__all__ = ["add_progress", "progress_of", "stage", "model_path", "seconds"]
 
 #: The packaged reference parameter set: the model of every command run without a MODEL.toml.
 DEFAULT_MODEL = "cesa_ema.toml"
@@ -82,3 +82,27 @@ def model_path(args) -> str:
     from .._util._resources import packaged_file
 
     return args.model if args.model is not None else str(packaged_file(DEFAULT_MODEL))
+
+
+#: Time units a time flag takes (factor to s); a bare number is seconds.
+TIME_UNITS = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def seconds(text: str) -> float:
+    """A time flag's value in s: ``0.5``, ``0.5s``, ``500ms``, ``2min``, ``20us``, ``1h``
+    (argparse ``type``: a value it cannot read is refused naming the flag).
+
+    Parameters
+    ----------
+    text : str
+        The value as given.
+    """
+    import argparse
+    import re
+
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:inf|nan))\s*([a-z]*)\s*", text,
+                     re.IGNORECASE)
+    if not m or (m.group(2) and m.group(2) not in TIME_UNITS):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a time: give seconds, or a number with a unit "
+                                         f"({', '.join(TIME_UNITS)}), e.g. 0.5, 500ms, 2min")
+    return float(m.group(1)) * TIME_UNITS[m.group(2) or "s"]

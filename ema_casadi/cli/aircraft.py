@@ -13,7 +13,8 @@ import time
 
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
-from ._flags import airframe_variant, fill_defaults, refuse_unused
+from ._flags import airframe_variant, fill_defaults, refuse_dt, refuse_unused
+from ._options import seconds
 
 COMMAND = "aircraft"
 ORDER = 11
@@ -30,9 +31,11 @@ def add_arguments(p):
                    help="flight condition (500 ft/s sea level, 800 ft/s at 30 000 ft, 250 ft/s landing); default all")
     p.add_argument("--step-deg", type=float, default=None, help="theta_cmd step (deg); default 1")
     p.add_argument("--gust", type=float, default=None, help="1-cosine gust peak (m/s, up); default 5")
-    p.add_argument("--gust-time", type=float, default=None, help="gust length (s); default 1")
-    p.add_argument("--t-end", type=float, default=None, help="response length (s); default 20")
-    p.add_argument("--dt", type=float, default=None, help="RK4 step of the responses (s); default 1e-4")
+    p.add_argument("--gust-time", type=seconds, default=None, help="gust length (s); default 1")
+    p.add_argument("--t-end", type=seconds, default=None, help="response length (s); default 20")
+    p.add_argument("--dt", type=seconds, default=None,
+                   help="RK4 step of the responses (s; RK4 runs with --zoh or hybrid friction, else --dt is "
+                        "refused); default 1e-4")
     p.add_argument("--zoh", action="store_true", help="sampled flight-control computer (80 Hz) and ECU")
     p.add_argument("--no-responses", action="store_true", help="trim, margins and delay only")
     p.add_argument("--plot-dir", default=None, metavar="DIR", help="Bode (ideal/EMA) and responses per condition")
@@ -60,7 +63,9 @@ def _check(args):
 
 def run(args) -> dict:
     from ..aircraft import aircraft_margins, aircraft_point, gust_response, pitch_step
+    from ..simulation import choose_solver
 
+    dt_given = args.dt
     _check(args)
     airframe_variant(args, "transport", AIRFRAMES)
     conds = CONDITION_NAMES if args.condition == "all" else (args.condition,)
@@ -70,6 +75,8 @@ def run(args) -> dict:
     plot_dir = check_output_dir(args.plot_dir, names, "--plot-dir")
     t0 = time.perf_counter()
     params, model = load(args)
+    refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto", args.zoh)[0],
+              "give --zoh (RK4 at the sampling instants) or drop --dt")
     out, plots = {}, {}
     for k, c in enumerate(conds):
         stage(args, "aircraft", k / len(conds), f"{c}: trim, margins" + ("" if args.no_responses else ", responses"))
@@ -112,10 +119,18 @@ def report(r: dict) -> None:
         if "step" in d:
             s, g = d["step"], d["gust"]
             print(f"  {'':11s} step {s['step_deg']:g} deg: overshoot {s.get('overshoot', float('nan')) * 100:.1f} %, "
-                  f"settling {s.get('settling_time_s', float('nan')):.2f} s; gust {g['peak_m_s']:g} m/s: "
+                  f"{_settling(s.get('settling_time_s'))}; gust {g['peak_m_s']:g} m/s: "
                   f"|d n_z| {g['n_z_dev']:.3f}, |d theta| {math.degrees(g['theta_dev_rad']):.2f} deg")
     for w in r["written"]:
         print(f"wrote {w}")
+
+
+def _settling(t) -> str:
+    """``settling 1.23 s``, or ``not settled`` for a response that never stays in its
+    band within the run (an infinite or missing settling time), never ``inf s``."""
+    if isinstance(t, (int, float)) and math.isfinite(t):
+        return f"settling {t:.2f} s"
+    return "not settled within --t-end"
 
 
 def _loop_curves(model, condition, am) -> dict:

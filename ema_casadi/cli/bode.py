@@ -108,9 +108,8 @@ def report(r: dict) -> None:
         print(f"  -3 dB bandwidth {r['bandwidth_3db_hz']:.3g} Hz")
     if "margins" in r:
         m = r["margins"]
-        gm = (f"GM {m['gm_db']:.2f} dB" if m["gm_db"] > 0 else
-              f"gain-reduction margin {-m['gm_db']:.2f} dB (the gain may fall that much)")
-        print(f"  {gm} at {m['f_pc_hz'] or float('nan'):.3g} Hz, "
-              f"PM {m['pm_deg']:.2f} deg at {m['f_gc_hz'] or float('nan'):.3g} Hz, disk margin {m['disk_margin']:.3f}")
+        from ..frequency import margin_text
+
+        print(f"  {margin_text(m, 2)}, disk margin {m['disk_margin']:.3f}")
     for w in r["written"]:
         print(f"wrote {w}")

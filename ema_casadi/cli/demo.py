@@ -31,8 +31,9 @@ def run(args) -> dict:
 
 def report(r: dict) -> None:
     print(f"demo finished in {r['wall_time_s']:.1f} s")
+    from ..frequency import margin_text
+
     for k, m in r.get("margins", {}).items():
-        print(f"  {k:9s} GM {m['gm_db']:.1f} dB at {m['f_pc_hz']:.1f} Hz, "
-              f"PM {m['pm_deg']:.1f} deg at {m['f_gc_hz']:.1f} Hz")
+        print(f"  {k:9s} {margin_text(m)}")
     for w in r["written"]:
         print(f"wrote {w}")

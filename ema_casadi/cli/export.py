@@ -28,11 +28,15 @@ from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
 from ._flags import refuse_unused
+from ._options import seconds
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
 ORDER = 8
 HELP = "export the linear model (mat/npz/json) or the nonlinear one (fmu-me/fmu-cs/c/casadi)"
+#: The operating-point flags (ema linearize's) with their defaults: only the linear formats use them.
+OPERATING_POINT_FLAGS = {"--x-cmd": ("x_cmd", "0"), "--f-ext": ("f_ext", "0"), "--v-rod": ("v_rod", "0"),
+                         "--friction": ("friction", "off"), "--backlash": ("backlash", "off")}
 SUFFIX = {"mat": ".mat", "npz": ".npz", "json": ".json", "casadi": ".casadi", "c": ".c"}
 
 
@@ -43,7 +47,7 @@ def add_arguments(p):
     p.add_argument("--out", default=None, metavar="PATH",
                    help="output; default ema_lin.<format> (linear), ema_me.fmu / ema_cs.fmu, the folders "
                         "ema_c / ema_functions (c, casadi; a NAME.c / FILE.casadi writes the single-file form)")
-    p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
+    p.add_argument("--dt", type=seconds, default=None, metavar="SECONDS",
                    help="fmu-cs: internal fixed step; c, casadi: default step of the simulator "
                         "(default 2e-6; with hybrid friction 1e-5)")
     p.add_argument("--fmi-version", choices=["2.0", "3.0"], default=None,
@@ -89,6 +93,11 @@ def _applicable(args) -> None:
                       f"to --format {args.format} (a linear model: nothing steps, no FMI)")
     else:
         refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
+        for flag, (attr, default) in OPERATING_POINT_FLAGS.items():
+            if getattr(args, attr) != default:
+                raise UserError(f"{flag} has no effect on ema export --format {args.format}: the nonlinear model "
+                                "takes x_cmd and f_ext as inputs and keeps every nonlinearity (an operating point "
+                                "is for the linear formats mat, npz, json)")
 
 
 def run(args) -> dict:
@@ -102,7 +111,7 @@ def run(args) -> dict:
     default = ("ema_lin" if linear else "ema_f") + SUFFIX[args.format]
     out = check_output_path(args.out or default, (SUFFIX[args.format],), "--out")
     if not linear:  # the header and the sidecar beside it must be writable too
-        from ..export._linear import sidecar_path
+        from ..export import sidecar_path
 
         for extra in [out.with_suffix(".h")] * (args.format == "c") + [sidecar_path(out)]:
             check_output_path(str(extra), (extra.suffix,), "--out")

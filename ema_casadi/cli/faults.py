@@ -23,7 +23,7 @@ import math
 from pathlib import Path
 
 from .._util._resources import REFERENCE_FAULTS
-from . import UserError, _jsonable, add_progress, progress_of, second_file
+from . import UserError, add_progress, jsonable, progress_of, second_file
 from ._flags import new_output_folder, output_folder
 
 COMMAND = "faults"
@@ -49,8 +49,14 @@ def add_arguments(p):
 
 
 def _check(args) -> Path:
+    from ..model.components import validate_variants
+    from ..sweeps import MAX_RUNS
+
     if args.healthy_runs < 0:
         raise UserError(f"--healthy-runs must be a non-negative integer, got {args.healthy_runs}")
+    if args.healthy_runs > MAX_RUNS:
+        raise UserError(f"--healthy-runs {args.healthy_runs}: above the limit of {MAX_RUNS} runs (MAX_RUNS)")
+    validate_variants(dict(args.variant), "--variant")  # before the fault file's choices join them
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be a positive integer, got {args.jobs}")
     if args.seed < 0:
@@ -93,7 +99,7 @@ def run(args) -> dict:
         res.plot(folder / names[2])
     summary = res.summary()
     summary["written"] = [str(out / n) for n in names]
-    return _jsonable(summary)
+    return jsonable(summary)
 
 
 def report(r: dict) -> None:

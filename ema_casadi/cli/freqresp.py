@@ -24,8 +24,7 @@ import math
 
 import numpy as np
 
-from ..sinestream import parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
-from ..sinestream._parse import check_grid
+from ..sinestream import check_grid, parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
 from . import UserError, add_progress, check_output_path, load, progress_of
 
 COMMAND = "freqresp"

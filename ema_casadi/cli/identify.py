@@ -28,10 +28,13 @@ import sys
 from pathlib import Path
 
 from .._util._parallel import cores
-from . import UserError, add_progress, check_output_dir, check_output_path, model_path, progress_of
+from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
+from ._flags import refuse_unused
 
 COMMAND = "identify"
 ORDER = 12
+#: The records' time-stamp field of --track when --stamp is not given.
+STAMP = "flight_hours"
 HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
 
 
@@ -67,7 +70,7 @@ def add_arguments(p):
                    help="records not used in the fit, predicted with the estimates (NRMSE, residual whiteness)")
     p.add_argument("--track", action="store_true",
                    help="health trend: fit each record alone in the order of its time stamp")
-    p.add_argument("--stamp", default="flight_hours", metavar="FIELD",
+    p.add_argument("--stamp", default=STAMP, metavar="FIELD",
                    help="--track: the records' time-stamp field or column; default flight_hours")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
@@ -105,8 +108,7 @@ def _bounds(items) -> dict:
 
 def _quantities(items, flag, model) -> dict:
     """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
-    from ..identification._records import _KIND_OF_UNIT
-    from ..signals import SignalError, parse_quantity
+    from ..signals import KIND_OF_UNIT, SignalError, parse_quantity
 
     units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
     out = {}
@@ -115,7 +117,7 @@ def _quantities(items, flag, model) -> dict:
             from .._util._checks import nearest
 
             raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
-        kind = _KIND_OF_UNIT.get(units[name])
+        kind = KIND_OF_UNIT.get(units[name])
         try:
             out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
         except (SignalError, ValueError):
@@ -124,34 +126,53 @@ def _quantities(items, flag, model) -> dict:
     return out
 
 
-def _split(args):
-    """(model file, records): a first positional that is not a .toml file is a record."""
+def _split(args) -> list:
+    """The records; a first positional that is not a .toml file is a record (then the
+    model is the packaged reference, args.model set to None)."""
     records = list(args.records)
     if args.model is not None and Path(args.model).suffix.lower() != ".toml":
         records.insert(0, args.model)
         args.model = None
-    return model_path(args), records
+    return records
+
+
+def _combinations(args) -> None:
+    """The options that have no effect in the combination given are refused, not dropped:
+    --track fits each record alone (no comparison, profile or validation), --compare
+    ranks combinations (no profile or validation), --limit and --stamp belong to
+    --track, --max-fits to --compare."""
+    if args.track:
+        refuse_unused(args, {"--compare": "compare", "--max-fits": "max_fits", "--profile": "profile",
+                             "--validate": "validate"}, "with --track (each record is fitted alone, in order)")
+    else:
+        refuse_unused(args, {"--limit": "limit"}, "without --track (the limit is what a health trend runs to)")
+        if args.stamp != STAMP:
+            raise UserError(f"--stamp {args.stamp}: does not apply without --track (it orders the records of a "
+                            "health trend)")
+    if args.compare:
+        refuse_unused(args, {"--profile": "profile", "--validate": "validate"},
+                      "with --compare (the combinations are ranked; profile or validate the best one's fit)")
+    else:
+        refuse_unused(args, {"--max-fits": "max_fits"}, "without --compare (it caps the combinations compared)")
 
 
 def run(args) -> dict:
     from ..identification import IdentificationError
-    from ..model.assembly import build_model
-    from ..model.params import load_parameters
 
+    _combinations(args)
     out = check_output_path(args.out, (".toml",), "--out")
-    model_file, records = _split(args)
+    records = _split(args)
     if args.starts < 1:
         raise UserError(f"--starts must be at least 1, got {args.starts}")
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
-    params = load_parameters(model_file, dict(args.variant))
-    model = build_model(params)
+    params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
     try:
         if not records:
-            return _example(args, params, out, progress)
+            return _example(args, params, model, out, progress)
         if args.free is None:
             raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
         free = [s.strip() for s in args.free.split(",") if s.strip()]
@@ -160,7 +181,7 @@ def run(args) -> dict:
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
         if args.track:
-            return _track(args, params, records, free, kw)
+            return _track(args, params, model, records, free, kw)
         if args.compare:
             return _compare(args, params, model, records, free, kw, out)
         return _fit(args, params, model, records, free, kw, out)
@@ -169,8 +190,7 @@ def run(args) -> dict:
 
 
 def _fit(args, params, model, records, free, kw, out) -> dict:
-    from ..identification import is_frequency_record, profile, read_record, validate
-    from ..identification._plot import report_names
+    from ..identification import is_frequency_record, profile, read_record, report_names, validate
 
     kinds = {is_frequency_record(r) for r in records}
     if len(kinds) > 1:
@@ -224,7 +244,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    from ..identification._plot import report_names
+    from ..identification import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
     res = identify_frequency(params, records, free, sigma={k: v for k, v in kw["sigma"].items()},
@@ -256,7 +276,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     combinations(options, dict(args.variant), max_fits)  # checked before any work
     for r in records:
         read_record(r, model)
-    from ..identification._plot import report_names
+    from ..identification import report_names
 
     report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
@@ -287,10 +307,10 @@ def identify_api(params, recs, free, **kw):
     return identify(params, recs, free, **kw)
 
 
-def _track(args, params, records, free, kw) -> dict:
+def _track(args, params, model, records, free, kw) -> dict:
     from ..identification import track
 
-    limits = _quantities(args.limit, "--limit", __import__("ema_casadi").build_model(params))
+    limits = _quantities(args.limit, "--limit", model)
     report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
     if args.out is not None:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
@@ -304,7 +324,7 @@ def _track(args, params, records, free, kw) -> dict:
     return doc
 
 
-def _example(args, params, out, progress) -> dict:
+def _example(args, params, model, out, progress) -> dict:
     """The built-in example: records simulated with worn parameters, fitted."""
     from .._util._files import scratch_dir
     from ..identification import example_records
@@ -312,7 +332,6 @@ def _example(args, params, out, progress) -> dict:
     with scratch_dir() as tmp:
         paths, truth = example_records(params, tmp)
         free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
-        model = __import__("ema_casadi").build_model(params)
         doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
                                                       "max_evaluations": args.max_evaluations,
                                                       "hold_unidentifiable": not args.keep_unidentifiable,
@@ -328,7 +347,7 @@ def report(result: dict) -> None:
     """Print the parameter table and the channels' residuals."""
     w = sys.stdout.write
     if "trend" in result:
-        from ..identification._track import report_text
+        from ..identification import report_text
 
         w(report_text(result))
         return

@@ -6,16 +6,23 @@ response; a limit cycle is a root of L_N = -1 (stable when the loop gain falls t
 break signal (--harmonics; the stick-slip cycle is far from a sine), and checked by a
 closed-loop run (position: a 1 mm step held; aircraft: a 0.5 deg attitude pulse, back to
 the trim) measured over its second half.
+With --method shooting the periodic orbit itself is found by shooting (Newton on the
+state and the period, the monodromy matrix from the integrator's sensitivities): its
+period, amplitudes, Floquet multipliers and stability beside the describing function's
+prediction; --continue NAME=LO:HI follows the orbit over a parameter (folds, period
+doubling, birth) and --plot draws the bifurcation diagram.
 Example: ema limit-cycle --variant controller=PI --variant friction=hybrid --k-i-x 3000 --plot lc.png
+Example: ema limit-cycle --method shooting --variant controller=PI --k-i-x 3000 --csv orbit.csv
 """
 
 from __future__ import annotations
 
 import time
 
-from ..simulation._api import check_run
+from ..simulation import check_run
 from . import UserError, add_progress, check_output_path, load, stage
 from ._flags import airframe_variant, overrides, refuse_unused
+from ._options import seconds
 
 COMMAND = "limit-cycle"
 ORDER = 12
@@ -38,14 +45,25 @@ def add_arguments(p):
                                                  "0.3-5:8 (aircraft)")
     p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
-    p.add_argument("--dt", type=float, default=1e-4, help="RK4 step (s); default 1e-4")
+    p.add_argument("--dt", type=seconds, default=1e-4, help="RK4 step (s); default 1e-4")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
-    p.add_argument("--t-end", type=float, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
+    p.add_argument("--t-end", type=seconds, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
                    help="higher harmonics balanced after the describing function's root (orders 2..31, "
                         "comma-separated; 'none': first harmonic only); default 3,5,7")
     p.add_argument("--no-refine", action="store_true", help="grid prediction only (no Newton, no harmonic balance)")
-    p.add_argument("--plot", default=None, metavar="FILE.png", help="Nichols chart with amplitude contours")
+    p.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="Nichols chart with amplitude contours (shooting: the orbit and its multipliers; "
+                        "with --continue the bifurcation diagram)")
+    p.add_argument("--method", choices=("df", "shooting"), default="df",
+                   help="df: describing function (and harmonic balance); shooting: the periodic orbit by "
+                        "shooting with its Floquet multipliers, the describing function beside it; default df")
+    p.add_argument("--continue", dest="cont", default=None, metavar="NAME=LO:HI",
+                   help="shooting: continue the orbit over a parameter from LO to HI (B in mm unless a unit is "
+                        "given, e.g. B=0:100um; other parameters in SI), the parameter's value set to the "
+                        "range's nearest end inside it when outside")
+    p.add_argument("--csv", default=None, metavar="FILE.csv", help="shooting: the orbit over one period (CSV)")
+    p.add_argument("--no-df", action="store_true", help="shooting: no describing function beside the orbit")
 
 
 def _axes(args):
@@ -80,10 +98,81 @@ def _orders(text: str) -> tuple:
         raise UserError(f"--harmonics: {str(exc).removeprefix('harmonics: ')} (or 'none')") from None
 
 
+def _continuation(args, params, model):
+    """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work."""
+    from ..model import checked
+    from ..model.params import ParameterError
+    from ..signals import SignalError, parse_quantity
+
+    if args.cont is None:
+        return None
+    name, sep, rng = args.cont.partition("=")
+    lo_txt, sep2, hi_txt = rng.partition(":")
+    name = name.strip()
+    if not sep or not sep2 or not name:
+        raise UserError(f"--continue {args.cont!r}: expected NAME=LO:HI (e.g. B=0:100um)")
+    if name not in model.param_names:
+        raise UserError(f"--continue: no parameter {name!r} in the model")
+    try:
+        if name == "B":
+            lo, hi = parse_quantity(lo_txt, "length", "mm"), parse_quantity(hi_txt, "length", "mm")
+        else:
+            lo, hi = float(lo_txt), float(hi_txt)
+        for v in (lo, hi):
+            checked(name, v, f"--continue {name}={v:g}")
+    except (SignalError, ValueError, ParameterError) as exc:
+        raise UserError(str(exc).split(", got ")[0]) from None
+    if not lo < hi:
+        raise UserError(f"--continue {args.cont}: need LO < HI")
+    return name, lo, hi
+
+
+def _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont):
+    import numpy as np
+
+    from ..limitcycle import OrbitNotFound, confirm_cycle, continue_orbit, periodic_orbit
+
+    pred = next((c for c in cycles if c.get("stable")), cycles[0] if cycles else None)
+    p = s["p"] if args.loop == "position" else model.p(**over)
+    if cont is not None:
+        k = list(model.param_names).index(cont[0])
+        p = np.array(p, float).copy()
+        p[k] = min(max(p[k], cont[1]), cont[2])
+    out = {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
+           "method": "shooting", "predicted": cycles, "written": []}
+    stage(args, "limit-cycle", 0.3, "periodic orbit by shooting")
+    try:
+        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred)
+        out["orbit"] = orb.as_dict()
+        if cont is not None:
+            stage(args, "limit-cycle", 0.5, f"continuation over {cont[0]}")
+            c = continue_orbit(model, cont[0], cont[1], cont[2], args.loop, p=p, condition=args.condition, orbit=orb,
+                               progress=lambda f, note: stage(args, "limit-cycle", 0.5 + 0.4 * f, note))
+            out["continuation"] = c.as_dict()
+    except OrbitNotFound as exc:
+        out["failure"] = str(exc)
+        return out
+    stage(args, "limit-cycle", 0.9, f"confirming by a {t_end:g} s simulation" if t_end > 0 else "")
+    out["simulation"] = confirm_cycle(s, t_end, args.dt) if t_end > 0 else None
+    out["t_end_s"] = t_end
+    if csv is not None:
+        out["written"].append(str(orb.to_csv(csv)))
+    if plot is not None:
+        out["written"].append(str(c.plot(plot) if cont is not None else orb.plot(plot)))
+    stage(args, "limit-cycle", 1.0, "done")
+    out["wall_time_s"] = time.perf_counter() - t0
+    return out
+
+
 def run(args) -> dict:
     from ..limitcycle import confirm_cycle, describing_function, harmonic_balance, plot_nichols, refine, setup
 
     plot = check_output_path(args.plot, (".png",), "--plot")
+    shooting = args.method == "shooting"
+    if not shooting:
+        refuse_unused(args, {"--continue": "cont", "--csv": "csv", "--no-df": "no_df"},
+                      "to the describing function (give --method shooting)")
+    csv = check_output_path(args.csv, (".csv",), "--csv")
     amps, freqs, t_end = _axes(args)
     orders = _orders(args.harmonics)
     if not (0 < args.dt <= 1e-3 and 4 <= args.periods <= 200 and 0 <= t_end <= 7200):
@@ -101,7 +190,10 @@ def run(args) -> dict:
         check_run(model, t_end, dt=args.dt, dt_out=spacing,
                   labels={"t_end": "--t-end", "dt": "--dt", "dt_out": "its sample spacing"}, error=UserError)
     over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
+    cont = _continuation(args, params, model) if shooting else None
     s = setup(model, args.loop, model.p(**over), args.condition)
+    if shooting and args.no_df:
+        return _shooting(args, model, s, over, [], t_end, t0, plot, csv, cont)
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
               settle=args.periods // 2)
     stage(args, "limit-cycle", 0.0, "describing function")
@@ -111,6 +203,8 @@ def run(args) -> dict:
     if orders and not args.no_refine:
         cycles = [harmonic_balance(model, args.loop, c, harmonics=orders, **kw) for c in cycles]
     df.cycles = cycles
+    if shooting:
+        return _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont)
     stage(args, "limit-cycle", 0.6, f"confirming by a {t_end:g} s simulation" if t_end > 0 else "")
     sim = confirm_cycle(s, t_end, args.dt) if t_end > 0 else None
     stage(args, "limit-cycle", 1.0, "done")
@@ -120,7 +214,45 @@ def run(args) -> dict:
             "t_end_s": t_end, "wall_time_s": time.perf_counter() - t0, "written": written}
 
 
+def _report_shooting(r: dict) -> None:
+    if "orbit" not in r:
+        print("  no periodic orbit found")
+        return
+    o = r["orbit"]
+    kind = "stable" if o["stable"] else "unstable"
+    mu = o["multiplier_moduli"]
+    tm = complex(*o["trivial_multiplier"])
+    print(f"periodic orbit of the {r['loop']} loop by shooting ({o['info']['method']}, "
+          f"{o['info']['iterations']} Newton steps): {kind}")
+    print(f"  period {o['period_s']:.6g} s, frequency {o['freq_hz']:.6g} Hz, periodicity residual "
+          f"{o['periodicity_residual']:.2g} (of full scale)")
+    print(f"  Floquet multipliers: trivial {abs(tm):.9f} (check: 1), largest other |mu| {max(mu[1:]):.4g}")
+    for n, v in o["signals"].items():
+        u = v["unit"]
+        print(f"  {n}: first harmonic {v['amplitude']:.4g} {u}, peak-to-peak {v['peak_to_peak']:.4g} {u}")
+    pr = o.get("prediction")
+    if pr:
+        ae = "-" if pr["amplitude_error"] is None else f"{pr['amplitude_error'] * 100:+.1f} %"
+        print(f"  describing-function prediction: {pr['amplitude']:.4g} at {pr['freq_hz']:.4g} Hz "
+              f"(frequency error {pr['freq_error'] * 100:+.1f} %, amplitude error {ae})")
+    c = r.get("continuation")
+    if c:
+        print(f"  continuation over {c['parameter']}: {len(c['values'])} orbits, {min(c['values']):.4g} .. "
+              f"{max(c['values']):.4g} {c['unit']} (end: {c['info']['end']})")
+        for b in c["bifurcations"]:
+            print(f"    {b['kind']} at {c['parameter']} = {b['value']:.4g} {c['unit']}")
+
+
 def report(r: dict) -> None:
+    if r.get("method") == "shooting":
+        _report_shooting(r)
+        s = r.get("simulation")
+        if s is not None:
+            f = "-" if s["freq_hz"] is None else f"{s['freq_hz']:.4g} Hz"
+            print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {s['amplitude']:.4g}, frequency {f}")
+        for w in r["written"]:
+            print(f"wrote {w}")
+        return
     print(f"describing function at the {r['loop']} loop break")
     if not r["predicted"]:
         print("  no limit cycle predicted (no root of L_N = -1 on the grid)")

@@ -53,8 +53,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    from ..frequency import loop_margins
-    from ..frequency._response import REQUIREMENT
+    from ..frequency import REQUIREMENT, loop_margins
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     check_window(args, per_decade=200)
@@ -96,16 +95,16 @@ def report(r: dict) -> None:
     print(f"  {'loop':9s} {'GM dB':>7s} {'at Hz':>8s} {'GRM dB':>7s} {'at Hz':>8s} {'PM deg':>7s} {'at Hz':>8s} "
           f"{'disk a':>7s} {'dGM dB':>7s} {'dPM deg':>7s}  ok")
     for k, m in r["loops"].items():
-        print(f"  {k:9s} {m['gm_up_db']:7.2f} {_f(m['f_up_hz'], '8.3g')} {m['gm_down_db']:7.2f} "
+        print(f"  {k:9s} {m['gm_db']:7.2f} {_f(m['f_pc_hz'], '8.3g')} {m['gm_down_db']:7.2f} "
               f"{_f(m['f_down_hz'], '8.3g')} {m['pm_deg']:7.2f} {_f(m['f_gc_hz'], '8.3g')} "
               f"{m['disk_margin']:7.3f} {m['disk_gm_db']:7.2f} {m['disk_pm_deg']:7.2f}  "
               f"{'yes' if m['meets_requirement'] else 'NO'}{'' if m['stable'] else ' (closed loop unstable)'}")
     print("  GM: the gain may rise by that much; GRM (gain-reduction margin): it may fall by that much - only a "
           "conditionally stable loop (a phase crossover where |L| > 1) has one, inf otherwise")
     for k, m in r["loops"].items():
-        gcs = ", ".join(f"{c['f_hz']:.3g} Hz PM {abs(c['pm_deg']):.1f} deg" for c in m["gain_crossovers"]) or "none"
-        pcs = ", ".join(f"{c['f_hz']:.3g} Hz " + (f"GM {c['gm_db']:.1f} dB" if c["gm_db"] > 0 else
-                                                 f"gain-reduction margin {-c['gm_db']:.1f} dB")
+        gcs = ", ".join(f"{c['f_hz']:.3g} Hz PM {c['pm_deg']:.1f} deg" for c in m["gain_crossovers"]) or "none"
+        pcs = ", ".join(f"{c['f_hz']:.3g} Hz " + (f"GM {-c['gain_db']:.1f} dB" if c["gain_db"] < 0 else
+                                                 f"gain-reduction margin {c['gain_db']:.1f} dB")
                         for c in m["phase_crossovers"]) or "none"
         print(f"  {k}: gain crossovers {gcs}; phase crossovers {pcs}")
     for w in r["written"]:

@@ -25,8 +25,9 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
-from . import UserError, _jsonable, add_progress, progress_of, second_file
+from . import UserError, add_progress, jsonable, progress_of, second_file
 from ._flags import new_output_folder, output_folder
+from ._options import seconds
 
 COMMAND = "mission"
 #: The mission run without a MISSION.toml (packaged): ~20 minutes of a regional-jet flight.
@@ -48,13 +49,13 @@ def add_arguments(p):
     p.add_argument("--from-trim", action="store_true",
                    help="start at the trimmed operating point of the first segment's command and load (default: "
                         "at rest, all states zero)")
-    p.add_argument("--dt", type=float, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
+    p.add_argument("--dt", type=seconds, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
     p.add_argument("--fast", action="store_true",
                    help=f"the fast path: the same model at {FAST_DT:g} s, about twice as fast (worst temperature "
                         "difference to the full model 0.16 K on models/mission_regional.toml; docs: missions)")
-    p.add_argument("--dt-out", type=float, default=0.01,
+    p.add_argument("--dt-out", type=seconds, default=0.01,
                    help="spacing of the kept samples the energies are integrated from (s); default 0.01")
-    p.add_argument("--csv-dt", type=float, default=1.0, help="row spacing of the CSV (s); default 1")
+    p.add_argument("--csv-dt", type=seconds, default=1.0, help="row spacing of the CSV (s); default 1")
     add_progress(p)
 
 
@@ -107,7 +108,7 @@ def run(args) -> dict:
     with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names["csv"], dt=args.csv_dt)
         res.plot(folder / names["png"])
-        write_text(folder / names["json"], json.dumps(_jsonable(summary), indent=1) + "\n")
+        write_text(folder / names["json"], json.dumps(jsonable(summary), indent=1) + "\n")
     return summary
 
 

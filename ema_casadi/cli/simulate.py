@@ -34,11 +34,19 @@ import math
 import time
 
 from ..signals import SignalError, parse_signal
-from ..simulation import DT_OUT, SOLVERS, simulate
-from ..simulation._api import check_run
-from ..simulation._inputs import check_inputs
-from ..simulation._pwm import check_switched
+from ..simulation import (
+    DT_OUT,
+    SOLVERS,
+    SimulationError,
+    check_inputs,
+    check_run,
+    check_switched,
+    choose_solver,
+    simulate,
+)
 from . import UserError, add_progress, check_output_path, load, progress_of
+from ._flags import refuse_dt
+from ._options import seconds
 
 COMMAND = "simulate"
 #: A rod command beyond this many strokes means nothing (the end stops hold the rod at
@@ -46,6 +54,8 @@ COMMAND = "simulate"
 COMMAND_STROKES = 3.0
 #: The rod command when --x-cmd is not given (a model that takes x_cmd).
 DEFAULT_X_CMD = "step:1mm@0.01"
+#: The RK4 step when --dt is not given (s).
+DEFAULT_DT = 5e-6
 ORDER = 2
 HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
@@ -61,9 +71,10 @@ def add_arguments(p):
     p.add_argument("--input", action="append", default=[], metavar="NAME=SIGNAL",
                    help="drive any other model input by name, e.g. eta=0.85 or d_x=step:1um@0.01 "
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
-    p.add_argument("--t-end", type=float, default=0.2, help="end time (s); default 0.2")
-    p.add_argument("--dt", type=float, default=5e-6, help="RK4 step (s); default 5e-6")
-    p.add_argument("--dt-out", type=float, default=None,
+    p.add_argument("--t-end", type=seconds, default=0.2, help="end time (s); default 0.2")
+    p.add_argument("--dt", type=seconds, default=None,
+                   help=f"RK4 step (s), where rk4 runs (refused where another solver runs); default {DEFAULT_DT:g}")
+    p.add_argument("--dt-out", type=seconds, default=None,
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
     p.add_argument("--solver", choices=SOLVERS, default="auto",
@@ -80,7 +91,7 @@ def add_arguments(p):
     p.add_argument("--plot", default=None, metavar="FILE.png",
                    help="plot command, position, velocity, current, voltage (a switched inverter=pwm model: phase "
                         "currents, leg states, phase and line voltages over the last carrier periods, DC link)")
-    p.add_argument("--event-tol", type=float, default=1e-7,
+    p.add_argument("--event-tol", type=seconds, default=1e-7,
                    help="hybrid friction with cvodes: stick/slip switching instants located to this time (s); "
                         "default 1e-7")
     p.add_argument("--instantaneous", action="store_true",
@@ -103,6 +114,8 @@ def run(args) -> dict:
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
+    refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
+    args.dt = DEFAULT_DT if args.dt is None else args.dt
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
         if args.solver not in ("rk4", "auto"):
             raise UserError(f"--solver {args.solver}: the model switches (inverter={model.variants['inverter']}); "
@@ -140,6 +153,11 @@ def run(args) -> dict:
         name = str(exc).split(" ", 1)[0]
         flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
         raise UserError(flag + str(exc)[len(name):]) from None
+    except SimulationError as exc:  # an argument of simulate() is the flag that set it (from_trim: -> --from-trim:)
+        name = str(exc).split(":", 1)[0]
+        if name not in FLAGS:
+            raise
+        raise UserError(FLAGS[name] + str(exc)[len(name):]) from None
     written = []
     if out is not None:
         table = res.with_instantaneous() if args.instantaneous else res

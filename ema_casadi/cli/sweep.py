@@ -47,6 +47,14 @@ def add_arguments(p):
     add_progress(p)
 
 
+def interrupt_hint(args) -> str:
+    """The interrupt message's tail: with --out the finished rows are in the table's
+    journal, and the same command with --resume runs only the rest."""
+    if args.out is None:
+        return ""
+    return " (the finished rows are kept: the same command with --resume runs only the rest)"
+
+
 def run(args) -> dict:
     from ..model.params import load_parameters
     from ..sweeps import SweepError, load_sweep, sweep

@@ -179,13 +179,9 @@ def _fmt(v, spec):
 
 
 def _margin_text(m: dict) -> str:
-    """Margins named for what they are: GM (the gain may rise by it), the gain-reduction
-    margin (it may fall by it: only a conditionally stable loop has one) and PM."""
-    up, down, pm = (float(m[k]) for k in ("gm_up_db", "gm_down_db", "pm_deg"))  # JSON may carry "inf"
-    text = f"GM {_fmt(up, '.1f')} dB"
-    if math.isfinite(down):
-        text += f", gain-reduction margin {down:.1f} dB"
-    return text + f", PM {_fmt(pm, '.1f')} deg"
+    from ..frequency import margin_text
+
+    return margin_text(m)
 
 
 def report(r: dict) -> None:
@@ -212,7 +208,9 @@ def report(r: dict) -> None:
         print(f"  {g:6s} {r['gains_before'][g]:12.5g} {v:12.5g}")
     for key in ("before", "after"):
         v = r[key]
-        print(f"{key}: worst |GM| {v['worst']['gm_db']:.2f} dB, PM {v['worst']['pm_deg']:.2f} deg, "
+        down = float(v["worst"].get("gm_down_db", math.inf))
+        grm = f", gain-reduction margin {down:.2f} dB" if math.isfinite(down) else ""
+        print(f"{key}: worst GM {_fmt(float(v['worst']['gm_db']), '.2f')} dB{grm}, PM {v['worst']['pm_deg']:.2f} deg, "
               f"bandwidth {v['worst']['bandwidth_hz']:.3g} Hz")
         for label, d in v["loads"].items():
             loops = "; ".join(f"{n} {_margin_text(m)}" for n, m in d["loops"].items())

@@ -15,7 +15,9 @@ from ._linear import (
     load_linear,
     model_signature,
     save_linear,
+    sidecar_path,
 )
 
 __all__ = ["LINEAR_FORMATS", "FUNCTION_FORMATS", "MODEL_FORMATS", "ExportError", "save_linear", "load_linear",
-           "export_function", "export_model", "model_signature"]
+           "export_function", "export_model", "model_signature",
+           "sidecar_path"]

@@ -134,7 +134,7 @@ class FaultResult:
         path : str or Path
             The CSV file.
         """
-        from ..sweeps._journal import write_table
+        from ..sweeps import write_table
 
         return write_table(path, self.rows, self.columns)
 

@@ -232,6 +232,9 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     _known(f"{src} [scenario]", scenario, (*_SCENARIO, *REGISTRY), "key")
     # variant keys in the scenario (sensor, airframe, ...) choose the model
     chosen = {k: val for k, val in scenario.items() if k in REGISTRY}
+    for k, val in chosen.items():  # neither choice silently overrides the other
+        if k in (variants or {}) and variants[k] != val:
+            raise FaultError(f"variant {k}={variants[k]} and {src} [scenario] {k} = {val!r} disagree; give one")
     params = _monitor(data.get("monitor", {}), params, src)
     try:
         v = fault_variants(params, variants, chosen)
@@ -240,14 +243,57 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     except ParameterError as exc:
         raise FaultError(f"{src} [scenario]: {exc}") from None
     sc = _scenario(scenario, params, src, _aircraft(v))
+    if "mission" not in scenario and "segment" not in scenario:  # a segment is checked as its mission's
+        _check_envelope(f"{src} [scenario]", sc, params, v)
     faults = data.get("fault", [])
     if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
         raise FaultError(f"{src} [[fault]]: expected an array of tables")
-    cases = [FaultCase("none")]
+    if not faults:
+        raise FaultError(f"{src}: no [[fault]] table; give at least one case (ema faults --list names the kinds)")
+    cases, seen = [FaultCase("none")], {}
     for k, entry in enumerate(faults):
-        cases += _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"])
+        for case in _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"]):
+            key = (case.label, case.onset, case.severity, case.ramp)
+            if key in seen:  # every case is one row of the result: the same case twice is a slip
+                raise FaultError(f"{src} [[fault]] {k + 1}: {case.label} at onset {case.onset:g} s, severity "
+                                 f"{case.severity:g} is already the case of [[fault]] {seen[key]}; remove one")
+            seen[key] = k + 1
+            cases.append(case)
     return FaultSpec(source=src, params=params, variants=v, scenario=sc, cases=cases,
                      healthy=_healthy(data.get("healthy", {}), sc, src, params), healthy_variants=hv)
+
+
+def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) -> None:
+    """The scenario's command within the stroke and its load within what the actuator
+    holds at standstill (the ``held_load`` its parts declare), sampled at 1 kHz over the
+    run before any simulation (as a mission's segments are); the run's step count
+    within the simulator's limit, named by the file's keys."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from .._util._checks import budget
+    from ..model.components import parts_for
+    from ..simulation import MAX_STEPS
+
+    budget(sc["duration"] / sc["dt"], MAX_STEPS, f"{where} duration {sc['duration']:g} s / dt {sc['dt']:g} s",
+           FaultError, unit="RK4 steps", item_bytes=0, limit_name="MAX_STEPS", hint="shorten duration or raise dt")
+    t = np.linspace(0.0, sc["duration"], max(2, min(10**6, int(sc["duration"] * 1e3) + 1)))
+    stroke = params.actuator.stroke
+    P = SimpleNamespace(**params.as_dict())
+    held = [float(part.limits["held_load"](P)) for part in parts_for(variants)[0] if "held_load" in part.limits]
+    for key, limit, unit, scale, what in (
+            ("x_cmd", stroke, "mm", 1e3, "beyond the stroke"),
+            ("f_ext", max(held) if held else math.inf, "kN", 1e-3,
+             "more than the actuator holds at standstill at its current limit")):
+        sig = sc["signals"].get(key)
+        if sig is None or not math.isfinite(limit):
+            continue
+        v = np.asarray(sig(t), dtype=float) * np.ones_like(t)
+        k = int(np.argmax(np.abs(v)))
+        if not np.isfinite(v[k]) or abs(v[k]) > limit:
+            raise FaultError(f"{where} {key}: reaches {v[k] * scale:.4g} {unit} at {t[k]:.4g} s, {what} "
+                             f"(+-{limit * scale:.4g} {unit})")
 
 
 def _aircraft(variants: dict) -> bool:
@@ -291,7 +337,7 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
     """The parameter set with the fault file's [monitor] values (checked like a file's)."""
     from dataclasses import fields
 
-    from ..model._param_units import raw_value
+    from ..model import raw_value
     from ..model.params import GROUPS
 
     if not isinstance(table, dict):

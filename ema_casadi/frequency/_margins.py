@@ -27,7 +27,11 @@ def _gain_crossovers(H, f, Hg) -> list[dict]:
             continue  # touches 1 without crossing
         x = _root(lambda t: math.log10(abs(H(10**t))), lf[i], lf[i + 1], lm[i], lm[i + 1])
         fc = 10**x
-        out.append({"f_hz": fc, "pm_deg": _wrap180(math.degrees(np.angle(H(fc))) + 180.0)})
+        phase = math.degrees(np.angle(H(fc)))  # (-180, 180]
+        # pm_deg >= 0: the smallest phase rotation (either way) that puts L on -1;
+        # lag_deg: the extra phase lag that does (what a loop delay adds)
+        out.append({"f_hz": fc, "phase_deg": phase, "pm_deg": abs(_wrap180(phase + 180.0)),
+                    "lag_deg": (phase + 180.0) % 360.0})
     return _dedupe(out)
 
 
@@ -45,7 +49,9 @@ def _phase_crossovers(H, f, Hg) -> list[dict]:
 
         x = _root(g, lf[i], lf[i + 1], ph[i] - level, ph[i + 1] - level)
         fc = 10**x
-        out.append({"f_hz": fc, "gm_db": -20 * math.log10(abs(H(fc)))})
+        # gain_db = 20 log10 |L| there: < 0 the gain may rise by -gain_db (an upper gain
+        # margin), > 0 it may fall by gain_db (a gain-reduction margin)
+        out.append({"f_hz": fc, "gain_db": 20 * math.log10(abs(H(fc)))})
     return _dedupe(out)
 
 
@@ -91,3 +97,40 @@ def _dedupe(items):
         if not out or abs(it["f_hz"] - out[-1]["f_hz"]) > 1e-9 * it["f_hz"]:
             out.append(it)
     return out
+
+
+def margin_text(m, digits: int = 1) -> str:
+    """One line naming each margin for what it is: ``GM`` (the gain may rise by it),
+    ``gain-reduction margin`` (it may fall by it; only a conditionally stable loop has
+    one), ``PM`` (the smallest over every gain crossover), each with its frequency, and
+    every gain crossover where there are several. No margin is printed negative.
+
+    Parameters
+    ----------
+    m : LoopMargins or dict
+        Margins, or their ``as_dict`` / JSON form (``gm_db``, ``f_pc_hz``,
+        ``gm_down_db``, ``f_down_hz``, ``pm_deg``, ``f_gc_hz``, optionally
+        ``gain_crossovers``); JSON may carry inf as the text "inf".
+    digits : int
+        Decimals of the dB and degree values.
+    """
+    d = m.as_dict() if hasattr(m, "as_dict") else m
+
+    def val(key):
+        v = d.get(key)
+        return math.inf if v is None else float(v)
+
+    def at(key):
+        v = d.get(key)
+        return f" at {float(v):.3g} Hz" if v is not None else ""
+
+    gm, down, pm = val("gm_db"), val("gm_down_db"), val("pm_deg")
+    text = f"GM {gm:.{digits}f} dB{at('f_pc_hz')}" if math.isfinite(gm) else "GM inf"
+    if math.isfinite(down):
+        text += f", gain-reduction margin {down:.{digits}f} dB{at('f_down_hz')}"
+    text += f", PM {pm:.{digits}f} deg{at('f_gc_hz')}" if math.isfinite(pm) else ", PM inf"
+    gcs = d.get("gain_crossovers") or []
+    if len(gcs) > 1:
+        text += " (gain crossovers " + ", ".join(f"{float(c['f_hz']):.3g} Hz PM {float(c['pm_deg']):.{digits}f} deg"
+                                                 for c in gcs) + ")"
+    return text

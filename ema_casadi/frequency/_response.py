@@ -13,11 +13,14 @@ decade), every crossover bracketed on the grid and refined by SciPy's Brent meth
     |L| = 1: min over crossovers of |wrap(angle L + 180 deg)|, >= 0. With several
     crossovers (the velocity and current loops with the outer loops closed have two)
     the smallest counts; every crossover is listed in ``gain_crossovers``.
-``gm_db``
+``gm_db`` and ``gm_down_db``
     At each phase crossover (angle L = -180 deg mod 360) the gain change that puts L on
-    -1, -20 log10|L| dB: positive means the gain may rise by that much, negative that it
-    may fall by that much (a lower gain margin, MATLAB's convention). The one of
-    smallest magnitude is reported, all in ``phase_crossovers``; +inf when there is none.
+    -1 is 20 log10|L| dB away (listed as ``gain_db`` in ``phase_crossovers``). The gain
+    margin ``gm_db`` is the smallest gain *rise* that does it (a crossover with
+    |L| < 1), the gain-reduction margin ``gm_down_db`` the smallest gain *fall* (a
+    crossover with |L| > 1: a conditionally stable loop). Both are >= 0, each with its
+    frequency (``f_pc_hz``, ``f_down_hz``), +inf when there is no such crossover. No
+    margin is reported as a negative number.
 ``disk_margin``
     Balanced (skew sigma = 0) disk margin alpha = 1/max_w |S - 1/2| = min_w 2|1+L|/|1-L|
     (Seiler, Packard & Gahinet, "An introduction to disk margins", IEEE Control
@@ -180,9 +183,18 @@ class LoopMargins:
     loop : str
         Loop name.
     gm_db, f_pc_hz : float
-        Gain margin (dB) and its phase-crossover frequency (Hz, None without one).
+        The (upper) gain margin: the smallest gain rise (dB, >= 0) that puts L on -1, at
+        the phase crossover ``f_pc_hz`` (Hz); inf and None when the gain may rise without
+        bound. Never negative: a loop that a gain *fall* destabilises has a
+        gain-reduction margin instead.
+    gm_down_db, f_down_hz : float
+        The gain-reduction margin (lower gain margin): the smallest gain fall (dB, >= 0)
+        that puts L on -1, at the phase crossover ``f_down_hz`` (Hz); inf and None for a
+        loop that is not conditionally stable (no phase crossover where |L| > 1).
     pm_deg, f_gc_hz : float
-        Phase margin (deg) and its gain-crossover frequency (Hz, None without one).
+        Phase margin (deg, >= 0): the smallest over every gain crossover of the phase
+        rotation (either way) that puts L on -1, and that crossover (Hz, None without
+        one).
     disk_margin : float
         Balanced disk margin alpha (-).
     disk_gm_db, disk_pm_deg : float
@@ -193,16 +205,14 @@ class LoopMargins:
         Smallest loop delay that destabilises (s).
     stable : bool
         Whether the nominal closed loop is stable.
-    gain_crossovers, phase_crossovers : list of dict
-        Every crossover: ``f_hz`` with ``pm_deg`` (signed) or ``gm_db``.
-    gm_up_db, f_up_hz : float
-        The (upper) gain margin: the smallest gain rise (dB, > 0) that puts L on -1, at
-        the phase crossover ``f_up_hz`` (inf and None when the gain may rise without
-        bound).
-    gm_down_db, f_down_hz : float
-        The gain-reduction margin (lower gain margin): the smallest gain fall (dB, > 0)
-        that puts L on -1, at ``f_down_hz``; inf and None for a loop that is not
-        conditionally stable (no phase crossover where |L| > 1).
+    gain_crossovers : list of dict
+        Every gain crossover (|L| = 1): ``f_hz``, ``phase_deg`` (angle of L, deg),
+        ``pm_deg`` (>= 0, its phase margin) and ``lag_deg`` (the added phase lag that
+        puts L on -1 there).
+    phase_crossovers : list of dict
+        Every phase crossover (L real negative): ``f_hz`` and ``gain_db`` (20 log10 |L|
+        there: below 0 an upper gain margin of -gain_db, above 0 a gain-reduction
+        margin of gain_db).
     outer : str
         ``closed`` or ``open``: how the other loops were taken (:func:`loop_margins`).
     """
@@ -218,11 +228,9 @@ class LoopMargins:
     f_disk_hz: float
     delay_margin_s: float
     stable: bool
-    gain_crossovers: list = field(default_factory=list)   # [{"f_hz", "pm_deg"}], pm signed
-    phase_crossovers: list = field(default_factory=list)  # [{"f_hz", "gm_db"}]
+    gain_crossovers: list = field(default_factory=list)   # [{"f_hz", "phase_deg", "pm_deg", "lag_deg"}]
+    phase_crossovers: list = field(default_factory=list)  # [{"f_hz", "gain_db"}]
     outer: str = "closed"
-    gm_up_db: float = math.inf
-    f_up_hz: float | None = None
     gm_down_db: float = math.inf
     f_down_hz: float | None = None
 
@@ -232,9 +240,8 @@ class LoopMargins:
         return math.isfinite(self.gm_down_db)
 
     def meets(self, gm_db: float = REQUIREMENT["gm_db"], pm_deg: float = REQUIREMENT["pm_deg"]) -> bool:
-        """Stable with |GM| >= gm_db at every phase crossover (the gain margin and, for a
-        conditionally stable loop, the gain-reduction margin) and PM >= pm_deg at every
-        gain crossover.
+        """Stable, with the gain margin and the gain-reduction margin both >= gm_db (every
+        phase crossover) and PM >= pm_deg at every gain crossover.
 
         Parameters
         ----------
@@ -243,7 +250,7 @@ class LoopMargins:
         pm_deg : float
             Required phase margin (deg).
         """
-        return bool(self.stable and abs(self.gm_db) >= gm_db and self.pm_deg >= pm_deg)
+        return bool(self.stable and self.gm_db >= gm_db and self.gm_down_db >= gm_db and self.pm_deg >= pm_deg)
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -282,28 +289,22 @@ def margins(L: LinearModel | control.StateSpace, *, f_min: float = 1e-2, f_max: 
     gcs, pcs = _gain_crossovers(H, f, Hg), _phase_crossovers(H, f, Hg)
     stable = _closed_loop_stable(A, B, C, d)
     if gcs:
-        best = min(gcs, key=lambda c: abs(c["pm_deg"]))
-        pm, f_gc = abs(best["pm_deg"]), best["f_hz"]
-        # a phase lag of (angle L + 180) mod 360 at w_c puts L on -1
-        delay = min(math.radians((c["pm_deg"]) % 360.0) / (2 * math.pi * c["f_hz"]) for c in gcs)
+        best = min(gcs, key=lambda c: c["pm_deg"])
+        pm, f_gc = best["pm_deg"], best["f_hz"]
+        delay = min(math.radians(c["lag_deg"]) / (2 * math.pi * c["f_hz"]) for c in gcs)
     else:
         pm, f_gc, delay = math.inf, None, math.inf
-    if pcs:
-        best = min(pcs, key=lambda c: abs(c["gm_db"]))
-        gm, f_pc = best["gm_db"], best["f_hz"]
-    else:
-        gm, f_pc = math.inf, None
-    up = min((c for c in pcs if c["gm_db"] > 0), key=lambda c: c["gm_db"], default=None)
-    down = min((c for c in pcs if c["gm_db"] <= 0), key=lambda c: -c["gm_db"], default=None)
+    up = min((c for c in pcs if c["gain_db"] < 0), key=lambda c: -c["gain_db"], default=None)
+    down = min((c for c in pcs if c["gain_db"] >= 0), key=lambda c: c["gain_db"], default=None)
     alpha, f_dm = _disk_margin(H, f, Hg) if stable else (0.0, _disk_margin(H, f, Hg)[1])
     dgm = 20 * math.log10((2 + alpha) / (2 - alpha)) if alpha < 2 else math.inf
     dpm = math.degrees(2 * math.atan(alpha / 2))
     return LoopMargins(
-        loop=loop, gm_db=gm, f_pc_hz=f_pc, pm_deg=pm, f_gc_hz=f_gc, disk_margin=alpha,
+        loop=loop, gm_db=-up["gain_db"] if up else math.inf, f_pc_hz=up["f_hz"] if up else None, pm_deg=pm,
+        f_gc_hz=f_gc, disk_margin=alpha,
         disk_gm_db=dgm, disk_pm_deg=dpm, f_disk_hz=f_dm, delay_margin_s=delay, stable=stable,
         gain_crossovers=gcs, phase_crossovers=pcs,
-        gm_up_db=up["gm_db"] if up else math.inf, f_up_hz=up["f_hz"] if up else None,
-        gm_down_db=-down["gm_db"] if down else math.inf, f_down_hz=down["f_hz"] if down else None,
+        gm_down_db=down["gain_db"] if down else math.inf, f_down_hz=down["f_hz"] if down else None,
     )
 
 

@@ -4,7 +4,7 @@ Named parameters of a parameter file are fitted to measured time series by weigh
 least squares (maximum likelihood under Gaussian sensor noise): Levenberg-Marquardt
 (``_lm``, with a statistical stopping rule) whose residuals and exact Jacobian come
 from one run per record of the compiled RODAS4 solver with forward sensitivities
-(``_sensitivity``; the model is built once, the parameters are its input). Positive
+(``simulation.forward_sensitivities``; the model is built once, the parameters are its input). Positive
 parameters are fitted in log scale, bounds honoured, noise levels per channel given
 or estimated from the residuals. The result
 carries the Fisher-information covariance, 95 % intervals, the correlation, the
@@ -19,13 +19,14 @@ from ._compare import MAX_FITS, Comparison, bic, combinations, compare
 from ._diagnostics import CHI2_95, profile, validate
 from ._fit import FitFailed, identify
 from ._frequency import identify_frequency, is_frequency_record, read_frequency_record
+from ._plot import report_names
 from ._records import MAX_BYTES, IdentificationError, Record, read_record
 from ._result import CORRELATED, WIDE, IdentResult, autocorrelation
 from ._synthetic import EXAMPLE_TRUTH, RECOVERY_TRUTH, SENSOR_NOISE, example_records, recovery_records, synthetic_record
-from ._track import TrackResult, track, trend
+from ._track import TrackResult, report_text, track, trend
 
 __all__ = ["identify", "IdentResult", "IdentificationError", "FitFailed", "Record", "read_record", "MAX_BYTES",
            "WIDE", "CORRELATED", "autocorrelation", "SENSOR_NOISE", "synthetic_record", "example_records",
            "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "profile", "validate", "CHI2_95", "track", "trend",
            "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record",
-           "compare", "Comparison", "combinations", "bic", "MAX_FITS"]
+           "compare", "Comparison", "combinations", "bic", "MAX_FITS", "report_names", "report_text"]

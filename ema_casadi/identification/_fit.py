@@ -13,8 +13,7 @@ from .._util._checks import instance, integer, nearest, number
 from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
-from ..simulation import RunFailed
-from ..simulation._result import progress_bar
+from ..simulation import RunFailed, progress_bar
 from . import _consistency
 from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal

@@ -19,14 +19,14 @@ pair and the operating point: ``# input: x_cmd``, ``# output: x_rod`` (the defau
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
 from .._util._checks import nearest
 from ..model.assembly import build_model
-from ..signals import SignalError
-from ..signals._tables import _table_rows
+from ..signals import SignalError, table_rows
 from ._lm import levenberg_marquardt
 from ._problem import free_parameters
 from ._records import IdentificationError, Record, _fields
@@ -46,7 +46,7 @@ def is_frequency_record(path) -> bool:
         The file.
     """
     try:
-        rows = _table_rows(path)
+        rows = table_rows(path)
     except SignalError:
         return False
     return bool(rows) and rows[0][1][0].strip().lower().startswith("freq_hz")
@@ -67,19 +67,20 @@ def read_frequency_record(path, model) -> Record:
     from pathlib import Path
 
     path = Path(path)
-    rows = _table_rows(path)
+    rows = table_rows(path)
     if not rows:
         raise IdentificationError(f"{path}: empty frequency record")
     first = [c.strip() for c in rows[0][1]]
     if first[:3] != list(COLUMNS):
         raise IdentificationError(f"{path}: expected the columns {', '.join(COLUMNS)}, got {', '.join(first)}")
-    try:
-        data = np.array([[float(c) for c in r[:3]] for _, r in rows[1:]], float)
-    except ValueError:
-        raise IdentificationError(f"{path}: every row must hold three numbers ({', '.join(COLUMNS)})") from None
-    if len(data) < 2 or not np.all(np.isfinite(data)) or np.any(np.diff(data[:, 0]) <= 0) or data[0, 0] <= 0:
-        raise IdentificationError(f"{path}: expected at least two rows of finite numbers, frequencies positive "
-                                  "and increasing")
+    data = np.array([_row(path, line, r) for line, r in rows[1:]], float).reshape(-1, 3)
+    if len(data) < 2:
+        raise IdentificationError(f"{path}: expected at least two rows ({', '.join(COLUMNS)}), got {len(data)}")
+    lines = [line for line, _ in rows[1:]]
+    for k, f in enumerate(data[:, 0]):
+        if f <= 0 or (k and f <= data[k - 1, 0]):
+            raise IdentificationError(f"{path}: line {lines[k]}: freq_hz {f:g}: frequencies must be positive and "
+                                      "increasing" + (f" (the row before has {data[k - 1, 0]:g})" if k else ""))
     fields = _fields(path.read_text(encoding="utf-8-sig"))
     fields.setdefault("input", "x_cmd")
     fields.setdefault("output", "x_rod")
@@ -90,6 +91,24 @@ def read_frequency_record(path, model) -> Record:
         raise IdentificationError(f"{path}: output '{fields['output']}' is not a model output"
                                   f"{nearest(str(fields['output']), model.outputs)}")
     return Record(str(path), data[:, 0], {}, {"gain_db": data[:, 1], "phase_deg": data[:, 2]}, fields)
+
+
+def _row(path, line, cells) -> list[float]:
+    """One row's three numbers; a cell that is not a finite number is named with its
+    line, column and value."""
+    if len(cells) < 3:
+        raise IdentificationError(f"{path}: line {line}: expected three numbers ({', '.join(COLUMNS)}), got "
+                                  f"{len(cells)} cells")
+    out = []
+    for name, c in zip(COLUMNS, cells[:3], strict=True):
+        try:
+            v = float(c)
+        except ValueError:
+            v = math.nan
+        if not math.isfinite(v):
+            raise IdentificationError(f"{path}: line {line}: {name} '{c.strip()}' is not a finite number")
+        out.append(v)
+    return out
 
 
 def _response(model, rec: Record, pv) -> dict:

@@ -168,7 +168,15 @@ def figures(result, truth: dict | None = None) -> dict:
 
 
 def report_names(n_records: int, n_free: int) -> list[str]:
-    """The files of a report folder."""
+    """The files of a report folder (checked before any work: the folder may hold only these).
+
+    Parameters
+    ----------
+    n_records : int
+        Records fitted (one figure each).
+    n_free : int
+        Free parameters (a correlation figure from two on).
+    """
     names = [f"fit_{k}.png" for k in range(n_records)] + ["intervals.png", "summary.json", "summary.md"]
     return names + (["correlation.png"] if n_free > 1 else [])
 

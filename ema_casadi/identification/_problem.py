@@ -6,7 +6,7 @@ Free parameters are named parameters of the file; the optimiser works on
 or it is non-negative and starts positive) and on ``z = (theta - theta_0) / |theta_0|``
 otherwise: z = 0 at the start, and a unit step is a relative change of order one. One
 prediction of a record is one run of the compiled RODAS4 with forward sensitivities
-(``_sensitivity``) on the record's own sample grid, its inputs the record's columns
+(``simulation.forward_sensitivities``) on the record's own sample grid, its inputs the record's columns
 as piecewise-linear tables; the records run on a thread pool (the compiled driver
 releases the GIL).
 """
@@ -24,8 +24,7 @@ from .._util._checks import nearest
 from .._util._compiled import BufferCall, compile_function
 from .._util._parallel import cores
 from ..model.params import GROUPS, NONNEG, POS
-from ..simulation._inputs import _input_signals
-from . import _sensitivity
+from ..simulation import forward_sensitivities, input_signals
 from ._records import IdentificationError, Record, available_bytes
 
 #: Tolerances of the prediction runs (RODAS4, the CVODES error norm). Measured on the
@@ -302,7 +301,7 @@ class Predictor:
         key = (k, defaults)
         if key not in self._sig:
             self._sig = {kk: v for kk, v in self._sig.items() if kk[0] != k}
-            self._sig[key] = _input_signals(model, self._signals[k], pv)
+            self._sig[key] = input_signals(model, self._signals[k], pv)
         return self._sig[key]
 
     def _one(self, k: int, pv, W) -> dict:
@@ -316,15 +315,15 @@ class Predictor:
         S0 = np.zeros((model.nx, ns + m))
         S0[self.x0_index, ns + np.arange(m)] = self.x0_scale
         if self.rows[k] is None:  # the first run: steps across the table rows, or landing on them if fewer
-            X, SX, info = _sensitivity.run(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL)
+            X, SX, info = forward_sensitivities(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL)
             if info["steps"] > rec.n:
-                alt = _sensitivity.run(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL, rows=True)
+                alt = forward_sensitivities(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL, rows=True)
                 if alt[2]["steps"] < info["steps"]:
                     X, SX, info = alt
                     self.rows[k] = True
             self.rows[k] = bool(self.rows[k])
         else:
-            X, SX, info = _sensitivity.run(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL, self.steps[k],
+            X, SX, info = forward_sensitivities(model, sig, rec.t, pv, x0, W, S0, RTOL, ATOL, self.steps[k],
                                            rows=self.rows[k])
         self.steps[k] = info["step_sizes"]
         y, dy = {}, {}
@@ -346,9 +345,9 @@ class Predictor:
 
 def sig_value(sig: dict, model, t) -> np.ndarray:
     """Inputs (nu x n) of the signals at ``t``."""
-    from ..simulation._inputs import _input_matrix
+    from ..simulation import input_matrix
 
-    return _input_matrix(model, sig, t)
+    return input_matrix(model, sig, t)
 
 
 _CHUNK = 512

@@ -27,9 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import nearest
-from ..signals import Signal, SignalError
-from ..signals._signal import SI_UNIT
-from ..signals._tables import _header, _table_rows, _unit_scale, read_text
+from ..signals import KIND_OF_UNIT, Signal, SignalError, read_text, table_header, table_rows, unit_scale
 
 __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
 
@@ -38,7 +36,6 @@ __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
 #: when the machine has less memory available.
 MAX_BYTES = 2**31
 
-_KIND_OF_UNIT = {unit: kind for kind, unit in SI_UNIT.items() if kind != "rate"} | {"m/s": "rate"}
 _FIELD = re.compile(r"^#\s*([A-Za-z_][\w.]*)\s*[:=]\s*(\S.*?)\s*$")
 
 
@@ -173,15 +170,28 @@ def read_record(path: str | Path, model, extra=()) -> Record:
             names, units, data, fields = _read_csv(path)
     except SignalError as exc:
         raise IdentificationError(str(exc)) from None
+    _check_fields(path, fields)
     return _record(path, model, names, units, data, fields, tuple(extra))
+
+
+def _check_fields(path: Path, fields: dict) -> None:
+    """A channel's noise field ``sigma_<channel>`` is a positive finite number (SI):
+    a typo (``abc``) or a sign slip (``-3e-7``) is refused, never read as absent."""
+    for key, value in fields.items():
+        if not key.startswith("sigma_"):
+            continue
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+        if not ok:
+            raise IdentificationError(f"{path}: field '# {key}: {value}' is not a positive number "
+                                      f"(the channel's noise, 1 sigma, in SI units, e.g. '# {key}: 3e-7')")
 
 
 def _read_csv(path: Path):
     text = read_text(path, "record")
-    rows = _table_rows(path)
+    rows = table_rows(path)
     if not rows:
         raise IdentificationError(f"{path}: empty record; expected a header 'time,NAME,...' and rows of numbers")
-    names, bracket, unit_row, data = _header(path, rows)
+    names, bracket, unit_row, data = table_header(path, rows)
     units = []
     for j, name in enumerate(names):
         u = bracket[j]
@@ -252,7 +262,7 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
     if not np.all(np.isfinite(data)):
         i, j = np.argwhere(~np.isfinite(data))[0]
         raise IdentificationError(f"{path}: non-finite value in column '{names[j]}' (sample {i + 1})")
-    t = data[:, 0] * _unit_scale(units[0], "time", f"{path}: column '{names[0]}'", None)
+    t = data[:, 0] * unit_scale(units[0], "time", f"{path}: column '{names[0]}'", None)
     bad = np.nonzero(np.diff(t) <= 0)[0]
     if len(bad):
         k = bad[0] + 1
@@ -268,7 +278,7 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
             continue
         if name not in table or name in ("t", "time"):
             raise IdentificationError(f"{path}: column '{name}' is neither a model input nor a state or output"
-                                      f"{nearest(name, known)}")
+                                      f"{_did_you_mean(name, known, model)}")
         scale = _scale(units[j], table[name], f"{path}: column '{name}'", model)
         (inputs if name in model.inputs else channels)[name] = data[:, j] * scale
     if not channels:
@@ -277,14 +287,31 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
     return Record(str(path), t - t[0], inputs, channels, fields, float(t[0]))
 
 
+#: Name parts that mark a measured signal (x_act, phi_meas, omega_fb): the suggestion is
+#: then a measured channel (state or output) of the same symbol, never an input.
+_MEASURED = re.compile(r"[_ ]?(act|actual|meas|measured|fb|feedback|sens|sensed|obs)$", re.IGNORECASE)
+
+
+def _did_you_mean(name: str, known: list, model) -> str:
+    """The hint for an unknown column: for a measurement-like name the measured channels
+    of its symbol (``x_act`` -> ``x_rod``), else the nearest known name."""
+    m = _MEASURED.search(name)
+    if m and m.start() > 0:
+        stem = name[:m.start()].lower()
+        measured = [c for c in known if c not in model.inputs and c.lower().split("_")[0] == stem]
+        if measured:
+            return f" (a measurement? the measured channels of '{stem}' are {', '.join(map(repr, measured[:4]))})"
+    return nearest(name, known)
+
+
 def _scale(unit: str, si: str, where: str, model) -> float:
     """Factor to SI of a column's unit for a signal whose SI unit is ``si``."""
     if unit in ("", si):
         return 1.0
-    kind = _KIND_OF_UNIT.get(si)
+    kind = KIND_OF_UNIT.get(si)
     if kind is None:
         raise IdentificationError(f"{where}: unit '{unit}' is not '{si}', the signal's unit")
     try:
-        return _unit_scale(unit, kind, where, float(model.params.actuator.stroke))
+        return unit_scale(unit, kind, where, float(model.params.actuator.stroke))
     except SignalError as exc:
         raise IdentificationError(str(exc)) from None

@@ -13,8 +13,7 @@ import numpy as np
 from .._util._files import write_text
 from ..model.assembly import build_model
 from ..signals import Signal, parse_signal
-from ..simulation import simulate
-from ..simulation._inputs import _as_signal
+from ..simulation import as_signal, simulate
 
 __all__ = ["SENSOR_NOISE", "synthetic_record", "example_records", "EXAMPLE_TRUTH", "recovery_records",
            "RECOVERY_TRUTH"]
@@ -81,7 +80,7 @@ def synthetic_record(params, path, *, t_end: float, x_cmd=0.0, f_ext=0.0, channe
     for name, value in (("x_cmd", x_cmd), ("f_ext", f_ext)):
         kind = model.input_info[name].kind
         s = parse_signal(value, kind, stroke=params.actuator.stroke, duration=t_end) if isinstance(value, str) \
-            else _as_signal(value, name, kind)
+            else as_signal(value, name, kind)
         sampled[name] = s(t)
     tables = {k: Signal.table(t, v) for k, v in sampled.items()}
     res = simulate(model, t[-1], solver="rosenbrock", dt_out=1.0 / rate, p=pv, rtol=1e-10, atol=1e-13, **tables)

@@ -148,8 +148,9 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
         x[model.index(n)] = v
     u = model.u(pv)
     u[[model.inputs.index(n) for n in free]] = 0.1  # a starting guess: some throttle, nose up
+    j_load = model.inputs.index(model.input_with("load"))
     for load in np.linspace(0.0, float(f_ext), 4) if f_ext else (0.0,):  # an extra load by continuation
-        u[model.inputs.index("f_ext")] = load
+        u[j_load] = load
         x, u, g, rel = _frozen_trim(model, x, u, p_trim, free, fix, size, tol, max_iter)
     # memory states exactly at their rest signal, as operating_point does (the play at the
     # nut, where both edges act: AD slope 1); the airframe fixes the shaft angle through the surface
@@ -160,7 +161,7 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
     u_lin, p_lin = _freeze_efficiency(model, u, p_pol, g)
     x_cmd = float(y[model.yindex("x_cmd")])
     return OperatingPoint(
-        x=x, u=u, y=y, p=p_pol, x_cmd=x_cmd, f_ext=float(u[model.inputs.index("f_ext")]), v_rod=0.0,
+        x=x, u=u, y=y, p=p_pol, x_cmd=x_cmd, f_ext=float(u[j_load]), v_rod=0.0,
         xdot=np.zeros(model.nx), policy={"friction": "off", "backlash": "off", "overrides": overrides,
                                          "g_eff": next(iter(g.values()), None),
                                          "trim_free": {n: float(u[model.inputs.index(n)]) for n in free},

@@ -298,6 +298,7 @@ def operating_point(
     p: np.ndarray | None = None,
     tol: float = 1e-14,
     max_iter: int = 50,
+    inputs: dict | None = None,
 ) -> OperatingPoint:
     """Trim the model: the state at rest (or moving at ``v_rod``) for given inputs.
 
@@ -323,6 +324,11 @@ def operating_point(
         Relative residual of the trim equations to reach (-).
     max_iter : int
         Newton iterations.
+    inputs : dict, optional
+        Input name or role (:data:`~ema_casadi.model.components.INPUT_ROLES`) -> value (SI):
+        ``{"load": -30e3}`` is ``f_ext=-30e3``, ``{"ambient_temperature": 60.0}`` holds
+        ``T_amb``; ``x_cmd``, ``f_ext`` and ``eta`` are the conveniences for the command,
+        load and efficiency roles (not both ways at once).
 
     Raises
     ------
@@ -332,6 +338,7 @@ def operating_point(
     LinearizationError
         Unknown policy, or ``friction="smooth"`` with the hybrid friction variant.
     """
+    x_cmd, f_ext, eta, extra = _by_role(model, inputs, x_cmd, f_ext, eta)
     _check_request(model, x_cmd, f_ext, v_rod, eta, params, p, tol, max_iter)
     pv = _request_vector(model, params, p, x_cmd, f_ext, v_rod)
     p_pol, overrides = _policy_vector(model, pv, friction, backlash)
@@ -342,7 +349,10 @@ def operating_point(
             "and the blend width, not only on the physics",
             stacklevel=2,
         )
-    u = model.u(pv, x_cmd=x_cmd, f_ext=f_ext, **({} if eta is None else {"eta": eta}))
+    values = {model.input_with("command"): x_cmd, model.input_with("load"): f_ext, **extra}
+    if eta is not None:
+        values[model.input_with("efficiency")] = eta
+    u = model.u(pv, **values)
     target = _along_travel(model, p_pol, v_rod)
     x, y, rel = _solve(model, x_cmd, f_ext, v_rod, u, p_pol, target, tol, max_iter)
     policy = {"friction": friction, "backlash": backlash, "overrides": overrides, "g_eff": None}
@@ -358,6 +368,33 @@ def operating_point(
         outputs=model.outputs, param_names=model.param_names, residual=rel,
         variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin,
     )
+
+
+def _by_role(model, inputs, x_cmd, f_ext, eta):
+    """(x_cmd, f_ext, eta, other inputs by name) of a trim request whose ``inputs`` name
+    inputs or roles: the command, load and efficiency go to their keywords."""
+    if inputs is None:
+        return x_cmd, f_ext, eta, {}
+    from ..model import AssemblyError
+
+    if not isinstance(inputs, dict):
+        raise OperatingPointError(f"inputs: expected a dict name or role -> value, got {type(inputs).__name__}")
+    given = {"command": x_cmd != 0.0, "load": f_ext != 0.0, "efficiency": eta is not None}
+    out, extra = {"command": x_cmd, "load": f_ext, "efficiency": eta}, {}
+    for key, value in inputs.items():
+        try:
+            name = model.input_name(key)
+        except AssemblyError as exc:
+            raise OperatingPointError(f"inputs: {exc}") from None
+        role = next((r for r in out if name in model.inputs_with(r)), None)
+        if role is None:
+            number(value, f"inputs[{key!r}]", OperatingPointError, unit=model.input_info[name].unit)
+            extra[name] = float(value)
+        elif given[role]:
+            raise OperatingPointError(f"inputs: '{key}' drives {name}, which is already given")
+        else:
+            out[role] = value
+    return out["command"], out["load"], out["efficiency"], extra
 
 
 def _check_request(model, x_cmd, f_ext, v_rod, eta, params, p, tol, max_iter) -> None:
@@ -394,8 +431,8 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
     # far beyond what the actuator can hold or reach there is no point to solve for (and
     # the Newton iteration meets overflowing numbers): refused by the model's envelope
     bounds = model.envelope(pv)
-    for label, val, info in (("f_ext", f_ext, model.input_info.get("f_ext")),
-                             ("v_rod", v_rod, model.output_info.get("v_rod"))):
+    load, speed = model.input_with("load"), model.output_with("rod_velocity")
+    for label, val, info in ((load, f_ext, model.input_info[load]), (speed, v_rod, model.output_info[speed])):
         if info is not None and info.bound is not None and abs(val) > bounds[label]:
             raise OperatingPointError(f"{label} = {val:.4g} {info.unit} is beyond the physical envelope "
                                       f"{bounds[label]:.4g} {info.unit} ({info.bound.why}); no operating point "

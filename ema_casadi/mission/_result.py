@@ -291,7 +291,7 @@ class MissionResult:
         dt : float
             Row spacing (s).
         """
-        from ..signals._tables import write_series
+        from ..signals import write_series
 
         names, units, data = self.table(dt)
         return write_series(path, names, units, data, fmt="%.10g")

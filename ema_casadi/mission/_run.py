@@ -13,9 +13,16 @@ import numpy as np
 from ..model.assembly import Model, build_model
 from ..model.components import node_outflow
 from ..model.params import Parameters
-from ..simulation import STEPS_PER_CALL, RunFailed, SimulationError, progress_bar, simulate
-from ..simulation._api import check_run
-from ..simulation._choice import choose_solver, trimmed_start
+from ..simulation import (
+    STEPS_PER_CALL,
+    RunFailed,
+    SimulationError,
+    check_run,
+    choose_solver,
+    progress_bar,
+    simulate,
+    trimmed_start,
+)
 from ._profile import MISSION_VARIANTS, Mission, MissionError, load_mission
 from ._result import MissionResult
 
@@ -36,6 +43,10 @@ HEAT_RESIDUAL_TOL = 0.1
 #: Signals kept besides the losses, the temperature states and the heat flows.
 KEPT = ("x_cmd", "x_rod", "f_ext", "T_amb", "i_q", "R_w", "psi_m", "eta_screw", "P_dc", "P_load", "P_amb",
         "E_th", "E_stored")
+
+
+#: The mission file's segment signals (the file's keys, unchanged) and the input roles they drive.
+SEGMENT_ROLES = {"x_cmd": "command", "f_ext": "load", "T_amb": "ambient_temperature"}
 
 
 class MissionFailed(RuntimeError):
@@ -173,7 +184,7 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
     x = model.x0()
     for n in temps:
         x[model.index(n)] = mission.T_start
-    sig = {name: mission.signal(name) for name in ("x_cmd", "f_ext", "T_amb")}
+    sig = {model.input_with(role): mission.signal(key) for key, role in SEGMENT_ROLES.items()}
     if from_trim:
         x = trimmed_start(model, sig, model.p(), x)
     used, why = choose_solver(model, solver)

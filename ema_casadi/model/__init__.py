@@ -1,10 +1,11 @@
 """The model: typed parameters (``params``), the parts by family (``components/``) and
 the one assembly that composes them (``assembly``, with its private helpers
-``_derived`` and ``_switched``). Everything above this layer asks the assembled
+``_derived``). Everything above this layer asks the assembled
 :class:`Model` (signals by name and role), never a part's module."""
 
+from ._param_units import raw_value
 from .assembly import AssemblyError, Model, build_model
-from .params import GROUPS, ParameterError, Parameters, UnknownParameterError, load_parameters
+from .params import GROUPS, ParameterError, Parameters, UnknownParameterError, checked, load_parameters
 
 __all__ = ["Model", "build_model", "AssemblyError", "ParameterError", "UnknownParameterError", "Parameters",
-           "load_parameters", "GROUPS"]
+           "load_parameters", "GROUPS", "checked", "raw_value"]

@@ -1,5 +1,6 @@
 """Functions the assembly derives from the parts' declarations besides ``f``: the
-sampled-ECU split (``f_held`` and ``sample``) and the hybrid parts' discrete map
+sampled-ECU split (``f_held`` and ``sample``), the switched split of a PWM bridge
+(``f_switched`` and the carrier-period ``schedule``) and the hybrid parts' discrete map
 (``project``); and :class:`Contract`, the parts' declarations for the analyses merged
 (a base of the Model). Used by :mod:`ema_casadi.model.assembly` only."""
 
@@ -9,7 +10,7 @@ import casadi as ca
 
 from .components import POLICIES, AssemblyError, der
 
-__all__ = ["zoh_split", "projection", "Contract", "modify"]
+__all__ = ["zoh_split", "switched_split", "projection", "Contract", "modify"]
 
 
 def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
@@ -39,6 +40,29 @@ def zoh_split(bus, evaluate, x, u, p, P, X, states, loops, holds, integrators):
     return f_held, sample
 
 
+def switched_split(parts, bus, evaluate, x, u, p, holds, integrators) -> dict:
+    """The switched split of a model with a switched part (see :class:`Model`): the held
+    plant with the switched signals as an input, and the carrier-period schedule."""
+    switched = [n for part in parts for n in part.switched]
+    owners = [part for part in parts if part.switched]
+    if not owners:
+        return {}
+    if len(owners) > 1:
+        raise AssemblyError(f"two switched parts: {', '.join(f'{o.family}={o.value}' for o in owners)}")
+    h = ca.SX.sym("h", len(holds))
+    held = {hd.name: h[i] for i, hd in enumerate(holds)}
+    frozen = {der(n): 0 for n in integrators}
+    sw = ca.SX.sym("s", len(switched))
+    dots, y = evaluate(bus(overrides={**held, **frozen, **{n: sw[i] for i, n in enumerate(switched)}}))
+    f_switched = ca.Function("f_switched", [x, u, p, h, sw], [dots, y], ["x", "u", "p", "h", "s"], ["xdot", "y"])
+    halves = owners[0].schedule(bus(overrides=dict(held)))
+    D = ca.horzcat(*[ca.vertcat(*dur) for dur, _ in halves]).T
+    S = ca.horzcat(*[ca.vertcat(*vals) for _, states in halves for vals in states])
+    schedule = ca.Function("schedule", [x, u, p, h], [D, S], ["x", "u", "p", "h"], ["D", "S"])
+    return {"switched": tuple(switched), "carrier": owners[0].carrier, "f_switched": f_switched,
+            "schedule": schedule}
+
+
 def projection(parts, bus, x, u, p):
     """``project(x_prev, x, u, p) -> (x_next, stick)`` from the hybrid parts' maps; the
     stick test uses the continuous model's signals at ``x_prev`` and ``x``."""
@@ -59,7 +83,68 @@ def projection(parts, bus, x, u, p):
 class Contract:
     """What the model's parts declare for the analyses (the part contract), merged:
     a base of :class:`~ema_casadi.model.assembly.Model` (it reads ``parts``, ``state_info``,
-    ``outputs`` and :meth:`pdict`)."""
+    ``input_info``, ``output_info``, ``outputs`` and :meth:`pdict`)."""
+
+    # -- signals by role -----------------------------------------------------------
+    def inputs_with(self, role: str) -> tuple[str, ...]:
+        """Names of the inputs that declare ``role``.
+
+        Parameters
+        ----------
+        role : str
+            An input role (:data:`~ema_casadi.model.components.INPUT_ROLES`), e.g. ``load``.
+        """
+        return tuple(n for n, i in self.input_info.items() if role in i.roles)
+
+    def input_with(self, role: str) -> str:
+        """The name of the one input with ``role`` (``command`` -> ``x_cmd``); AssemblyError
+        if there is not exactly one (``command`` behind an airframe: its law drives the rod).
+
+        Parameters
+        ----------
+        role : str
+            An input role (:data:`~ema_casadi.model.components.INPUT_ROLES`).
+        """
+        return _one(self.inputs_with(role), role, "inputs")
+
+    def outputs_with(self, role: str) -> tuple[str, ...]:
+        """Names of the outputs that declare ``role``.
+
+        Parameters
+        ----------
+        role : str
+            An output role (:data:`~ema_casadi.model.components.OUTPUT_ROLES`), e.g. ``rod_position``.
+        """
+        return tuple(n for n, o in self.output_info.items() if role in o.roles)
+
+    def output_with(self, role: str) -> str:
+        """The name of the one output with ``role``; AssemblyError if there is not exactly one.
+
+        Parameters
+        ----------
+        role : str
+            An output role (:data:`~ema_casadi.model.components.OUTPUT_ROLES`).
+        """
+        return _one(self.outputs_with(role), role, "outputs")
+
+    def input_name(self, key: str) -> str:
+        """The input a key names: an input's name as is, else the one input with that role.
+
+        Parameters
+        ----------
+        key : str
+            An input name (``f_ext``) or role (``load``).
+        """
+        if key in self.input_info:
+            return key
+        from .components import INPUT_ROLES
+
+        if key in INPUT_ROLES:
+            return self.input_with(key)
+        from .._util._checks import nearest
+
+        raise AssemblyError(f"'{key}' is neither an input of this model nor an input role"
+                            f"{nearest(key, [*self.input_info, *INPUT_ROLES])}")
 
     def small_signal(self, **policies: str) -> dict[str, float]:
         """The parameter overrides of small-signal policies, merged from the parts.
@@ -129,6 +214,12 @@ class Contract:
     def memory_states(self) -> tuple[str, ...]:
         """States that may be neutral modes of a linearisation (:attr:`State.memory`)."""
         return tuple(n for n, s in self.state_info.items() if s.memory)
+
+
+def _one(names: tuple, role: str, what: str) -> str:
+    if len(names) != 1:
+        raise AssemblyError(f"the model has {len(names)} {what} with role '{role}', expected one")
+    return names[0]
 
 
 def modify(parts, providers) -> None:

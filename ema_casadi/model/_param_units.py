@@ -9,11 +9,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ..signals import KIND_OF_UNIT as _KINDS
+from ..signals import UNITS, SignalError, parse_quantity
+
 __all__ = ["KIND_OF_UNIT", "raw_value", "absent"]
 
-#: The SI unit of a parameter -> the quantity kind whose units the flags accept.
-KIND_OF_UNIT = {"m": "length", "N": "force", "m/s": "rate", "Hz": "frequency", "s": "time", "degC": "temperature",
-                "A": "current", "rad/s": "angular_velocity", "rad": "angle"}
+#: The SI unit of a parameter -> the quantity kind whose units the flags accept (the signals'
+#: one table; a dimensionless parameter is given as a bare number).
+KIND_OF_UNIT = {unit: kind for unit, kind in _KINDS.items() if kind != "dimensionless"}
 
 
 def raw_value(where: str, raw: Any, unit: str, error: type) -> Any:
@@ -44,23 +47,19 @@ def raw_value(where: str, raw: Any, unit: str, error: type) -> Any:
     given = raw["unit"]
     if given == unit:
         return raw["value"]
-    from ..signals._signal import _UNITS
-
     value, kind = raw["value"], KIND_OF_UNIT.get(unit)
     if kind is None:
         raise error(f"{where}: unit '{given}' is not the expected SI unit '{unit}' (other units are read for "
                     f"{', '.join(KIND_OF_UNIT)})")
-    if not isinstance(given, str) or given not in _UNITS[kind]:
+    if not isinstance(given, str) or given not in UNITS[kind]:
         raise error(f"{where}: unit '{given}' is not the expected SI unit '{unit}' nor another {kind} unit "
-                    f"({', '.join(_UNITS[kind])})")
+                    f"({', '.join(UNITS[kind])})")
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise error(f"{where}: expected a number, got {type(value).__name__} {value!r}")
     return _converted(where, f"{value!r} {given}", unit, error)
 
 
 def _converted(where: str, text: str, unit: str, error: type) -> float:
-    from ..signals._signal import _UNITS, SignalError, parse_quantity
-
     kind = KIND_OF_UNIT.get(unit)
     if kind is None:
         raise error(f"{where}: '{text}': give this parameter in its SI unit '{unit}' (converted units are read for "
@@ -68,7 +67,7 @@ def _converted(where: str, text: str, unit: str, error: type) -> float:
     try:
         return parse_quantity(text.strip(), kind, bare=unit)
     except SignalError as exc:
-        units = ", ".join(u for u in _UNITS[kind])
+        units = ", ".join(u for u in UNITS[kind])
         raise error(f"{where}: {exc}; a {kind} takes {units}") from None
 
 

@@ -19,6 +19,7 @@ def _d(unit: str, check: str, doc: str, default: float):
 
 
 _POS, _NONNEG, _FLAG, _TEMP, _REAL = "positive", "non-negative", "switch", "temperature", "real"
+_WHOLE = "whole number"  # params.WHOLE (that module imports this one)
 
 
 @dataclass(frozen=True)
@@ -30,14 +31,14 @@ class Sensor:
     sigma_x: float = _d("m", _NONNEG, "LVDT white noise, standard deviation per position-loop sample (m)", 3e-7)
     q_x: float = _d("m", _NONNEG, "LVDT quantisation step (m); 0: none", 5e-7)
     tau_x: float = _d("s", _POS, "LVDT first-order lag (s); 1/(2 pi 1 kHz)", 1.0 / (2 * math.pi * 1000.0))
-    N_theta: float = _d("1", _NONNEG, "resolver resolution, bits per mechanical revolution; 0: unquantised", 16.0)
+    N_theta: float = _d("1", _WHOLE, "resolver resolution, bits per mechanical revolution; 0: unquantised", 16.0)
     sigma_theta: float = _d("rad", _NONNEG, "resolver angle noise, standard deviation per speed-loop sample (rad)",
                             2e-4)
     k_g_i: float = _d("1", _REAL, "phase-current sensor gain error (-)", 0.0)
     b_i: float = _d("A", _REAL, "phase-current sensor offset, phase a (A)", 0.0)
     sigma_i: float = _d("A", _NONNEG, "phase-current noise, standard deviation per current-loop sample (A)", 0.05)
     q_i: float = _d("A", _NONNEG, "phase-current quantisation step (A): 12 bit over +-2 I_max", 4 * 24.0 / 4096)
-    noise_seed: float = _d("1", _NONNEG, "seed of the sensor-noise sequences (a whole number)", 0.0)
+    noise_seed: float = _d("1", _WHOLE, "seed of the sensor-noise sequences (a whole number)", 0.0)
 
 
 @dataclass(frozen=True)

@@ -46,10 +46,9 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
-from ._derived import Contract, modify
+from ._derived import Contract, modify, switched_split
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
-from ._switched import switched_split
 from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
 from .params import ParameterError, Parameters
 
@@ -161,11 +160,6 @@ class Model(Contract):
                 table.update({n: d.unit for n, d in info.items()})
             self.cache["units"] = table
         return dict(table)
-
-    @property
-    def state_units(self) -> dict:
-        """State name -> SI unit."""
-        return {n: s.unit for n, s in self.state_info.items()}
 
     def index(self, name: str) -> int:
         """Index of a state by name.

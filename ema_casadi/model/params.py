@@ -31,12 +31,11 @@ from ._params_airframe import Airframe
 from ._params_faults import FAULT_GROUPS, FaultTables
 from ._relations import check_relations
 
-__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS"]
+__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked"]
 
 
 class ParameterError(ValueError):
-    """A parameter file or variant choice is invalid. The message is one line that
-    names the file and the key and says what was expected."""
+    """A parameter file or variant choice is invalid (one line: the file, the key, what was expected)."""
 
 
 class UnknownParameterError(ParameterError, TypeError):
@@ -49,6 +48,7 @@ POS = "positive"  # > 0
 NONNEG = "non-negative"  # >= 0
 FRAC = "fraction"  # 0 < x <= 1
 INT = "positive integer"
+WHOLE = "whole number"  # 0, 1, 2, ... (a seed, a count of bits)
 NONPOS = "non-positive"  # <= 0
 FLAG = "switch"  # 0 or 1 (false or true)
 TEMP = "temperature"  # degC, above absolute zero
@@ -60,12 +60,8 @@ TABLE_MAX = 6
 def _p(unit: str, check: str, doc: str, default=None, table: bool = False):
     """A parameter field. ``default``: the value taken when a file lacks the key (keys added
     after files were written); ``table``: a list of 2 to TABLE_MAX values, each checked."""
-    meta = {"unit": unit, "check": check, "doc": doc}
-    if default is not None:
-        meta["default"] = default
-    if table:
-        meta["table"] = True
-    return field(metadata=meta)
+    meta = {"unit": unit, "check": check, "doc": doc, **({} if default is None else {"default": default})}
+    return field(metadata={**meta, "table": True} if table else meta)
 
 
 @dataclass(frozen=True)
@@ -89,6 +85,7 @@ class Screw:
     B: float = _p("m", NONNEG, "backlash, total gap (m)")
     P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
                         default=0.1)
+    x_lock: float = _p("m", NONNEG, "self-locking memory: pre-sliding travel at the rod; 0: blend (m)", default=1e-6)
 
 
 @dataclass(frozen=True)
@@ -159,6 +156,9 @@ class Control:
     f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
     f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
     f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
+    w_aw: float = _p("1", FRAC, "clamping anti-windup band, fraction of the output limit (-)", default=0.01)
+    k_bc: float = _p("1", POS, "back-calculation tracking rate in units of K_i/K_p (-)", default=1.0)
+    w_knee: float = _p("1", FRAC, "smooth limit's knee half-width, fraction of the limit (-)", default=0.05)
 
 
 @dataclass(frozen=True)
@@ -193,6 +193,13 @@ class EndStop:
     d_stop: float = _p("N*s/m", NONNEG, "end-stop damping, in contact only (N s/m)")
 
 
+@dataclass(frozen=True)
+class Load:
+    """The load on the rod besides f_ext, used by ``load = "aero_spring"``."""
+
+    k_aero: float = _p("N/m", NONNEG, "surface hinge-moment stiffness referred to the rod (N/m)", default=1.0e5)
+
+
 GROUPS: dict[str, type] = {
     "actuator": Actuator,
     "screw": Screw,
@@ -202,6 +209,7 @@ GROUPS: dict[str, type] = {
     "control": Control,
     "thermal": Thermal,
     "endstop": EndStop,
+    "load": Load,
     "airframe": Airframe, **FAULT_GROUPS,  # the aircraft loop, sensors, faults, monitors: optional tables
 }
 
@@ -234,7 +242,7 @@ class Parameters(FaultTables):
 
     Attributes
     ----------
-    actuator, screw, friction, motor, power, control, thermal, endstop, airframe, sensor, fault, monitor : dataclass
+    actuator, screw, friction, motor, power, control, thermal, endstop, load, airframe, sensor, fault, monitor : object
         The parameter groups of :data:`GROUPS`, each value in the SI unit its field
         declares (:meth:`units`).
     variants : dict
@@ -256,6 +264,7 @@ class Parameters(FaultTables):
     thermal: Thermal
     endstop: EndStop
     airframe: Airframe = Airframe()
+    load: Load = Load(k_aero=1.0e5)
     variants: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
     missing: tuple = ()
@@ -403,6 +412,8 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: must be in (0, 1], got {value}")
     if check == INT and not (value >= 1 and value == int(value)):
         raise ParameterError(f"{where}: must be a positive integer, got {value}")
+    if check == WHOLE and not (value >= 0 and value == int(value)):
+        raise ParameterError(f"{where}: must be a whole number (0, 1, 2, ...), got {value:g}")
     if check == NONPOS and value > 0:
         raise ParameterError(f"{where}: must be zero or negative, got {value}")
     if check == FLAG and value not in (0.0, 1.0):
@@ -497,3 +508,30 @@ def load_parameters(path: str | Path | None = None, variants: dict[str, str] | N
     merged.update(given)
     # the registry checks the names when a model is built, blaming the file or `variants`
     return replace(_build(data, merged, src), overrides=tuple(given))
+
+
+# -- one flat value set from outside a file (a command-line flag) -----------------------
+def checked(name: str, value, where: str | None = None) -> float:
+    """``value`` (SI) for the flat parameter ``name``, checked as a parameter file's
+    value is (a finite number in the field's range), else :class:`ParameterError`
+    naming ``where``; a loop flag only as a finite number.
+
+    Parameters
+    ----------
+    name : str
+        Flat parameter name (``B``, ``K_i_x``, ``T_eta_2``); an unknown one raises
+        :class:`UnknownParameterError`.
+    value : float
+        The value (SI).
+    where : str, optional
+        How to name it in the message (default the name; the command line passes its flag).
+    """
+    where = where or name
+    rules = {n: {k: v for k, v in f.metadata.items() if k != "table"}
+             for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
+    if name in LOOP_FLAGS:
+        return number(value, where, ParameterError)
+    if name not in rules:
+        raise UnknownParameterError(_unknown("checked", name, rules))
+    value = value.item() if isinstance(value, np.generic) else value
+    return _check_value(where, "", "", rules[name], value, plain=True, bare=True)

@@ -31,19 +31,22 @@ def _mark_margins(ax_m, ax_p, bode: dict, m) -> None:
                       arrowprops={"arrowstyle": "<->", "color": "C3", "lw": 1.2})
         ax_p.text(m.f_gc_hz * 1.15, (p_gc + ref) / 2, f"PM {m.pm_deg:.1f}°\n@ {m.f_gc_hz:.3g} Hz",
                   color="C3", fontsize=8, va="center")
-    if m.f_pc_hz is not None and f[0] <= m.f_pc_hz <= f[-1]:
-        g_pc = at(mag, m.f_pc_hz)
-        ax_m.annotate("", xy=(m.f_pc_hz, g_pc), xytext=(m.f_pc_hz, 0.0),
-                      arrowprops={"arrowstyle": "<->", "color": "C2", "lw": 1.2})
-        ax_m.text(m.f_pc_hz * 1.15, g_pc / 2, f"{_gm_text(m.gm_db)}\n@ {m.f_pc_hz:.3g} Hz",
-                  color="C2", fontsize=8, va="center")
-    ax_m.set_title(f"{m.loop} loop: {_gm_text(m.gm_db)}, PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}"
+    for f_x, text, color in ((m.f_pc_hz, f"GM {m.gm_db:.1f} dB", "C2"),
+                             (m.f_down_hz, f"gain-reduction margin {m.gm_down_db:.1f} dB", "C4")):
+        if f_x is not None and f[0] <= f_x <= f[-1]:
+            g_x = at(mag, f_x)
+            ax_m.annotate("", xy=(f_x, g_x), xytext=(f_x, 0.0),
+                          arrowprops={"arrowstyle": "<->", "color": color, "lw": 1.2})
+            ax_m.text(f_x * 1.15, g_x / 2, f"{text}\n@ {f_x:.3g} Hz", color=color, fontsize=8, va="center")
+    ax_m.set_title(f"{m.loop} loop: {_gm_text(m)}, PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}"
                    + ("" if m.stable else " (closed loop UNSTABLE)"), fontsize=9)
 
 
-def _gm_text(gm_db: float) -> str:
-    """A signed gain margin named for what it is: a rise (GM) or a fall (gain-reduction margin)."""
-    return f"GM {gm_db:.1f} dB" if gm_db > 0 else f"gain-reduction margin {-gm_db:.1f} dB"
+def _gm_text(m) -> str:
+    """The gain margins named for what they are, both >= 0: a rise (GM) and, for a
+    conditionally stable loop, a fall (gain-reduction margin)."""
+    text = f"GM {m.gm_db:.1f} dB"
+    return text + (f", gain-reduction margin {m.gm_down_db:.1f} dB" if m.conditionally_stable else "")
 
 
 def plot_bode(curves, path: str | Path | None = None, *, title: str = "", margins=None,

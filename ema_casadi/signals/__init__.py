@@ -7,8 +7,21 @@ The modules import one way: ``_signal`` (the algebra and quantities) <- ``_table
 
 from .._util._checks import decode_utf8
 from ._parse import parse_signal
-from ._signal import Signal, SignalError, check_signal, constant, log_grid, parse_list, parse_quantity, parse_range
-from ._tables import TIME_NAMES, read_text
+from ._signal import (
+    KIND_OF_UNIT,
+    SI_UNIT,
+    UNITS,
+    Signal,
+    SignalError,
+    check_signal,
+    constant,
+    log_grid,
+    parse_list,
+    parse_quantity,
+    parse_range,
+)
+from ._tables import TIME_NAMES, read_text, table_header, table_rows, unit_scale, write_series
 
 __all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "log_grid",
-           "check_signal", "constant", "read_text", "decode_utf8", "TIME_NAMES"]
+           "check_signal", "constant", "read_text", "decode_utf8", "TIME_NAMES", "UNITS", "SI_UNIT", "KIND_OF_UNIT",
+           "table_rows", "table_header", "unit_scale", "write_series"]

@@ -45,7 +45,7 @@ import casadi as ca
 import numpy as np
 
 __all__ = ["Signal", "SignalError", "parse_quantity", "parse_list", "parse_range", "log_grid", "check_signal",
-           "constant"]
+           "constant", "UNITS", "SI_UNIT", "KIND_OF_UNIT"]
 
 
 class SignalError(ValueError):
@@ -55,7 +55,8 @@ class SignalError(ValueError):
 _LENGTH = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 _FORCE = {"N": 1.0, "kN": 1e3, "MN": 1e6}
 _RATE = {"m/s": 1.0, "mm/s": 1e-3}
-_UNITS = {
+#: The one unit table: kind -> unit -> factor to SI (flags, signals, tables, records, parameter files).
+UNITS = {
     "length": _LENGTH, "force": _FORCE, "rate": _RATE, "frequency": {"Hz": 1.0}, "time": {"s": 1.0, "ms": 1e-3},
     "dimensionless": {"1": 1.0}, "angular_velocity": {"rad/s": 1.0, "rpm": 2 * math.pi / 60}, "current": {"A": 1.0},
     "temperature": {"degC": 1.0, "°C": 1.0},  # degC throughout (steps and amplitudes are then in K)
@@ -65,6 +66,8 @@ _UNITS = {
 SI_UNIT = {"length": "m", "force": "N", "rate": "m/s", "frequency": "Hz", "time": "s",
            "dimensionless": "1", "angular_velocity": "rad/s", "current": "A", "temperature": "degC",
            "angle": "rad"}
+#: The quantity kind of each SI unit (the inverse of :data:`SI_UNIT`).
+KIND_OF_UNIT = {unit: kind for kind, unit in SI_UNIT.items()}
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
@@ -87,7 +90,7 @@ def parse_quantity(text: str, kind: str, bare: str, stroke: float | None = None)
     if not m:
         raise SignalError(f"'{text}' is not a number with an optional unit")
     value, unit = float(m.group(1)), m.group(2)
-    units = _UNITS[kind]
+    units = UNITS[kind]
     if unit == "":
         unit = bare
     if unit == "%" and kind == "length":
@@ -143,7 +146,7 @@ def parse_range(text: str, kind: str, bare: str) -> tuple[float, float, int] | N
         The ends in SI units (m, N, m/s, Hz or s) and the count, unchecked; None when
         ``text`` does not have the form of a range.
     """
-    unit = "|".join(re.escape(u) for u in _UNITS[kind])
+    unit = "|".join(re.escape(u) for u in UNITS[kind])
     end = rf"{_NUM}\s*(?:{unit})?"
     m = re.fullmatch(rf"\s*({end})\s*-\s*({end})\s*:\s*(\d+)\s*", text)
     if not m:

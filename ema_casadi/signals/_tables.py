@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import nearest, read_text_file
-from ._signal import _NUM, _UNITS, SI_UNIT, Signal, SignalError
+from ._signal import _NUM, SI_UNIT, UNITS, Signal, SignalError
 
 #: Names the time column of a table may have (the file layout: ``time``; ``t`` accepted).
 TIME_NAMES = ("time", "t")
@@ -38,22 +38,41 @@ def read_text(path: str | Path, what: str = "file") -> str:
     return read_text_file(path, what, SignalError)
 
 
-def _unit_scale(unit: str, kind: str, where: str, stroke: float | None) -> float:
-    """Factor to SI of a column's unit (empty: SI) for a quantity ``kind``."""
+def unit_scale(unit: str, kind: str, where: str, stroke: float | None) -> float:
+    """Factor to SI of a column's unit (empty: SI) for a quantity ``kind``.
+
+    Parameters
+    ----------
+    unit : str
+        The column's unit (``"mm"``; ``""``: SI; ``"%"``: of the stroke, for a length).
+    kind : str
+        The quantity kind (a key of :data:`~ema_casadi.signals.UNITS`).
+    where : str
+        The file and column, for the message.
+    stroke : float or None
+        The stroke (m) a ``%`` length is a fraction of; None: ``%`` refused.
+    """
     if unit in ("", SI_UNIT[kind]):
         return 1.0
     if kind == "length" and unit == "%":
         if stroke is None:
             raise SignalError(f"{where}: unit '%' needs the stroke")
         return stroke / 100
-    units = _UNITS[kind]
+    units = UNITS[kind]
     if unit not in units:
         pct = ", %" if kind == "length" else ""
         raise SignalError(f"{where}: unit '{unit}' is not a {kind} unit (use {', '.join(units)}{pct})")
     return units[unit]
 
 
-def _table_rows(path: Path) -> list[list[str]]:
+def table_rows(path: Path) -> list[list[str]]:
+    """The rows of a CSV table as ``(line number, stripped cells)``, empty and ``#`` rows left out.
+
+    Parameters
+    ----------
+    path : Path
+        The table (UTF-8, a byte-order mark allowed).
+    """
     text = read_text(path, "signal table")
     try:
         rows = list(csv.reader(io.StringIO(text, newline="")))
@@ -63,8 +82,16 @@ def _table_rows(path: Path) -> list[list[str]]:
     return [(n, r) for n, r in numbered if any(r) and not r[0].startswith("#")]
 
 
-def _header(path: Path, rows):
-    """(names, units from brackets, units from a Unit: row, data rows) of a table."""
+def table_header(path: Path, rows):
+    """(names, units from brackets, units from a Unit: row, data rows) of a table.
+
+    Parameters
+    ----------
+    path : Path
+        The table, for the messages.
+    rows : list
+        Its rows from :func:`table_rows`.
+    """
     if not rows:
         raise SignalError(f"{path}: empty table; expected a header 'time,NAME' and rows of numbers")
     first_line, first = rows[0]
@@ -79,7 +106,10 @@ def _header(path: Path, rows):
         names.append(name)
         bracket.append((unit or "").strip())
     if names[0].lower() not in TIME_NAMES:
-        raise SignalError(f"{path}: the first column must be the time, named 'time' or 't', got '{names[0]}'")
+        sep = next((f"; the columns are separated by ',' (this header looks {n}-separated)"
+                    for c, n in ((";", "';'"), ("\t", "tab")) if c in names[0]), "")
+        raise SignalError(f"{path}: the first column must be the time, named 'time' or 't' with its unit in "
+                          f"brackets if not s ('time [ms]'), got {names[0]!r}{sep}")
     seen = set()
     for j, name in enumerate(names):
         if j and name.lower() in TIME_NAMES:
@@ -102,7 +132,7 @@ def _header(path: Path, rows):
 
 def _read_table(path: Path, column: str | None, kind: str, stroke: float | None) -> Signal:
     """A signal from one column of a CSV table (module docstring: layout and units)."""
-    names, bracket, unit_row, data = _header(path, _table_rows(path))
+    names, bracket, unit_row, data = table_header(path, table_rows(path))
     signals = names[1:]
     if column is None:
         if len(signals) != 1:
@@ -120,8 +150,8 @@ def _read_table(path: Path, column: str | None, kind: str, stroke: float | None)
         if unit and unit != unit_row[j]:
             raise SignalError(f"{where}: unit [{unit}] in the header but '{unit_row[j]}' in the Unit: row")
         unit = unit_row[j]
-    scale = _unit_scale(unit, kind, where, stroke)
-    t_scale = _unit_scale(bracket[0], "time", f"{path}: column '{names[0]}'", None)
+    scale = unit_scale(unit, kind, where, stroke)
+    t_scale = unit_scale(bracket[0], "time", f"{path}: column '{names[0]}'", None)
     if len(data) < 2:
         raise SignalError(f"{path}: expected at least two rows of numbers under the header")
     t, v = np.empty(len(data)), np.empty(len(data))

@@ -38,7 +38,7 @@ from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
-from ._inputs import _input_signals, check_inputs
+from ._inputs import check_inputs, input_signals
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -72,6 +72,7 @@ def simulate(
     f_ext: Signal | float | str | None = None,
     eta: Signal | float | str | None = None,
     *,
+    inputs: dict | None = None,
     dt: float = 1e-5, solver: str = "auto",
     params: Parameters | None = None, p: np.ndarray | None = None,
     x0: np.ndarray | None = None, from_trim: bool = False, zoh: bool = False,
@@ -94,6 +95,11 @@ def simulate(
     x_cmd, f_ext, eta : Signal, float or str
         Rod command (m), external force (N, + pushes the rod in), screw efficiency (-);
         None: the input's default (0 m, 0 N, the set's eta; no x_cmd behind an airframe).
+        Conveniences for ``inputs={"command": ..., "load": ..., "efficiency": ...}``.
+    inputs : dict, optional
+        Input name or role (``model.input_info``, :data:`~ema_casadi.model.components.INPUT_ROLES`:
+        ``"load"``, ``"ambient_temperature"``, ...) -> value: the way to drive a model whose
+        command or load is another signal without naming it.
     **signals : Signal, float or str
         Any other model input by name (``model.inputs``, e.g. ``d_x``), strings in its
         quantity's unit; undriven inputs take their declared default.
@@ -131,13 +137,13 @@ def simulate(
     if from_trim and x0 is not None:
         raise SimulationError("give x0 or from_trim, not both")
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
-        res = _run_switched(model, t_end, _given(x_cmd, f_ext, eta, signals), dt, solver, params, p, x0, dt_out,
-                            decimate, jit, progress, from_trim)
+        given = _given(model, x_cmd, f_ext, eta, inputs, signals)
+        res = _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress, from_trim)
         return _chosen(res, requested, why, rtol, atol)
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _checked_inputs(model, _given(x_cmd, f_ext, eta, signals), pv, plan, solver)
+    sig = _checked_inputs(model, _given(model, x_cmd, f_ext, eta, inputs, signals), pv, plan, solver)
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
     run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
@@ -147,7 +153,7 @@ def simulate(
 def _checked_inputs(model, given, pv, plan, solver) -> dict:
     """The run's input signals, checked against the envelope and the Nyquist rate of
     what samples them (the rk4 step; the output spacing of a variable-step solver)."""
-    sig = _input_signals(model, given, pv, plan.t_end)
+    sig = input_signals(model, given, pv, plan.t_end)
     step = plan.dt if solver == "rk4" else plan.spacing
     check_inputs(model, _driven(model, sig), plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     return sig
@@ -159,11 +165,25 @@ def _driven(model, sig) -> dict:
     return {n: s for n, s in sig.items() if model.input_info[n].noise is None}
 
 
-def _given(x_cmd, f_ext, eta, signals) -> dict:
+def _given(model, x_cmd, f_ext, eta, inputs, signals) -> dict:
     """The inputs given, by name (those not given take their declared defaults; any
-    other keyword is checked against the model's inputs)."""
-    named = {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta}
-    return {**{name: value for name, value in named.items() if value is not None}, **signals}
+    other keyword is checked against the model's inputs); ``inputs`` by name or role.
+    An input given twice is refused."""
+    from ..model import AssemblyError
+
+    given = {name: value for name, value in {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta}.items() if value is not None}
+    given.update(signals)
+    if inputs is not None and not isinstance(inputs, dict):
+        raise SimulationError(f"inputs: expected a dict name or role -> value, got {describe(inputs)}")
+    for key, value in (inputs or {}).items():
+        try:
+            name = model.input_name(key)
+        except AssemblyError as exc:
+            raise SimulationError(f"inputs: {exc}") from None
+        if name in given:
+            raise SimulationError(f"inputs: '{key}' drives {name}, which is already given")
+        given[name] = value
+    return given
 
 
 def _runner(model, solver, plan, sig, pv, x0, zoh, jit, progress, rtol, atol, event_tol):
@@ -208,7 +228,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     dt_out = None if every else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
-    sig = _input_signals(model, given, pv, float(t_end))
+    sig = input_signals(model, given, pv, float(t_end))
     check_inputs(model, _driven(model, sig), float(t_end), {f"dt {float(dt):g} s": float(dt)})
     if from_trim:
         x0 = trimmed_start(model, sig, pv)

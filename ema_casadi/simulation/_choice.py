@@ -100,7 +100,8 @@ def trimmed_start(model: Model, sig: dict, pv: np.ndarray, x_base: np.ndarray | 
     try:
         with warnings.catch_warnings():  # "inside the backlash gap" concerns a linear model, not this start
             warnings.simplefilter("ignore")
-            op = operating_point(plant, at0.get("x_cmd", 0.0), at0.get("f_ext", 0.0), eta=at0.get("eta"),
+            role = {r: at0.get(model.input_with(r)) for r in ("command", "load", "efficiency")}
+            op = operating_point(plant, role["command"] or 0.0, role["load"] or 0.0, eta=role["efficiency"],
                                  p=p_plant, backlash="keep")
     except LinearizationError as exc:
         raise SimulationError(f"from_trim: no operating point for the inputs at t = 0: {exc}") from None

@@ -12,7 +12,7 @@ import numpy as np
 from .._util._compiled import BufferCall
 from .._util._interrupts import check as check_interrupt
 from ._envelope import GaveUp, RunFailed, captured_stderr, integrator_failure, monitor_for
-from ._inputs import _initial_projection, _input_matrix
+from ._inputs import _initial_projection, input_matrix
 from ._result import _result, progress_bar
 from ._rk4 import outputs_at
 
@@ -61,7 +61,7 @@ def _call(F, args, to_time=None, t_default=0.0):
 def _check_inputs(monitor, model, sig, grid, X, Y):
     """The inputs over the whole output grid against the envelope, before integrating
     (they are known up front: a load the actuator cannot take fails at its time)."""
-    U = _input_matrix(model, sig, grid)
+    U = input_matrix(model, sig, grid)
     bad = monitor.first(grid, None, None, U)
     if bad is not None:
         raise RunFailed(bad.what, bad.time, None)
@@ -235,7 +235,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
         return out[0], out[2]  # xf (nx x n), qf (2 x n)
 
     def stuck_at(x, t):
-        return bool(float(mode_fn(x, _input_matrix(model, sig, [t])[:, 0], pv)) > 0.5)
+        return bool(float(mode_fn(x, input_matrix(model, sig, [t])[:, 0], pv)) > 0.5)
 
     x0, _ = _initial_projection(model, sig, pv, x0)
     X = np.empty((model.nx, len(grid)))
@@ -279,7 +279,7 @@ def _simulate_cvodes_hybrid(model, t_end, sig, pv, x0, dt_out, rtol, atol, event
             q_r = (q[1] if stuck else q[0])[0]
             if q_r > 0:  # confirmed from the bracket's left end
                 t_l, x_l, t_r, x_r = _locate_switch(integrate, F1, stuck, t_l, x_l, t_r, x_r, q_r, event_tol)
-                x_r = np.asarray(model.project(x_l, x_r[:, 0], _input_matrix(model, sig, [t_r])[:, 0], pv)[0], float)
+                x_r = np.asarray(model.project(x_l, x_r[:, 0], input_matrix(model, sig, [t_r])[:, 0], pv)[0], float)
                 new = stuck_at(x_r, t_r)
                 if new != stuck:
                     switch_times.append(t_r)

@@ -258,7 +258,15 @@ _T_RE = re.compile(r"At t\s*=\s*([-+0-9.eE]+)")
 class GaveUp(Exception):
     """An integrator gave up (the one such exception of the package): ``what`` (one line)
     and ``time``, the integrator's time where it did (s, or the normalised time of a
-    sine-stream period). Callers turn it into a failed run (:class:`RunFailed`, a failed point)."""
+    sine-stream period). Callers turn it into a failed run (:class:`RunFailed`, a failed point).
+
+    Parameters
+    ----------
+    what : str
+        Why, one line.
+    time : float
+        Where (s).
+    """
 
     def __init__(self, what: str, time: float):
         super().__init__(what)

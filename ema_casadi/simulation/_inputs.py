@@ -41,9 +41,19 @@ def noise_signal(seed: int, name: str, rate: float, t_end: float) -> Signal:
     return Signal.table(t, np.repeat(values, 2))
 
 
-def _as_signal(value, name: str, kind: str) -> Signal:
+def as_signal(value, name: str, kind: str) -> Signal:
     """A model input's value as a Signal; SignalError naming the input otherwise (a
-    non-finite number or Signal, a string that does not parse, another type)."""
+    non-finite number or Signal, a string that does not parse, another type).
+
+    Parameters
+    ----------
+    value : float, str or Signal
+        The value (SI), a signal text (``"step(1mm, 0.01)"``) or a Signal.
+    name : str
+        The input, for the message.
+    kind : str
+        Its quantity kind (selects the units of a text).
+    """
     if isinstance(value, Signal):
         if not value.finite():
             raise SignalError(f"{name}: non-finite value in the signal {value.text or value!r}")
@@ -60,11 +70,23 @@ def _as_signal(value, name: str, kind: str) -> Signal:
     raise SignalError(f"{name}: expected a number, a Signal or a signal string, got {describe(value)}")
 
 
-def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | None = None) -> dict:
+def input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | None = None) -> dict:
     """Every model input that is driven (given, or not an injection) as a Signal, by
     name; the quantity kind of each input selects its units. Undriven noise inputs get
     their seeded sequence over [0, t_end] (:func:`noise_signal`; the seed from the
-    parameter the input names, the sample rate of the input's loop)."""
+    parameter the input names, the sample rate of the input's loop).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    given : dict
+        Input name -> value (see :func:`as_signal`); others at their defaults.
+    pv : ndarray
+        The parameter vector.
+    t_end : float, optional
+        The run's length (s), for the noise inputs' sequences.
+    """
     check_keywords("simulate", given, model.inputs)
     P = model.pdict(pv)
     sig = {}
@@ -79,7 +101,7 @@ def _input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | Non
             continue
         if value is None:
             value = getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
-        sig[name] = _as_signal(value, name, inp.kind)
+        sig[name] = as_signal(value, name, inp.kind)
     return sig
 
 
@@ -117,8 +139,18 @@ def check_inputs(model: Model, sig: dict, t_end: float, sampling: dict, labels: 
             raise error(f"{exc} ({why})" if why and "beyond the" in str(exc) else str(exc)) from None
 
 
-def _input_matrix(model, sig, t):
-    """Inputs (nu x len(t)) from the signals; injections zero."""
+def input_matrix(model, sig, t):
+    """Inputs (nu x len(t)) from the signals; injections zero.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    sig : dict
+        Input name -> Signal (from :func:`input_signals`).
+    t : array_like
+        Times (s).
+    """
     U = np.zeros((model.nu, len(t)), order="F")  # column-major, as the compiled code reads it
     for name, s in sig.items():
         U[model.inputs.index(name)] = s(t)
@@ -129,6 +161,6 @@ def _initial_projection(model, sig, pv, x0):
     """Hybrid models start in a consistent mode: (x0 projected, stick flag)."""
     if not model.hybrid:
         return x0, 0.0
-    u0 = _input_matrix(model, sig, [0.0])[:, 0]
+    u0 = input_matrix(model, sig, [0.0])[:, 0]
     xp, stick = model.project(x0, x0, u0, pv)
     return np.asarray(xp, float).ravel(), float(stick)

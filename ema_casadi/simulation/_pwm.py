@@ -35,7 +35,7 @@ from .._util._compiled import BufferCall, compile_keyed
 from .._util._interrupts import check as check_interrupt
 from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
-from ._inputs import _initial_projection, _input_matrix
+from ._inputs import _initial_projection, input_matrix
 from ._result import SimResult, SimulationError, _result, progress_bar
 from ._rk4 import _flags, _rk4
 
@@ -267,7 +267,7 @@ def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) ->
     names_q = quadrature_outputs(model)
     monitor = monitor_for(model, pv)
     x0, _ = _initial_projection(model, sig, pv, x0)
-    bad = monitor.first([0.0], x0, None, _input_matrix(model, sig, [0.0]))
+    bad = monitor.first([0.0], x0, None, input_matrix(model, sig, [0.0]))
     if bad is not None:
         raise RunFailed(bad.what, 0.0, None)
     n_out = g.periods // g.k
@@ -282,7 +282,7 @@ def simulate_pwm(model: Model, t_end, sig, pv, x0, dt, dt_out, jit, progress) ->
         check_interrupt()
         periods = np.arange(c0 * g.k, (c0 + M) * g.k)
         t0 = periods * g.T
-        U = _input_matrix(model, sig, np.column_stack([t0, t0 + g.T]).ravel())
+        U = input_matrix(model, sig, np.column_stack([t0, t0 + g.T]).ravel())
         half = g.T / 2 if g.double else g.T
         Fl = np.empty((len(rates), 2 * len(t0)))
         Fl[:, 0::2] = _flags(t0, half, rates)
@@ -349,7 +349,7 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
     the quadratures as columns ``E_<output>`` in ``info``."""
     nx, nh = model.nx, len(model.holds)
     X, H = Xa[:nx], Xa[nx : nx + nh]
-    U = _input_matrix(model, sig, t)
+    U = input_matrix(model, sig, t)
     if S is None:
         D, Sp = model.schedule(X[:, 0], U[:, 0], pv, H[:, 0])
         s_end = np.asarray(Sp)[:, -1]

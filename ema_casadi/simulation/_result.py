@@ -155,7 +155,7 @@ class SimResult:
         path : str or Path
             The CSV file.
         """
-        from ..signals._tables import write_series
+        from ..signals import write_series
 
         cols = self.columns()[1:]
         units = self.units()

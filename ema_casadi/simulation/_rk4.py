@@ -15,7 +15,7 @@ from .._util._compiled import BufferCall, compile_function, compile_keyed
 from .._util._interrupts import check as check_interrupt
 from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
-from ._inputs import _initial_projection, _input_matrix
+from ._inputs import _initial_projection, input_matrix
 from ._native import native_rollout
 from ._result import _result, progress_bar
 
@@ -234,7 +234,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     M = max(1, min(n_out, STEPS_PER_CALL // k))
     monitor = monitor_for(model, pv)
     x0, stick0 = _initial_projection(model, sig, pv, x0)
-    bad = monitor.first([0.0], x0, None, _input_matrix(model, sig, [0.0]))
+    bad = monitor.first([0.0], x0, None, input_matrix(model, sig, [0.0]))
     if bad is not None:  # before the rollout is compiled
         raise RunFailed(bad.what, 0.0, None)
     F, cinfo = _rollout(model, zoh, k, M, jit)
@@ -251,7 +251,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         t_out = np.arange(n + 1) * k * dt
         X_all = np.column_stack([x0, X_out[: model.nx, :n]])
         # outputs at t = 0 from the continuous law (the ECU has not sampled yet)
-        y0 = outputs_at(model, x0[:, None], _input_matrix(model, sig, [0.0]), pv, jit)
+        y0 = outputs_at(model, x0[:, None], input_matrix(model, sig, [0.0]), pv, jit)
         Y_all = np.column_stack([y0, Y_out[:, :n]])
         info = {"status": "completed", "dt": dt, "steps": min(n_steps, n * k), "decimate": k,
                 "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
@@ -268,7 +268,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         t = np.arange(c0 * k, (c0 + M) * k) * dt
         t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
         Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
-        return np.asfortranarray(_input_matrix(model, sig, t3)), Fl
+        return np.asfortranarray(input_matrix(model, sig, t3)), Fl
 
     chunks = _prefetched(inputs, range(0, n_out, M))
     for c0, (U, Fl) in chunks:

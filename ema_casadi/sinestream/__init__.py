@@ -64,7 +64,7 @@ period maps and the settling loop of ``_kernels``; the result is a
 
 from ..plots._sinestream import plot_bode
 from ._kernels import coefficients, harmonics
-from ._parse import parse_amplitudes, parse_freqs, parse_loads
+from ._parse import check_grid, parse_amplitudes, parse_freqs, parse_loads
 from ._result import FIELDS, FreqRespError, FreqResponse
 from ._run import sine_stream
 from ._studies import PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ, paper_fig14a, paper_fig14b, run_study
@@ -72,5 +72,5 @@ from ._studies import PAPER_AMPLITUDES_PCT, PAPER_BAND, PAPER_LOADS, PAPER_NFREQ
 __all__ = [
     "FreqResponse", "FreqRespError", "sine_stream", "harmonics", "coefficients", "plot_bode",
     "run_study", "paper_fig14a", "paper_fig14b", "parse_amplitudes", "parse_freqs", "parse_loads",
-    "FIELDS", "PAPER_AMPLITUDES_PCT", "PAPER_LOADS", "PAPER_BAND", "PAPER_NFREQ",
+    "FIELDS", "PAPER_AMPLITUDES_PCT", "PAPER_LOADS", "PAPER_BAND", "PAPER_NFREQ", "check_grid",
 ]

@@ -19,9 +19,11 @@ from .._util._compiled import BufferCall
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..signals import Signal
-from ..simulation import STEPS_PER_CALL, RunFailed, simulate
-from ..simulation._envelope import GaveUp, Monitor, captured_stderr, integrator_failure
+from ..simulation import STEPS_PER_CALL, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure, simulate
 
+#: What a sine stream measures, by role: the rod position and the motor current (the
+#: harmonics' channels, in this order).
+MEASURED = ("rod_position", "motor_current")
 #: Largest contraction ratio assumed for a settling transient (also the value taken
 #: while only one period-to-period change is known).
 Q_MAX = 0.9
@@ -33,9 +35,10 @@ def _inputs(model: Model, pa, tau, PA, taus):
     normalised time ``tau`` from the SX parameters ``pa = [p; A; f; F_ext]``; ``U`` on
     the sample grid ``taus`` from their MX counterpart ``PA``."""
     npar = len(model.param_names)
-    u = model.u_expr(pa[:npar], x_cmd=pa[npar] * ca.sin(2 * ca.pi * tau), f_ext=pa[npar + 2])
-    held = model.u_expr(PA[:npar], x_cmd=0, f_ext=PA[npar + 2])
-    unit_cmd = ca.DM([1.0 if n == "x_cmd" else 0.0 for n in model.inputs])
+    cmd, load = model.input_with("command"), model.input_with("load")
+    u = model.u_expr(pa[:npar], **{cmd: pa[npar] * ca.sin(2 * ca.pi * tau), load: pa[npar + 2]})
+    held = model.u_expr(PA[:npar], **{cmd: 0, load: PA[npar + 2]})
+    unit_cmd = ca.DM([1.0 if n == model.input_with("command") else 0.0 for n in model.inputs])
     wave = PA[npar] * ca.DM(np.sin(2 * np.pi * np.asarray(taus))).T
     U = ca.repmat(held, 1, len(taus)) + ca.mtimes(unit_cmd, wave)
     return u, U
@@ -64,7 +67,7 @@ class _PeriodMap:
         integ = ca.integrator("sine_period_cvodes", "cvodes", dae, 0.0, grid, opts)
         Xk = integ(x0=X0, p=PA)["xf"]
         Y = model.f.map(samples)(Xk, U, PA[:npar])[1]
-        sel = [model.outputs.index("x_rod"), model.outputs.index("i_q")]
+        sel = [model.outputs.index(model.output_with(r)) for r in MEASURED]
         outs, names = [Xk[:, -1], Y[sel, :]], ["x1", "y"]
         if monitored:
             outs, names = outs + [ca.vertcat(Xk, Y, U)], names + ["z"]
@@ -128,10 +131,10 @@ class _HybridPeriods:
         A, freq, f_ext = pa[self.npar :]
         n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
         n += n % 2
-        res = simulate(self.model, 1.0 / freq, Signal.sine(A, freq), float(f_ext), p=p, x0=x0,
-                       dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
+        res = simulate(self.model, 1.0 / freq, inputs={"command": Signal.sine(A, freq), "load": float(f_ext)}, p=p,
+                       x0=x0, dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
-        y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
+        y = np.vstack([res[self.model.output_with(r)][1 : n + 1] for r in MEASURED])
         return x1, y, None
 
 
@@ -152,10 +155,11 @@ class _SwitchedPeriods(_HybridPeriods):
         A, freq, f_ext = pa[self.npar :]
         f_c = float(p[self.i_carrier])
         n = max(1, round(f_c / freq))
-        res = simulate(self.model, n / f_c, Signal.sine(A, f_c / n), float(f_ext), p=p, x0=x0,
+        res = simulate(self.model, n / f_c, inputs={"command": Signal.sine(A, f_c / n), "load": float(f_ext)}, p=p,
+                       x0=x0,
                        dt=min(self.dt_max, 0.5 / f_c), dt_out=1.0 / f_c, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
-        y = np.vstack([res["x_rod"][1 : n + 1], res["i_q"][1 : n + 1]])
+        y = np.vstack([res[self.model.output_with(r)][1 : n + 1] for r in MEASURED])
         return x1, y, None
 
 

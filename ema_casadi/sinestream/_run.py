@@ -187,7 +187,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     u = ca.SX.sym("u", model.nu)
     pp = ca.SX.sym("p", len(model.param_names))
     xdot = model.f(x, u, pp)[0]
-    ju = model.inputs.index("x_cmd")
+    ju = model.inputs.index(model.input_with("command"))
     jac = ca.Function("lin_jacobians", [x, u, pp], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)[:, ju]])
     rate_limit = model.limit_values(p)["rod_speed"]
     # the rod's own travel: its position state, or the shaft angle where the rod

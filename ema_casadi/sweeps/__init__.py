@@ -22,7 +22,7 @@ while the sweep runs and writes the table; ``_result`` holds the table, the summ
 statistics, the sensitivities and the plot.
 """
 
-from ._journal import journal_path
+from ._journal import journal_path, write_table
 from ._metrics import METRICS
 from ._result import SweepResult, spearman
 from ._run import BACKENDS, sweep
@@ -30,5 +30,5 @@ from ._spec import DISTRIBUTIONS, MAX_RUNS, Run, SweepError, SweepSpec, load_swe
 
 __all__ = [
     "sweep", "load_sweep", "parse_sweep", "SweepSpec", "SweepResult", "SweepError", "Run", "METRICS",
-    "DISTRIBUTIONS", "BACKENDS", "MAX_RUNS", "journal_path", "spearman",
+    "DISTRIBUTIONS", "BACKENDS", "MAX_RUNS", "journal_path", "spearman", "write_table",
 ]

@@ -10,8 +10,8 @@ step               step_overshoot (-), step_rise_time_s,           ``simulation.
                                                                    change of x_cmd, or the end)
 hunting            hunting_amplitude_m, hunting_frequency_hz       ``simulation.hunting_metrics`` of
                                                                    x_rod - x_cmd over t >= ``from``
-margins            margins_<loop>_gm_db, _pm_deg, _f_gc_hz,        ``frequency.loop_margins`` at the
-                   _f_pc_hz, _disk_margin                          operating point under ``f_ext``
+margins            margins_<loop>_gm_db, _gm_down_db, _pm_deg,     ``frequency.loop_margins`` at the
+                   _f_gc_hz, _f_pc_hz, _f_down_hz, _disk_margin    operating point under ``f_ext``
 bandwidth          bandwidth_hz                                    ``frequency.bandwidth`` of the
                                                                    closed loop (``level_db``)
 sine_stream        sine_<f>Hz_gain_db, sine_<f>Hz_phase_deg        ``sinestream.sine_stream`` at
@@ -38,7 +38,8 @@ __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "Poi
 class PointFailed(Exception):
     """A metric whose analysis reported a failed point (the run is failed)."""
 
-_LOOP_FIELDS = (("gm_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"), ("disk_margin", "1"))
+_LOOP_FIELDS = (("gm_db", "dB"), ("gm_down_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"),
+                ("f_down_hz", "Hz"), ("disk_margin", "1"))
 
 
 def _opts(where, given, allowed, error) -> dict:
@@ -195,7 +196,7 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
         The exception raised.
     """
     from ..model.assembly import build_model
-    from ..simulation._api import check_run
+    from ..simulation import check_run
 
     models = [build_model(spec.params, dict(v)) for v in sorted({r.variant for r in spec.runs})]
     out = {}
@@ -265,7 +266,7 @@ def compute_metrics(name: str, opts: dict, model, params, pv, res) -> dict:
 def _c_step(o, model, params, pv, res):
     from ..simulation import step_response_metrics
 
-    t, x = res.t, res["x_rod"]
+    t, x = res.t, res[model.output_with("rod_position")]
     x0 = float(np.interp(o["at"], t, x))
     after = (t >= o["at"]) & (t <= o.get("until", math.inf))
     m = step_response_metrics(t[after] - o["at"], (x[after] - x0) / o["amplitude"], o["band"])
@@ -276,7 +277,7 @@ def _c_step(o, model, params, pv, res):
 def _c_hunting(o, model, params, pv, res):
     from ..simulation import hunting_metrics
 
-    h = hunting_metrics(res.t, res["x_rod"] - res["x_cmd"], o["from"])
+    h = hunting_metrics(res.t, res[model.output_with("rod_position")] - res[model.input_with("command")], o["from"])
     return {"hunting_amplitude_m": h["amplitude"],
             "hunting_frequency_hz": math.nan if h["frequency"] is None else h["frequency"]}
 
@@ -285,7 +286,7 @@ def _c_margins(o, model, params, pv, res):
     from ..frequency import loop_margins
     from ..linearisation import operating_point
 
-    op = operating_point(model, f_ext=o["f_ext"], p=pv)
+    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
     lm = loop_margins(model, op, o["loops"], outer=o["outer"])
     return {f"margins_{lp}_{k}": (math.nan if getattr(m, k) is None else float(getattr(m, k)))
             for lp, m in lm.items() for k, _ in _LOOP_FIELDS}
@@ -295,7 +296,7 @@ def _c_bandwidth(o, model, params, pv, res):
     from ..frequency import bandwidth, closed_loop
     from ..linearisation import operating_point
 
-    op = operating_point(model, f_ext=o["f_ext"], p=pv)
+    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
     return {"bandwidth_hz": float(bandwidth(closed_loop(model, op), o["level_db"]))}
 
 

@@ -344,6 +344,22 @@ def _draw(where, d, rng) -> float:
                      "distribution")
 
 
+def _whole(name: str, v: float) -> float:
+    """A draw of a parameter that is a whole number (a seed: floored, the stream the
+    noise generator reads; a positive integer such as pole pairs: rounded, at least 1)."""
+    from ..model.params import INT, WHOLE
+
+    check = _CHECKS.get(name)
+    if check == WHOLE:
+        return float(math.floor(v))
+    if check == INT:
+        return float(max(1, round(v)))
+    return v
+
+
+_CHECKS = {f.name: f.metadata.get("check") for g in GROUPS.values() for f in fields(g)}
+
+
 def _expand(spec: SweepSpec) -> list[Run]:
     axes = [("variant", k, v) for k, v in spec.variants.items() if len(v) > 1]
     axes += [("param", k, d["grid"]) for k, d in spec.parameters.items() if "grid" in d]
@@ -351,7 +367,7 @@ def _expand(spec: SweepSpec) -> list[Run]:
     n = math.prod(len(a[2]) for a in axes) * spec.samples
     if n > MAX_RUNS:
         raise SweepError(f"{spec.source}: {n} runs, above the limit of {MAX_RUNS} (MAX_RUNS)")
-    draws = [{k: _draw(f"{spec.source} [parameters] {k}", d, np.random.default_rng([spec.seed, s, j]))
+    draws = [{k: _whole(k, _draw(f"{spec.source} [parameters] {k}", d, np.random.default_rng([spec.seed, s, j])))
               for k, j, d in drawn} for s in range(spec.samples)]
     fixed = {k: v[0] for k, v in spec.variants.items() if len(v) == 1}
     runs = []

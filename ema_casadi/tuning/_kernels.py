@@ -15,9 +15,16 @@ _SEG, _NSEG = 40, 8
 #: frequencies or time samples) into one constraint. One constraint per group lets
 #: the worst point move along the grid without IPOPT's barrier stalling on many
 #: nearly active neighbours (measured on the three-load reference problem, before the
-#: elastic slacks: 163 iterations with every point a constraint, 35 aggregated); the
-#: bound is conservative by at most log(321)/rho = 0.002 in the normalised units.
-_KS_RHO = 3000.0
+#: elastic slacks: 163 iterations with every point a constraint, 35 aggregated). The
+#: bound is conservative by at most log(321)/rho = 0.019 in the normalised units.
+#: Not sharper: the soft minimum's curvature grows as rho |grad g|^2 where the worst
+#: point hands over to a neighbour, so at rho = 3000 the exact Hessian changed by
+#: orders of magnitude within one Newton step, IPOPT corrected its inertia at almost
+#: every iteration (regularisation up to 1e2) and its path hung on the last bits of
+#: the linear algebra: plain `ema tune` parted between OpenBLAS kernels at the 7th
+#: digit by iteration 3 and took 37 (Haswell) to over 200 (Sandybridge) iterations.
+#: At 300 the same problem converges in ~20-30 on each kernel (docs/development.md).
+_KS_RHO = 300.0
 
 
 def _sensitivity_function(n: int, m: int) -> ca.Function:

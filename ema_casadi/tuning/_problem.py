@@ -331,7 +331,10 @@ class TuningProblem(_Inspection):
     def _ipopt_options(self, max_iter, hessian, warm) -> dict:
         # mu_init 1e-2 instead of 0.1: the start is usually feasible or nearly so, and a
         # smaller initial barrier halves the iterations on the reference problem
-        opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+        # detect_simple_bounds: the gain, bandwidth, gap and slack bounds reach IPOPT as
+        # variable bounds (Opti passes every constraint as a row of g otherwise), so the
+        # iterates never leave them and the slacks (started on their bound 0) stay >= 0
+        opts = {"print_time": False, "detect_simple_bounds": True, "ipopt.print_level": 0, "ipopt.sb": "yes",
                 "ipopt.max_iter": int(max_iter), "ipopt.hessian_approximation": hessian,
                 "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_init": 1e-2,
                 "ipopt.theta_max_fact": _THETA_MAX}

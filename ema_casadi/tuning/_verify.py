@@ -24,16 +24,19 @@ _F_NOISE = np.logspace(-2, 4, 601)  # Hz, 100 per decade for the noise gain
 
 def _loop_margins(L) -> dict:  # L: a loop transfer or its LoopMargins
     """Margins of a SISO loop transfer (:func:`ema_casadi.frequency.margins`, crossovers
-    in 0.01 Hz - 100 kHz): ``gm_db`` (signed, the smallest in magnitude: positive = the
-    gain may rise by that much, negative = fall), ``f_pc_hz``, ``gm_up_db`` /
-    ``gm_down_db`` (the smallest rise / fall, inf if none), ``pm_deg`` (smallest angular
-    distance of L to -1 at a gain crossover) and ``f_gc_hz``."""
+    in 0.01 Hz - 100 kHz), every one >= 0: ``gm_db`` (the smallest gain rise that
+    destabilises, inf if none) at ``f_pc_hz``, ``gm_down_db`` (the smallest gain fall,
+    the gain-reduction margin, inf if none) at ``f_down_hz``, ``pm_deg`` (smallest
+    angular distance of L to -1 at a gain crossover) at ``f_gc_hz``, and
+    ``gain_crossovers`` (each ``f_hz`` with its ``pm_deg``)."""
     m = L if isinstance(L, LoopMargins) else margins(L)
-    gms = [c["gm_db"] for c in m.phase_crossovers]
-    up, down = [g for g in gms if g > 0], [-g for g in gms if g <= 0]
-    return {"gm_db": float(m.gm_db), "f_pc_hz": None if m.f_pc_hz is None else float(m.f_pc_hz),
-            "gm_up_db": float(min(up, default=math.inf)), "gm_down_db": float(min(down, default=math.inf)),
-            "pm_deg": float(m.pm_deg), "f_gc_hz": None if m.f_gc_hz is None else float(m.f_gc_hz)}
+
+    def hz(v):
+        return None if v is None else float(v)
+
+    return {"gm_db": float(m.gm_db), "f_pc_hz": hz(m.f_pc_hz), "gm_down_db": float(m.gm_down_db),
+            "f_down_hz": hz(m.f_down_hz), "pm_deg": float(m.pm_deg), "f_gc_hz": hz(m.f_gc_hz),
+            "gain_crossovers": [{"f_hz": float(c["f_hz"]), "pm_deg": float(c["pm_deg"])} for c in m.gain_crossovers]}
 
 
 def _check_loops(model, op, label, req, worst, failures) -> dict:
@@ -50,14 +53,15 @@ def _check_loops(model, op, label, req, worst, failures) -> dict:
         m = _loop_margins(L)
         m["ms"] = float(np.max(np.abs(1 / (1 + ct.frequency_response(L, 2 * np.pi * _F_MS).complex.ravel()))))
         loops[name] = m
-        worst["gm_db"] = min(worst["gm_db"], abs(m["gm_db"]))
+        worst["gm_db"] = min(worst["gm_db"], m["gm_db"])
+        worst["gm_down_db"] = min(worst["gm_down_db"], m["gm_down_db"])
         worst["pm_deg"] = min(worst["pm_deg"], m["pm_deg"])
         worst["ms"] = max(worst["ms"], m["ms"])
         where = f"{name} loop at {label}"
-        if m["gm_up_db"] < gm_up - 1e-6:
-            failures.append(f"{where}: GM +{m['gm_up_db']:.2f} dB < {gm_up:.3g} dB required")
+        if m["gm_db"] < gm_up - 1e-6:
+            failures.append(f"{where}: GM {m['gm_db']:.2f} dB < {gm_up:.3g} dB required")
         if m["gm_down_db"] < gm_down - 1e-6:
-            failures.append(f"{where}: GM -{m['gm_down_db']:.2f} dB (gain may fall only that much) "
+            failures.append(f"{where}: gain-reduction margin {m['gm_down_db']:.2f} dB (gain may fall only that much) "
                             f"< {gm_down:.3g} dB required")
         if m["pm_deg"] < pm_req - 1e-6:
             failures.append(f"{where}: PM {m['pm_deg']:.2f} deg < {pm_req:.3g} deg required")
@@ -85,8 +89,8 @@ def _check_cascade(model, op, label, req, failures) -> dict:
         if d["gm_down_db"] < math.inf:
             failures.append(f"{where}: conditionally stable (gain-reduction margin {d['gm_down_db']:.2f} dB); "
                             "unconditional stability required")
-        if d["gm_up_db"] < gm_up - 1e-6:
-            failures.append(f"{where}: GM {d['gm_up_db']:.2f} dB < {gm_up:.3g} dB required")
+        if d["gm_db"] < gm_up - 1e-6:
+            failures.append(f"{where}: GM {d['gm_db']:.2f} dB < {gm_up:.3g} dB required")
         if d["pm_deg"] < pm_req - 1e-6:
             failures.append(f"{where}: PM {d['pm_deg']:.2f} deg < {pm_req:.3g} deg required")
     names = list(model.loops)
@@ -192,7 +196,7 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     Returns
     -------
     dict
-        ``loads`` (per load label: ``loops`` -> gm_db, f_pc_hz, gm_up_db, gm_down_db,
+        ``loads`` (per load label: ``loops`` -> gm_db, f_pc_hz, gm_down_db, f_down_hz,
         pm_deg, f_gc_hz, ms, stable; ``outer_open`` -> the cascade view: ``loops`` with
         their outer loops open, ``separation`` per inner loop, ``noise_gain_A_per_m``;
         ``bandwidth_hz``, ``spectral_abscissa``, ``step``), ``worst`` (smallest |GM|, PM,
@@ -204,8 +208,8 @@ def verify(model: Model, params: Parameters, loads=(0.0,), requirements: Require
     lim = ecu_limits(model, p)
     limits = (lim["current"], lim["voltage"])
     out, failures = {}, []
-    worst = {"gm_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf, "separation": math.inf,
-             "noise_gain_A_per_m": 0.0}
+    worst = {"gm_db": math.inf, "gm_down_db": math.inf, "pm_deg": math.inf, "ms": 0.0, "bandwidth_hz": math.inf,
+             "separation": math.inf, "noise_gain_A_per_m": 0.0}
     for F in loads:
         label = _load_label(F)
         try:

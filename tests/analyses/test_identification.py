@@ -15,9 +15,8 @@ import pytest
 
 import ema_casadi as ema
 from ema_casadi import identification as idn
-from ema_casadi.identification import _sensitivity
 from ema_casadi.identification._problem import Predictor, free_parameters
-from ema_casadi.simulation._inputs import _input_signals
+from ema_casadi.simulation import forward_sensitivities, input_signals
 
 
 @pytest.fixture(scope="module")
@@ -50,15 +49,15 @@ def test_sensitivities_are_the_derivatives_of_the_trajectory(model_cache):
     W[idx, range(len(idx))] = pv[idx]
     t = np.arange(0, 0.3 + 1e-12, 5e-4)
     xc = np.where(t > 0.02, 1e-3, 0.0)
-    sig = _input_signals(m, {"x_cmd": ema.Signal.table(t, xc), "f_ext": ema.Signal.table(t, 5e3 * (t > 0.15))}, pv)
+    sig = input_signals(m, {"x_cmd": ema.Signal.table(t, xc), "f_ext": ema.Signal.table(t, 5e3 * (t > 0.15))}, pv)
     S0 = np.zeros((m.nx, len(idx)))
-    _, SX, _ = _sensitivity.run(m, sig, t, pv, m.x0(), W, S0, 1e-10, 1e-13)
+    _, SX, _ = forward_sensitivities(m, sig, t, pv, m.x0(), W, S0, 1e-10, 1e-13)
     for j, i in enumerate(idx):
         X = []
         for s in (1, -1):
             pp = pv.copy()
             pp[i] *= np.exp(s * 1e-4)
-            X.append(_sensitivity.run(m, sig, t, pp, m.x0(), W, S0, 1e-10, 1e-13)[0])
+            X.append(forward_sensitivities(m, sig, t, pp, m.x0(), W, S0, 1e-10, 1e-13)[0])
         for k in (m.index("x_rod"), m.index("i_q")):
             fd = (X[0][k] - X[1][k]) / 2e-4
             tol = 1e-2 if names[j] == "psi" else 1e-5
@@ -71,11 +70,11 @@ def test_the_frozen_step_sequence_reproduces_the_adaptive_run(model_cache):
     m = model_cache()
     pv = m.p()
     t = np.arange(0, 0.1 + 1e-12, 5e-4)
-    sig = _input_signals(m, {"x_cmd": ema.Signal.table(t, 1e-3 * (t > 0.01))}, pv)
+    sig = input_signals(m, {"x_cmd": ema.Signal.table(t, 1e-3 * (t > 0.01))}, pv)
     W = np.zeros((len(pv), 1))
     W[m.param_names.index("F_seal"), 0] = 1.0
-    X1, S1, info = _sensitivity.run(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8)
-    X2, S2, _ = _sensitivity.run(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8, info["step_sizes"])
+    X1, S1, info = forward_sensitivities(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8)
+    X2, S2, _ = forward_sensitivities(m, sig, t, pv, m.x0(), W, np.zeros((m.nx, 1)), 1e-5, 1e-8, info["step_sizes"])
     assert np.array_equal(X1, X2) and np.array_equal(S1, S2)
 
 
@@ -193,11 +192,20 @@ def test_records_in_other_units_and_mat_files(params, model_cache, tmp_path):
 
 @pytest.mark.parametrize("content, words", [
     ("x,x_rod\n0,0\n1,0\n", ["first column must be the time"]),
+    ("time_ms,x_rod\n0,0\n1,0\n", ["first column must be the time", "'time [ms]'", "time_ms"]),
+    ("time;x_rod\n0;0\n1;0\n", ["first column must be the time", "';'-separated"]),
+    ("time\tx_rod\n0\t0\n1\t0\n", ["first column must be the time", "tab-separated"]),
     ("time,x_rod\n0,0\n0,0\n", ["increase strictly"]),
     ("time,x_rod [kN]\n0,0\n1,0\n", ["x_rod", "kN"]),
     ("time,x_rood\n0,0\n1,0\n", ["x_rood", "did you mean 'x_rod'"]),
+    # a measurement-like name is offered the measured channels of its symbol, not the input x_cmd
+    ("time,x_act\n0,0\n1,0\n", ["x_act", "measured channels of 'x'", "'x_rod'"]),
     ("", ["empty"]),
     ("time,x_rod\n0,0\n", ["at least two"]),
+    # a record's noise field is typed: a typo or a sign slip is refused, not ignored
+    ("# sigma_x_rod: abc\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "abc", "positive number"]),
+    ("# sigma_x_rod: -3e-7\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "-3e-07", "positive number"]),
+    ("# sigma_x_rod: 0\ntime,x_rod\n0,0\n1,0\n", ["sigma_x_rod", "positive number"]),
 ])
 def test_bad_records_are_refused(model_cache, tmp_path, content, words):
     (tmp_path / "bad.csv").write_text(content)

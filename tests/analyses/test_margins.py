@@ -44,10 +44,14 @@ def test_margins_of_a_textbook_loop():
 
 
 def test_unstable_loop_is_flagged():
-    """10/(s+1)^3 has |L(j sqrt 3)| = 10/8 > 1: closed loop unstable, GM negative."""
+    """10/(s+1)^3 has |L(j sqrt 3)| = 10/8 > 1: closed loop unstable; the phase
+    crossover is listed with its loop gain +20 log10(10/8) dB, no gain margin is
+    negative (no rise destabilises, so GM is inf; a fall of 1.94 dB would restore
+    stability, reported as the gain-reduction margin at that crossover)."""
     m = fr.margins(_tf([10.0], [1, 3, 3, 1]))
     assert not m.stable and not m.meets()
-    assert m.gm_db == pytest.approx(-20 * math.log10(10 / 8), abs=1e-9)
+    assert m.phase_crossovers[0]["gain_db"] == pytest.approx(20 * math.log10(10 / 8), abs=1e-9)
+    assert m.gm_db == math.inf and m.gm_down_db == pytest.approx(20 * math.log10(10 / 8), abs=1e-9)
     assert m.disk_margin == 0.0
 
 
@@ -74,8 +78,9 @@ def _independent_margins(T, f):
         s = (level - ph[i]) / (ph[i + 1] - ph[i])
         pcs.append((10 ** (lf[i] + s * (lf[i + 1] - lf[i])), -(lm[i] + s * (lm[i + 1] - lm[i]))))
     gc = min(gcs, key=lambda c: c[1])
-    pc = min(pcs, key=lambda c: abs(c[1])) if pcs else (None, math.inf)
-    return gc, pc
+    up = min((c for c in pcs if c[1] > 0), key=lambda c: c[1], default=(None, math.inf))
+    down = min(((f, -g) for f, g in pcs if g <= 0), key=lambda c: c[1], default=(None, math.inf))
+    return gc, up, down
 
 
 @pytest.mark.parametrize("fmt", ["npz", "mat", "json"])
@@ -93,12 +98,14 @@ def test_reported_margins_match_independent_computation_from_export(reference, t
         A, B, C, D = lin.A, lin.B[:, [i]], lin.C[[o], :], lin.D[o, i]
         M = 2j * np.pi * f[:, None, None] * np.eye(len(A)) - A
         T = (C @ np.linalg.solve(M, np.broadcast_to(B, (len(f),) + B.shape)))[:, 0, 0] + D
-        (f_gc, pm), (f_pc, gm) = _independent_margins(T, f)
+        (f_gc, pm), (f_pc, gm), (f_down, gm_down) = _independent_margins(T, f)
         m = res[loop]
         assert m.pm_deg == pytest.approx(pm, abs=0.5), loop
-        assert m.gm_db == pytest.approx(gm, abs=0.1), loop
+        assert m.gm_db == pytest.approx(gm, abs=0.1) if math.isfinite(gm) else m.gm_db == gm, loop
         assert m.f_gc_hz == pytest.approx(f_gc, rel=5e-3), loop
-        assert m.f_pc_hz == pytest.approx(f_pc, rel=5e-3), loop
+        assert (m.f_pc_hz is None and f_pc is None) or m.f_pc_hz == pytest.approx(f_pc, rel=5e-3), loop
+        assert m.gm_down_db == pytest.approx(gm_down, abs=0.1), loop
+        assert (m.f_down_hz is None and f_down is None) or m.f_down_hz == pytest.approx(f_down, rel=5e-3), loop
 
 
 def test_margins_agree_with_python_control(reference):
@@ -115,9 +122,9 @@ def test_margins_agree_with_python_control(reference):
         sel = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5)
         ours = sorted(c["f_hz"] for c in m.phase_crossovers)
         np.testing.assert_allclose(sorted(wpc[sel] / (2 * np.pi)), ours, rtol=1e-6)
-        np.testing.assert_allclose(sorted(20 * np.log10(gm[sel])), sorted(c["gm_db"] for c in m.phase_crossovers),
+        np.testing.assert_allclose(sorted(-20 * np.log10(gm[sel])), sorted(c["gain_db"] for c in m.phase_crossovers),
                                    atol=1e-6)
-        np.testing.assert_allclose(sorted(pm), sorted(c["pm_deg"] for c in m.gain_crossovers), atol=1e-6)
+        np.testing.assert_allclose(sorted(np.abs(pm)), sorted(c["pm_deg"] for c in m.gain_crossovers), atol=1e-6)
         dm, dgm, dpm = control.disk_margins(L, w)
         assert m.disk_margin == pytest.approx(dm, rel=1e-4)  # ours is refined between grid points
         assert m.disk_margin <= dm
@@ -160,6 +167,42 @@ def test_cli_margins_json(capsys):
     for loop in ("position", "velocity", "current"):  # the reference model's loops
         assert {"gm_db", "pm_deg", "f_gc_hz", "f_pc_hz", "disk_margin"} <= set(r["loops"][loop])
     assert r["all_meet_requirement"] is True
+
+
+def _assert_no_negative_gain_margin(where, m):
+    """Every field named as a gain margin is >= 0 (inf counts), in a LoopMargins' dict
+    form or the verification's; JSON carries inf as "inf"."""
+    for key in ("gm_db", "gm_down_db", "disk_gm_db"):
+        if key in m:
+            assert float(m[key]) >= 0, (where, key, m[key])
+    for c in m.get("gain_crossovers", []):
+        assert float(c["pm_deg"]) >= 0, (where, c)
+
+
+def test_no_negative_gain_margin_in_cli_demo_and_api(tmp_path, capsys, model_cache):
+    """The issue's acceptance: `ema margins --json`, the demo's summary.json and the API
+    report no negative gain margin; the velocity loop of the reference set, conditionally
+    stable with the other loops closed (a phase crossover at 24.5 Hz where |L| = +13.5 dB),
+    is reported with its gain-reduction margin (13.47 dB, the fall that puts L on -1 there)
+    and both its gain crossovers (the PM headline is the smaller of the two)."""
+    api = {k: v.as_dict() for k, v in fr.loop_margins(model_cache()).items()}
+    assert main(["margins", str(REFERENCE), "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)["loops"]
+    # the demo's summary.json margins section, as the demo builds and writes it (the whole
+    # demo takes minutes: its frequency stage alone, through the same JSON encoding)
+    from ema_casadi import demo
+
+    summary = json.loads(json.dumps({"margins": demo._frequency(model_cache(), tmp_path, [])["margins"]},
+                                    default=float))["margins"]
+    for name, loops in (("api", api), ("cli", cli), ("summary.json", summary)):
+        for loop, m in loops.items():
+            _assert_no_negative_gain_margin((name, loop), m)
+        v = loops["velocity"]
+        assert v["conditionally_stable"] and float(v["gm_down_db"]) == pytest.approx(13.47, abs=0.01), (name, v)
+        assert v["f_down_hz"] == pytest.approx(24.46, rel=1e-3)
+        assert len(v["gain_crossovers"]) >= 2
+        assert float(v["pm_deg"]) == pytest.approx(min(c["pm_deg"] for c in v["gain_crossovers"]), abs=1e-12)
+        assert all(float(c["gain_db"]) > 0 for c in v["phase_crossovers"] if c["f_hz"] == v["f_down_hz"])
 
 
 @pytest.mark.parametrize("kind", ["closed", "stiffness", "open"])

@@ -8,6 +8,7 @@ so that the pools' and the cluster's start-up dominates."""
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -127,8 +128,10 @@ def test_every_metric_equals_the_single_analysis(params, tmp_path, capsys):
     var = [a for k, v in lumped.items() for a in ("--variant", f"{k}={v}")]
     m = _json(["margins", str(model_file), *var], capsys)["loops"]
     for loop, lm in m.items():
-        for k in ("gm_db", "pm_deg", "f_gc_hz", "f_pc_hz", "disk_margin"):
-            assert row[f"margins_{loop}_{k}"] == lm[k], (loop, k)
+        for k in ("gm_db", "gm_down_db", "pm_deg", "f_gc_hz", "f_pc_hz", "f_down_hz", "disk_margin"):
+            want = math.nan if lm[k] is None else float(lm[k])  # None: no such crossover; JSON may carry "inf"
+            got = row[f"margins_{loop}_{k}"]
+            assert got == want or (math.isnan(want) and math.isnan(got)), (loop, k)
     fr = _json(["freqresp", str(model_file), *var, "--amplitudes", "1mm", "--freqs", "5"], capsys)["points"][0]
     assert row["sine_5Hz_gain_db"] == fr["gain_db"] and row["sine_5Hz_phase_deg"] == fr["phase_deg"]
     model = ema.build_model(moved, lumped)

@@ -269,7 +269,8 @@ def test_cli_json_writes_file_and_plots(tmp_path, capsys):
     assert set(r["gains_after"]) == {"K_x"} and r["gains_after"]["K_x"] > r["gains_before"]["K_x"]
     loops = r["after"]["loads"]["30 kN"]["loops"]
     assert set(loops) == {"position", "velocity", "current"}
-    assert all(abs(m["gm_db"]) >= 6 and m["pm_deg"] >= 45 for m in loops.values())
+    # both gain margins >= 0 by construction, each >= 6 dB here; JSON carries inf as "inf"
+    assert all(float(m["gm_db"]) >= 6 and float(m["gm_down_db"]) >= 6 and m["pm_deg"] >= 45 for m in loops.values())
     assert out.exists() and (tmp_path / "plots" / "tune_bode.png").exists()
     assert (tmp_path / "plots" / "tune_step.png").exists()
 
@@ -422,7 +423,8 @@ def _tune_from_reference(params, model_cache, variants, loads):
     assert not _independent_failures(model, params, loads, T.Requirements())  # the start is feasible
     res = T.tune(params, model=model, loads=loads, verify_step=0.0)
     assert res.success, res.message
-    assert res.fallback is None and res.status == "Solve_Succeeded", res.message  # IPOPT's own answer
+    # IPOPT's own converged answer, no safety net
+    assert res.fallback is None and res.status in ("Solve_Succeeded", "Solved_To_Acceptable_Level"), res.message
     assert not res.violations and res.verification_after["meets"]
     fails = _independent_failures(model, res.params, loads, res.requirements, _start_bandwidth(model, params))
     assert not fails, fails
@@ -442,8 +444,12 @@ def test_plain_ema_tune_succeeds_from_the_reference(capsys):
 
     code = main(["tune", str(REFERENCE), "--json", "--sim-step", "0"])
     r = json.loads(capsys.readouterr().out)
-    assert code == 0 and r["success"] and r["status"] == "Solve_Succeeded" and r["fallback"] is None, r["message"]
-    assert r["iterations"] < 200  # the cascade's constraints: 121 measured (was < 100 without them)
+    assert code == 0 and r["success"] and r["fallback"] is None, r["message"]
+    assert r["status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level"), r["message"]
+    # 27 iterations in 2 solves measured on the Haswell, Sandybridge and Prescott kernels
+    # (docs/development.md); the kernel-dependent paths of the sharper soft minimum took
+    # 37-200: a budget of 100 leaves x3.7
+    assert r["iterations"] < 100
     params = load_parameters(REFERENCE)
     model = build_model(params)
     tuned = params.replace(**r["gains_after"])

@@ -204,7 +204,7 @@ for flag, value, extra in (("--x-cmd", "sine:1mm@1e9", []), ("--x-cmd", "sine:1m
                            ("--x-cmd", "chirp:1mm@1-1e6", []), ("--f-ext", "sine:1kN@1e6", []),
                            ("--input d_x", "sine:1um@1e6", []),
                            ("--x-cmd", "sine:1mm@6000", ["--solver", "cvodes", "--dt-out", "1e-4"]),
-                           ("--x-cmd", "sine:1mm@20000", ["--dt", "2.5e-5"])):
+                           ("--x-cmd", "sine:1mm@20000", ["--solver", "rk4", "--dt", "2.5e-5"])):
     args = ["--input", value.join(("d_x=", ""))] if flag.startswith("--input") else [flag, value]
     add(f"nyquist-simulate{flag.replace(' ', '-')}-{value}-{len(extra)}",
         Case([*SIM, *extra, *args], [flag, "Nyquist"]))
@@ -277,7 +277,7 @@ def _api_cases():
     import ema_casadi as E
     from ema_casadi import frequency, signals
     from ema_casadi._util import _checks
-    from ema_casadi.model._flat import checked
+    from ema_casadi.model import checked
     from ema_casadi.simulation._inputs import check_inputs
 
     nan = float("nan")

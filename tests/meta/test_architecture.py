@@ -17,6 +17,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import ema_casadi
 from ema_casadi.model.components import REGISTRY, VARIANTS
 
@@ -31,13 +33,6 @@ ANALYSES = [
     "linearisation", "sinestream", "mission", "tuning", "sweeps", "simulation",
     "aircraft", "limitcycle", "export", "frequency", "faults",  # export holds fmu/
 ]
-
-#: Known places still to be moved into the parts' declarations ("path: parameter"):
-#: the tuner's current and voltage limits and loop rates (the tuning requirements are
-#: being reworked on another branch). The guard fails on any other place, and on an
-#: entry here that no longer occurs (so the list shrinks).
-PENDING: dict = {}
-PENDING_IMPORTS: dict = {}
 
 #: Parameter groups that describe the whole actuator rather than one part: the stroke
 #: is the actuator's rating, used to scale requests (amplitudes in % of the stroke).
@@ -182,14 +177,30 @@ def _split(found: list[str]):
 
 
 def test_no_family_module_is_imported_outside_the_model_layer():
-    found = _split(family_imports())
-    assert found - set(PENDING_IMPORTS.items()) == set()
-    assert set(PENDING_IMPORTS.items()) <= found, "a pending import is gone: remove it from PENDING_IMPORTS"
+    assert _split(family_imports()) == set()
 
 
 def test_no_analysis_names_a_part_parameter():
-    found = _split(parameter_names_in_analyses())
-    pending = {(path, n) for path, names in PENDING.items() for n in names}
-    assert found - pending == set()
-    assert pending <= found, f"pending entries gone, remove them from PENDING: {sorted(pending - found)}"
+    assert _split(parameter_names_in_analyses()) == set()
 
+
+
+def test_the_registry_refuses_an_option_declared_twice_with_other_values():
+    """Two parts may share one option declaration; a second, different one (or an option
+    named like a variant key) is refused instead of silently merged."""
+    from ema_casadi.model.components import OPTIONS, REGISTRY, AssemblyError, Part
+    from ema_casadi.model.components._registry import merge_options
+
+    def part(family, value, options):
+        return type(f"{family}{value}", (Part,), {"family": family, "value": value, "options": options})
+
+    assert merge_options(REGISTRY) == OPTIONS
+    same = {"a": {"x": part("a", "x", {"shape": ("clip", "smooth")})},
+            "b": {"y": part("b", "y", {"shape": ("clip", "smooth")})}}
+    assert merge_options(same) == {"shape": ("clip", "smooth")}
+    other = {"a": {"x": part("a", "x", {"shape": ("clip", "smooth")})},
+             "b": {"y": part("b", "y", {"shape": ("smooth", "clip")})}}
+    with pytest.raises(AssemblyError, match="option 'shape' declared twice: a = x"):
+        merge_options(other)
+    with pytest.raises(AssemblyError, match="option 'b' of a = x has the name of a variant key"):
+        merge_options({"a": {"x": part("a", "x", {"b": ("0", "1")})}, "b": {}})

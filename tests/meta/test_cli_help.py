@@ -2,16 +2,32 @@
 
 import argparse
 
-from ema_casadi.cli import add_common, build_parser
+from ema_casadi.cli import add_common, build_parser, get_parser
 from ema_casadi.model.components import VARIANTS
 
 
+def _commands(parser):
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
 def test_the_variant_help_names_every_key_and_value():
+    """What ``ema COMMAND --help`` shows (every command) and what the CLI reference shows."""
+    for name, sub in _commands(build_parser()[0]).items():
+        shown = "".join(sub.format_help().split())  # the wrapping's line breaks and indents out
+        for key, values in VARIANTS.items():
+            assert f"{key}={'|'.join(values)}" in shown, (name, key)
+    for name, sub in _commands(get_parser()).items():
+        text = next(a.help for a in sub._actions if "--variant" in a.option_strings)
+        assert type(text) is str, name  # a plain string, no look-alike
+        for key, values in VARIANTS.items():
+            assert f"{key}={'|'.join(values)}" in text, (name, key)
+
+
+def test_add_common_alone_gives_a_parser_whose_help_formats():
+    """A parser of another formatter still shows a sentence (no unexpanded field)."""
     p = argparse.ArgumentParser()
     add_common(p)
-    text = next(a.help for a in p._actions if "--variant" in a.option_strings)
-    for key, values in VARIANTS.items():
-        assert f"{key}={'|'.join(values)}" in text, key
+    assert "--variant KEY=VALUE" in p.format_help() and "%(" not in p.format_help()
 
 
 def test_every_long_command_takes_the_one_progress_convention():

@@ -103,8 +103,8 @@ def test_option_values_are_declared_and_checked(params):
 
 def test_smooth_limit_is_c1_and_exact_outside_its_knee():
     u = ca.SX.sym("u")
-    lim, knee = 24.0, controller.LIMIT_KNEE
-    y = controller.soft_clip(u, lim)
+    lim, knee = 24.0, 0.05  # the reference w_knee
+    y = controller.soft_clip(u, lim, knee)
     f = ca.Function("f", [u], [y, ca.jacobian(y, u)])
     inner = np.linspace(-(1 - knee) * lim, (1 - knee) * lim, 101)
     outer = np.concatenate([np.linspace((1 + knee) * lim, 3 * lim, 11), -np.linspace((1 + knee) * lim, 3 * lim, 11)])
@@ -177,11 +177,14 @@ def _gate(d, w):
     return s * s * (3 - 2 * s)
 
 
-def test_pmsm_clamping_rates_follow_the_equations(params):
+@pytest.mark.parametrize("w_aw", [0.01, 0.04])
+def test_pmsm_clamping_rates_follow_the_equations(params, w_aw):
     """The PMSM's per-axis clamping (docs: each axis's excess v_k_u - v_k on the voltage
     circle) and the speed PI's, at random states that put the loops on and off their
     limits: the integrator rates of the model against NumPy from the documented
-    equations (rtol 1e-12: the same arithmetic up to reordering)."""
+    equations (rtol 1e-12: the same arithmetic up to reordering), at the reference band
+    and at a band four times wider (the band is the parameter w_aw)."""
+    params = params.replace(w_aw=w_aw)
     model = ema.build_model(params, {"anti_windup": "clamping"})
     P = params.as_dict()
     r = P["p"] / (2 * np.pi)
@@ -200,7 +203,7 @@ def test_pmsm_clamping_rates_follow_the_equations(params):
         e_w = w_cmd - x["omega"]
         u = P["K_p_w"] * e_w + x["z_w"]
         d = u - np.clip(u, -P["I_max"], P["I_max"])
-        w = controller.AW_BAND * P["I_max"]
+        w = P["w_aw"] * P["I_max"]
         K_i = P["K_p_w"] / P["T_i_w"]
         z_w_dot = K_i * (e_w - _gate(d, w) * max(e_w, 0) - _gate(-d, w) * min(e_w, 0))
         # FOC current PIs on the voltage circle
@@ -214,7 +217,7 @@ def test_pmsm_clamping_rates_follow_the_equations(params):
         expect = {"z_w": z_w_dot}
         for k in ("z_d", "z_q"):
             dk = v_u[k] * (1 - scale)
-            gw = controller.AW_BAND * v_lim
+            gw = P["w_aw"] * v_lim
             expect[k] = P["K_i_i"] * (e[k] - _gate(dk, gw) * max(e[k], 0) - _gate(-dk, gw) * min(e[k], 0))
             hits[k] += int(abs(dk) > 0 and e[k] * dk > 0)
         hits["z_w"] += int(d != 0 and e_w * d > 0)

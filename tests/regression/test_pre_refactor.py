@@ -12,8 +12,9 @@ repeats each call with the current code through the public API and compares:
   only) within 1e-12 m, cvodes within 1e-10 m (its step sizes follow its error
   estimates, so a last-bit difference of another library build moves the result by a
   fraction of its accuracy, rtol 1e-8 x 1 mm = 1e-11 m; x10), max over the samples;
-- loop margins of the default model, sine-stream gain/phase, tuned gains: within
-  1e-9 relative (with the absolute floors stated at ``_check``).
+- loop margins of the default model: within 1e-9 relative (with the absolute floors
+  stated at ``_check``); sine-stream gain/phase (CVODES per period): within 10 x the
+  spread measured across OpenBLAS kernels; tuned gains: ``TUNED_REL``.
 
 A refactor that preserves behaviour reproduces these to rounding; a difference in the
 last bits of an intermediate (a reordered sum) can already move a variable-step
@@ -48,7 +49,10 @@ def _params():
 
 
 def _model(variants=None):
-    key = tuple(sorted((variants or {}).items()))
+    # the pre-refactor screw had no self-locking memory: its efficiency switch was the
+    # blend alone, the elastic screw's screw_lock = "blend" (docs: physics)
+    variants = {"screw_lock": "blend", **(variants or {})}
+    key = tuple(sorted(variants.items()))
     if key not in _cache:
         _cache[key] = ema.build_model(_params(), variants)
     return _cache[key]
@@ -107,25 +111,38 @@ MARGIN_FLOORS = {"gm_db": 1e-9, "pm_deg": 1e-9, "f_gc_hz": 1e-9, "f_pc_hz": 1e-9
 def test_loop_margins_match_reference(loop):
     m = ema.loop_margins(_model())[loop]
     for field, ref in MARGINS[loop].items():
-        _check(f"{loop} {field}", getattr(m, field), ref, MARGIN_FLOORS[field])
+        value = getattr(m, field)
+        if field in ("gm_db", "f_pc_hz") and MARGINS[loop]["gm_db"] < 0:
+            # the reference was written when gm_db was signed (the smallest in magnitude:
+            # negative = the gain may only fall that much); that is now the gain-reduction
+            # margin gm_down_db at f_down_hz, and gm_db is never negative
+            value = {"gm_db": -m.gm_down_db, "f_pc_hz": m.f_down_hz}[field]
+        _check(f"{loop} {field}", value, ref, MARGIN_FLOORS[field])
+
+
+#: 10 x the spread across OpenBLAS kernels (test_sine_stream_matches_reference)
+SINE_KERNEL_FLOOR = {"gain_db": 10 * 1.7e-6, "phase_deg": 10 * 1.6e-5}
 
 
 # -- (c) sine stream -------------------------------------------------------------------------
 def test_sine_stream_matches_reference():
     ss = REF["sine_stream"]
-    fr = ema.sine_stream(_params(), **ss["kwargs"])
-    assert fr.axes["variant"] == [ss["variant_label"]]
+    fr = ema.sine_stream(_params(), **ss["kwargs"], variants={"screw_lock": "blend"})  # the screw of _model
+    assert fr.axes["variant"] == ["screw_lock=blend"]  # the reference's "model", named by its one choice
     for pt in ss["points"]:
         idx = tuple(pt["index"])
         assert fr.axes["load"][idx[1]] == pt["load_N"]
         assert fr.axes["amplitude"][idx[2]] == pt["amplitude_m"]
         assert fr.axes["frequency"][idx[3]] == pt["freq_hz"]
         name = f"{pt['load_N'] / 1e3:g} kN, {pt['amplitude_pct']:g} %, {pt['freq_hz']:g} Hz"
-        # gain_db is close to 0 dB at several points (+0.0017 dB at 30 kN, 0.5 %, 5 Hz),
-        # where a relative tolerance on the dB value is far tighter than on the gain
-        # itself: floor 1e-9 dB (gain ratio 1 + 1.2e-10). Phase likewise 1e-9 deg.
-        _check(f"{name} gain_db", float(fr.data["gain_db"][idx]), pt["gain_db"], 1e-9)
-        _check(f"{name} phase_deg", float(fr.data["phase_deg"][idx]), pt["phase_deg"], 1e-9)
+        # CVODES (variable step) integrates each period: another OpenBLAS kernel (picked
+        # per CPU) rounds its LU differently and moves its step sequence. Measured on
+        # these points with OPENBLAS_CORETYPE = Haswell, Sandybridge, Prescott (one
+        # command each; docs/development.md): up to 1.7e-6 dB and 1.6e-5 deg apart.
+        # Floors 10 x that (gain_db is near 0 dB at several points, +0.0017 dB at 30 kN,
+        # 0.5 %, 5 Hz, where only an absolute tolerance means anything).
+        _check(f"{name} gain_db", float(fr.data["gain_db"][idx]), pt["gain_db"], SINE_KERNEL_FLOOR["gain_db"])
+        _check(f"{name} phase_deg", float(fr.data["phase_deg"][idx]), pt["phase_deg"], SINE_KERNEL_FLOOR["phase_deg"])
 
 
 # -- (d) tuning from the poor start of studies/tune_from_poor_start.py -----------------------------
@@ -134,7 +151,7 @@ def test_tuned_gains_match_reference():
     # ~10 s: IPOPT over three load cases plus the verification the tuner does itself
     tr = REF["tune"]
     params = _params()
-    model = ema.build_model(params)
+    model = _model()
     free = ema.tuning.default_free(model)
     assert list(free) == tr["free"]
     start = ema.tuning.scaled_gains(params, tr["factor"], free)

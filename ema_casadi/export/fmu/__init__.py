@@ -38,6 +38,7 @@ from .._errors import ExportError
 from ._cbuild import MINGW, pe_exports, targets
 from ._cs import export_fmu_cs
 from ._csource import DT_DEFAULT, DT_SMOOTH, default_dt
+from ._events import Switches, switches
 from ._fmpy import inputs_at_every_call
 from ._folders import export_c, export_casadi
 from ._functions import SIM_STEPS, augmented_names, fixed_step_functions
@@ -49,7 +50,7 @@ __all__ = [
     "FORMATS", "DEFAULTS", "ExportError", "export", "check_output", "export_fmu_me", "export_fmu_cs", "export_c",
     "export_casadi",
     "fixed_step_functions", "augmented_names", "layout", "Layout", "Var", "pe_exports", "targets", "MINGW",
-    "DT_DEFAULT", "DT_SMOOTH", "default_dt", "SIM_STEPS", "inputs_at_every_call",
+    "DT_DEFAULT", "DT_SMOOTH", "default_dt", "SIM_STEPS", "inputs_at_every_call", "switches", "Switches",
 ]
 
 #: Export formats of this package and whether each writes a file or a folder.

@@ -16,6 +16,7 @@ from . import (
     faults,
     friction,
     inverter,
+    load,
     monitors,
     motor,
     sensor,
@@ -25,8 +26,10 @@ from . import (
 from ._part import (
     HEAT_NODES,
     INPUT_KINDS,
+    INPUT_ROLES,
     MARGIN,
     OUTPUT_KINDS,
+    OUTPUT_ROLES,
     POLICIES,
     AssemblyError,
     Bound,
@@ -50,9 +53,10 @@ from ._part import (
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
 
 __all__ = [
-    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "monitors", "motor", "sensor",
-    "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
+    "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
+    "sensor", "supply", "thermal",
+    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES",
+    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",

@@ -41,7 +41,7 @@ from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_ou
 __all__ = [
     "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
-    "OUTPUT_KINDS", "INPUT_KINDS", "MARGIN", "HEAT_NODES", "heat_signal",
+    "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
@@ -49,6 +49,12 @@ __all__ = [
 #: (a mode indicator), ``aux`` (an internal quantity exposed for analyses) and ``alarm``
 #: (an ECU monitor's latch: 0 healthy, rising to 1 when it latches; detected at 1/2).
 OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
+
+#: Roles of model inputs, what analyses ask the model for: the rod command, the external load
+#: on the rod, the screw efficiency, the ambient temperature, the pitch-attitude command, the gust.
+INPUT_ROLES = ("command", "load", "efficiency", "ambient_temperature", "attitude_command", "gust")
+#: Roles of model outputs: rod position and velocity, motor speed and current, the screw force.
+OUTPUT_ROLES = ("rod_position", "rod_velocity", "motor_speed", "motor_current", "screw_force")
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
@@ -205,6 +211,8 @@ class Input:
         linear analyses see its default, 0.
     seed : str, optional
         For a noise input: the parameter giving the seed of its sequence.
+    roles : tuple of str
+        What analyses may ask the model for (:data:`INPUT_ROLES`: ``command``, ``load``, ...).
     """
 
     name: str
@@ -216,6 +224,7 @@ class Input:
     bound: Bound | None = None
     noise: str | None = None
     seed: str | None = None
+    roles: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -230,6 +239,8 @@ class Output:
         One of :data:`OUTPUT_KINDS`.
     bound : Bound, optional
         Its physical envelope (None: only checked to be finite).
+    roles : tuple of str
+        What analyses may ask the model for (:data:`OUTPUT_ROLES`: ``rod_position``, ...).
     """
 
     name: str
@@ -237,6 +248,7 @@ class Output:
     doc: str
     kind: str = "signal"
     bound: Bound | None = None
+    roles: tuple = ()
 
 
 @dataclass(frozen=True)

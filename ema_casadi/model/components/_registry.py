@@ -17,13 +17,14 @@ from . import (
     faults,
     friction,
     inverter,
+    load,
     monitors,
     motor,
     sensor,
     supply,
     thermal,
 )
-from ._part import Part
+from ._part import AssemblyError, Part
 
 __all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
 
@@ -48,17 +49,42 @@ REGISTRY: dict[str, dict[str, type]] = {
     "screw": {"elastic": ballscrew.Elastic, "rigid": ballscrew.Rigid},
     "friction": {"smooth": friction.Smooth, "hybrid": friction.Hybrid, "lugre": friction.LuGre},
     "endstop": {"off": _off("endstop"), "elastic": endstop.Elastic},
+    "load": {"constant": load.Constant, "aero_spring": load.AeroSpring},
     "thermal": {"off": thermal.Off, "lumped": thermal.Lumped},
     "sensor": {"ideal": sensor.Ideal, "real": sensor.Real},
     "faults": {"off": _off("faults"), "on": faults.On},
     "monitors": {"off": _off("monitors"), "on": monitors.On},
 }
 
+
+def merge_options(registry: dict) -> dict[str, tuple]:
+    """Option key -> allowed values (first the default), from the parts that read them.
+    Two parts may read one option only with the same values (one declaration shared,
+    such as the anti-windup of the current and the outer loops); an option declared
+    again with other values, or with the name of a variant key, is refused.
+
+    Parameters
+    ----------
+    registry : dict
+        Variant key -> value -> part class (:data:`REGISTRY`).
+    """
+    out, where = {}, {}
+    for values in registry.values():
+        for cls in values.values():
+            for name, allowed in cls.options.items():
+                here = f"{cls.family} = {getattr(cls, 'value', '?')}"
+                if name in registry:
+                    raise AssemblyError(f"option '{name}' of {here} has the name of a variant key")
+                if name in out and out[name] != tuple(allowed):
+                    raise AssemblyError(f"option '{name}' declared twice: {where[name]} {out[name]}, "
+                                        f"{here} {tuple(allowed)}")
+                out.setdefault(name, tuple(allowed))
+                where.setdefault(name, here)
+    return out
+
+
 #: Option key -> allowed values (first the default), from the parts that read them.
-OPTIONS: dict[str, tuple] = {}
-for _values in REGISTRY.values():
-    for _cls in _values.values():
-        OPTIONS.update(_cls.options)
+OPTIONS: dict[str, tuple] = merge_options(REGISTRY)
 
 #: Allowed values per key (variant keys, then options), first the default.
 VARIANTS: dict[str, tuple[str, ...]] = {k: tuple(v) for k, v in REGISTRY.items()} | OPTIONS

@@ -35,7 +35,7 @@ import casadi as ca
 from ._part import Hold, Input, Loop, Output, Part, State, der
 
 __all__ = [
-    "atmosphere", "crank", "crank_stroke", "hinge_moment", "pitch_law", "transport_rates",
+    "atmosphere", "crank", "hinge_moment", "pitch_law", "transport_rates",
     "AIRCRAFT_LOOP", "B747_A", "B747_B", "B747_U0", "B747_H", "Transport", "B747", "CONDITIONS",
 ]
 
@@ -85,21 +85,6 @@ def crank(x, P):
     L = ca.sqrt(a**2 - r**2) + x
     phi = ca.acos((a**2 + r**2 - L**2) / (2 * a * r))
     return phi - ca.acos(r / a), a * r * ca.sin(phi) / L
-
-
-def crank_stroke(delta, P):
-    """Rod stroke (m) that puts the surface at delta (rad): the inverse of :func:`crank`.
-
-    Parameters
-    ----------
-    delta : SX or float
-        Surface angle (rad).
-    P : SimpleNamespace
-        Parameters (uses ``a_pin``, ``r_horn``).
-    """
-    a, r = P.a_pin, P.r_horn
-    phi0 = ca.acos(r / a)
-    return ca.sqrt(a**2 + r**2 - 2 * a * r * ca.cos(phi0 + delta)) - ca.sqrt(a**2 - r**2)
 
 
 def hinge_moment(qbar, alpha, delta, P):
@@ -169,8 +154,8 @@ def transport_rates(V, alpha, theta, q, h, delta_t, delta_e, w_g, P):
 
 AIRCRAFT_LOOP = Loop("aircraft", flag="loop_a", injection="d_fcs", measured="x_cmd_fcs", rate="f_s_a")
 _INPUTS = (
-    Input("theta_cmd", "rad", "angle", "commanded pitch attitude"),
-    Input("w_g", "m/s", "rate", "vertical gust velocity, up positive"),
+    Input("theta_cmd", "rad", "angle", "commanded pitch attitude", roles=("attitude_command",)),
+    Input("w_g", "m/s", "rate", "vertical gust velocity, up positive", roles=("gust",)),
     Input("d_fcs", "m", "length", "injection at the actuator command (aircraft loop break)", injection=True),
 )
 _OUTPUTS = (

@@ -13,7 +13,12 @@ loops and by the motor parts for the current loop; see ``docs/guide/ecu-structur
     error drives it further into the limit, z' = K_i [e - g(d+) max(e, 0) - g(d-) min(e, 0)]
     with the excess d = u - u_sat, d+ = max(d, 0), d- = max(-d, 0) and the gate
     g(d) = s^2 (3 - 2 s), s = min(d/w, 1), a smooth switch over the band
-    w = AW_BAND u_lim (:func:`clamping_rate`).
+    w = w_aw u_lim (:func:`clamping_rate`).
+
+The shape of each switch is a declared parameter of ``[control]``, so a fit can free it
+like any other: ``w_aw`` (-, the clamping band as a fraction of the limit, 0.01 on the
+reference set), ``k_bc`` (-, the back-calculation rate in units of K_i/K_p, 1) and
+``w_knee`` (-, the smooth limit's knee, 0.05).
 
 Both are continuous in the state, so variable-step solvers see no jump, and at an
 unsaturated operating point (d = 0 nearby) the anti-windup terms and their derivatives
@@ -21,8 +26,8 @@ vanish: linearisations and margins are the same for both.
 
 The option ``limit_shape`` gives the form of the rate limit (position loop) and the
 current limit (speed loop): ``clip`` (default, a hard clip) or ``smooth`` (exactly linear
-up to (1 - LIMIT_KNEE) of the limit, then a quadratic knee reaching the limit at
-(1 + LIMIT_KNEE) of it: :func:`soft_clip`). The current loop's voltage limit is always
+up to (1 - w_knee) of the limit, then a quadratic knee reaching the limit at
+(1 + w_knee) of it: :func:`soft_clip`). The current loop's voltage limit is always
 the hard one (the linear-SVPWM circle of the FOC, a clip for the dc motor).
 
 Loop breaks (the paper's "Gain = 1" block): each loop's feedback is
@@ -42,8 +47,8 @@ from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 __all__ = [
     "clamp", "soft_clip", "limit", "clamping_rate", "pi_law", "position_law", "velocity_law",
     "current_law_simple", "current_law_foc",
-    "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP", "ANTI_WINDUP", "LIMIT_SHAPES", "AW_BAND",
-    "LIMIT_KNEE", "AW_OPTION",
+    "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP", "ANTI_WINDUP", "LIMIT_SHAPES",
+    "AW_OPTION", "SWITCH_PARAMS",
 ]
 
 SQRT3 = 3**0.5
@@ -52,13 +57,12 @@ SQRT3 = 3**0.5
 ANTI_WINDUP = ("backcalc", "clamping")
 #: Forms of the rate and current limits (option ``limit_shape``), first the default.
 LIMIT_SHAPES = ("clip", "smooth")
-#: Width of the clamping gate as a fraction of the loop's output limit (-): the
-#: integrator is fully stopped once the excess u - u_sat reaches AW_BAND u_lim
-#: (0.24 A on the speed loop, 1.0 rad/s on the rate limit, 1.5 V on the voltage limit of
-#: the reference set).
-AW_BAND = 0.01
-#: Half-width of the smooth limit's knee as a fraction of the limit (-).
-LIMIT_KNEE = 0.05
+#: The parameters that shape the ECU's switches (``[control]``): the clamping band
+#: ``w_aw`` (-; the integrator is fully stopped once the excess u - u_sat reaches
+#: w_aw u_lim: 0.24 A on the speed loop, 1.0 rad/s on the rate limit, 1.5 V on the
+#: voltage limit of the reference set), the back-calculation rate ``k_bc`` (-, in K_i/K_p)
+#: and the smooth limit's knee ``w_knee`` (-).
+SWITCH_PARAMS = ("w_aw", "k_bc", "w_knee")
 #: The option as the parts declare it.
 AW_OPTION = {"anti_windup": ANTI_WINDUP}
 
@@ -76,7 +80,7 @@ def clamp(u, lo, hi):
     return ca.fmin(ca.fmax(u, lo), hi)
 
 
-def soft_clip(u, lim, knee=LIMIT_KNEE):
+def soft_clip(u, lim, knee):
     """Smooth (C1) limit to +-lim: u itself for |u| <= (1 - knee) lim, the limit for
     |u| >= (1 + knee) lim, a quadratic knee between: u - q(u - a) + q(-u - a) with
     a = (1 - knee) lim, b = knee lim and q(r) = min(max(r, 0), 2b)^2 / (4b) + max(r - 2b, 0).
@@ -87,8 +91,8 @@ def soft_clip(u, lim, knee=LIMIT_KNEE):
         The value (any unit).
     lim : SX
         The limit (the unit of ``u``), positive.
-    knee : float
-        Half-width of the knee as a fraction of ``lim`` (-), positive.
+    knee : SX or float
+        Half-width of the knee as a fraction of ``lim`` (-), positive (the parameter ``w_knee``).
     """
     a, b = (1 - knee) * lim, knee * lim
 
@@ -99,9 +103,9 @@ def soft_clip(u, lim, knee=LIMIT_KNEE):
     return u - q(u - a) + q(-u - a)
 
 
-def limit(u, lim, shape="clip"):
+def limit(u, lim, shape="clip", knee=None):
     """The symmetric limit +-lim of ``shape`` (:data:`LIMIT_SHAPES`): :func:`clamp` or
-    :func:`soft_clip`.
+    :func:`soft_clip` with the knee ``knee``.
 
     Parameters
     ----------
@@ -111,11 +115,15 @@ def limit(u, lim, shape="clip"):
         The limit (the unit of ``u``).
     shape : {"clip", "smooth"}
         The form of the limit.
+    knee : SX or float
+        The smooth limit's knee half-width (-); required by ``shape = "smooth"``.
     """
     if shape == "clip":
         return clamp(u, -lim, lim)
     if shape == "smooth":
-        return soft_clip(u, lim)
+        if knee is None:
+            raise ValueError("the smooth limit needs its knee (the parameter w_knee)")
+        return soft_clip(u, lim, knee)
     raise ValueError(f"limit shape '{shape}' not one of {LIMIT_SHAPES}")
 
 
@@ -145,7 +153,7 @@ def clamping_rate(e, excess, K_i, w):
     return K_i * (e - _gate(excess, w) * ca.fmax(e, 0) - _gate(-excess, w) * ca.fmin(e, 0))
 
 
-def pi_law(e, z, K_p, K_i, u_lim, u_ff=0, anti_windup="backcalc", shape="clip"):
+def pi_law(e, z, K_p, K_i, u_lim, P, u_ff=0, anti_windup="backcalc", shape="clip"):
     """PI with symmetric limit +-u_lim, feed-forward and anti-windup.
 
     Returns (u_sat, u_unsat, z_dot). ``z`` is the integral part in output units.
@@ -162,20 +170,22 @@ def pi_law(e, z, K_p, K_i, u_lim, u_ff=0, anti_windup="backcalc", shape="clip"):
         Integral gain (output unit per input unit and second).
     u_lim : SX
         Output limit, symmetric (output unit).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses the switch shapes ``w_aw``, ``k_bc``, ``w_knee``, -).
     u_ff : SX or float
         Feed-forward added before the limit (output unit).
     anti_windup : {"backcalc", "clamping"}
-        Back-calculation, z' = K_i e + (K_i/K_p)(u_sat - u), or clamping,
-        :func:`clamping_rate` with the band AW_BAND u_lim.
+        Back-calculation, z' = K_i e + k_bc (K_i/K_p)(u_sat - u), or clamping,
+        :func:`clamping_rate` with the band w_aw u_lim.
     shape : {"clip", "smooth"}
-        The form of the limit (:func:`limit`).
+        The form of the limit (:func:`limit`, knee ``w_knee``).
     """
     u = K_p * e + z + u_ff
-    u_sat = limit(u, u_lim, shape)
+    u_sat = limit(u, u_lim, shape, P.w_knee if shape == "smooth" else None)
     if anti_windup == "backcalc":
-        z_dot = K_i * e + (K_i / K_p) * (u_sat - u)
+        z_dot = K_i * e + (P.k_bc * (K_i / K_p)) * (u_sat - u)
     elif anti_windup == "clamping":
-        z_dot = clamping_rate(e, u - u_sat, K_i, AW_BAND * u_lim)
+        z_dot = clamping_rate(e, u - u_sat, K_i, P.w_aw * u_lim)
     else:
         raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
     return u_sat, u, z_dot
@@ -196,7 +206,8 @@ def position_law(x_cmd, x_fb, z_x, P, integral: bool, anti_windup="backcalc", sh
     z_x : SX or None
         Integral part (rad/s); unused without ``integral``.
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``p``, ``v_max``, ``K_x``, ``K_i_x``).
+        Parameter symbols by flat name (uses ``p``, ``v_max``, ``K_x``, ``K_i_x`` and the
+        switch shapes :data:`SWITCH_PARAMS`).
     integral : bool
         PI (True) or P (False) law.
     anti_windup : {"backcalc", "clamping"}
@@ -208,8 +219,8 @@ def position_law(x_cmd, x_fb, z_x, P, integral: bool, anti_windup="backcalc", sh
     e = x_cmd - x_fb
     omega_max = k * P.v_max
     if not integral:
-        return limit(k * P.K_x * e, omega_max, shape), None
-    w, _, z_dot = pi_law(e, z_x, k * P.K_x, k * P.K_i_x, omega_max, anti_windup=anti_windup, shape=shape)
+        return limit(k * P.K_x * e, omega_max, shape, P.w_knee if shape == "smooth" else None), None
+    w, _, z_dot = pi_law(e, z_x, k * P.K_x, k * P.K_i_x, omega_max, P, anti_windup=anti_windup, shape=shape)
     return w, z_dot
 
 
@@ -227,13 +238,14 @@ def velocity_law(omega_cmd, omega_fb, z_w, P, anti_windup="backcalc", shape="cli
     z_w : SX
         Integral part (A).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``K_p_w``, ``T_i_w``, ``I_max``).
+        Parameter symbols by flat name (uses ``K_p_w``, ``T_i_w``, ``I_max`` and the switch
+        shapes :data:`SWITCH_PARAMS`).
     anti_windup : {"backcalc", "clamping"}
         The PI's anti-windup law (:func:`pi_law`).
     shape : {"clip", "smooth"}
         The form of the current limit (:func:`limit`).
     """
-    i_cmd, _, z_dot = pi_law(omega_cmd - omega_fb, z_w, P.K_p_w, P.K_p_w / P.T_i_w, P.I_max,
+    i_cmd, _, z_dot = pi_law(omega_cmd - omega_fb, z_w, P.K_p_w, P.K_p_w / P.T_i_w, P.I_max, P,
                              anti_windup=anti_windup, shape=shape)
     return i_cmd, z_dot
 
@@ -256,7 +268,8 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None, anti_windup="backc
     z_i : SX
         Integral part (V).
     P : SimpleNamespace
-        Parameter symbols by flat name (uses ``pp``, ``psi``, ``K_p_i``, ``K_i_i``, ``k_v``, ``V_dc``).
+        Parameter symbols by flat name (uses ``pp``, ``psi``, ``K_p_i``, ``K_i_i``, ``k_v``, ``V_dc``,
+        ``w_aw``, ``k_bc``).
     v_dc : SX, optional
         Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
     anti_windup : {"backcalc", "clamping"}
@@ -264,7 +277,7 @@ def current_law_simple(i_cmd, i_fb, omega, z_i, P, v_dc=None, anti_windup="backc
     """
     K_e = 1.5 * P.pp * P.psi
     v_lim = 1.5 * P.k_v * (P.V_dc if v_dc is None else v_dc) / SQRT3
-    v, _, z_dot = pi_law(i_cmd - i_fb, z_i, 1.5 * P.K_p_i, 1.5 * P.K_i_i, v_lim, u_ff=K_e * omega,
+    v, _, z_dot = pi_law(i_cmd - i_fb, z_i, 1.5 * P.K_p_i, 1.5 * P.K_i_i, v_lim, P, u_ff=K_e * omega,
                          anti_windup=anti_windup)
     return v, z_dot
 
@@ -276,7 +289,7 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
     (v_d -= omega_e L_q i_q, v_q += omega_e (L_d i_d + psi)); the voltage vector is
     scaled onto the linear-SVPWM circle |v_dq| <= k_v V_dc / sqrt(3).
     Anti-windup per axis on the excess v_k_u - v_k of that axis: back-calculation, or
-    clamping (:func:`clamping_rate`, band AW_BAND times the circle's radius).
+    clamping (:func:`clamping_rate`, band w_aw times the circle's radius).
     Returns (v_d, v_q, z_d_dot, z_q_dot).
 
     Parameters
@@ -293,7 +306,7 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
         Integral parts (V).
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``pp``, ``psi``, ``L_d``, ``L_q``, ``K_p_i``,
-        ``K_i_i``, ``k_v``, ``V_dc``).
+        ``K_i_i``, ``k_v``, ``V_dc``, ``w_aw``, ``k_bc``).
     v_dc : SX, optional
         Measured DC-link voltage (V) the limit follows; default ``P.V_dc``.
     anti_windup : {"backcalc", "clamping"}
@@ -309,14 +322,14 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
     scale = ca.fmin(1, v_lim / mag)
     v_d, v_q = scale * v_d_u, scale * v_q_u
     if anti_windup == "clamping":
-        w = AW_BAND * v_lim
+        w = P.w_aw * v_lim
         return (v_d, v_q, clamping_rate(e_d, v_d_u - v_d, P.K_i_i, w),
                 clamping_rate(e_q, v_q_u - v_q, P.K_i_i, w))
     if anti_windup != "backcalc":
         raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
-    w_aw = P.K_i_i / P.K_p_i
-    z_d_dot = P.K_i_i * e_d + w_aw * (v_d - v_d_u)
-    z_q_dot = P.K_i_i * e_q + w_aw * (v_q - v_q_u)
+    w_bc = P.k_bc * (P.K_i_i / P.K_p_i)
+    z_d_dot = P.K_i_i * e_d + w_bc * (v_d - v_d_u)
+    z_q_dot = P.K_i_i * e_q + w_bc * (v_q - v_q_u)
     return v_d, v_q, z_d_dot, z_q_dot
 
 
@@ -350,7 +363,7 @@ class PositionP(Part):
     family, value = "controller", "P"
     doc = "position P loop -> speed PI loop -> current command"
     inputs = (
-        Input("x_cmd", "m", "length", "commanded rod position"),
+        Input("x_cmd", "m", "length", "commanded rod position", roles=("command",)),
         Input("d_x", "m", "length", "injection at the position feedback (loop break)", injection=True),
         Input("d_w", "rad/s", "angular_velocity", "injection at the speed feedback (loop break)", injection=True),
     )
@@ -358,7 +371,7 @@ class PositionP(Part):
         Output("omega_cmd", "rad/s", "motor speed command of the position loop"),
         Output("i_cmd", "A", "q-current command of the speed loop"),
     )
-    params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w")
+    params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w", *SWITCH_PARAMS)
     trim_limits = _LIMITS
     gains = (_K_X, *_SPEED_GAINS)
     loops = (POSITION_LOOP, VELOCITY_LOOP)

@@ -216,7 +216,7 @@ CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
 
 _COMMON_OUT = (
     Output("i_d", "A", "d-axis current (0 for the dc motor)", bound=CURRENT_BOUND),
-    Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND),
+    Output("i_q", "A", "q-axis current (the dc motor's current)", bound=CURRENT_BOUND, roles=("motor_current",)),
     Output("T_m", "N*m", "motor torque on the shaft (electromagnetic, less the iron-loss drag)"),
     Output("P_elec", "W", "electrical power into the windings", kind="power"),
     Output("P_cu", "W", "copper loss", kind="loss"),
@@ -272,7 +272,8 @@ class Pmsm(Part):
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e",
+              "w_aw", "k_bc")
     trim_limits = _LIMITS
     gains = _GAINS
     options = _OPTIONS | _SHORT
@@ -336,7 +337,7 @@ class Dc(Part):
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
     inputs = (_D_I,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e")
+    params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e", "w_aw", "k_bc")
     trim_limits = _LIMITS
     gains = _GAINS
     options = _OPTIONS

@@ -61,7 +61,8 @@ RATED = {"T_w": lambda P: P.T_max_w, "T_h": lambda P: 120.0, "T_s": lambda P: 12
 #: mission's range is -100...300 degC.
 T_AMB_MAX = 300.0
 T_AMB = Input("T_amb", "degC", "temperature", "ambient (cavity) temperature", default=20.0,
-              bound=Bound(lambda E: T_AMB_MAX, f"{T_AMB_MAX:g} degC, beyond any cavity temperature"))
+              bound=Bound(lambda E: T_AMB_MAX, f"{T_AMB_MAX:g} degC, beyond any cavity temperature"),
+              roles=("ambient_temperature",))
 
 
 def eta_table(T, P):

@@ -1,5 +1,9 @@
-"""One run of the compiled RODAS4 driver with forward sensitivities: the states at the
-record's samples and their derivatives with respect to chosen parameter directions.
+"""Forward sensitivities of the compiled RODAS4 driver: the states at chosen sample
+times and their derivatives with respect to chosen directions in the parameters (``W``)
+and in the initial state (``S0``). One interface for every analysis that needs exact
+derivatives of a trajectory: identification (the Jacobian of the residuals), periodic
+orbits (the monodromy matrix: ``S0`` the identity, ``W`` zero) and experiment design
+(the Fisher information).
 
 The driver is the simulation's own (``simulation/_c/rosenbrock.c``), compiled with
 ``EMA_NS`` directions and ``_c/sensitivity.c`` appended: on every accepted step the
@@ -24,8 +28,8 @@ import numpy as np
 
 from .._util._compiled import compile_source
 from .._util._interrupts import check as check_interrupt
-from ..simulation import RunFailed
-from ..simulation import _rosenbrock as _ros
+from . import _rosenbrock as _ros
+from ._envelope import RunFailed
 
 _SENS = Path(__file__).with_name("_c") / "sensitivity.c"
 
@@ -55,9 +59,22 @@ def _ros_stages() -> int:
     return 6  # ROS_S of the driver (RODAS4)
 
 
-def library(model, ns: int):
-    """The compiled driver with ``ns`` sensitivity directions (cached with the model and
-    on disk), with its build info; (None, info) without a C compiler."""
+def sensitivity_library(model, ns: int):
+    """The compiled driver with ``ns`` sensitivity directions, cached with the model and
+    on disk (call it ahead to keep the compile out of a timing).
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model.
+    ns : int
+        Number of sensitivity directions.
+
+    Returns
+    -------
+    tuple
+        The driver's entry point (None without a C compiler) and its build info.
+    """
     key = ("rosenbrock_sens", ns)
     if key not in model.cache:
         parts = [_ros._DRIVER.read_bytes(), _SENS.read_bytes(), Path(_ros.__file__).read_bytes(),
@@ -89,28 +106,38 @@ _STEPS_PER_SAMPLE = 16
 REPLAY_LIMIT = 30.0
 
 
-def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: np.ndarray, S0: np.ndarray,
-        rtol: float, atol: float, steps: np.ndarray | None = None,
-        room: int | None = None, rows: bool = False) -> tuple[np.ndarray, np.ndarray, dict]:
-    """States X (nx x n) at the samples ``grid`` (from 0, ascending) and their
-    sensitivities S (n x ns x nx: sample, direction, state) along the parameter
-    directions ``W`` (n_p x ns) from ``S0`` (nx x ns) at t = 0.
+def forward_sensitivities(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: np.ndarray,
+                          S0: np.ndarray, rtol: float, atol: float, steps: np.ndarray | None = None,
+                          room: int | None = None, rows: bool = False) -> tuple[np.ndarray, np.ndarray, dict]:
+    """States at the samples ``grid`` and their forward sensitivities along directions
+    in the parameters (``W``) and in the initial state (``S0``): direction j of sample k is
+    dx(t_k)/dp · W[:, j] + dx(t_k)/dx0 · S0[:, j] (``W = 0``, ``S0 = I``: the
+    state-transition matrix, a periodic orbit's monodromy matrix at t = T). Without
+    ``steps`` the error control chooses the steps (returned in ``info["step_sizes"]``);
+    with them exactly those are taken, so the result is a smooth function of ``pv``; a
+    replay whose error estimate exceeds :data:`REPLAY_LIMIT` times the tolerance falls back
+    to chosen steps. Returns X (nx x n), S (n x ns x nx: sample, direction, state) and
+    info; raises RunFailed when the driver gives up or the states go non-finite.
 
-    Without ``steps`` the step sizes are chosen by the error control and returned in
-    ``info["step_sizes"]``; with ``steps`` (from such a run) exactly those steps are
-    taken, so that the result is a smooth function of ``pv`` (the frozen grid).
-    A replay that does not fit (a step's error estimate above :data:`REPLAY_LIMIT`
-    times the tolerance) falls back to chosen steps (``info["step_sizes"]`` then holds
-    the new ones). ``room``: how many step sizes to make room for when recording (default
-    :data:`_STEPS_PER_SAMPLE` per sample).
-
-    Raises RunFailed when the driver gives up or the states go non-finite (the
-    physical envelope is the caller's: it holds the whole trajectory).
+    Parameters
+    ----------
+    model : Model
+        The assembled model (continuous: no hybrid friction, no sampled ECU).
+    sig : dict
+        Input signals by input name, as simulate builds them.
+    grid, pv, x0, W, S0 : numpy.ndarray
+        Sample times (s, from 0, ascending), the parameter vector, the initial state, the
+        parameter directions (n_p x ns) and the initial-state directions (nx x ns).
+    rtol, atol : float
+        Tolerances of the error control.
+    steps, room, rows : optional
+        Step sizes (s) to replay (an earlier ``info["step_sizes"]``); how many step sizes
+        to make room for (default 16 per sample); stop at every row of a table input too.
     """
     ns = W.shape[1]
-    fn, cinfo = library(model, ns)
+    fn, cinfo = sensitivity_library(model, ns)
     if fn is None:
-        raise RunFailed("identification needs a C compiler (the compiled RODAS4 with sensitivities)", 0.0, None)
+        raise RunFailed("forward sensitivities need a C compiler (the compiled RODAS4 with sensitivities)", 0.0, None)
     n = len(grid)
     t_end = float(grid[-1])
     # steps land on the breakpoints of steps, ramps, sines, not on a table's rows: the
@@ -146,13 +173,13 @@ def run(model, sig: dict, grid: np.ndarray, pv: np.ndarray, x0: np.ndarray, W: n
         good = np.all(np.isfinite(Xt[done : done + n_done.value]))
         done += n_done.value
         if status in (-5, -6):  # the replayed grid does not fit these parameters: choose the steps
-            return run(model, sig, grid, pv, x0, W, S0, rtol, atol, rows=rows)
+            return forward_sensitivities(model, sig, grid, pv, x0, W, S0, rtol, atol, rows=rows)
         if status < 0 or not good:
             what = _ros._failure(status, state[1], rtol, atol) if status < 0 else "non-finite states"
             raise RunFailed(what, float(state[0]), None)
     k = int(hs_n[0])
     if mode == 1 and k > len(hs):  # more steps than room: again with room for all
-        return run(model, sig, grid, pv, x0, W, S0, rtol, atol, room=k + 16, rows=rows)
+        return forward_sensitivities(model, sig, grid, pv, x0, W, S0, rtol, atol, room=k + 16, rows=rows)
     info = {"compute_time": time.perf_counter() - t0, **dict(zip(_ros._STATS, stats.astype(int).tolist(),
                                                                  strict=True)), **cinfo,
             "step_sizes": hs[:k].copy() if mode == 1 else steps}

@@ -1,0 +1,126 @@
+"""One run of the ``ema`` command line: parse, run the command in one output transaction,
+report; what an interrupt or a closed stdout does (:class:`_Stop`, :func:`_reader_gone`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+
+from .._util import _interrupts
+from ._common import EXIT_FAILED, jsonable, user_errors
+from ._options import model_path
+from ._parser import build_parser, join_negative_values, join_unit_values, unknown_flag
+
+
+def _reader_gone() -> int:
+    """The reader of stdout went away (``ema ... --json | head``): end quietly with the
+    shell's status for a broken pipe (128 + SIGPIPE), as other Unix tools do; stdout is
+    pointed at the null device so that the interpreter's final flush does not fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return 128 + 13
+
+
+class _Stop:
+    """What an interrupt does: silence the unwinding, remove the temporaries, write the
+    one line, end the process (the ``ema`` process itself)."""
+
+    def __init__(self, words):
+        self.command = words[0] if words and not words[0].startswith("-") else None
+        self.reported = False
+        self.hint = ""  # what the interrupted command can do next (a resumable one: --resume)
+        self.stderr = None
+        self._once = threading.Lock()  # the main thread and the watchdog may both report
+
+    def silence(self, signum):
+        # what the unwinding prints (CasADi's warnings, a worker's error) is not for the
+        # user: the one line of report() is
+        self.stderr = sys.stderr
+        sys.stderr = _Silent()
+
+    def unsilence(self):
+        if isinstance(sys.stderr, _Silent):
+            sys.stderr = self.stderr
+
+    def report(self, signum) -> int:
+        from .._util import _files
+
+        with self._once:
+            if not self.reported:
+                self.reported = True
+                _files.remove_temporaries()
+                stream = self.stderr or sys.stderr
+                stream.write(f"ema {self.command}: interrupted{self.hint}\n" if self.command else "ema: interrupted\n")
+                stream.flush()
+        return _interrupts.exit_status(signum)
+
+    def exit(self, status):
+        import os
+
+        sys.stdout.flush()
+        os._exit(status)
+
+    def force_exit(self, signum):  # the watchdog: the run did not unwind in time
+        self.exit(self.report(signum))
+
+
+class _Silent:
+    """A stream that drops what is written to it."""
+
+    def write(self, s):
+        return len(s)
+
+    def flush(self):
+        pass
+
+
+def _run(argv, stop) -> int:
+    """Parse, run the command in one output transaction, report; the exit status."""
+    import json
+
+    from .._util import _files
+    from ..simulation import RunFailed
+
+    parser, mods = build_parser()
+    argv = join_unit_values(join_negative_values(list(sys.argv[1:] if argv is None else argv), parser), parser)
+    unknown = unknown_flag(argv, parser)
+    if unknown:
+        sys.stderr.write(unknown + "\n")
+        return 2
+    args = parser.parse_args(argv)
+    stop.command = args.command
+    args.model_given = args.model is not None
+    args.model = model_path(args)
+    mod = mods[args.command]
+    hint = getattr(mod, "interrupt_hint", None)
+    stop.hint = hint(args) if hint else ""
+    errors = user_errors()
+    try:
+        with _files.transaction():
+            result = mod.run(args)
+            _interrupts.check()
+    except errors as exc:
+        _interrupts.check()
+        sys.stderr.write(f"ema {args.command}: error: {exc}\n")
+        return 2
+    except RunFailed as exc:
+        _interrupts.check()
+        sys.stderr.write(f"ema {args.command}: failed: {exc}\n")
+        return EXIT_FAILED
+    if args.json:
+        json.dump(jsonable(result), sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        report = getattr(mod, "report", None)
+        if report:
+            report(result)
+        else:
+            json.dump(jsonable(result), sys.stdout, indent=1)
+            sys.stdout.write("\n")
+    failure = result.get("failure") if isinstance(result, dict) else None
+    if failure:
+        sys.stderr.write(f"ema {args.command}: failed: {failure}\n")
+        return EXIT_FAILED
+    return 0

@@ -1,0 +1,346 @@
+"""Periodic orbits of a closed loop by shooting, their Floquet multipliers, and their
+continuation over a parameter (docs: periodic orbits).
+
+The loop is held autonomous (its inputs constant at the values the loop's confirming run
+ends at, :func:`~ema_casadi.limitcycle.setup`), and an orbit is a solution (x0, T) of
+
+    phi(T; x0) - x0 = 0,        c . (x0 - x_s) = 0
+
+with phi the flow of the model, and the second equation a Poincare section: the
+hyperplane through a point x_s of the start guess, normal to the flow there (c = f(x_s),
+in the states' full-scale units). Newton's matrix is exact: the monodromy matrix
+M = d phi(T)/d x0 comes from the compiled RODAS4 with forward sensitivities (initial
+directions the identity), d phi/dT = f(phi(T)). The eigenvalues of M are the Floquet
+multipliers; one of them is 1 (the flow direction) and is reported as a check of the
+accuracy; the orbit is stable when every other multiplier lies inside the unit circle.
+
+Continuation (:func:`continue_orbit`) adds the parameter as an unknown (its sensitivity
+direction from the same run) and a pseudo-arclength equation; folds of cycles show as a
+turning of the parameter (a multiplier through +1), period doubling as a multiplier
+through -1, a torus (Neimark-Sacker) as a complex pair leaving the circle, and the
+orbit's birth (a Hopf point of the equilibrium) as the amplitude going to zero.
+
+Switching models (hybrid friction, a sampled ECU) have no smooth flow; there the
+monodromy matrix is taken by finite differences of the fixed-step RK4 rollout (the
+stated fallback, ``method="rk4"``), with the accuracy that implies (see docs).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model.assembly import Model
+from ..simulation import RunFailed
+from ._df import cycle_of
+from ._flow import Flow, OrbitNotFound
+from ._setup import setup
+
+__all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit", "summaries", "multipliers", "held_inputs"]
+
+#: Smallest half peak-to-peak of the loop's signal (m) that counts as an oscillation to start from.
+MIN_START = 1e-9
+
+
+@dataclass
+class PeriodicOrbit:
+    """A periodic orbit of a closed loop (from :func:`periodic_orbit`).
+
+    Parameters
+    ----------
+    loop : str
+        The loop (``position``, ``aircraft``).
+    T : float
+        Period (s).
+    x0 : ndarray
+        State on the orbit at the phase section (SI).
+    multipliers : ndarray of complex
+        Floquet multipliers (eigenvalues of the monodromy matrix), the trivial one first.
+    monodromy : ndarray
+        The monodromy matrix dx(T)/dx(0).
+    residual : float
+        Periodicity residual max_i |x_i(T) - x_i(0)| / scale_i (scale: the state's full scale).
+    signals : dict
+        Per named signal: ``amplitude`` (first harmonic), ``peak_to_peak``, ``mean`` (SI).
+    t, X, Y : ndarray
+        The orbit over one period: time (s), states (nx x n), outputs (ny x n).
+    states, outputs : tuple of str
+        Names of the rows of X and Y.
+    units : dict
+        Signal name -> SI unit.
+    prediction : dict or None
+        The describing function's prediction given, with ``freq_error`` and
+        ``amplitude_error`` (relative, against this orbit).
+    info : dict
+        ``iterations``, ``runs``, ``method``, ``wall_time``, ``start``, ``residuals``.
+    """
+
+    loop: str
+    T: float
+    x0: np.ndarray
+    multipliers: np.ndarray
+    monodromy: np.ndarray
+    residual: float
+    signals: dict
+    t: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    states: tuple
+    outputs: tuple
+    units: dict
+    prediction: dict | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def freq_hz(self) -> float:
+        """Frequency 1/T (Hz)."""
+        return 1.0 / self.T
+
+    @property
+    def trivial_multiplier(self) -> complex:
+        """The multiplier of the flow direction (1 on an exact orbit)."""
+        return complex(self.multipliers[0])
+
+    @property
+    def stable(self) -> bool:
+        """Every nontrivial multiplier inside the unit circle."""
+        return bool(np.all(np.abs(self.multipliers[1:]) < 1.0))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name in ("t", "time"):
+            return self.t
+        if name in self.outputs:
+            return self.Y[self.outputs.index(name)]
+        if name in self.states:
+            return self.X[self.states.index(name)]
+        raise KeyError(f"no signal '{name}'; have {', '.join((*self.outputs, *self.states))}")
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (no time series)."""
+        mu = self.multipliers
+        return {"loop": self.loop, "period_s": self.T, "freq_hz": self.freq_hz, "stable": self.stable,
+                "trivial_multiplier": [mu[0].real, mu[0].imag],
+                "multipliers": [[float(m.real), float(m.imag)] for m in mu],
+                "multiplier_moduli": [float(abs(m)) for m in mu],
+                "periodicity_residual": self.residual, "signals": self.signals, "prediction": self.prediction,
+                "x0": dict(zip(self.states, map(float, self.x0), strict=True)),
+                "info": {k: v for k, v in self.info.items() if k != "residuals"}
+                | {"residuals": list(self.info.get("residuals", []))}}
+
+    def to_csv(self, path):
+        """Write the orbit over one period as CSV in the toolkit's layout (``time``, one column
+        per output then the states not already outputs; a ``Unit:`` row); atomic.
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+        """
+        from ..signals import write_series
+
+        extra = [s for s in self.states if s not in self.outputs]
+        cols = [*self.outputs, *extra]
+        data = np.column_stack([self.t, *(self[c] for c in cols)])
+        return write_series(path, ["time", *cols], ["s", *(self.units.get(c, "") for c in cols)], data)
+
+    def plot(self, path=None, signals=None):
+        """The orbit's signals over one period and its multipliers on the unit circle.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            PNG file; the Figure is returned when not given.
+        signals : sequence of str, optional
+            Signals drawn (default the summarised ones).
+        """
+        from ..plots._limitcycle import plot_orbit
+
+        return plot_orbit(self, path, signals=signals)
+
+    def __repr__(self) -> str:
+        s = "stable" if self.stable else "unstable"
+        return (f"PeriodicOrbit(loop={self.loop!r}, freq={self.freq_hz:.6g} Hz, {s}, "
+                f"residual={self.residual:.2g}, |mu|max={np.max(np.abs(self.multipliers[1:])):.4g})")
+
+
+def summaries(flow: Flow, t, X, Y, names) -> dict:
+    model = flow.model
+    out = {}
+    T = t[-1] - t[0]
+    for n in names:
+        y = Y[model.outputs.index(n)] if n in model.outputs else X[model.states.index(n)]
+        yy = y[:-1]
+        c = 2 * np.mean(yy * np.exp(-2j * np.pi * (t[:-1] - t[0]) / T))
+        out[n] = {"amplitude": float(abs(c)), "peak_to_peak": float(np.ptp(y)), "mean": float(np.mean(yy)),
+                  "unit": model.units.get(n, "")}
+    return out
+
+
+def multipliers(M, fT) -> np.ndarray:
+    mu = np.linalg.eigvals(M)
+    k = int(np.argmin(np.abs(mu - 1.0)))
+    return np.concatenate([[mu[k]], np.delete(mu, k)[np.argsort(-np.abs(np.delete(mu, k)))]])
+
+
+def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
+    """Newton on (x0, T) with the section through the start, normal to the flow."""
+    D = flow.model.full_scale(flow.pv)
+    xs = np.asarray(x0, float).copy()
+    c = flow.f(xs) / D
+    c = c / np.linalg.norm(c) / D  # section normal in scaled units
+    x, T = xs.copy(), float(T)
+    residuals = []
+    nx = len(x)
+    for it in range(iterations + 1):
+        if stop is not None:
+            stop()
+        xT, M, _ = flow.run(x, T)
+        r = np.concatenate([(xT - x) / D, [c @ (x - xs) * 1.0]])
+        res = float(np.max(np.abs(r[:nx])))
+        residuals.append(res)
+        if res < tol:
+            return x, T, M, xT, residuals, it
+        if it == iterations:
+            break
+        J = np.zeros((nx + 1, nx + 1))
+        J[:nx, :nx] = (M - np.eye(nx)) * D[None, :] / D[:, None]
+        J[:nx, nx] = flow.f(xT) / D * T
+        J[nx, :nx] = c * D
+        try:
+            dz = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError as exc:
+            raise OrbitNotFound(f"no periodic orbit near the start: singular shooting matrix at Newton step {it}") \
+                from exc
+        x, T = x + dz[:nx] * D, T * math.exp(float(np.clip(dz[nx], -0.5, 0.5)))
+    raise OrbitNotFound(f"no periodic orbit near the start: periodicity residual {residuals[-1]:.2g} after "
+                        f"{iterations} Newton steps (need < {tol:g})")
+
+
+def _start_from_simulation(model, s, t_warm, signal, dt):
+    res = s["confirm"](t_warm, dt)
+    t = np.asarray(res.t)
+    y = np.asarray(res[signal])
+    cyc = cycle_of(t, y, t_warm / 2)
+    if cyc["freq_hz"] is None or cyc["half_pp"] < MIN_START:
+        raise OrbitNotFound(f"no oscillation in the {t_warm:g} s start run (the {signal} signal settles): "
+                            "no periodic orbit to start from")
+    sel = t >= t_warm / 2
+    yy = y - np.mean(y[sel])
+    ups = np.nonzero(sel[1:] & (yy[:-1] < 0) & (yy[1:] >= 0))[0] + 1
+    k = int(ups[-1])
+    x0 = np.array([res.states[n][k] for n in model.states])
+    return x0, 1.0 / cyc["freq_hz"], cyc
+
+
+def held_inputs(model: Model, loop: str, s: dict) -> dict:
+    """The loop's inputs held constant at the end of its confirming run."""
+    if loop == "position":
+        return {model.input_with("command"): 1e-3}  # the confirming run's 1 mm step, held
+    return dict(s["inputs"])
+
+
+def _start(model, s, start, t_warm, loop, sig_name, dt):
+    """(x0, T0, the start run's cycle or None, t_warm) from ``start``."""
+    if isinstance(start, dict):
+        if "x0" not in start or "T" not in start:
+            raise ValueError("start: a dict needs 'x0' (state) and 'T' (period, s)")
+        return np.asarray(start["x0"], float), float(start["T"]), None, None
+    if start == "simulation":
+        t_warm = t_warm or (2.0 if loop == "position" else 60.0)
+        return (*_start_from_simulation(model, s, t_warm, sig_name, dt), t_warm)
+    raise ValueError(f"start: {start!r}; 'simulation' or {{'x0': ..., 'T': ...}}")
+
+
+def _compare(prediction, summ, sig_name, T):
+    """The prediction given, with its frequency and amplitude errors against the orbit."""
+    if prediction is None:
+        return None
+    a = summ[sig_name]["amplitude"] if sig_name in summ else None
+    return {**{k: v for k, v in prediction.items() if k in ("amplitude", "freq_hz", "stable", "method")},
+            "signal": sig_name, "freq_error": prediction["freq_hz"] * T - 1.0,
+            "amplitude_error": (prediction["amplitude"] / a - 1.0) if a else None}
+
+
+def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: str = "cruise_sl",
+                   start: str | dict = "simulation", t_warm: float | None = None, dt: float | None = None,
+                   signals=None, prediction: dict | None = None, method: str = "auto", tol: float = 1e-10,
+                   iterations: int = 25, stop=None) -> PeriodicOrbit:
+    """The periodic orbit of a closed loop by shooting, with its Floquet multipliers.
+
+    Parameters
+    ----------
+    model : Model
+    loop : {"position", "aircraft"}
+        The loop, set up as :func:`~ema_casadi.limitcycle.setup` does (position: 1 mm
+        command held; aircraft: the trim at ``condition``, its trimmed inputs held).
+    p : ndarray, optional
+        Parameter vector (default the model's).
+    condition : str
+        Flight condition (aircraft).
+    start : "simulation" or dict
+        Start: the state at an upward mean crossing of the loop's signal late in a
+        ``t_warm`` s confirming run, or ``{"x0": ..., "T": ...}``.
+    t_warm : float, optional
+        Start run length (s); default 2 s (position), 60 s (aircraft).
+    dt : float, optional
+        RK4 step of the start run and of the fallback (s); default 1e-5 / 1e-4.
+    signals : sequence of str, optional
+        Signals summarised (default x_rod and, for the aircraft loop, x_cmd).
+    prediction : dict, optional
+        A describing-function (or harmonic-balance) cycle (``amplitude``, ``freq_hz``) of
+        the loop's break signal: reported beside the orbit with its relative errors.
+    method : {"auto", "sensitivities", "rk4"}
+        Monodromy matrix from the RODAS4 forward sensitivities (continuous models), or
+        finite differences of the fixed-step RK4 rollout (switching models: hybrid
+        friction, a sampled ECU); auto picks by the model.
+    tol, iterations : float, int
+        Periodicity residual to reach (of each state's full scale); Newton steps at most.
+    stop : callable, optional
+        Called before each Newton step (raises to interrupt).
+
+    Raises
+    ------
+    ValueError
+        Unknown loop, method, or a start without ``x0``/``T``.
+    OrbitNotFound
+        No oscillation to start from, or Newton did not converge.
+    """
+    t_start = time.perf_counter()
+    if loop not in ("position", "aircraft"):
+        raise ValueError(f"loop: unknown loop {loop!r}; have position, aircraft")
+    if method not in ("auto", "sensitivities", "rk4"):
+        raise ValueError(f"method: {method!r}; have auto, sensitivities, rk4")
+    switching = bool(model.switched) or bool(getattr(model, "hybrid", False))
+    if method == "auto":
+        method = "rk4" if switching else "sensitivities"
+    if method == "sensitivities" and switching:
+        raise ValueError("method: the model switches (hybrid friction or a switched part): its flow has no "
+                         "sensitivities; use method='rk4'")
+    s = setup(model, loop, p, condition)
+    dt = dt or (1e-5 if loop == "position" else 1e-4)
+    sig_name = s["signal"]
+    names = tuple(signals) if signals else tuple(dict.fromkeys([model.output_with("rod_position"), sig_name]))
+    for n in names:
+        if n not in model.outputs and n not in model.states:
+            raise ValueError(f"signals: no signal {n!r} in the model")
+    x0, T0, warm, t_warm = _start(model, s, start, t_warm, loop, sig_name, dt)
+    flow = Flow(model, held_inputs(model, loop, s), s["p"], method, dt)
+    tol_eff = tol if method == "sensitivities" else max(tol, 1e-7)
+    try:
+        x, T, M, xT, residuals, its = _newton(flow, x0, T0, tol_eff, iterations, stop)
+    except RunFailed as exc:
+        raise OrbitNotFound(f"a shooting run failed ({exc}): no periodic orbit near the start") from None
+    mu = multipliers(M, flow.f(xT))
+    t, X, Y = flow.series(x, T)
+    summ = summaries(flow, t, X, Y, names)
+    pred = _compare(prediction, summ, sig_name, T)
+    units = dict(model.units)
+    info = {"iterations": its, "runs": flow.runs, "method": method, "residuals": residuals,
+            "wall_time": time.perf_counter() - t_start, "start": "given" if warm is None else
+            {"t_warm_s": t_warm, "freq_hz": warm["freq_hz"], "amplitude": warm["amplitude"]}}
+    D = model.full_scale(s["p"])
+    return PeriodicOrbit(loop, float(T), x, mu, M, float(np.max(np.abs((xT - x) / D))), summ, t, X, Y,
+                         tuple(model.states), tuple(model.outputs), units, pred, info)
