@@ -278,13 +278,30 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
             continue
         if name not in table or name in ("t", "time"):
             raise IdentificationError(f"{path}: column '{name}' is neither a model input nor a state or output"
-                                      f"{nearest(name, known)}")
+                                      f"{_did_you_mean(name, known, model)}")
         scale = _scale(units[j], table[name], f"{path}: column '{name}'", model)
         (inputs if name in model.inputs else channels)[name] = data[:, j] * scale
     if not channels:
         raise IdentificationError(f"{path}: no measured channel (a column named after a model state or output, "
                                   f"e.g. {', '.join(model.states[-2:])})")
     return Record(str(path), t - t[0], inputs, channels, fields, float(t[0]))
+
+
+#: Name parts that mark a measured signal (x_act, phi_meas, omega_fb): the suggestion is
+#: then a measured channel (state or output) of the same symbol, never an input.
+_MEASURED = re.compile(r"[_ ]?(act|actual|meas|measured|fb|feedback|sens|sensed|obs)$", re.IGNORECASE)
+
+
+def _did_you_mean(name: str, known: list, model) -> str:
+    """The hint for an unknown column: for a measurement-like name the measured channels
+    of its symbol (``x_act`` -> ``x_rod``), else the nearest known name."""
+    m = _MEASURED.search(name)
+    if m and m.start() > 0:
+        stem = name[:m.start()].lower()
+        measured = [c for c in known if c not in model.inputs and c.lower().split("_")[0] == stem]
+        if measured:
+            return f" (a measurement? the measured channels of '{stem}' are {', '.join(map(repr, measured[:4]))})"
+    return nearest(name, known)
 
 
 def _scale(unit: str, si: str, where: str, model) -> float:

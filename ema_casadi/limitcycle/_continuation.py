@@ -167,7 +167,7 @@ class _Branch:
 
     def natural(self, u_prev, sign, dlam):
         """A natural-parameter step: the orbit relaxed by three periods at lam + sign dlam
-        (a stable orbit attracts), then Newton at fixed parameter; (u, J, M, xT, 8) or None."""
+        (a stable orbit attracts), then Newton at fixed parameter; (u, J, M, xT, 3) or None."""
         x, T, lam = self.unpack(u_prev)
         lam = lam + sign * dlam
         self.set_lam(lam)
@@ -179,7 +179,7 @@ class _Branch:
             _, J, M, xT = self.system(u, self.section(x), x)
         except (RunFailed, OrbitNotFound, np.linalg.LinAlgError):
             return None
-        return u, J, M, xT, 8
+        return u, J, M, xT, 3  # counted as a good step: the step length is kept
 
 
     def follow(self, u0, t, opts: dict, state: dict):

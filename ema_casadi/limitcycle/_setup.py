@@ -28,7 +28,8 @@ def _position(model: Model, p, condition):
     def confirm(t_end, dt):
         return simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=max(dt, 1e-4), p=p)
 
-    return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm, "signal": "x_rod"}
+    return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm,
+            "signal": model.output_with("rod_position")}
 
 
 def _aircraft(model: Model, p, condition):
@@ -45,9 +46,10 @@ def _aircraft(model: Model, p, condition):
     meas0 = op.output("x_cmd_fcs")
 
     def confirm(t_end, dt):
-        th0, kick = inputs["theta_cmd"], math.radians(0.5)
+        att = model.input_with("attitude_command")
+        th0, kick = inputs[att], math.radians(0.5)
         pulse = Signal.step(th0, 0.0) + Signal.step(kick, 1.0) + Signal.step(-kick, 3.0)
-        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, "theta_cmd": pulse})
+        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, att: pulse})
 
     return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "signal": "x_cmd", "op": op}
 

@@ -85,6 +85,7 @@ class Screw:
     B: float = _p("m", NONNEG, "backlash, total gap (m)")
     P_blend: float = _p("W", NONNEG, "width of the efficiency switch in transmitted power; 0: the exact switch (W)",
                         default=0.1)
+    x_lock: float = _p("m", NONNEG, "self-locking memory: pre-sliding travel at the rod; 0: blend (m)", default=1e-6)
 
 
 @dataclass(frozen=True)

@@ -198,6 +198,8 @@ def test_records_in_other_units_and_mat_files(params, model_cache, tmp_path):
     ("time,x_rod\n0,0\n0,0\n", ["increase strictly"]),
     ("time,x_rod [kN]\n0,0\n1,0\n", ["x_rod", "kN"]),
     ("time,x_rood\n0,0\n1,0\n", ["x_rood", "did you mean 'x_rod'"]),
+    # a measurement-like name is offered the measured channels of its symbol, not the input x_cmd
+    ("time,x_act\n0,0\n1,0\n", ["x_act", "measured channels of 'x'", "'x_rod'"]),
     ("", ["empty"]),
     ("time,x_rod\n0,0\n", ["at least two"]),
     # a record's noise field is typed: a typo or a sign slip is refused, not ignored

@@ -16,7 +16,8 @@ __all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow"
 #: default. A part states what each value sets (:attr:`Part.small_signal`). Policies
 #: the caller does not choose take their default (``quantisation = "off"``: a real
 #: sensor's quantisation steps 0, so its reading has slope 1).
-POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep"), "quantisation": ("off", "keep")}
+POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep"), "quantisation": ("off", "keep"),
+            "screw_lock": ("off", "keep")}
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from .motor import no_load_speed, shaft
 
 __all__ = [
     "lead_ratio", "efficiency_factor", "dead_zone", "elastic", "play_rate", "held_force",
-    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA", "held_at_rest",
+    "OVERTRAVEL", "Elastic", "Rigid", "F_EXT", "ETA", "held_at_rest", "lock_rate", "locked_factor", "TAU_LOCK",
 ]
 
 #: The efficiency switch's former fixed width (W), the default of ``P_blend``.
@@ -60,6 +60,73 @@ def efficiency_factor(F, omega, eta, P, eta_inv=None):
     # q/P_blend reorders the derivative's products); the exact switch where P_blend = 0
     w = 0.5 * (1 + ca.if_else(P.P_blend > 0, ca.tanh((q / _P_REF) * (_P_REF / P.P_blend)), ca.sign(q)))
     return w / eta + (1 - w) * eta_inv
+
+
+#: Decay time of the lock memory where it is off (``x_lock = 0``, s): the state then
+#: only relaxes to 0, decoupled from everything.
+TAU_LOCK = 1e-3
+#: Force floor of the memory's pre-sliding damping (N): keeps it smooth through F = 0.
+F_LOCK = 1e3
+
+
+def lock_rate(F, omega, z, P):
+    """Rate of the screw-nut's self-locking memory z in [-1, 1] (1/s): where it is in the
+    band between the back-driven (z = -1, g = eta_inv) and the driving (z = +1, g = 1/eta)
+    torque factor. A Dahl-type pre-sliding law in the shaft angle,
+    dz/dt = (u - |u| z) / phi_lock with u = omega sign(F) and phi_lock = x_lock (2 pi/p):
+    the shaft turning under load moves z to the edge of the way the power flows within
+    ``x_lock`` of rod travel; at standstill dz/dt = 0, so z (and the transmitted torque's
+    place in the band) is kept, as stiction keeps a force. ``x_lock = 0`` is no memory:
+    z decays with TAU_LOCK and the factor is the blend over ``P_blend``.
+
+    Parameters
+    ----------
+    F : SX
+        Force the nut transmits to the rod (N).
+    omega : SX
+        Shaft speed (rad/s).
+    z : SX
+        The memory state (-).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``p``, m, and ``x_lock``, m).
+    """
+    u = omega * ca.sign(F)
+    memory = (u - ca.fabs(u) * z) * lead_ratio(P) / ca.fmax(P.x_lock, 1e-30)
+    return ca.if_else(P.x_lock > 0, memory, -z / TAU_LOCK)
+
+
+def locked_factor(F, omega, z, eta, P, eta_inv=None):
+    """Screw-nut torque factor g with the self-locking memory: g_mid + g_half z, the
+    band (eta_inv, 1/eta) at the place z holds; with ``x_lock = 0`` the blend
+    :func:`efficiency_factor` (the smooth model the linearisation, the model-exchange
+    FMU and identification use: the small-signal policy ``screw_lock = "off"``).
+
+    Parameters
+    ----------
+    F : SX
+        Force the nut transmits to the rod (N).
+    omega : SX
+        Shaft speed (rad/s).
+    z : SX
+        The memory state (-), :func:`lock_rate`.
+    eta : SX
+        Direct efficiency (-).
+    P : SimpleNamespace
+        Parameter symbols by flat name (``p``, ``P_blend``, ``x_lock``, ``eta_inv``).
+    eta_inv : SX, optional
+        Inverse efficiency (-); default ``P.eta_inv``.
+    """
+    eta_inv = P.eta_inv if eta_inv is None else eta_inv
+    g_half = 0.5 * (1 / eta - eta_inv)
+    # pre-sliding damping (LuGre's sigma_1): z + tau_1 dz/dt, tau_1 = 2 sqrt(J phi_lock / k),
+    # critical on the pre-sliding spring k = (p/2 pi)(|F| + F_LOCK) g_half of the shaft
+    # inertia (without it the memory rings and the ringing's rectification walks z to the
+    # middle of the band); tau_1 dz/dt is 0 in steady sliding (z at an edge)
+    phi_lock = ca.fmax(P.x_lock, 1e-30) / lead_ratio(P)
+    tau_1 = 2 * ca.sqrt((P.J_m + P.J_s) * phi_lock / (lead_ratio(P) * (ca.fabs(F) + F_LOCK) * g_half))
+    zd = z + tau_1 * lock_rate(F, omega, z, P)
+    g_mem = 0.5 * (1 / eta + eta_inv) + g_half * ca.fmin(ca.fmax(zd, -1), 1)
+    return ca.if_else(P.x_lock > 0, g_mem, efficiency_factor(F, omega, eta, P, eta_inv))
 
 
 def dead_zone(delta, B):
@@ -188,6 +255,9 @@ ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model 
 
 #: Small-signal policy: backlash "off" closes the gap (dead zone and play have slope 1 at B = 0).
 _SMALL_SIGNAL = {"backlash": {"off": {"B": 0.0}}}
+#: The elastic screw's self-locking memory: "off" (the default of linearisation, trim and
+#: every smooth use) is the blend over P_blend; "keep" linearises the pre-sliding memory.
+_SMALL_SIGNAL_LOCK = {**_SMALL_SIGNAL, "screw_lock": {"off": {"x_lock": 0.0}}}
 #: Inside the gap the spring has no slope and a trim's Newton cannot find the contact:
 #: start from the backlash-free trim with the nut moved half the gap towards the flank
 #: that carries the screw force.
@@ -246,6 +316,26 @@ class Elastic(Part):
     outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
     small_signal = _SMALL_SIGNAL
+    #: ``screw_lock``: ``memory`` (default) carries the self-locking memory z_lock
+    #: (:func:`lock_rate`, parameter ``x_lock``); ``blend`` is the memoryless blend over
+    #: ``P_blend`` alone (the model before the memory, one state fewer).
+    options = {"screw_lock": ("memory", "blend")}
+
+    def __init__(self, options: dict | None = None):
+        """
+        Parameters
+        ----------
+        options : dict, optional
+            ``screw_lock``: ``"memory"`` (default) or ``"blend"``.
+        """
+        super().__init__(options)
+        self.memory = self.opt.get("screw_lock", "memory") == "memory"
+        if self.memory:
+            self.states = type(self).states + (
+                State("z_lock", "1", "screw-nut self-locking memory: -1 back-driven edge, +1 driving edge",
+                      scale=lambda P: 1.0),)
+            self.params = type(self).params + ("x_lock",)
+            self.small_signal = _SMALL_SIGNAL_LOCK
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS
@@ -267,7 +357,9 @@ class Elastic(Part):
             "x_rod_mech": lambda b: b["x_rod"],
             "v_rod_mech": lambda b: b["v_rod"],
             "F_drive": lambda b: b["F_in"] - b["F_load_rod"],
-            "g_screw": lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"]),
+            "g_screw": (lambda b: locked_factor(b["F_in"], b["omega"], b["z_lock"], b["eta_screw"], b.P,
+                                                b["eta_inv_screw"])) if self.memory else
+                       (lambda b: efficiency_factor(b["F_in"], b["omega"], b["eta_screw"], b.P, b["eta_inv_screw"])),
             "T_load": lambda b: lead_ratio(b.P) * b["F_in"] * b["g_screw"],
             der("phi"): lambda b: b["omega"],
             der("omega"): lambda b: _shaft(b, b.P.J_m + b.P.J_s),
@@ -276,6 +368,7 @@ class Elastic(Part):
             "P_screw_nut": lambda b: b["T_load"] * b["omega"] - b["F_in"] * b["v_in"],
             "E_kin": lambda b: 0.5 * (b.P.J_m + b.P.J_s) * b["omega"] ** 2 + 0.5 * b.P.M * b["v_rod"] ** 2,
             "P_load": lambda b: b["f_ext"] * b["v_rod"],
+            **({der("z_lock"): lambda b: lock_rate(b["F_in"], b["omega"], b["z_lock"], b.P)} if self.memory else {}),
         }
 
 

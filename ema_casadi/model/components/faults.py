@@ -19,6 +19,13 @@ those of the healthy actuator.
   (``v_d_open``, ``v_q_open``: :func:`~ema_casadi.model.components.inverter.open_bridge`):
   ``v = (1 - a) v_bridge + a v_open``. The surface then moves under its load against
   friction and the screw's back-driving efficiency.
+- **disconnect** (``a_shear``, 0..1): the mechanical link between motor and rod breaks
+  (a sheared coupling or a lost nut): the force the screw transmits becomes
+  ``(1 - a) F_in`` on both sides, so the rod moves under its load against its own
+  friction and the motor side (shaft and screw) turns free as the loop drives it. It
+  needs the two-mass screw (``screw = elastic``), where the rod is a body of its own;
+  the rigid screw has no coupling force to cut (there the fault changes the reported
+  F_in only, not the motion).
 - **supply** (``a_supply``, 0..1): the DC link loses the fraction ``a`` of its voltage,
   ``v_dc -> (1 - a) v_dc`` (undervoltage; 1 is a supply loss).
 - **wear** (``wear_f``, ``wear_b``, relative growth, driven as a ramp from the onset at
@@ -95,7 +102,7 @@ class On(Part):
     """Every fault kind, each behind its own input (module docstring)."""
 
     family, value = "faults", "on"
-    doc = "fault injection: jam, free-run (bridge off), supply loss, sensor bias/drift/stuck/loss/noise"
+    doc = "fault injection: jam, free-run (bridge off), disconnect, supply loss, sensor bias/drift/stuck/loss/noise"
     states = (
         State("x_jam", "m", "jam anchor: follows the rod while healthy, stands at the onset position",
               scale=lambda P: P.stroke, travel=lambda P: 1.0),
@@ -104,6 +111,7 @@ class On(Part):
     inputs = (
         Input("a_jam", "1", "dimensionless", "fault: jam, fraction of the lock stiffness (0 healthy, 1 locked)"),
         Input("a_open", "1", "dimensionless", "fault: bridge off / drive loss (0 healthy, 1 off)"),
+        Input("a_shear", "1", "dimensionless", "fault: motor-rod link broken (0 healthy, 1 disconnected)"),
         Input("a_supply", "1", "dimensionless", "fault: fraction of the DC-link voltage lost (0 healthy, 1 lost)"),
         Input("wear_f", "1", "dimensionless", "fault: relative growth of F_seal and C_bear (0 healthy)"),
         Input("wear_b", "1", "dimensionless", "fault: relative growth of the backlash B (0 healthy)"),
@@ -115,6 +123,8 @@ class On(Part):
     faults = (
         Fault("jam", "a_jam", "1", 0.0, 1.0, "the rod locks at its onset position (1: fully)"),
         Fault("free_run", "a_open", "1", 0.0, 1.0, "the bridge is switched off (1): no drive, diodes only"),
+        Fault("disconnect", "a_shear", "1", 0.0, 1.0,
+              "the coupling shears (1): motor side free of the nut and rod (screw = elastic)"),
         Fault("supply", "a_supply", "1", 0.0, 1.0, "the DC link loses this fraction of its voltage"),
         Fault("wear_friction", "wear_f", "1/s", 0.0, 10.0, "F_seal and C_bear grow by this fraction per second",
               rate=True),
@@ -153,6 +163,7 @@ class On(Part):
             "v_d": lambda b, v: voltages(b, v, 0),
             "v_q": lambda b, v: voltages(b, v, 1),
             "v_dc": lambda b, v: (1 - _unit(b["a_supply"])) * v,
+            "F_in": lambda b, F: (1 - _unit(b["a_shear"])) * F,
         }
         for target, (tag, *_rest) in SENSOR_TARGETS.items():
             out[target] = lambda b, y, tag=tag: _sensed(b, y, tag)
