@@ -105,6 +105,18 @@ FLAGS = {"t_end": "--t-end", "dt": "--dt", "dt_out": "--dt-out", "event_tol": "-
          "solver": "--solver", "zoh": "--zoh", "from_trim": "--from-trim"}
 
 
+def _named(exc, model) -> Exception:
+    """simulate()'s error under the flag that set what it names: a signal checked against
+    the chosen solver's sampling (``x_cmd ...`` -> ``--x-cmd ...``), an argument
+    (``from_trim: ...`` -> ``--from-trim: ...``); any other error as it is."""
+    if isinstance(exc, SignalError):
+        name = str(exc).split(" ", 1)[0]
+        flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
+        return UserError(flag + str(exc)[len(name):])
+    name = str(exc).split(":", 1)[0]
+    return UserError(FLAGS[name] + str(exc)[len(name):]) if name in FLAGS else exc
+
+
 def run(args) -> dict:
     out = check_output_path(args.out, (".csv", ".npz", ".mat"), "--out")
     plot = check_output_path(args.plot, (".png",), "--plot")
@@ -149,15 +161,8 @@ def run(args) -> dict:
         res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
                        zoh=args.zoh, event_tol=args.event_tol, progress=progress_of(args), from_trim=args.from_trim,
                        **{n: s for n, s in given.items() if s is not None})
-    except SignalError as exc:  # checked against the chosen solver's sampling: named by its flag
-        name = str(exc).split(" ", 1)[0]
-        flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
-        raise UserError(flag + str(exc)[len(name):]) from None
-    except SimulationError as exc:  # an argument of simulate() is the flag that set it (from_trim: -> --from-trim:)
-        name = str(exc).split(":", 1)[0]
-        if name not in FLAGS:
-            raise
-        raise UserError(FLAGS[name] + str(exc)[len(name):]) from None
+    except (SignalError, SimulationError) as exc:
+        raise _named(exc, model) from None
     written = []
     if out is not None:
         table = res.with_instantaneous() if args.instantaneous else res

@@ -281,10 +281,12 @@ def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) ->
     t = np.linspace(0.0, sc["duration"], max(2, min(10**6, int(sc["duration"] * 1e3) + 1)))
     stroke = params.actuator.stroke
     P = SimpleNamespace(**params.as_dict())
-    held = [float(part.limits["held_load"](P)) for part in parts_for(variants)[0] if "held_load" in part.limits]
+    parts = parts_for(variants)[0]
+    held = [float(part.limits["held_load"](P)) for part in parts if "held_load" in part.limits]
+    role = {r: i.name for part in parts for i in part.inputs for r in i.roles}  # the model's inputs by role
     for key, limit, unit, scale, what in (
-            ("x_cmd", stroke, "mm", 1e3, "beyond the stroke"),
-            ("f_ext", max(held) if held else math.inf, "kN", 1e-3,
+            (role.get("command"), stroke, "mm", 1e3, "beyond the stroke"),
+            (role.get("load"), max(held) if held else math.inf, "kN", 1e-3,
              "more than the actuator holds at standstill at its current limit")):
         sig = sc["signals"].get(key)
         if sig is None or not math.isfinite(limit):

@@ -62,6 +62,7 @@ from ._choice import AUTO_ATOL, AUTO_RTOL, choose_solver, trimmed_start
 from ._cvodes import BDF_MAX_ORDER
 from ._envelope import GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure
 from ._inputs import as_signal, check_inputs, input_matrix, input_signals, noise_signal
+from ._interval import interval_function
 from ._pwm import check_switched
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
@@ -71,7 +72,7 @@ __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "MAX_STEPS", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
     "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
-    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal",
+    "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal", "interval_function",
     # the interfaces other packages build on: request checks, inputs, the start, integrator failures
     "check_run", "check_inputs", "check_switched", "trimmed_start", "as_signal", "input_signals", "input_matrix",
     "GaveUp", "captured_stderr", "integrator_failure",
