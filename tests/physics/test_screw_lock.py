@@ -20,7 +20,7 @@ JAM = dict(x_cmd="step:2mm@0.05", a_jam="step:1@0.06", dt_out=1e-3)
 
 
 def _held(params, x_lock, t_end):
-    model = ema.build_model(params, {"faults": "on"})
+    model = ema.build_model(params, {"faults": "on", "screw_lock": "memory"})
     return ema.simulate(model, t_end, **JAM, p=model.p(x_lock=x_lock))
 
 
@@ -70,7 +70,7 @@ def test_the_linearisation_uses_the_blend(params):
     # and leaves every other eigenvalue of the blend model alone
     from ema_casadi.model.components.ballscrew import TAU_LOCK
 
-    model = ema.build_model(params)
+    model = ema.build_model(params, {"screw_lock": "memory"})
     lin = ema.linearize(model, x_cmd=0.0, f_ext=5e3)
     i = list(lin.state_labels).index("z_lock")
     assert np.all(lin.A[i, :i] == 0) and np.all(lin.A[i, i + 1 :] == 0)

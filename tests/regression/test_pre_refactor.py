@@ -127,8 +127,8 @@ SINE_KERNEL_FLOOR = {"gain_db": 10 * 1.7e-6, "phase_deg": 10 * 1.6e-5}
 # -- (c) sine stream -------------------------------------------------------------------------
 def test_sine_stream_matches_reference():
     ss = REF["sine_stream"]
-    fr = ema.sine_stream(_params(), **ss["kwargs"], variants={"screw_lock": "blend"})  # the screw of _model
-    assert fr.axes["variant"] == ["screw_lock=blend"]  # the reference's "model", named by its one choice
+    fr = ema.sine_stream(_params(), **ss["kwargs"])  # the default screw_lock = "blend", the screw of _model
+    assert fr.axes["variant"] == ["model"]
     for pt in ss["points"]:
         idx = tuple(pt["index"])
         assert fr.axes["load"][idx[1]] == pt["load_N"]
@@ -168,6 +168,10 @@ def test_tuned_gains_match_reference():
     assert set(res.gains_before) == set(tr["gains_before"]) and set(res.gains_after) == set(tr["gains_after"])
     for g, v in tr["gains_before"].items():
         _check(f"before {g}", res.gains_before[g], v, 0.0)
+    # The tuned gains were made again when the tuner's soft minimum over each constraint
+    # grid went from sharpness 3000 to 300 (a conservative bound by at most ln(n)/rho, so a
+    # slightly other problem: K_x -1.1 %, K_i_i +2.3 %); the new optimum is the same on the
+    # Haswell and Sandybridge kernels within 7e-12 relative (checked by hand).
     # IPOPT stops at a scaled NLP error of 1e-6 (ipopt.tol): a formulation with more (here
     # inactive) constraint groups reaches the same optimum only within that. Measured after
     # the cascade requirements were added: at most 2.0e-6 relative (T_i_w), 5e-8 on the
