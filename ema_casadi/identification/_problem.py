@@ -213,6 +213,9 @@ class Predictor:
         The free parameters.
     base : ndarray
         The full parameter vector the free values are put into.
+    x0_states : sequence of str
+        States whose initial values are estimated per record (default none: each
+        record starts at rest, :func:`rest_state`).
     """
 
     def __init__(self, model, records, free: Free, base, x0_states=()):
