@@ -163,6 +163,8 @@ def free_parameters(model, names, bounds: dict | None = None, start: dict | None
     for k, c in enumerate(check):
         if c == "fraction":
             hi[k] = 1.0
+        if c == "signed fraction":  # a band that may sit above (> 0) or below (< 0) a limit
+            lo[k], hi[k] = -1.0, 1.0
     bounds = dict(bounds or {})
     for n, (a, b) in bounds.items():
         if n not in names:
