@@ -172,6 +172,9 @@ NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (),
     "--example-records": (),
     "--track": (NoEffect(("--track",), _EXAMPLE.why, _EXAMPLE.when),),
+    "--model-error": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--model-error", "2"), "with --track "
+                               "(a trend's fits are judged one by one; give it without --track)", _TRACK.when),
+                      NoEffect(("--model-error", "2"), _EXAMPLE.why, _EXAMPLE.when)),
     "--compare": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--compare", "anti_windup=backcalc,clamping"),
                            _TRACK.why, _TRACK.when),
                   NoEffect(("--compare", "anti_windup=backcalc,clamping"), _EXAMPLE.why, _EXAMPLE.when)),
@@ -210,7 +213,7 @@ NO_EFFECT = {
 _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
-           "--jobs": "2", "--bounds": "F_seal=1:500"}
+           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2"}
 for _flag in NO_EFFECT:  # --example-records writes the records and stops: every other flag is idle
     if _flag != "--example-records":
         _value = [_SAMPLE[_flag]] if _flag in _SAMPLE else []
@@ -337,7 +340,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable"):  # the linear fit takes none of them
+    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error"):  # the linear fit: none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
