@@ -42,9 +42,11 @@ HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detecti
 
 
 _LIST = NoEffect((), "with --list (it prints the fault kinds and monitors and stops)", lambda a: a.list)
-_HEALTHY = NoEffect((), "without --healthy-runs N (it sets the healthy runs)", lambda a: a.healthy_runs == 0)
+_HEALTHY = NoEffect((), "without --healthy-runs N or --thresholds (they run the healthy runs)",
+                    lambda a: a.healthy_runs == 0 and not a.thresholds)
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {"--faults": (), "--list": (),
+             "--thresholds": (NoEffect(("--list", "--thresholds"), _LIST.why, _LIST.when),),
              "--out": (NoEffect(("--list", "--out", "o"), _LIST.why, _LIST.when),),
              "--healthy-runs": (NoEffect(("--list", "--healthy-runs", "3"), _LIST.why, _LIST.when),),
              **{flag: (NoEffect(("--list", flag, "2"), _LIST.why, _LIST.when),
@@ -104,8 +106,6 @@ def run(args) -> dict:
     stem = Path(args.faults).stem
     names = [f"{stem}.csv", f"{stem}.json", f"{stem}.png"]
     if args.thresholds:
-        if args.list:
-            raise UserError("--thresholds: not with --list (which only lists the kinds and monitors)")
         args.healthy_runs = args.healthy_runs or STUDY_RUNS
         if args.healthy_runs < 3:
             raise UserError(f"--healthy-runs {args.healthy_runs}: the threshold study fits the healthy maxima, "

@@ -194,10 +194,9 @@ def run(args) -> dict:
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
-    signals = {"x_cmd": x_cmd, "f_ext": f_ext, **others}
-    if model.switched or choose_solver(model, args.solver, args.zoh)[0] == "rk4":
-        args.dt = _step(args, model, user_dt, dt_out, {n: s for n, s in signals.items() if s is not None})
-    given = _checked(args, model, dt_out, signals)
+    given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})  # (a smaller default dt
+    if model.switched or choose_solver(model, args.solver, args.zoh)[0] == "rk4":  # samples them finer still)
+        args.dt = _step(args, model, user_dt, dt_out, {n: s for n, s in given.items() if s is not None})
     t0 = time.perf_counter()
     try:
         res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
