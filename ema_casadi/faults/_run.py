@@ -40,16 +40,19 @@ def _start(model, spec: FaultSpec):
     from the trim of the whole loop at its flight condition, its attitude command on
     top of the trim's."""
     sc = spec.scenario
-    if sc["condition"] is None:  # inputs the model lacks (a segment's T_amb without thermal) are left out
-        return model.p(), None, {k: v for k, v in sc["signals"].items() if k in model.inputs}
+    # the scenario's signals by the role they drive; one the model lacks (a segment's cavity
+    # temperature without the thermal network) is left out
+    sig = {model.input_with(role): v for role, v in sc["signals"].items() if model.inputs_with(role)}
+    if sc["condition"] is None:
+        return model.p(), None, sig
     from ..aircraft import aircraft_point, condition_overrides
     from ..signals import constant
 
     pv = model.p(**condition_overrides(sc["condition"]))
     op = aircraft_point(model, sc["condition"])
     fixed = {n: float(v) for n, v in op.policy.get("trim_free", {}).items()}
-    sig = dict(sc["signals"])
-    sig["theta_cmd"] = sig["theta_cmd"] + constant(float(op.u[model.inputs.index("theta_cmd")]))
+    theta_cmd = model.input_with("attitude_command")
+    sig[theta_cmd] = sig[theta_cmd] + constant(float(op.u[model.inputs.index(theta_cmd)]))
     return pv, op.x, {**fixed, **sig}
 
 

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
-from ..model.components import VARIANTS, validate_variants
+from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 from ._metrics import METRICS, check_metrics
@@ -61,8 +61,11 @@ MAX_REDRAWS = 1000
 #: Most runs one sweep may hold.
 MAX_RUNS = 10**6
 _TABLES = ("sweep", "variants", "parameters", "scenario", "metrics")
-_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol",
-                  "zoh")
+#: The scenario's command and load: their roles, the signal kinds and bare units, and their keys in
+#: the file (from the one key table); other inputs go by name under ``inputs``.
+_DRIVEN = (("command", "length", "mm"), ("load", "force", "N"))
+_SCENARIO_KEYS = ("duration", *(SIGNAL_KEYS[r] for r, _, _ in _DRIVEN), "inputs", "solver", "dt", "dt_out", "rtol",
+                  "atol", "event_tol", "zoh")
 _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
@@ -107,7 +110,8 @@ class SweepSpec:
     parameters : dict
         Parameter -> its checked description (grid values or distribution).
     scenario : dict
-        The simulation: ``duration``, ``signals`` (input -> Signal), solver options.
+        The simulation: ``duration``, ``signals`` (input role or name -> Signal: the
+        command and load by role, other inputs by name), solver options.
     metrics : dict
         Metric name -> its options (:data:`~ema_casadi.sweeps.METRICS`).
     seed : int or None
@@ -143,7 +147,8 @@ class SweepSpec:
 
     def _hash(self) -> str:
         doc = {"params": self.params.as_dict(), "runs": [[r.index, list(r.variant), r.values] for r in self.runs],
-               "scenario": {k: (v if k != "signals" else {n: s.text or repr(s) for n, s in v.items()})
+               "scenario": {k: (v if k != "signals" else {SIGNAL_KEYS.get(n, n): s.text or repr(s)
+                                                          for n, s in v.items()})
                             for k, v in self.scenario.items()},
                "metrics": self.metrics, "version": 1}
         return hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()[:16]
@@ -420,9 +425,10 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
         out["zoh"] = table["zoh"]
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
-    for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
+    for role, kind, bare in _DRIVEN:
+        key = SIGNAL_KEYS[role]
         if key in table:
-            sig[key] = _signal(f"{where} {key}", table[key], kind, bare, stroke, T)
+            sig[role] = _signal(f"{where} {key}", table[key], kind, bare, stroke, T)
     inputs = table.get("inputs", {})
     if not isinstance(inputs, dict):
         raise SweepError(f"{where} inputs: expected a table input = signal, got {inputs!r}")
@@ -434,7 +440,7 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
         parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
         info.update({i.name: i for part in parts for i in part.inputs})
     for name, value in inputs.items():
-        if name in ("x_cmd", "f_ext") or name not in info:
+        if name not in info or {r for r, _, _ in _DRIVEN} & set(info[name].roles):  # those have their own keys
             raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
         sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
     out["signals"] = sig

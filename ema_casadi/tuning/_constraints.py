@@ -116,8 +116,8 @@ def _limit_groups(op, X, Cs, ds, req: Requirements, limits: dict) -> list[_Group
     i_q, v_d, v_q; operating values added)."""
     F = op.f_ext
     Y = Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])
-    i_q = op.output("i_q") + Y[0, :]
-    v_d, v_q = op.output("v_d") + Y[1, :], op.output("v_q") + Y[2, :]
+    i_q, v_d, v_q = (op.output(op.model.output_with(r)) + Y[k, :]
+                     for k, r in enumerate(("motor_current", "d_voltage", "q_voltage")))
     v_lim = limits["voltage"]
     r_i = (i_q / limits["current"]) ** 2
     r_v = (v_d**2 + v_q**2) / v_lim**2
