@@ -64,8 +64,8 @@ _TABLES = ("sweep", "variants", "parameters", "scenario", "metrics")
 #: The scenario's command and load: their roles, the signal kinds and bare units, and their keys in
 #: the file (from the one key table); other inputs go by name under ``inputs``.
 _DRIVEN = (("command", "length", "mm"), ("load", "force", "N"))
-_SCENARIO_KEYS = ("duration", *(SIGNAL_KEYS[r] for r, _, _ in _DRIVEN), "inputs", "solver", "dt", "dt_out", "rtol",
-                  "atol", "event_tol", "zoh")
+_SETTINGS = ("duration", "solver", "dt", "dt_out", "rtol", "atol", "event_tol", "zoh")
+_SCENARIO_KEYS = (*_SETTINGS[:1], *(SIGNAL_KEYS[r] for r, _, _ in _DRIVEN), "inputs", *_SETTINGS[1:])
 _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
@@ -204,18 +204,73 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
     vspec = _variants(_table(data, "variants", src), params, variants or {}, src)
     pspec = {k: _parameter(f"{src} [parameters] {k}", k, v, params)
              for k, v in _table(data, "parameters", src).items()}
+    metrics = _table(data, "metrics", src)
+    return _assembled(str(head.get("name", name)), src, params, vspec, pspec, seed, samples, metrics,
+                      lambda: _scenario(_table(data, "scenario", src), params, src, vspec))
+
+
+def make_sweep(params: Parameters, scenario: dict, metrics: dict, *, parameters: dict | None = None,
+               variants: dict | None = None, seed: int | None = None, samples: int = 1, name: str = "sweep",
+               source: str = "<sweep>") -> SweepSpec:
+    """A sweep built from Python objects (no file text): the scenario's signals as
+    :class:`~ema_casadi.signals.Signal` objects, checked as :func:`parse_sweep` checks a file.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set the runs start from.
+    scenario : dict
+        ``duration``, ``dt``, ``dt_out``, ``rtol``, ``atol``, ``event_tol`` (s or -),
+        ``solver``, ``zoh``, as a file's ``[scenario]``, and ``signals``: input role or
+        name -> Signal (``{"command": Signal.step(1e-3, 0.01)}``).
+    metrics : dict
+        Metric name -> its options (:data:`~ema_casadi.sweeps.METRICS`), as ``[metrics]``.
+    parameters : dict, optional
+        Parameter -> its description (grid or distribution), as ``[parameters]``.
+    variants : dict, optional
+        Variant key -> a value or a list of values, as ``[variants]``.
+    seed : int, optional
+        The Monte Carlo seed (needed with a distribution).
+    samples : int
+        Draws per grid point.
+    name, source : str
+        The sweep's name, and where it came from (named in error messages).
+    """
+    if not isinstance(params, Parameters):
+        raise SweepError("params: expected a Parameters (from load_parameters)")
+    for what, value in (("scenario", scenario), ("metrics", metrics), ("parameters", parameters or {}),
+                        ("variants", variants or {})):
+        if not isinstance(value, dict):
+            raise SweepError(f"{source} {what}: expected a dict, got {type(value).__name__}")
+    vspec = _variants(dict(variants or {}), params, {}, source)
+    pspec = {k: _parameter(f"{source} parameters {k}", k, v, params) for k, v in (parameters or {}).items()}
+
+    def checked() -> dict:
+        where = f"{source} scenario"
+        _known(where, scenario, (*_SETTINGS, "signals"), "key")
+        signals = scenario.get("signals", {})
+        bad = [k for k, s in signals.items() if not isinstance(s, Signal)] if isinstance(signals, dict) else [None]
+        if bad:
+            raise SweepError(f"{where} signals: expected input (role or name) -> Signal, got {signals!r}")
+        return {**_settings(scenario, where), "signals": dict(signals)}
+
+    return _assembled(name, source, params, vspec, pspec, seed, samples, metrics, checked)
+
+
+def _assembled(name, src, params, vspec, pspec, seed, samples, metrics, scenario) -> SweepSpec:
+    """The checked sweep: its runs expanded and checked, then its scenario (``scenario()``)
+    and its metrics."""
     if any("distribution" in d for d in pspec.values()) and seed is None:
         raise SweepError(f"{src} [sweep] seed: needed when a parameter is drawn from a distribution")
     if not any("distribution" in d for d in pspec.values()) and samples > 1:
         raise SweepError(f"{src} [sweep] samples = {samples}: no parameter is drawn from a distribution")
-    metrics = _table(data, "metrics", src)
     if not metrics:
         raise SweepError(f"{src} [metrics]: name at least one metric ({', '.join(METRICS)})")
-    spec = SweepSpec(name=str(head.get("name", name)), source=src, params=params, variants=vspec, parameters=pspec,
+    spec = SweepSpec(name=name, source=src, params=params, variants=vspec, parameters=pspec,
                      scenario={}, metrics={}, seed=seed, samples=samples)
     spec.runs = _expand(spec)
     _check_runs(spec, src)
-    spec.scenario = _scenario(_table(data, "scenario", src), params, src, vspec)
+    spec.scenario = scenario()
     spec.metrics = check_metrics(spec, metrics, src, SweepError)
     return spec
 
@@ -410,9 +465,8 @@ def _shown(values: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" for k, v in values.items())
 
 
-def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
-    _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
-    where = f"{src} [scenario]"
+def _settings(table: dict, where: str) -> dict:
+    """The scenario's run settings (duration, steps, tolerances, solver, zoh), checked."""
     out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
     for key in ("duration", "dt", "dt_out", "rtol", "atol", "event_tol"):
         if key in table:
@@ -423,6 +477,13 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
         if not isinstance(table["zoh"], bool):
             raise SweepError(f"{where} zoh: expected true or false, got {table['zoh']!r}")
         out["zoh"] = table["zoh"]
+    return out
+
+
+def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
+    _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
+    where = f"{src} [scenario]"
+    out = _settings(table, where)
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
     for role, kind, bare in _DRIVEN:

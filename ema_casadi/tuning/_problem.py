@@ -263,7 +263,8 @@ class TuningProblem(_Inspection):
         else:
             grp, ise = _overshoot_group(X, t, Cs[0, :], ds[0], req, F, len(self._signatures["rod"]) - 1)
             self.groups.append(grp)
-        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, ecu_limits(self.model, op.p)))
+        limited = tuple(self.model.output_with(r) for r in ("motor_current", "d_voltage", "q_voltage"))
+        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, ecu_limits(self.model, op.p), limited))
         return ise
 
     def _frequency_groups(self, op, case, A_eig, loop_matrices, opened, noise):
