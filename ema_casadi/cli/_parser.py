@@ -12,7 +12,7 @@ import sys
 from ._options import DEFAULT_MODEL
 
 __all__ = ["VariantHelpFormatter", "variant_help", "add_common", "build_parser", "get_parser",
-           "join_values", "unknown_flag"]
+           "join_values", "unknown_flag", "given_flags", "flag_name"]
 
 #: The ``--variant`` help as declared; :class:`VariantHelpFormatter` shows the registry's keys and
 #: values in its place (another formatter shows this sentence).
@@ -107,6 +107,36 @@ def get_parser():
             if "--variant" in action.option_strings:
                 action.help = text
     return parser
+
+
+def flag_name(action) -> str:
+    """The name a flag goes by in messages and ``NO_EFFECT`` tables: its first long option
+    (``--progress`` for ``--progress/--no-progress``)."""
+    return next(o for o in action.option_strings if o.startswith("--"))
+
+
+def given_flags(sub, words: list[str]) -> set[str]:
+    """The flags on a command's line (by :func:`flag_name`), also those given at their
+    default value: ``words`` parsed again by the command's parser ``sub`` with every
+    default suppressed, so that only what was given is set.
+
+    Parameters
+    ----------
+    sub : argparse.ArgumentParser
+        The command's parser.
+    words : list of str
+        The arguments after the command's name (already parsed once, so valid).
+    """
+    flags = {a.dest: flag_name(a) for a in sub._actions if any(o.startswith("--") for o in a.option_strings)}
+    saved = [(a, a.default) for a in sub._actions]
+    try:
+        for a, _ in saved:
+            a.default = argparse.SUPPRESS
+        ns, _ = sub.parse_known_args(words)
+    finally:
+        for a, d in saved:
+            a.default = d
+    return {flags[d] for d in vars(ns) if d in flags}
 
 
 def _subparsers(parser) -> argparse._SubParsersAction:
