@@ -173,30 +173,18 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     # a seed per run for every noise sequence (the parameters the noise inputs name)
     seeds = sorted({i.seed for i in model.input_info.values() if i.noise is not None and i.seed})
     tol = {"distribution": "uniform", "low": 1 - tolerance, "high": 1 + tolerance, "relative": True}
-<<<<<<< HEAD
-    data = {
-        "sweep": {"name": "healthy runs", "seed": int(seed), "samples": n},
-        "variants": v,
-        "parameters": {**{name: tol for name in h["vary"]},
-                       **{name: {"distribution": "uniform", "low": 0.0, "high": 2.0**31} for name in seeds}},
-        "scenario": {"duration": h["duration"], "solver": "rk4", "dt": h["dt"],
-                     "dt_out": min(h["dt_out"], h["dt"] * max(1, math.ceil(1e-4 / h["dt"] - 1e-9))) if stats
-                     else h["dt_out"], "zoh": True, **spec.scenario["text"]},
-        "metrics": {"peak": {"signals": list(alarms)}, **({"maximum": {"signals": list(stats)}} if stats else {})},
-    }
-    if not data["parameters"]:
-=======
     parameters = {**{name: tol for name in h["vary"]},
                   **{name: {"distribution": "uniform", "low": 0.0, "high": 2.0**31} for name in seeds}}
     if not parameters:
->>>>>>> main
         raise FaultError("healthy runs: nothing varies (no noise inputs, no [healthy] vary parameters)")
     # a sweep object from the scenario's signals as they were read (by role; one the model lacks
     # left out; a chirp keeps the scenario's duration), no file text written and parsed back
     signals = {role: s for role, s in spec.scenario["signals"].items() if model.inputs_with(role)}
-    sw = make_sweep(spec.params, {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
+    dt_out = min(h["dt_out"], h["dt"] * max(1, math.ceil(1e-4 / h["dt"] - 1e-9))) if stats else h["dt_out"]
+    metrics = {"peak": {"signals": list(alarms)}, **({"maximum": {"signals": list(stats)}} if stats else {})}
+    sw = make_sweep(spec.params, {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": dt_out,
                                   "zoh": True, "signals": signals},
-                    {"peak": {"signals": list(alarms)}}, parameters=parameters, variants=v, seed=int(seed),
+                    metrics, parameters=parameters, variants=v, seed=int(seed),
                     samples=n, name="healthy runs", source=f"{spec.source} (healthy runs)")
     res = sweep(sw, jobs=jobs, progress=progress)
     ok = [r for r in res.rows if r["status"] == "ok"]
