@@ -9,14 +9,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._util._checks import instance, integer, number, vector
+from .._util._notebook import Summarised
 from ..model.assembly import AssemblyError, Model
 from ..model.components import POLICIES
 from ..model.params import Parameters
 from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
 
 
-@dataclass
-class OperatingPoint:
+@dataclass(repr=False)
+class OperatingPoint(Summarised):
     """A trimmed operating point and the values the linearisation uses.
 
     Attributes
@@ -62,6 +63,12 @@ class OperatingPoint:
     # evaluation point of the Jacobian (frozen efficiency): see module docstring
     u_lin: np.ndarray | None = None
     p_lin: np.ndarray | None = None
+
+    def _facts(self) -> dict:
+        return {"x_cmd": f"{self.x_cmd * 1e3:.4g} mm", "f_ext": f"{self.f_ext / 1e3:.4g} kN",
+                "v_rod": f"{self.v_rod * 1e3:.4g} mm/s", "policy": ", ".join(f"{k} {v}" for k, v in self.policy.items()
+                                                                           if isinstance(v, str)) or None,
+                "states": len(self.states), "residual": f"{self.residual:.2g}"}
 
     def state(self, name: str) -> float:
         """A state's value at the point (SI).

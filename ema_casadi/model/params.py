@@ -25,6 +25,7 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
+from .._util._notebook import Summarised, changed_variants
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
@@ -235,8 +236,8 @@ def _variant_table(model, src: str) -> dict[str, str]:
     return dict(model)
 
 
-@dataclass(frozen=True)
-class Parameters(FaultTables):
+@dataclass(frozen=True, repr=False)
+class Parameters(Summarised, FaultTables):
     """A complete, validated parameter set in SI units.
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
@@ -271,6 +272,13 @@ class Parameters(FaultTables):
     source: str = "<memory>"
     missing: tuple = ()
     overrides: tuple = ()
+
+    def _facts(self) -> dict:
+        from .components import DEFAULT_VARIANTS
+
+        return {"source": Path(self.source).name, "parameters": len(self.names()),
+                "variants": changed_variants(self.variants, DEFAULT_VARIANTS),
+                "missing": ", ".join(self.missing) or None}
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod
