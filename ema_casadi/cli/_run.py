@@ -10,7 +10,7 @@ import threading
 from .._util import _interrupts
 from ._common import EXIT_FAILED, jsonable, user_errors
 from ._options import model_path
-from ._parser import _subparsers, build_parser, given_flags, join_negative_values, join_unit_values, unknown_flag
+from ._parser import _subparsers, build_parser, given_flags, join_values, unknown_flag
 
 
 def _reader_gone() -> int:
@@ -85,7 +85,7 @@ def _run(argv, stop) -> int:
 
     os.environ.setdefault("MPLBACKEND", "Agg")  # the command line draws off screen (PNG files only)
     parser, mods = build_parser()
-    argv = join_unit_values(join_negative_values(list(sys.argv[1:] if argv is None else argv), parser), parser)
+    argv = join_values(list(sys.argv[1:] if argv is None else argv), parser)
     unknown = unknown_flag(argv, parser)
     if unknown:
         sys.stderr.write(unknown + "\n")
