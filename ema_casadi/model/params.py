@@ -25,7 +25,7 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
-from .._util._notebook import Summarised, changed_variants
+from .._util._notebook import Summarised
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
@@ -274,10 +274,8 @@ class Parameters(Summarised, FaultTables):
     overrides: tuple = ()
 
     def _facts(self) -> dict:
-        from .components import DEFAULT_VARIANTS
-
         return {"source": Path(self.source).name, "parameters": len(self.names()),
-                "variants": changed_variants(self.variants, DEFAULT_VARIANTS),
+                "variants": ", ".join(f"{k}={v}" for k, v in self.variants.items()) or None,
                 "missing": ", ".join(self.missing) or None}
 
     # -- flat view ---------------------------------------------------------------
