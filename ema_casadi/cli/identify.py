@@ -6,13 +6,18 @@ drive the model, columns named after model states or outputs (x_rod, phi, omega,
 F_in, ...) are fitted. The fitted parameter file (--out) keeps the input file's
 layout with the estimates in place; --report DIR writes measured vs fitted figures,
 residuals, the correlation heat map, the intervals and summary.json/summary.md.
-A parameter whose 95 % interval is wider than +-50 % or that is correlated beyond 0.95
-with another is reported as not identifiable from these records (a wide one is held
-at its start value and the others fitted again). A fit that does not converge ends
-with exit status 3 and writes nothing. A fit whose residuals are not explained by
-the noise (chi-square against the given noise level, Ljung-Box whiteness) is
-inadequate: exit status 3 with the fitted file written as FILE.inadequate.toml, or
-status 0 and a warning with --allow-misfit.
+The headline 95 % intervals are robust (a Newey-West sandwich of the residuals'
+autocorrelation per record, inflated by the records' disagreement), the textbook
+ones beside them. A parameter whose robust interval is wider than +-50 % is not
+identifiable from these records (held at its start value and the others fitted
+again); a strong correlation is a note with the combination that is determined.
+A fit that does not converge ends with exit status 3 and writes nothing. The
+verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
+whiteness, records' consistency); adequate within model error (a test fails but
+every channel's systematic misfit is at most --model-error noise levels and no
+record's estimates move by more than 3x that in robust sd: status 0, the misfit
+named); inadequate: exit status 3 with the fitted file written as
+FILE.inadequate.toml, or status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level
 field such as '# flight_hours: 1200' or a column) and extrapolates each parameter's
 trend to --limit NAME=VALUE (remaining useful life).
@@ -54,6 +59,9 @@ def add_arguments(p):
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
+    p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
+                   help="systematic misfit tolerated, in noise levels (default 1: a model error below the sensor "
+                        "noise gives 'adequate within model error', exit 0)")
     p.add_argument("--allow-misfit", action="store_true",
                    help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
                         "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
@@ -168,6 +176,10 @@ def run(args) -> dict:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
+    if args.model_error is not None and not (math.isfinite(args.model_error) and args.model_error > 0):
+        raise UserError(f"--model-error must be a positive number of noise levels, got {args.model_error}")
+    if args.model_error is not None and args.track:
+        raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
     params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
     try:
@@ -179,7 +191,8 @@ def run(args) -> dict:
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
-              "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
+              "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
+              **({} if args.model_error is None else {"model_error": args.model_error})}
         if args.track:
             return _track(args, params, model, records, free, kw)
         if args.compare:
@@ -281,7 +294,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
-                  estimate_x0=kw["estimate_x0"])
+                  estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"))
     best = cmp.best
     if best is None:
         from ..simulation import RunFailed
@@ -354,14 +367,19 @@ def report(result: dict) -> None:
     truth = result.get("example", {}).get("truth", {})
     if truth:
         w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
-    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval':>25}  identifiable\n")
+    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
+      f"{'(textbook)':>25}  identifiable\n")
     for n, d in result["parameters"].items():
         if d.get("estimate") is None:
             w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
             continue
         lo, hi = d["interval"]
         ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
-        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g}  {ok}\n")
+        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
+        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
+          f"{ok}\n")
+        if d.get("note"):
+            w(f"{'':<10}   note: {d['note']}\n")
     for c in result["channels"]:
         w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
           f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
@@ -371,14 +389,26 @@ def report(result: dict) -> None:
           f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
     for rec in (result.get("initial_state") or {}).get("records", []):
         w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
-    if result.get("adequate", True):
+    rob = result.get("robust") or {}
+    if rob.get("scale_factor", 1.0) > 1.0:
+        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
+          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
+    me = result.get("model_error") or {}
+    for m in me.get("misfits", [])[:6]:
+        w(f"  systematic: {m['text']}\n")
+    if result.get("verdict") == "adequate within model error":
+        w(f"adequate within model error: systematic misfit at most {me['largest_sigma']:.2f} sigma (tolerated "
+          f"{me['threshold_sigma']:g}), records' shifts at most {me['largest_shift_sd']:.2g} robust sd (tolerated "
+          f"{me['threshold_shift_sd']:g}); robust intervals; failed tests: " + "; ".join(result["misfit"][:2]) + "\n")
+    elif result.get("adequate", True):
         tests = "chi-square, whiteness" + (", consistency" if test else "")
         w(f"adequate: the residuals are explained by the noise ({tests})\n")
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")
     for row in result.get("comparison", []):
-        state = "failed: " + row["failed"] if "failed" in row else ("adequate" if row["adequate"] else "INADEQUATE")
+        verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
+        state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
         w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
     for name, prof in result.get("profiles", {}).items():
         w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")

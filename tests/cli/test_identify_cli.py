@@ -114,10 +114,30 @@ def misfit_record(params, tmp_path_factory):
 def test_an_inadequate_fit_exits_3_and_says_so_in_the_file_name(tmp_path, capsys, misfit_record):
     code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
                            "--json", "--no-progress"], capsys)
-    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "not white" in err, err
+    # the effect size first: x_rod's running-mean misfit is 11.8 noise levels (the inertia error)
+    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "systematic misfit" in err, err
+    assert "x_rod" in err and "sigma" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.inadequate.toml"]
-    assert json.loads(out)["adequate"] is False
+    doc = json.loads(out)
+    assert doc["adequate"] is False and doc["verdict"] == "inadequate"
+    assert any("not white" in m for m in doc["misfit"])  # the statistical tests stay listed
+    assert doc["model_error"]["largest_sigma"] > 5
     assert "INADEQUATE FIT" in (tmp_path / "fit.inadequate.toml").read_text()
+
+
+def test_a_tolerated_model_error_exits_0_and_names_it(tmp_path, capsys, misfit_record):
+    """--model-error above the misfit's 11.8 noise levels: adequate within model error,
+    status 0, the fitted file under its own name, the misfit named in the JSON."""
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--json", "--no-progress", "--model-error", "20"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and doc["verdict"] == "adequate within model error" and doc["adequate"] is True, err
+    assert doc["model_error"]["threshold_sigma"] == 20 and doc["model_error"]["misfits"][0]["channel"] == "x_rod"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.toml"]
+    assert "ADEQUATE WITHIN MODEL ERROR" in (tmp_path / "fit.toml").read_text()
+    for bad in ("0", "-1", "nan"):
+        code, _, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--model-error", bad], capsys)
+        assert code == 2 and err.count("\n") == 1 and "--model-error" in err, err
 
 
 def test_allow_misfit_warns_and_succeeds(tmp_path, capsys, misfit_record):
