@@ -35,7 +35,16 @@ class OrbitNotFound(RuntimeError):
 
 
 def input_value(model: Model, name: str, pv) -> float:
-    """The default value of a driven input (a number, or the parameter it names)."""
+    """The default value of a driven input (a number, or the parameter it names), SI.
+
+    Parameters
+    ----------
+    model : Model
+    name : str
+        A driven input of the model.
+    pv : ndarray
+        Parameter vector.
+    """
     d = model.input_info[name].default
     return float(getattr(model.pdict(pv), d) if isinstance(d, str) else d)
 
@@ -69,7 +78,15 @@ class Flow:
         self.u = _u(self.model, self.sig)
 
     def set_input(self, name: str, value: float):
-        """Hold the input ``name`` at ``value`` (its SI unit)."""
+        """Hold the input ``name`` at ``value``.
+
+        Parameters
+        ----------
+        name : str
+            A driven input of the model.
+        value : float
+            Its held value (SI).
+        """
         self.held[name] = float(value)
         self.set_p(self.pv)
 

@@ -264,7 +264,16 @@ def held_inputs(model: Model, loop: str, s: dict, inputs: dict | None = None) ->
 
 def checked_inputs(model: Model, inputs, p) -> dict:
     """Held input values given by the caller: driven inputs of the model, finite, inside
-    the model's physical envelope (ValueError naming the first that is not)."""
+    the model's physical envelope (ValueError naming the first that is not).
+
+    Parameters
+    ----------
+    model : Model
+    inputs : dict or None
+        Input name -> value (SI).
+    p : ndarray
+        Parameter vector (the envelope's bounds depend on it).
+    """
     out = {}
     bounds = model.envelope(p)
     for name, v in (inputs or {}).items():
@@ -285,21 +294,32 @@ def checked_inputs(model: Model, inputs, p) -> dict:
 def unsupported(model: Model) -> str | None:
     """Why the model's orbits cannot be found by shooting (one line), or None.
 
-    The screw's self-locking memory (``screw_lock = memory``) is refused: its state is a
+    A hysteresis state (the screw's self-locking memory, ``screw_lock = memory``) is refused: it is a
     rate-independent hysteresis whose rate switches with the sign of the screw's speed and
     saturates at the band's edges, and Newton on its flow diverges (measured on the
     hunting case: the periodicity residual grows to 18 of full scale in three steps);
     ``screw_lock = blend`` is the supported form.
+
+    Parameters
+    ----------
+    model : Model
     """
-    if model.variants.get("screw_lock") == "memory":
-        return ("screw_lock = memory: the screw's self-locking memory is not supported by shooting (Newton "
-                "diverges on its hysteresis); use screw_lock = blend")
+    if model.states_with("hysteresis"):
+        return (f"screw_lock = memory: the hysteresis state {', '.join(model.states_with('hysteresis'))} is not "
+                "supported by shooting (Newton diverges on it); use screw_lock = blend")
     return None
 
 
 def checked_p(model: Model, p) -> np.ndarray:
     """The parameter vector given (default the model's): the model's length, each value
-    that differs from the model's set inside its field's range (ValueError naming it)."""
+    that differs from the model's set inside its field's range (ValueError naming it).
+
+    Parameters
+    ----------
+    model : Model
+    p : array_like or None
+        Parameter vector (SI).
+    """
     from ..model import checked
 
     base = model.p()

@@ -133,7 +133,9 @@ class State:
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
         friction contact), ``current``, ``controller_integral``, ``play`` (a memory
-        element without dynamics of its own), ``temperature`` (a thermal node, degC).
+        element without dynamics of its own), ``temperature`` (a thermal node, degC),
+        ``hysteresis`` (a rate-independent memory whose rate switches with the sign of a
+        speed and saturates at its band's edges: the screw's self-locking memory).
     x0 : float
         Initial value (SI; temperatures in degC).
     scale : callable
