@@ -21,6 +21,7 @@ from __future__ import annotations
 import sys
 
 from . import UserError, add_progress, check_output_dir, load, progress_of
+from ._flags import NoEffect
 
 COMMAND = "design-experiment"
 ORDER = 14
@@ -55,6 +56,17 @@ def add_arguments(p):
     p.add_argument("--out", default=None, metavar="DIR",
                    help="folder for design.csv, the standard test, summary.json, comparison.md, design.png")
     add_progress(p)
+
+
+#: Where a flag has no effect (every other flag acts in every combination): --seed seeds
+#: the prior's draws and --verify's noise, so without either it would change nothing.
+NO_EFFECT = {
+    **{f: () for f in ("--free", "--duration", "--criterion", "--weights", "--stroke", "--max-load", "--sigma",
+                       "--channels", "--prior", "--draws", "--verify", "--out")},
+    "--seed": (NoEffect(("--seed", "3"), "without --draws above 1, --prior or --verify (it seeds the prior's draws "
+                        "and the simulated noise)",
+                        lambda a: not a.verify and a.prior is None and (a.draws or 1) <= 1),),
+}
 
 
 def _quantity(text: str, kind: str, flag: str) -> float:

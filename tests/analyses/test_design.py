@@ -34,7 +34,8 @@ def small(params):
 def test_information_is_the_covariance_identify_reports(params, model_cache, tmp_path):
     """The inverse of the predicted information is the covariance identify computes from
     its Jacobian when it fits the same test, noise-free, with these noise levels (it
-    starts at the truth and stays there)."""
+    starts at the truth and stays there): its textbook intervals (the headline ones are
+    the robust sandwich, which scales with the residuals: zero here)."""
     model = model_cache()
     seg = Segment("multisine", (1.0, 8.0), 5e3, 2e-3)
     test = realise([seg], 1.0, 1000.0, "x_cmd", "f_ext")
@@ -47,7 +48,7 @@ def test_information_is_the_covariance_identify_reports(params, model_cache, tmp
     res = identify(params, [path], ["F_seal", "J_m"], sigma=SIGMA, consistency=False, hold_unidentifiable=False)
     # identify's 95 % intervals in log coordinates: half-width 1.96 sd_z
     sd_pred = np.sqrt(np.diag(np.linalg.inv(info.M)))
-    sd_fit = np.array([math.log(res.interval[n][1] / res.interval[n][0]) / (2 * 1.959963984540054)
+    sd_fit = np.array([math.log(res.interval_textbook[n][1] / res.interval_textbook[n][0]) / (2 * 1.959963984540054)
                        for n in ("F_seal", "J_m")])
     # the same sensitivities on the same steps: measured 1.2e-10 relative (the CSV's 17 digits,
     # the fit's last step of 1e-10); 1e-6 leaves room for another CPU's rounding and step choice
