@@ -42,6 +42,7 @@ _EXPORTS = {
     ".identification": ("IdentificationError", "IdentResult", "identify"),
     ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
     ".limitcycle": ("OrbitNotFound", "PeriodicOrbit", "periodic_orbit"),
+    ".design": ("DesignError", "DesignResult", "design_experiment"),
     ".optimal": ("Infeasible", "OptimalError", "OptimalMove", "optimal_move"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
@@ -78,5 +79,6 @@ __all__ = [
     "IdentificationError", "IdentResult", "identify",
     "FaultError", "FaultResult", "load_faults", "run_faults",
     "OrbitNotFound", "PeriodicOrbit", "periodic_orbit",
+    "DesignError", "DesignResult", "design_experiment",
     "Infeasible", "OptimalError", "OptimalMove", "optimal_move",
 ]

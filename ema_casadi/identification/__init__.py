@@ -20,8 +20,9 @@ from ._diagnostics import CHI2_95, profile, validate
 from ._fit import FitFailed, identify
 from ._frequency import identify_frequency, is_frequency_record, read_frequency_record
 from ._plot import report_names
+from ._problem import Free, Predictor, free_parameters
 from ._records import MAX_BYTES, IdentificationError, Record, read_record
-from ._result import CORRELATED, WIDE, IdentResult, autocorrelation
+from ._result import CORRELATED, WIDE, Z95, IdentResult, autocorrelation, uncertainty
 from ._synthetic import EXAMPLE_TRUTH, RECOVERY_TRUTH, SENSOR_NOISE, example_records, recovery_records, synthetic_record
 from ._track import TrackResult, report_text, track, trend
 
@@ -29,4 +30,7 @@ __all__ = ["identify", "IdentResult", "IdentificationError", "FitFailed", "Recor
            "WIDE", "CORRELATED", "autocorrelation", "SENSOR_NOISE", "synthetic_record", "example_records",
            "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "profile", "validate", "CHI2_95", "track", "trend",
            "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record",
-           "compare", "Comparison", "combinations", "bic", "MAX_FITS", "report_names", "report_text"]
+           "compare", "Comparison", "combinations", "bic", "MAX_FITS", "report_names", "report_text",
+           # what experiment design builds on: the free-parameter set, the predictor with exact
+           # sensitivities, the Fisher-information uncertainty
+           "Free", "free_parameters", "Predictor", "uncertainty", "Z95"]

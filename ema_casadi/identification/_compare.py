@@ -125,7 +125,7 @@ def bic(result) -> float:
 
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
             max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
-            estimate_x0=False) -> Comparison:
+            estimate_x0=False, model_error: float | None = None) -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters
@@ -139,7 +139,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
-    sigma, variants, max_evaluations, progress, estimate_x0
+    sigma, variants, max_evaluations, progress, estimate_x0, model_error
         As for :func:`~ema_casadi.identification.identify`.
     max_fits : int
         Most combinations (refused above).
@@ -148,13 +148,17 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     for combo in combinations(options, variants, max_fits):
         try:
             res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
-                           progress=progress, estimate_x0=estimate_x0)
+                           progress=progress, estimate_x0=estimate_x0,
+                           **({} if model_error is None else {"model_error": model_error}))
         except FitFailed as exc:
             rows.append({"variants": combo, "failed": exc.reason, "adequate": False, "bic": float("inf")})
             results.append(None)
             continue
         rows.append({"variants": combo, "adequate": res.adequacy["adequate"], "reasons": res.adequacy["reasons"],
+                     "verdict": res.adequacy.get("verdict"), "exact": bool(res.adequacy.get("exact")),
                      "bic": bic(res), "cost": res.info["cost"], "estimate": res.estimate})
         results.append(res)
-    order = sorted(range(len(rows)), key=lambda k: (not rows[k]["adequate"], rows[k]["bic"]))
+    # adequate first, then adequate within model error, then inadequate; by BIC within each
+    order = sorted(range(len(rows)), key=lambda k: (not rows[k]["adequate"], not rows[k].get("exact", False),
+                                                    rows[k]["bic"]))
     return Comparison([rows[k] for k in order], [results[k] for k in order])

@@ -127,6 +127,30 @@ class Contract:
         """
         return _one(self.outputs_with(role), role, "outputs")
 
+    def signals_with(self, role: str) -> tuple[str, ...]:
+        """The outputs with ``role``, else the states, else the inputs (the columns of a
+        result that play the role: ``pitch_attitude`` -> ``("theta",)``); () if none.
+
+        Parameters
+        ----------
+        role : str
+            An output, state or input role.
+        """
+        for names in (self.outputs_with(role), self.states_with(role), self.inputs_with(role)):
+            if names:
+                return names
+        return ()
+
+    def signal_with(self, role: str) -> str:
+        """The one signal of :meth:`signals_with`; AssemblyError if there is not exactly one.
+
+        Parameters
+        ----------
+        role : str
+            An output, state or input role.
+        """
+        return _one(self.signals_with(role), role, "signals")
+
     def input_name(self, key: str) -> str:
         """The input a key names: an input's name as is, else the one input with that role.
 

@@ -55,7 +55,8 @@ from .params import ParameterError, Parameters
 __all__ = ["Model", "build_model", "AssemblyError"]
 
 #: Outputs the assembly adds to those of the parts.
-_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy"),)
+_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy",
+                roles=("stored_energy",)),)
 
 
 @dataclass

@@ -194,7 +194,7 @@ def _check(model: Model, res: OptimalMove, sim, settle_step: float) -> dict:
                                   "ratio": peak / lim if lim else None}
     out["settling_time_s"] = settling_time(model, sim, res.start, res.move)
     out["ecu_step_settling_time_s"] = settle_step
-    power = model.output_with("link_power")
+    power = model.output_with("electrical_power")
     E, E_step = sim.energies(), res.ecu_step["result"].energies() if "result" in res.ecu_step else {}
     out["window_s"] = float(sim.t[-1])
     out["link_energy_J"] = E.get(power)

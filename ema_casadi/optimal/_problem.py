@@ -228,7 +228,7 @@ class Problem:
 
     def _power_outputs(self) -> tuple:
         if self.objective == "energy":
-            return (self.model.output_with("link_power"),)
+            return (self.model.output_with("electrical_power"),)
         if self.objective == "heat":
             return self.model.heat_outputs("winding")
         return ()

@@ -32,6 +32,7 @@ from ._part import (
     OUTPUT_ROLES,
     POLICIES,
     RATING_SENSES,
+    SIGNAL_KEYS,
     AssemblyError,
     Bound,
     Bus,
@@ -57,7 +58,7 @@ from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantErr
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
     "sensor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES",
+    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS",
     "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit", "Rating", "RATING_SENSES",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",

@@ -287,13 +287,13 @@ def _outputs(rod_speed: Bound) -> tuple:
     return (
         Output("x_rod", "m", "rod position, the sensor signal", bound=_TRAVEL, roles=("rod_position",)),
         Output("v_rod", "m/s", "rod velocity", bound=rod_speed, roles=("rod_velocity",)),
-        Output("x_in", "m", "nut-side position phi*p/(2 pi)", bound=_TRAVEL),
+        Output("x_in", "m", "nut-side position phi*p/(2 pi)", bound=_TRAVEL, roles=("nut_position",)),
         Output("omega", "rad/s", "motor speed", bound=_SPEED, roles=("motor_speed",)),
         Output("F_in", "N", "screw force on the rod", roles=("screw_force",)),
         Output("g_screw", "1", "screw-nut torque factor T_load/(F p/2pi): 1/eta driving, eta_inv back-driven",
                kind="aux"),
         Output("P_screw_nut", "W", "screw-nut efficiency loss", kind="loss"),
-        Output("P_load", "W", "power delivered to the load, f_ext*v_rod", kind="power"),
+        Output("P_load", "W", "power delivered to the load, f_ext*v_rod", kind="power", roles=("load_power",)),
     )
 
 
