@@ -36,10 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, RATING_SENSES, Fault, Freeze, Gain, Limit, Node, Rating, Seed, node_outflow
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Rating", "RATING_SENSES", "Freeze",
+    "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
@@ -374,6 +375,12 @@ class Part:
     freeze: ClassVar[tuple] = ()
     #: Saturations a trim must keep inactive (:class:`Limit`).
     trim_limits: ClassVar[tuple] = ()
+    #: Operating limits (:class:`Rating`): the constraints of an optimal move.
+    ratings: ClassVar[tuple] = ()
+    #: Variant key -> value of the smooth counterpart an optimiser uses in this part's
+    #: place (hybrid friction -> smooth, the switched bridge -> averaged): see
+    #: :meth:`~ema_casadi.model.assembly.Model.smooth`.
+    smooth: ClassVar[dict] = {}
     #: Gains a tuner may move (:class:`Gain`), outer loop first.
     gains: ClassVar[tuple] = ()
     #: Named operating conditions (the airframe's flight conditions): name -> flat
