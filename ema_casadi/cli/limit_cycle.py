@@ -21,7 +21,7 @@ import time
 
 from ..simulation import check_run
 from . import UserError, add_progress, check_output_path, load, stage
-from ._flags import airframe_variant, overrides, refuse_unused
+from ._flags import NoEffect, airframe_variant, no_effect, overrides, refuse_dt
 from ._options import seconds
 
 COMMAND = "limit-cycle"
@@ -30,6 +30,37 @@ HELP = "limit cycles at a loop break by describing function, confirmed by a long
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
+#: The RK4 step when --dt is not given (s).
+DEFAULT_DT = 1e-4
+
+
+def _no_df(args) -> bool:
+    return args.method == "shooting" and args.no_df
+
+
+_SHOOTING = NoEffect((), "with --method {method}: it belongs to the shooting (give --method shooting)",
+                     lambda a: a.method != "shooting")
+_GRID = NoEffect((), "with --method shooting --no-df: no describing function is computed", _no_df)
+_POSITION = NoEffect((), "with --loop position: it sets the aircraft loop (give --loop aircraft)",
+                     lambda a: a.loop == "position")
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--loop": (), "--backlash": (), "--t-end": (), "--plot": (), "--method": (),
+    "--airframe": (NoEffect(("--airframe", "transport"), _POSITION.why, _POSITION.when),),
+    "--condition": (NoEffect(("--condition", "landing"), _POSITION.why, _POSITION.when),),
+    "--continue": (NoEffect(("--continue", "B=0:0.1"), _SHOOTING.why, _SHOOTING.when),),
+    "--csv": (NoEffect(("--csv", "o.csv"), _SHOOTING.why, _SHOOTING.when),),
+    "--no-df": (NoEffect(("--no-df",), _SHOOTING.why, _SHOOTING.when),),
+    **{flag: (NoEffect(("--method", "shooting", "--no-df", flag, *value), _GRID.why, _GRID.when),)
+       for flag, value in (("--amplitudes", ("1um,5um",)), ("--freqs", ("2,4",)), ("--periods", ("8",)),
+                           ("--no-refine", ()))},
+    "--harmonics": (NoEffect(("--no-refine", "--harmonics", "3"), "with --no-refine (the harmonic balance refines "
+                             "the grid's prediction)", lambda a: a.no_refine),
+                    NoEffect(("--method", "shooting", "--no-df", "--harmonics", "3"), _GRID.why, _GRID.when)),
+    # the model decides: RK4 steps only a hybrid or switched model; K_i_x acts only with controller=PI
+    "--dt": (NoEffect(("--dt", "1e-9"), "(the RK4 step): the solver chosen is rosenbrock"),),
+    "--k-i-x": (NoEffect(("--k-i-x", "3000"), "(the position loop's integral gain): the controller is P"),),
+}
 
 
 def add_arguments(p):
@@ -45,7 +76,9 @@ def add_arguments(p):
                                                  "0.3-5:8 (aircraft)")
     p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
-    p.add_argument("--dt", type=seconds, default=1e-4, help="RK4 step (s); default 1e-4")
+    p.add_argument("--dt", type=seconds, default=None,
+                   help=f"RK4 step (s) where RK4 runs (hybrid friction, a switched model; refused where the "
+                        f"variable-step solver runs); default {DEFAULT_DT:g}")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
     p.add_argument("--t-end", type=seconds, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
@@ -184,9 +217,8 @@ def run(args) -> dict:
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     shooting = args.method == "shooting"
-    if not shooting:
-        refuse_unused(args, {"--continue": "cont", "--csv": "csv", "--no-df": "no_df"},
-                      "to the describing function (give --method shooting)")
+    dt_given = args.dt
+    args.dt = DEFAULT_DT if args.dt is None else args.dt
     csv = check_output_path(args.csv, (".csv",), "--csv")
     amps, freqs, t_end = _axes(args)
     orders = _orders(args.harmonics)
@@ -195,11 +227,15 @@ def run(args) -> dict:
     t0 = time.perf_counter()
     if args.loop == "aircraft":
         airframe_variant(args, "b747", ("b747", "transport"))
-    else:
-        refuse_unused(args, {"--airframe": "airframe", "--condition": "condition"}, "to the position loop "
-                      "(give --loop aircraft)")
     args.condition = args.condition or "cruise_sl"
     params, model = load(args)
+    from ..simulation import choose_solver
+
+    refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto")[0],
+              "give --variant friction=hybrid (RK4 with the stick/slip logic) or drop --dt")
+    if "K_i_x" not in {g.name for g in model.gains}:
+        no_effect(args, "--k-i-x", f"(the position loop's integral gain): the controller is "
+                  f"{model.variants.get('controller')} (give --variant controller=PI)")
     if t_end > 0:  # the confirming run's size and step, named by the flags
         spacing = max(args.dt, 1e-4 if args.loop == "position" else 1e-3)  # what confirm_cycle keeps
         check_run(model, t_end, dt=args.dt, dt_out=spacing,

@@ -44,7 +44,7 @@ def _aircraft(model: Model, p, condition):
         pv[names.index(n)] = v
     op = aircraft_point(model, condition, **given)
     inputs = {n: float(op.u[model.inputs.index(n)]) for n in op.policy["trim_free"]}
-    meas0 = op.output("x_cmd_fcs")
+    meas0 = op.output(model.output_with("law_command"))
 
     def confirm(t_end, dt, **held):
         att = model.input_with("attitude_command")
@@ -52,7 +52,8 @@ def _aircraft(model: Model, p, condition):
         pulse = Signal.step(th0, 0.0) + Signal.step(kick, 1.0) + Signal.step(-kick, 3.0)
         return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, **held, att: pulse})
 
-    return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm, "signal": "x_cmd", "op": op}
+    return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm,
+            "signal": model.output_with("rod_command"), "op": op}
 
 
 def setup(model: Model, loop: str, p=None, condition: str = "cruise_sl") -> dict:
