@@ -339,6 +339,18 @@ class Model(Summarised, Contract):
                     out[name] = min(out.get(name, math.inf), float(d.bound.limit(E)))
         return out
 
+    def smooth(self) -> Model:
+        """The model with the smooth counterpart of every part that switches
+        (:attr:`smooth_variants`), on the same parameters: what an optimiser's exact
+        derivatives need. The model itself when it is smooth already."""
+        over = self.smooth_variants
+        if not over:
+            return self
+        key = ("smooth", tuple(sorted(over.items())))
+        if key not in self.cache:
+            self.cache[key] = build_model(self.params, {**self.variants, **over})
+        return self.cache[key]
+
     def travel(self, p=None) -> dict[str, float]:
         """Position-like states -> rod travel (m) per unit of the state.
 
