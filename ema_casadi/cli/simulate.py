@@ -158,14 +158,7 @@ def run(args) -> dict:
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
-    refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
-    if not model.hybrid:
-        no_effect(args, "--event-tol", "(the stick/slip instants of hybrid friction): this model has none")
-    if model.switched:
-        no_effect(args, "--zoh", "(a sampled ECU): with a switched model the ECU is always sampled")
-    else:
-        no_effect(args, "--instantaneous", "(the power and loss columns' sampled values): the model does not "
-                  "switch, its columns are instantaneous already")
+    _refuse_idle(args, model)
     user_dt, args.dt = args.dt, DEFAULT_DT if args.dt is None else args.dt
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
         if args.solver not in ("rk4", "auto"):
@@ -256,6 +249,18 @@ def _step(args, model, user_dt, dt_out, signals) -> float:
                   event_tol=args.event_tol, labels={**FLAGS, "dt": f"the default step (inside RK4's stability limit "
                                                                    f"{limit.dt_max:.3g} s)"}, error=UserError)
     return dt
+
+
+def _refuse_idle(args, model) -> None:
+    """The flags the model leaves without effect (NO_EFFECT's rules that need it)."""
+    refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
+    if not model.hybrid:
+        no_effect(args, "--event-tol", "(the stick/slip instants of hybrid friction): this model has none")
+    if model.switched:
+        no_effect(args, "--zoh", "(a sampled ECU): with a switched model the ECU is always sampled")
+    else:
+        no_effect(args, "--instantaneous", "(the power and loss columns' sampled values): the model does not "
+                  "switch, its columns are instantaneous already")
 
 
 def _plot(args, model, res, given, plot) -> str:

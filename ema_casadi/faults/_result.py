@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._notebook import Summarised
+
 __all__ = ["FaultResult"]
 
 
@@ -16,8 +18,8 @@ def _first(t, flag):
     return float(t[int(np.argmax(flag))]) if np.any(flag) else None
 
 
-@dataclass
-class FaultResult:
+@dataclass(repr=False)
+class FaultResult(Summarised):
     """Per case: detection time of every monitor, peak deviation, status.
 
     Attributes
@@ -47,6 +49,12 @@ class FaultResult:
     runs: list = field(repr=False, default_factory=list)
     info: dict = field(default_factory=dict)
     healthy: dict | None = None
+
+    def _facts(self) -> dict:
+        return {"cases": len(self.rows), "monitors": len(self.monitors),
+                "failed": sum(r["status"] != "ok" for r in self.rows),
+                "false_alarms_no_fault": ", ".join(self.false_alarms()) or "none",
+                "healthy_runs": None if not self.healthy else self.healthy.get("runs")}
 
     @classmethod
     def from_runs(cls, spec, model, runs, info) -> FaultResult:

@@ -36,10 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, RATING_SENSES, Fault, Freeze, Gain, Limit, Node, Rating, Seed, node_outflow
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Rating", "RATING_SENSES", "Freeze",
+    "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
@@ -157,7 +158,9 @@ class State:
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
         friction contact), ``current``, ``controller_integral``, ``play`` (a memory
-        element without dynamics of its own), ``temperature`` (a thermal node, degC).
+        element without dynamics of its own), ``temperature`` (a thermal node, degC),
+        ``hysteresis`` (a rate-independent memory whose rate switches with the sign of a
+        speed and saturates at its band's edges: the screw's self-locking memory).
     x0 : float
         Initial value (SI; temperatures in degC).
     scale : callable
@@ -382,6 +385,12 @@ class Part:
     freeze: ClassVar[tuple] = ()
     #: Saturations a trim must keep inactive (:class:`Limit`).
     trim_limits: ClassVar[tuple] = ()
+    #: Operating limits (:class:`Rating`): the constraints of an optimal move.
+    ratings: ClassVar[tuple] = ()
+    #: Variant key -> value of the smooth counterpart an optimiser uses in this part's
+    #: place (hybrid friction -> smooth, the switched bridge -> averaged): see
+    #: :meth:`~ema_casadi.model.assembly.Model.smooth`.
+    smooth: ClassVar[dict] = {}
     #: Gains a tuner may move (:class:`Gain`), outer loop first.
     gains: ClassVar[tuple] = ()
     #: Named operating conditions (the airframe's flight conditions): name -> flat

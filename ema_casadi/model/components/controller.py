@@ -410,6 +410,7 @@ class PositionP(Part):
     )
     options = {**AW_OPTION, "limit_shape": LIMIT_SHAPES}
     integral = False
+    smooth = {"limit_shape": "smooth"}  # the clip's corners
 
     def signals(self):
         aw = self.opt.get("anti_windup", ANTI_WINDUP[0])
