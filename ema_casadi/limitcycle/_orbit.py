@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..simulation import RunFailed
 from ._df import cycle_of
@@ -55,8 +56,8 @@ STALL = 3
 FD_TOL = 1e-5
 
 
-@dataclass
-class PeriodicOrbit:
+@dataclass(repr=False)
+class PeriodicOrbit(Summarised):
     """A periodic orbit of a closed loop (from :func:`periodic_orbit`).
 
     Parameters
@@ -170,10 +171,9 @@ class PeriodicOrbit:
 
         return plot_orbit(self, path, signals=signals)
 
-    def __repr__(self) -> str:
-        s = "stable" if self.stable else "unstable"
-        return (f"PeriodicOrbit(loop={self.loop!r}, freq={self.freq_hz:.6g} Hz, {s}, "
-                f"residual={self.residual:.2g}, |mu|max={np.max(np.abs(self.multipliers[1:])):.4g})")
+    def _facts(self) -> dict:
+        return {"loop": repr(self.loop), "freq": f"{self.freq_hz:.6g} Hz", "stable": bool(self.stable),
+                "residual": f"{self.residual:.2g}", "|mu|max": f"{np.max(np.abs(self.multipliers[1:])):.4g}"}
 
 
 def summaries(flow: Flow, t, X, Y, names) -> dict:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
+from conftest import assert_glance
 from ema_casadi import Signal
 from ema_casadi.limitcycle import OrbitNotFound, continue_orbit, cycle_of, periodic_orbit, setup
 
@@ -196,6 +197,7 @@ def test_backlash_continuation_onset_vs_long_simulations(hunting, tmp_path):
     # must lie within the required 2 um of that bracket
     model, p, orb = hunting
     br = continue_orbit(model, "B", 0.0, 100e-6, p=p, orbit=orb, ds=0.1, steps=14)
+    assert "parameter=B" in assert_glance(br) and "loop='position'" in assert_glance(orb)
     k = list(model.param_names).index("B")
     at = {}
     for B in (0.0, 0.5e-6):
