@@ -129,10 +129,12 @@ class FaultResult(Summarised):
         return [m for m in self.monitors if self.rows[0][f"detected_{m}_s"] is not None]
 
     def summary(self) -> dict:
-        """The JSON result: rows, coverage, false alarms, healthy runs, info."""
+        """The JSON result: rows, coverage, false alarms, healthy runs (their margins,
+        without the per-run maxima), info."""
+        healthy = None if self.healthy is None else {k: v for k, v in self.healthy.items() if k != "maxima"}
         return {"cases": len(self.rows), "monitors": list(self.monitors), "rows": self.rows,
                 "coverage_s": self.coverage(), "false_alarms_no_fault": self.false_alarms(),
-                "healthy_runs": self.healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
+                "healthy_runs": healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
                 "wall_time": self.info.get("wall_time"), "variants": self.info.get("model_variants")}
 
     def to_csv(self, path: str | Path) -> Path:
@@ -147,17 +149,19 @@ class FaultResult(Summarised):
 
         return write_table(path, self.rows, self.columns)
 
-    def to_json(self, path: str | Path) -> Path:
+    def to_json(self, path: str | Path, extra: dict | None = None) -> Path:
         """Write :meth:`summary` as JSON, atomically.
 
         Parameters
         ----------
         path : str or Path
             The JSON file.
+        extra : dict, optional
+            More entries (the threshold study's).
         """
         from .._util._files import write_text
 
-        return write_text(path, json.dumps(self.summary(), indent=1, default=_plain) + "\n")
+        return write_text(path, json.dumps({**self.summary(), **(extra or {})}, indent=1, default=_plain) + "\n")
 
     def plot(self, path: str | Path | None = None):
         """The coverage matrix (cases x monitors, detection delay in ms) beside the

@@ -145,7 +145,7 @@ def test_no_orbit_and_bad_input(params, hunting):
     (("--method", "shooting", "--continue", "Q=0:1"), 2, "no parameter or driven input 'Q'"),
     (("--method", "shooting", "--continue", "B=0:-5"), 2, "non-negative"),
     (("--method", "shooting", "--continue", "f_ext=0:1e9"), 2, "beyond the physical envelope"),
-    (("--method", "shooting", "--k-i-x", "-5"), 2, "--k-i-x -5: must be non-negative"),
+    (("--method", "shooting", "--variant", "controller=PI", "--k-i-x", "-5"), 2, "--k-i-x -5: must be non-negative"),
     (("--loop", "wing"), 2, "invalid choice: 'wing'"),
     (("--continue", "B=0:5"), 2, "--method shooting"),
     (("--method", "shooting", "--variant", "screw_lock=memory"), 2, "screw_lock = memory"),
