@@ -311,7 +311,7 @@ def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "p
         orbit = periodic_orbit(model, loop, p=pv0, condition=condition, dt=dt, inputs=inputs)
     s = setup(model, loop, pv0, condition)
     flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], orbit.info.get("method", "sensitivities"),
-                dt or 1e-5)
+                dt or orbit.info.get("dt", 1e-5), bool(orbit.info.get("zoh")))
     br = _Branch(model, flow, k, lo, hi, orbit.T, s["signal"], tol)
     t0 = time.perf_counter()
     u0 = br.pack(orbit.x0, orbit.T, start)
