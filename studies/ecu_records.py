@@ -1,7 +1,9 @@
 """Test records from an actuator whose ECU is not built like the toolkit's default: the
-clamping anti-windup (``anti_windup = "clamping"``) and a sharper screw-efficiency
-switch (``P_blend = 0.02`` W instead of 0.1 W), for the identification's misfit
-detection and model selection (records that the default structure cannot explain).
+clamping anti-windup (``anti_windup = "clamping"``) with its band faded over the 2 %
+*below* the limit (``w_aw = -0.02``; the toolkit's default clamping band sits 1 % above
+it) and a sharper screw-efficiency switch (``P_blend = 0.02`` W instead of 0.1 W), for
+the identification's misfit detection and model selection (records that the default
+structure cannot explain).
 
 Four records at 2 kHz, as a rig logs them: the rod command ``x_cmd`` and the external
 load ``f_ext`` sampled at the record rate (the model is driven by that very table, so
@@ -106,8 +108,12 @@ def record(model, params, path, t_end, x_cmd, f_ext, pv, seed, rate=RATE, fields
     return write_text(path, "\n".join(lines) + "\n")
 
 
+#: The rig's clamping band: faded over the 2 % below the limit.
+W_AW = -0.02
+
+
 def ecu_records(folder, params=None, *, seed: int = 0, anti_windup: str = "clamping", P_blend: float = 0.02,
-                truth: dict | None = None, t_scale: float = 1.0) -> tuple[list[Path], dict]:
+                w_aw: float = W_AW, truth: dict | None = None, t_scale: float = 1.0) -> tuple[list[Path], dict]:
     """The four records of the module docstring, written into ``folder``.
 
     Parameters
@@ -122,6 +128,8 @@ def ecu_records(folder, params=None, *, seed: int = 0, anti_windup: str = "clamp
         The ECU's anti-windup law.
     P_blend : float
         The screw-efficiency switch width (W) of the actuator.
+    w_aw : float
+        The clamping band (-, signed fraction of the limit; used with ``clamping``).
     truth : dict, optional
         True flat parameter values (default :data:`TRUTH`).
     t_scale : float
@@ -130,12 +138,13 @@ def ecu_records(folder, params=None, *, seed: int = 0, anti_windup: str = "clamp
     Returns
     -------
     paths, truth : list of Path, dict
-        The files and the true values (``P_blend`` included).
+        The files and the true values (``P_blend`` and, with clamping, ``w_aw`` included).
     """
     if not 0 < t_scale <= 1:
         raise ValueError(f"t_scale: expected a factor in (0, 1], got {t_scale!r}")
     params = params or ema.load_parameters(ROOT / "models" / "cesa_ema.toml")
-    truth = {**(TRUTH if truth is None else truth), "P_blend": float(P_blend)}
+    truth = {**(TRUTH if truth is None else truth), "P_blend": float(P_blend),
+             **({"w_aw": float(w_aw)} if anti_windup == "clamping" else {})}
     model = ema.build_model(params, {"anti_windup": anti_windup})
     pv = params.vector(**truth)
     folder = Path(folder)
@@ -171,13 +180,18 @@ def main(argv=None) -> int:
     ap.add_argument("--anti-windup", default="clamping", choices=("clamping", "backcalc"),
                     help="the ECU's anti-windup law (default clamping)")
     ap.add_argument("--blend", type=float, default=0.02, help="efficiency switch width P_blend in W (default 0.02)")
+    ap.add_argument("--w-aw", type=float, default=W_AW,
+                    help=f"clamping band, signed fraction of the limit (default {W_AW}: below the limit)")
     ap.add_argument("--t-scale", type=float, default=1.0, help="factor on the durations, in (0, 1] (default 1)")
     args = ap.parse_args(argv)
     if args.blend < 0 or not 0 < args.t_scale <= 1:
         print("ecu_records: --blend must be >= 0 and --t-scale in (0, 1]", file=sys.stderr)
         return 2
+    if not (-1 <= args.w_aw <= 1 and args.w_aw != 0):
+        print("ecu_records: --w-aw must be in [-1, 1] and not 0", file=sys.stderr)
+        return 2
     paths, _ = ecu_records(args.out, seed=args.seed, anti_windup=args.anti_windup, P_blend=args.blend,
-                           t_scale=args.t_scale)
+                           w_aw=args.w_aw, t_scale=args.t_scale)
     for p in paths:
         print(p)
     return 0

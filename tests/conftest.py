@@ -1,11 +1,14 @@
 """Shared fixtures (the reference parameter set and its models, built once) and helpers."""
 
+import os
 from pathlib import Path
 
-import numpy as np
+os.environ.setdefault("MPLBACKEND", "Agg")  # off screen, whatever display the machine has
+
+import numpy as np  # noqa: E402
 import pytest
 
-from ema_casadi import build_model, load_parameters
+from ema_casadi import build_model, load_parameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "models" / "cesa_ema.toml"
@@ -21,6 +24,16 @@ dt = 1e-4
 [metrics]
 peak = {}
 """
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """The figures a test's plot() calls leave with pyplot are released after it."""
+    yield
+    import sys
+
+    if "matplotlib.pyplot" in sys.modules:
+        sys.modules["matplotlib.pyplot"].close("all")
 
 
 @pytest.fixture(scope="session")
@@ -39,6 +52,22 @@ def model_cache(params):
         return cache[key]
 
     return get
+
+
+#: A result's repr is a glance: at most this many lines and characters (the attributes
+#: hold the rest; a notebook shows the same facts as a table, ``_repr_html_``).
+GLANCE_LINES, GLANCE_CHARS = 5, 400
+
+
+def assert_glance(obj) -> str:
+    """``repr(obj)`` within :data:`GLANCE_LINES` lines and :data:`GLANCE_CHARS`
+    characters, naming the class, and an HTML table for notebooks; returns the repr."""
+    name = type(obj).__name__
+    text = repr(obj)
+    assert text.startswith(f"{name}(") and text.count("\n") < GLANCE_LINES and len(text) <= GLANCE_CHARS, text
+    page = obj._repr_html_()
+    assert page.startswith(f"<b>{name}</b><table>") and page.count("<tr>") >= 2 and len(page) < 4000, page
+    return text
 
 
 def on_grid(res, dt=1e-3):

@@ -13,7 +13,7 @@ import time
 
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
-from ._flags import airframe_variant, fill_defaults, refuse_dt, refuse_unused
+from ._flags import NoEffect, airframe_variant, fill_defaults, refuse_dt, rk4_step
 from ._options import seconds
 
 COMMAND = "aircraft"
@@ -43,13 +43,20 @@ def add_arguments(p):
 
 #: The response flags' defaults (None in the parser: given or not, for --no-responses).
 RESPONSE_DEFAULTS = {"step_deg": 1.0, "gust": 5.0, "gust_time": 1.0, "t_end": 20.0, "dt": 1e-4}
+_QUIET = NoEffect((), "with --no-responses (nothing is simulated)", lambda a: a.no_responses)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--airframe": (), "--condition": (), "--no-responses": (), "--plot-dir": (),
+    **{flag: (NoEffect(("--no-responses", flag, *value), _QUIET.why, _QUIET.when),)
+       for flag, value in (("--step-deg", ("2",)), ("--gust", ("3",)), ("--gust-time", ("2",)), ("--t-end", ("10",)),
+                           ("--zoh", ()))},
+    # RK4 steps the responses only with --zoh or hybrid friction: checked once the model is built
+    "--dt": (NoEffect(("--no-responses", "--dt", "1e-4"), _QUIET.why, _QUIET.when),
+             NoEffect(("--dt", "1e-9", "--t-end", "3600"), "(the RK4 step): the solver chosen is rosenbrock")),
+}
 
 
 def _check(args):
-    if args.no_responses:
-        refuse_unused(args, {"--step-deg": "step_deg", "--gust": "gust", "--gust-time": "gust_time",
-                             "--t-end": "t_end", "--dt": "dt", "--zoh": "zoh"},
-                      "with --no-responses (nothing is simulated)")
     fill_defaults(args, RESPONSE_DEFAULTS)
     for flag, val, ok in (("--step-deg", args.step_deg, 0 < abs(args.step_deg) <= 10),
                           ("--gust", args.gust, abs(args.gust) <= 30), ("--gust-time", args.gust_time,
@@ -75,8 +82,18 @@ def run(args) -> dict:
     plot_dir = check_output_dir(args.plot_dir, names, "--plot-dir")
     t0 = time.perf_counter()
     params, model = load(args)
-    refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto", args.zoh)[0],
-              "give --zoh (RK4 at the sampling instants) or drop --dt")
+    solver = True if model.switched else choose_solver(model, "auto", args.zoh)[0]
+    refuse_dt(dt_given, solver, "give --zoh (RK4 at the sampling instants) or drop --dt")
+    if solver in (True, "rk4"):  # inside RK4's stability limit, dividing the sample periods
+        args.dt = rk4_step(model, dt_given, args.dt, args.zoh or model.switched)
+    if not args.no_responses:  # the responses' size and step, named by the flags, before any work
+        import inspect
+
+        from ..simulation import check_run
+
+        spacing = inspect.signature(pitch_step).parameters["dt_out"].default
+        check_run(model, args.t_end, dt=args.dt, dt_out=spacing, zoh=args.zoh, error=UserError,
+                  labels={"t_end": "--t-end", "dt": "--dt", "dt_out": f"the responses' sample spacing {spacing:g} s"})
     out, plots = {}, {}
     for k, c in enumerate(conds):
         stage(args, "aircraft", k / len(conds), f"{c}: trim, margins" + ("" if args.no_responses else ", responses"))

@@ -6,13 +6,18 @@ drive the model, columns named after model states or outputs (x_rod, phi, omega,
 F_in, ...) are fitted. The fitted parameter file (--out) keeps the input file's
 layout with the estimates in place; --report DIR writes measured vs fitted figures,
 residuals, the correlation heat map, the intervals and summary.json/summary.md.
-A parameter whose 95 % interval is wider than +-50 % or that is correlated beyond 0.95
-with another is reported as not identifiable from these records (a wide one is held
-at its start value and the others fitted again). A fit that does not converge ends
-with exit status 3 and writes nothing. A fit whose residuals are not explained by
-the noise (chi-square against the given noise level, Ljung-Box whiteness) is
-inadequate: exit status 3 with the fitted file written as FILE.inadequate.toml, or
-status 0 and a warning with --allow-misfit.
+The headline 95 % intervals are robust (a Newey-West sandwich of the residuals'
+autocorrelation per record, inflated by the records' disagreement), the textbook
+ones beside them. A parameter whose robust interval is wider than +-50 % is not
+identifiable from these records (held at its start value and the others fitted
+again); a strong correlation is a note with the combination that is determined.
+A fit that does not converge ends with exit status 3 and writes nothing. The
+verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
+whiteness, records' consistency); adequate within model error (a test fails but
+every channel's systematic misfit is at most --model-error noise levels and no
+record's estimates move by more than 3x that in robust sd: status 0, the misfit
+named); inadequate: exit status 3 with the fitted file written as
+FILE.inadequate.toml, or status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level
 field such as '# flight_hours: 1200' or a column) and extrapolates each parameter's
 trend to --limit NAME=VALUE (remaining useful life).
@@ -29,7 +34,7 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
-from ._flags import refuse_unused
+from ._flags import NoEffect, no_effect
 
 COMMAND = "identify"
 ORDER = 12
@@ -54,6 +59,9 @@ def add_arguments(p):
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
+    p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
+                   help="systematic misfit tolerated, in noise levels (default 1: a model error below the sensor "
+                        "noise gives 'adequate within model error', exit 0)")
     p.add_argument("--allow-misfit", action="store_true",
                    help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
                         "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
@@ -75,6 +83,10 @@ def add_arguments(p):
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
+    p.add_argument("--example-records", default=None, metavar="DIR",
+                   help="write the records the guide fits into the new folder DIR and stop: steps, chirp, "
+                        "slews_push, slews_pull (seven parameters away from the reference set) and rig_0000h .. "
+                        "rig_1500h (seal friction growing with flight_hours)")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
     add_progress(p)
@@ -136,30 +148,79 @@ def _split(args) -> list:
     return records
 
 
-def _combinations(args) -> None:
-    """The options that have no effect in the combination given are refused, not dropped:
-    --track fits each record alone (no comparison, profile or validation), --compare
-    ranks combinations (no profile or validation), --limit and --stamp belong to
-    --track, --max-fits to --compare."""
-    if args.track:
-        refuse_unused(args, {"--compare": "compare", "--max-fits": "max_fits", "--profile": "profile",
-                             "--validate": "validate"}, "with --track (each record is fitted alone, in order)")
-    else:
-        refuse_unused(args, {"--limit": "limit"}, "without --track (the limit is what a health trend runs to)")
-        if args.stamp != STAMP:
-            raise UserError(f"--stamp {args.stamp}: does not apply without --track (it orders the records of a "
-                            "health trend)")
-    if args.compare:
-        refuse_unused(args, {"--profile": "profile", "--validate": "validate"},
-                      "with --compare (the combinations are ranked; profile or validate the best one's fit)")
-    else:
-        refuse_unused(args, {"--max-fits": "max_fits"}, "without --compare (it caps the combinations compared)")
+def _example_run(args) -> bool:
+    """No records: the built-in example (one plain fit of its two records)."""
+    return not args.records and (args.model is None or Path(args.model).suffix.lower() == ".toml")
+
+
+_TRACK = NoEffect((), "with --track (each record is fitted alone, in order)", lambda a: a.track)
+_COMPARE = NoEffect((), "with --compare (the combinations are ranked; profile or validate the best one's fit)",
+                    lambda a: bool(a.compare))
+_COMPARE_FIT = NoEffect((), "with --compare (each combination is one fit from the file's values with the defaults: "
+                        "one start, no bounds, the unidentifiable held)",
+                        lambda a: bool(a.compare))
+_EXAMPLE = NoEffect((), "without records (the built-in example is one plain fit; write its records with "
+                    "--example-records DIR and fit those)", _example_run)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (),
+    "--example-records": (),
+    "--track": (NoEffect(("--track",), _EXAMPLE.why, _EXAMPLE.when),),
+    "--model-error": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--model-error", "2"), "with --track "
+                               "(a trend's fits are judged one by one; give it without --track)", _TRACK.when),
+                      NoEffect(("--model-error", "2"), _EXAMPLE.why, _EXAMPLE.when)),
+    "--compare": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--compare", "anti_windup=backcalc,clamping"),
+                           _TRACK.why, _TRACK.when),
+                  NoEffect(("--compare", "anti_windup=backcalc,clamping"), _EXAMPLE.why, _EXAMPLE.when)),
+    "--estimate-x0": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--estimate-x0"), "with --track (a trend's "
+                               "records start at rest; fit them one by one instead)", _TRACK.when),
+                      NoEffect(("--estimate-x0",), _EXAMPLE.why, _EXAMPLE.when)),
+    "--max-fits": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--max-fits", "3"), _TRACK.why, _TRACK.when),
+                   NoEffect(("a.csv", "--free", "F_seal", "--max-fits", "3"), "without --compare (it caps the "
+                            "combinations compared)", lambda a: not a.compare)),
+    **{flag: (NoEffect(("a.csv", "--free", "F_seal", "--track", flag, "c.csv"), _TRACK.why, _TRACK.when),
+              NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", flag, "c.csv"),
+                       _COMPARE.why, _COMPARE.when))
+       for flag in ("--profile", "--validate")},
+    "--limit": (NoEffect(("a.csv", "--free", "F_seal", "--limit", "F_seal=300N"), "without --track (the limit is what "
+                         "a health trend runs to)", lambda a: not a.track),),
+    "--stamp": (NoEffect(("a.csv", "--free", "F_seal", "--stamp", "hours"), "without --track (it orders the records "
+                         "of a health trend)", lambda a: not a.track),),
+    "--out": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--out", "f.toml"), "with --track (a trend "
+                       "has one fit per record; use --report DIR)", _TRACK.when),),
+    "--starts": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--starts", "3"), "with --track (each "
+                          "record is fitted once, from the file's values)", _TRACK.when),
+                 NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--starts", "3"),
+                          _COMPARE_FIT.why, _COMPARE_FIT.when)),
+    "--jobs": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--jobs", "2"), "with --track (each record "
+                        "is fitted once, in turn)", _TRACK.when),
+               NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--jobs", "2"),
+                        _COMPARE_FIT.why, _COMPARE_FIT.when),
+               NoEffect(("a.csv", "--free", "F_seal", "--jobs", "2"), "with one start (the workers run the --starts "
+                        "fits in parallel)", lambda a: a.starts == 1)),
+    "--bounds": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--bounds",
+                           "F_seal=1:500"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
+    "--keep-unidentifiable": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping",
+                                        "--keep-unidentifiable"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
+}
+#: A value of each flag for the examples of the --example-records rule (flags without one take none).
+_SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
+           "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
+           "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
+           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2"}
+for _flag in NO_EFFECT:  # --example-records writes the records and stops: every other flag is idle
+    if _flag != "--example-records":
+        _value = [_SAMPLE[_flag]] if _flag in _SAMPLE else []
+        NO_EFFECT[_flag] = (NoEffect(("--example-records", "rec", _flag, *_value),
+                                     "with --example-records (it writes the records and stops; fit them after)",
+                                     lambda a: a.example_records is not None), *NO_EFFECT[_flag])
 
 
 def run(args) -> dict:
     from ..identification import IdentificationError
 
-    _combinations(args)
+    if args.example_records is not None:
+        return _write_examples(args)
     out = check_output_path(args.out, (".toml",), "--out")
     records = _split(args)
     if args.starts < 1:
@@ -168,6 +229,10 @@ def run(args) -> dict:
         raise UserError(f"--jobs must be at least 1, got {args.jobs}")
     if args.max_evaluations < 2:
         raise UserError(f"--max-evaluations must be at least 2, got {args.max_evaluations}")
+    if args.model_error is not None and not (math.isfinite(args.model_error) and args.model_error > 0):
+        raise UserError(f"--model-error must be a positive number of noise levels, got {args.model_error}")
+    if args.model_error is not None and args.track:
+        raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
     params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
     try:
@@ -179,7 +244,8 @@ def run(args) -> dict:
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
-              "jobs": min(args.starts, args.jobs or cores()), "progress": progress}
+              "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
+              **({} if args.model_error is None else {"model_error": args.model_error})}
         if args.track:
             return _track(args, params, model, records, free, kw)
         if args.compare:
@@ -187,6 +253,24 @@ def run(args) -> dict:
         return _fit(args, params, model, records, free, kw, out)
     except IdentificationError as exc:
         raise UserError(str(exc)) from None
+
+
+def _write_examples(args) -> dict:
+    """--example-records DIR: the guide's records (identification.guide_records) from the
+    packaged set or MODEL.toml, into a new folder written whole or not at all."""
+    from ..identification import GUIDE_FILES, TREND_TRUTH, guide_records
+    from ._flags import new_output_folder, output_folder
+
+    records, out = _split(args), Path(args.example_records)
+    if records:
+        raise UserError(f"--example-records writes records; {records[0]} given too (fit the records after)")
+    if out.exists():
+        raise UserError(f"--example-records {out}: exists; name a new folder")
+    top = new_output_folder(out, GUIDE_FILES, "--example-records")
+    with output_folder(out, top) as folder:
+        paths, truth = guide_records(load(args)[0], folder)
+    return {"model": args.model, "truth": truth, "trend_truth": {"F_seal": TREND_TRUTH},
+            "written": [str(out / p.name) for p in paths]}
 
 
 def _fit(args, params, model, records, free, kw, out) -> dict:
@@ -244,6 +328,9 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
+    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error"):  # the linear fit: none
+        no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
+                  "values, none held)")
     from ..identification import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
@@ -281,7 +368,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
-                  estimate_x0=kw["estimate_x0"])
+                  estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"))
     best = cmp.best
     if best is None:
         from ..simulation import RunFailed
@@ -346,6 +433,11 @@ def _example(args, params, model, out, progress) -> dict:
 def report(result: dict) -> None:
     """Print the parameter table and the channels' residuals."""
     w = sys.stdout.write
+    if "trend_truth" in result:  # --example-records
+        w("example records: " + ", ".join(f"{k} = {v:.4g}" for k, v in result["truth"].items()) + "\n")
+        for p in result["written"]:
+            w(f"wrote {p}\n")
+        return
     if "trend" in result:
         from ..identification import report_text
 
@@ -354,14 +446,19 @@ def report(result: dict) -> None:
     truth = result.get("example", {}).get("truth", {})
     if truth:
         w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
-    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval':>25}  identifiable\n")
+    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
+      f"{'(textbook)':>25}  identifiable\n")
     for n, d in result["parameters"].items():
         if d.get("estimate") is None:
             w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
             continue
         lo, hi = d["interval"]
         ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
-        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g}  {ok}\n")
+        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
+        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
+          f"{ok}\n")
+        if d.get("note"):
+            w(f"{'':<10}   note: {d['note']}\n")
     for c in result["channels"]:
         w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
           f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
@@ -371,14 +468,26 @@ def report(result: dict) -> None:
           f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
     for rec in (result.get("initial_state") or {}).get("records", []):
         w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
-    if result.get("adequate", True):
+    rob = result.get("robust") or {}
+    if rob.get("scale_factor", 1.0) > 1.0:
+        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
+          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
+    me = result.get("model_error") or {}
+    for m in me.get("misfits", [])[:6]:
+        w(f"  systematic: {m['text']}\n")
+    if result.get("verdict") == "adequate within model error":
+        w(f"adequate within model error: systematic misfit at most {me['largest_sigma']:.2f} sigma (tolerated "
+          f"{me['threshold_sigma']:g}), records' shifts at most {me['largest_shift_sd']:.2g} robust sd (tolerated "
+          f"{me['threshold_shift_sd']:g}); robust intervals; failed tests: " + "; ".join(result["misfit"][:2]) + "\n")
+    elif result.get("adequate", True):
         tests = "chi-square, whiteness" + (", consistency" if test else "")
         w(f"adequate: the residuals are explained by the noise ({tests})\n")
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")
     for row in result.get("comparison", []):
-        state = "failed: " + row["failed"] if "failed" in row else ("adequate" if row["adequate"] else "INADEQUATE")
+        verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
+        state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
         w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
     for name, prof in result.get("profiles", {}).items():
         w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")

@@ -26,7 +26,7 @@ from pathlib import Path
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
 from . import UserError, add_progress, jsonable, progress_of, second_file
-from ._flags import new_output_folder, output_folder
+from ._flags import NoEffect, new_output_folder, output_folder
 from ._options import seconds
 
 COMMAND = "mission"
@@ -37,6 +37,11 @@ DEFAULT_OUT = "out/mission"
 ORDER = 9
 HELP = "flight mission: temperatures, losses, energy per part and segment, peaks vs limits"
 
+
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--mission": (), "--out": (), "--from-trim": (), "--fast": (), "--dt-out": (), "--csv-dt": (),
+             "--dt": (NoEffect(("--fast", "--dt", "1e-4"), "with --fast (it sets the step): give --fast or --dt, "
+                               "not both", lambda a: a.fast),)}
 
 def add_arguments(p):
     p.add_argument("mission", metavar="MISSION.toml", nargs="?", default=None,
@@ -66,6 +71,9 @@ def _check(args) -> Path:
     for flag, val in (("--dt", args.dt), ("--dt-out", args.dt_out), ("--csv-dt", args.csv_dt)):
         if not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
+    k = args.dt_out / args.dt
+    if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
+        raise UserError(f"--dt-out {args.dt_out:g} s must be a whole multiple of the step --dt {args.dt:g} s")
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
     if not args.out.strip():

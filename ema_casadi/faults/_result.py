@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._notebook import Summarised
+
 __all__ = ["FaultResult"]
 
 
@@ -16,8 +18,8 @@ def _first(t, flag):
     return float(t[int(np.argmax(flag))]) if np.any(flag) else None
 
 
-@dataclass
-class FaultResult:
+@dataclass(repr=False)
+class FaultResult(Summarised):
     """Per case: detection time of every monitor, peak deviation, status.
 
     Attributes
@@ -48,6 +50,12 @@ class FaultResult:
     info: dict = field(default_factory=dict)
     healthy: dict | None = None
 
+    def _facts(self) -> dict:
+        return {"cases": len(self.rows), "monitors": len(self.monitors),
+                "failed": sum(r["status"] != "ok" for r in self.rows),
+                "false_alarms_no_fault": ", ".join(self.false_alarms()) or "none",
+                "healthy_runs": None if not self.healthy else self.healthy.get("runs")}
+
     @classmethod
     def from_runs(cls, spec, model, runs, info) -> FaultResult:
         """Rows from the cases' runs (the first is the no-fault case).
@@ -64,6 +72,8 @@ class FaultResult:
             Wall time and the like, kept in :attr:`info`.
         """
         monitors = model.outputs_of("alarm")
+        rod = model.output_with("rod_position")
+        flight = [n for r in ("pitch_attitude", "load_factor") for n in model.signals_with(r)]
         ref = runs[0][0]
         rows = []
         for case, (res, reason) in zip(spec.cases, runs, strict=True):
@@ -78,12 +88,11 @@ class FaultResult:
                 continue
             n = min(len(res.t), len(ref.t))
             after = res.t[:n] >= t0
-            dev = np.abs(res["x_rod"][:n] - ref["x_rod"][:n])[after]
+            dev = np.abs(res[rod][:n] - ref[rod][:n])[after]
             row["peak_deviation_m"] = float(dev.max()) if dev.size else math.nan
-            for name in ("theta", "n_z"):  # the aircraft loop's pitch and load-factor excursions
-                if name in res.columns():
-                    d = np.abs(res[name][:n] - ref[name][:n])[after]
-                    row[f"peak_{name}_dev"] = float(d.max()) if d.size else math.nan
+            for name in flight:  # the aircraft loop's pitch and load-factor excursions
+                d = np.abs(res[name][:n] - ref[name][:n])[after]
+                row[f"peak_{name}_dev"] = float(d.max()) if d.size else math.nan
             det = {}
             for m in monitors:
                 t = _first(res.t, res[m] >= 0.5)
@@ -97,7 +106,7 @@ class FaultResult:
     @property
     def columns(self) -> list[str]:
         """The table's columns, in order."""
-        extra = [c for c in ("peak_theta_dev", "peak_n_z_dev") if self.rows and c in self.rows[0]]
+        extra = [c for c in (self.rows[0] if self.rows else ()) if c.startswith("peak_") and c.endswith("_dev")]
         return ["case", "kind", "target", "onset_s", "severity", "unit", "status", "peak_deviation_m", *extra,
                 *(f"detected_{m}_s" for m in self.monitors), "first_monitor", "reason"]
 
@@ -120,10 +129,12 @@ class FaultResult:
         return [m for m in self.monitors if self.rows[0][f"detected_{m}_s"] is not None]
 
     def summary(self) -> dict:
-        """The JSON result: rows, coverage, false alarms, healthy runs, info."""
+        """The JSON result: rows, coverage, false alarms, healthy runs (their margins,
+        without the per-run maxima), info."""
+        healthy = None if self.healthy is None else {k: v for k, v in self.healthy.items() if k != "maxima"}
         return {"cases": len(self.rows), "monitors": list(self.monitors), "rows": self.rows,
                 "coverage_s": self.coverage(), "false_alarms_no_fault": self.false_alarms(),
-                "healthy_runs": self.healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
+                "healthy_runs": healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
                 "wall_time": self.info.get("wall_time"), "variants": self.info.get("model_variants")}
 
     def to_csv(self, path: str | Path) -> Path:
@@ -138,17 +149,19 @@ class FaultResult:
 
         return write_table(path, self.rows, self.columns)
 
-    def to_json(self, path: str | Path) -> Path:
+    def to_json(self, path: str | Path, extra: dict | None = None) -> Path:
         """Write :meth:`summary` as JSON, atomically.
 
         Parameters
         ----------
         path : str or Path
             The JSON file.
+        extra : dict, optional
+            More entries (the threshold study's).
         """
         from .._util._files import write_text
 
-        return write_text(path, json.dumps(self.summary(), indent=1, default=_plain) + "\n")
+        return write_text(path, json.dumps({**self.summary(), **(extra or {})}, indent=1, default=_plain) + "\n")
 
     def plot(self, path: str | Path | None = None):
         """The coverage matrix (cases x monitors, detection delay in ms) beside the

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._util._checks import nearest
+from .._util._notebook import Summarised
 from ._fit import FitFailed, identify
 from ._records import IdentificationError
 
@@ -26,8 +27,8 @@ from ._records import IdentificationError
 MAX_FITS = 8
 
 
-@dataclass
-class Comparison:
+@dataclass(repr=False)
+class Comparison(Summarised):
     """The fits of every combination, best first.
 
     Attributes
@@ -41,6 +42,10 @@ class Comparison:
 
     rows: list = field(default_factory=list)
     results: list = field(default_factory=list)
+
+    def _facts(self) -> dict:
+        return {"structures": len(self.rows), "adequate": sum(bool(r.get("adequate")) for r in self.rows),
+                "chosen": self.rows[0]["variants"] if self.rows else None}
 
     @property
     def best(self):
@@ -125,7 +130,7 @@ def bic(result) -> float:
 
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
             max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
-            estimate_x0=False) -> Comparison:
+            estimate_x0=False, model_error: float | None = None) -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters
@@ -139,7 +144,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
-    sigma, variants, max_evaluations, progress, estimate_x0
+    sigma, variants, max_evaluations, progress, estimate_x0, model_error
         As for :func:`~ema_casadi.identification.identify`.
     max_fits : int
         Most combinations (refused above).
@@ -148,13 +153,17 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     for combo in combinations(options, variants, max_fits):
         try:
             res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
-                           progress=progress, estimate_x0=estimate_x0)
+                           progress=progress, estimate_x0=estimate_x0,
+                           **({} if model_error is None else {"model_error": model_error}))
         except FitFailed as exc:
             rows.append({"variants": combo, "failed": exc.reason, "adequate": False, "bic": float("inf")})
             results.append(None)
             continue
         rows.append({"variants": combo, "adequate": res.adequacy["adequate"], "reasons": res.adequacy["reasons"],
+                     "verdict": res.adequacy.get("verdict"), "exact": bool(res.adequacy.get("exact")),
                      "bic": bic(res), "cost": res.info["cost"], "estimate": res.estimate})
         results.append(res)
-    order = sorted(range(len(rows)), key=lambda k: (not rows[k]["adequate"], rows[k]["bic"]))
+    # adequate first, then adequate within model error, then inadequate; by BIC within each
+    order = sorted(range(len(rows)), key=lambda k: (not rows[k]["adequate"], not rows[k].get("exact", False),
+                                                    rows[k]["bic"]))
     return Comparison([rows[k] for k in order], [results[k] for k in order])

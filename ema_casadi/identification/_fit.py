@@ -14,11 +14,12 @@ from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..simulation import RunFailed, progress_bar
-from . import _consistency
+from . import _consistency, _misfit
 from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, uncertainty
+from ._robust import record_blocks, robust_covariance
 
 #: Relative change of the estimated noise levels below which their re-estimation stops.
 SIGMA_TOL = 0.02
@@ -56,7 +57,8 @@ class FitFailed(RunFailed):
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
-             consistency: bool = True, jobs: int = 1, progress: bool = False) -> IdentResult:
+             consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
+             progress: bool = False) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -96,7 +98,14 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         intervals include what the unknown start costs.
     consistency : bool
         With several records, test that they agree (each re-fitted alone against all
-        together, :mod:`._consistency`); disagreement makes the fit inadequate.
+        together, :mod:`._consistency`).
+    model_error : float
+        The systematic misfit tolerated, in noise levels (:mod:`._misfit`): a fit whose
+        statistical tests fail (chi-square, whiteness, consistency) is *adequate within
+        model error* (robust intervals, the misfit named) when every record's and
+        channel's systematic misfit is at most this and no record's estimates shift
+        by more than 3 x this robust standard deviations against the others'; else
+        inadequate.
     progress : bool
         One line of progress on stderr.
 
@@ -127,9 +136,10 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     given = _sigmas(recs, sigma)
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
+    model_error = number(model_error, "model_error", IdentificationError, positive=True)
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
     fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency, model_error)
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
@@ -359,14 +369,20 @@ def _rms(arrays) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
+def robust_of(fit: _Fit, out: dict) -> dict:
+    """The robust covariance (:mod:`._robust`) of the fit at its optimum ``out``."""
+    _, e, _ = fit._raw(out["z_full"])
+    return robust_covariance(out["J"], out["r"], record_blocks(e))
+
+
 def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool,
-            consistency_test: bool = True) -> IdentResult:
+            consistency_test: bool = True, model_error: float = _misfit.MODEL_ERROR) -> IdentResult:
     """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
     their start values and the others fitted again; the result."""
     fr = fit.pred.free
     start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
     estimated = bool(out["estimated"])
-    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out))
     held = {}
     wide = [n for n, w in zip(fr.names, unc["wide"], strict=True) if w]
     evaluations = fit.pred.evaluations
@@ -386,7 +402,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])
         out = {**fit2.run(z0), "estimated": out["estimated"]}
         fit, fr = fit2, pred.free
-        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated)
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out))
         evaluations += pred.evaluations
     theta = fr.theta(out["z"])
     preds, e, _ = fit._raw(out["z_full"])
@@ -401,6 +417,8 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         if extra:
             res.adequacy["reasons"] = [*res.adequacy["reasons"], *extra]
             res.adequacy["adequate"] = False
+    res.misfits = _misfit.misfits(recs, preds, e, out["sigma"], out["estimated"], model, res.info["units"])
+    res.adequacy = _misfit.verdict(res.adequacy, res.misfits, unc["robust"], model_error)
     return res
 
 

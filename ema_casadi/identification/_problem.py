@@ -163,6 +163,8 @@ def free_parameters(model, names, bounds: dict | None = None, start: dict | None
     for k, c in enumerate(check):
         if c == "fraction":
             hi[k] = 1.0
+        if c == "signed fraction":  # a band that may sit above (> 0) or below (< 0) a limit
+            lo[k], hi[k] = -1.0, 1.0
     bounds = dict(bounds or {})
     for n, (a, b) in bounds.items():
         if n not in names:
@@ -189,7 +191,8 @@ def rest_state(model, rec: Record, pv) -> np.ndarray:
     position, else 0."""
     x0 = model.x0()
     pos = model.state_with("rod_position") if model.states_with("rod_position") else None
-    first = rec.inputs.get("x_cmd", rec.channels.get(pos))
+    cmd = model.inputs_with("command")
+    first = rec.inputs.get(cmd[0]) if cmd and cmd[0] in rec.inputs else rec.channels.get(pos)
     if first is None:
         return x0
     P = model.pdict(pv)
@@ -213,6 +216,9 @@ class Predictor:
         The free parameters.
     base : ndarray
         The full parameter vector the free values are put into.
+    x0_states : sequence of str
+        States whose initial values are estimated per record (default none: each
+        record starts at rest, :func:`rest_state`).
     """
 
     def __init__(self, model, records, free: Free, base, x0_states=()):

@@ -263,6 +263,10 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
         i, j = np.argwhere(~np.isfinite(data))[0]
         raise IdentificationError(f"{path}: non-finite value in column '{names[j]}' (sample {i + 1})")
     t = data[:, 0] * unit_scale(units[0], "time", f"{path}: column '{names[0]}'", None)
+    if not units[0] and len(t) > 1 and t[-1] - t[0] > MAX_SPAN_S:
+        raise IdentificationError(f"{path}: column '{names[0]}' has no unit and spans {t[-1] - t[0]:.4g} s "
+                                  f"(over an hour) read as seconds; if it is in milliseconds, write the header "
+                                  f"as {names[0]} [ms]")
     bad = np.nonzero(np.diff(t) <= 0)[0]
     if len(bad):
         k = bad[0] + 1
@@ -280,11 +284,48 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
             raise IdentificationError(f"{path}: column '{name}' is neither a model input nor a state or output"
                                       f"{_did_you_mean(name, known, model)}")
         scale = _scale(units[j], table[name], f"{path}: column '{name}'", model)
+        if not units[j]:
+            _plausible(path, name, table[name], data[:, j], model)
         (inputs if name in model.inputs else channels)[name] = data[:, j] * scale
     if not channels:
         raise IdentificationError(f"{path}: no measured channel (a column named after a model state or output, "
                                   f"e.g. {', '.join(model.states[-2:])})")
     return Record(str(path), t - t[0], inputs, channels, fields, float(t[0]))
+
+
+#: A unitless time column spanning more than this (s) is not in seconds: refused.
+MAX_SPAN_S = 3600.0
+#: A unitless column is implausible in SI when a position exceeds this factor on the
+#: stroke (the end stops and a command's overshoot fit well inside), a current this
+#: factor on the current limit, a force this factor on what the screw holds.
+STROKE_FACTOR, CURRENT_FACTOR, FORCE_FACTOR = 1.5, 10.0, 10.0
+
+
+def _plausible(path, name: str, si: str, values, model) -> None:
+    """A column without a unit must be plausible in SI for its signal (module
+    docstring's limits); else refused with the header that would read it right."""
+    peak = float(np.max(np.abs(values))) if len(values) else 0.0
+    kind = KIND_OF_UNIT.get(si)
+    if kind == "length":
+        limit, what = STROKE_FACTOR * float(model.params.actuator.stroke), "the stroke"
+    elif kind == "current":
+        limit, what = CURRENT_FACTOR * float(model.limit_values().get("current", np.inf)), "the current limit"
+    elif kind == "force":
+        limit, what = FORCE_FACTOR * float(model.envelope_limits().get("held_load", np.inf)), "what the screw holds"
+    else:
+        return
+    if not peak > limit:
+        return
+    from ..signals import UNITS
+
+    fits = [u for u, f in sorted(UNITS[kind].items(), key=lambda kv: -kv[1]) if f < 1 and peak * f <= limit]
+    fix = f"write the header as {name} [{fits[0]}]" if fits else f"give its unit in brackets ({name} [UNIT])"
+    raise IdentificationError(f"{path}: column '{name}' has no unit and reaches {peak:.4g} {si}, beyond "
+                              f"{limit:.4g} {si} ({_factor(kind)} x {what}): not SI; {fix}")
+
+
+def _factor(kind: str) -> str:
+    return f"{ {'length': STROKE_FACTOR, 'current': CURRENT_FACTOR, 'force': FORCE_FACTOR}[kind]:g}"
 
 
 #: Name parts that mark a measured signal (x_act, phi_meas, omega_fb): the suggestion is

@@ -5,14 +5,15 @@ parameter file, figures and the report folder."""
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .._util._files import write_text
+from .._util._notebook import Summarised
 from ._data import plain
+from ._write import write_fitted
 
 #: A parameter is not identifiable from the records when its 95 % interval is wider than
 #: this fraction of its value on either side ...
@@ -30,11 +31,12 @@ MISFIT_Z = 3.09
 MISFIT_P = 1e-3
 
 
-def uncertainty(free, z, J, r, estimated: bool) -> dict:
-    """Covariance s^2 (J^T J)^-1 in optimiser coordinates (s^2 = sum r^2 / (N - n) when
-    noise levels were estimated, else 1), 95 % intervals (log-scaled parameters on
-    log theta), correlation, weak directions (small singular values of J) and the
-    identifiability verdicts.
+def uncertainty(free, z, J, r, estimated: bool, robust: dict | None = None) -> dict:
+    """Covariance in optimiser coordinates: the robust one of :mod:`._robust` when
+    given (the headline), beside the textbook s^2 (J^T J)^-1 (s^2 = sum r^2 / (N - n)
+    when noise levels were estimated, else 1); 95 % intervals (log-scaled parameters
+    on log theta), correlation, weak directions (small singular values of J) and the
+    identifiability verdicts (by the marginal interval; a strong correlation is a note).
 
     Parameters
     ----------
@@ -48,6 +50,8 @@ def uncertainty(free, z, J, r, estimated: bool) -> dict:
         Weighted residuals at the optimum.
     estimated : bool
         Some noise levels were estimated from the residuals.
+    robust : dict, optional
+        :func:`._robust.robust_covariance` at this optimum: its ``cov`` gives the intervals.
     """
     N, n = J.shape
     s2 = float(r @ r) / max(1, N - n) if estimated else 1.0
@@ -55,20 +59,18 @@ def uncertainty(free, z, J, r, estimated: bool) -> dict:
     tiny = sv <= sv[0] * 1e-12 if len(sv) else np.zeros(0, bool)
     inv = np.where(tiny, np.inf, 1.0 / np.where(tiny, 1.0, sv) ** 2)
     with np.errstate(invalid="ignore"):
-        cov_z = (Vt.T * np.where(np.isinf(inv), 1e300, inv)) @ Vt * s2
-    std_z = np.sqrt(np.diag(cov_z))
+        cov_tb = (Vt.T * np.where(np.isinf(inv), 1e300, inv)) @ Vt * s2
     singular = [bool(np.any(np.abs(Vt[tiny][:, k]) > 1e-6)) for k in range(n)] if tiny.any() else [False] * n
-    std_z = np.where(singular, np.inf, std_z)
+    std_tb = np.where(singular, np.inf, np.sqrt(np.diag(cov_tb)))
+    cov_z = cov_tb if robust is None else np.asarray(robust["cov"], float)
+    std_z = np.where(singular, np.inf, np.sqrt(np.maximum(np.diag(cov_z), 0.0)))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov_z / np.outer(std_z, std_z)
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)
     theta = free.theta(z)
-    half = Z95 * std_z
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        lo = np.where(free.log, theta * np.exp(-half), theta - half * free.dtheta_dz(theta))
-        hi = np.where(free.log, theta * np.exp(half), theta + half * free.dtheta_dz(theta))
-        rel = np.where(free.log, np.expm1(half), half * free.dtheta_dz(theta) / np.abs(theta))
+    lo, hi, rel = _intervals(free, theta, std_z)
+    lo_tb, hi_tb, _ = _intervals(free, theta, std_tb)
     D = free.dtheta_dz(theta)
     with np.errstate(invalid="ignore", over="ignore"):
         cov = cov_z * np.outer(D, D)
@@ -85,7 +87,49 @@ def uncertainty(free, z, J, r, estimated: bool) -> dict:
                          "direction": {free.names[k]: float(v[k]) for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.05}})
     return {"s2": s2, "cov_z": cov_z, "cov": cov, "std_z": std_z, "corr": corr, "interval": np.column_stack([lo, hi]),
             "halfwidth": rel, "wide": wide, "correlated": correlated, "partner": partner, "singular_values": sv,
-            "weak": weak}
+            "weak": weak, "std_z_textbook": std_tb, "interval_textbook": np.column_stack([lo_tb, hi_tb]),
+            "std_textbook": std_tb * np.abs(D), "combination": [_combination(free, cov_z, k, partner[k], theta)
+                                                                if correlated[k] else None for k in range(n)],
+            "robust": robust}
+
+
+def _intervals(free, theta, std_z):
+    """95 % intervals (lo, hi) and relative half-widths from standard deviations in
+    optimiser coordinates (log-scaled parameters on log theta)."""
+    half = Z95 * std_z
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        lo = np.where(free.log, theta * np.exp(-half), theta - half * free.dtheta_dz(theta))
+        hi = np.where(free.log, theta * np.exp(half), theta + half * free.dtheta_dz(theta))
+        rel = np.where(free.log, np.expm1(half), half * free.dtheta_dz(theta) / np.abs(theta))
+    return lo, hi, rel
+
+
+def _combination(free, cov_z, k, j, theta) -> dict:
+    """The well-determined combination of two strongly correlated parameters: the
+    eigenvector of their 2 x 2 covariance (optimiser coordinates: log theta for positive
+    ones) with the smaller variance, as exponents theta_k^a theta_j^b (log-scaled) or a
+    linear combination, with its 95 % relative half-width."""
+    C = cov_z[np.ix_([k, j], [k, j])]
+    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    v = V[:, 0] / V[np.argmax(np.abs(V[:, 0])), 0]
+    names = (free.names[k], free.names[j])
+    both_log = bool(free.log[k] and free.log[j])
+    half = float(Z95 * np.sqrt(max(w[0], 0.0)) * np.linalg.norm(v))  # v^T z has variance w0 |v|^2
+    text = (f"{names[0]}^{v[0]:.3g} * {names[1]}^{v[1]:+.3g}".replace("^+", "^") if both_log
+            else f"{v[0]:.3g} {names[0]} {v[1]:+.3g} {names[1]} (scaled)")
+    return {"names": list(names), "exponents": [float(v[0]), float(v[1])], "log": both_log, "expression": text,
+            "halfwidth": float(np.expm1(half) if both_log else half)}
+
+
+def _robust_doc(rob, records) -> dict:
+    """The robust covariance's account for the result (plain data)."""
+    if rob is None:
+        return {"kind": "textbook"}
+    recs = [{"record": rec.path, "bandwidth_samples": r["bandwidth"], "directions": r["directions"],
+             "shift_sd": r["shift_sd"]} for rec, r in zip(records, rob["records"], strict=True)]
+    return {"kind": "robust (Newey-West sandwich per record, x records' scale factor)",
+            "scale_factor": rob["scale_factor"], "records_chi2": rob["chi2"], "records_dof": rob["dof"],
+            "records": recs}
 
 
 def channel_stats(records, preds, errors, sigma) -> list[dict]:
@@ -160,8 +204,8 @@ def autocorrelation(e, lags: int) -> np.ndarray:
     return np.array([float(e[: len(e) - k] @ e[k:]) / d for k in range(L + 1)])
 
 
-@dataclass
-class IdentResult:
+@dataclass(repr=False)
+class IdentResult(Summarised):
     """What :func:`~ema_casadi.identification.identify` found.
 
     Attributes
@@ -171,13 +215,16 @@ class IdentResult:
     start, estimate : dict
         Name -> start value and estimate (SI).
     interval : dict
-        Name -> (lo, hi), the 95 % confidence interval (SI).
+        Name -> (lo, hi), the 95 % confidence interval (SI): the robust one
+        (:mod:`._robust`, the sandwich of the residuals' autocorrelation, inflated by the
+        records' disagreement), the textbook one in :attr:`interval_textbook`.
     std : dict
-        Name -> standard deviation (SI, first order).
+        Name -> standard deviation (SI, first order, robust).
     covariance, correlation : ndarray
         In :attr:`names` order (SI).
     identifiable : dict
-        Name -> True, or the reason it is not (a wide interval, a correlation).
+        Name -> True, or the reason it is not (a robust 95 % interval wider than
+        +-50 %; a strong correlation alone is a note, :attr:`notes`).
     held : dict
         Parameters not identifiable from the records (interval wider than +-50 %),
         held at their start values while the others were fitted again: name ->
@@ -192,6 +239,22 @@ class IdentResult:
         The channels whose noise level came from the residuals.
     trajectories : list of dict
         Per record: ``t``, ``measured`` and ``fitted`` per channel (SI).
+    notes : dict
+        Name -> a note on an identifiable parameter (a strong correlation and the
+        combination the records determine best).
+    combinations : dict
+        Name -> the best-determined combination with its strongly correlated partner:
+        ``names``, ``exponents`` (theta_a^x theta_b^y for log-scaled ones), ``halfwidth``
+        (95 %, relative).
+    interval_textbook, std_textbook : dict
+        The textbook s^2 (J^T J)^-1 intervals and standard deviations (white noise of
+        the stated level, exact model), beside the headline robust ones.
+    misfits : list of dict
+        Per record and channel the systematic misfit, its running mean and where it
+        sits (:func:`._misfit.misfits`).
+    robust : dict
+        How the robust covariance was made (:mod:`._robust`): the scale factor, the
+        records' chi-square, each record's bandwidth and shift in robust sd.
     status : str
         ``converged``.
     adequacy : dict
@@ -224,6 +287,17 @@ class IdentResult:
     info: dict = field(default_factory=dict)
     params: object = field(default=None, repr=False)
     fitted_params: object = field(default=None, repr=False)
+    notes: dict = field(default_factory=dict)
+    combinations: dict = field(default_factory=dict)
+    interval_textbook: dict = field(default_factory=dict)
+    std_textbook: dict = field(default_factory=dict)
+    robust: dict = field(default_factory=dict)
+    misfits: list = field(default_factory=list, repr=False)
+
+    def _facts(self) -> dict:
+        return {"fitted": ", ".join(self.names), "held": ", ".join(self.held) or None,
+                "adequate": self.adequacy.get("adequate"), "records": len(self.info.get("records", [])) or None,
+                "evaluations": self.info.get("evaluations")}
 
     @classmethod
     def _build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,
@@ -234,11 +308,15 @@ class IdentResult:
         for k, n in enumerate(names):
             if unc["wide"][k]:
                 ident[n] = f"95 % interval +-{100 * unc['halfwidth'][k]:.3g} % (wider than +-{100 * WIDE:g} %)"
-            elif unc["correlated"][k]:
-                j = unc["partner"][k]
-                ident[n] = f"correlated with {names[j]} ({unc['corr'][k, j]:+.3f}): only their combination is known"
             else:
                 ident[n] = True
+        notes, combos = {}, {}
+        for k, n in enumerate(names):
+            if unc["correlated"][k] and not unc["wide"][k]:
+                j, comb = unc["partner"][k], unc["combination"][k]
+                combos[n] = comb
+                notes[n] = (f"correlated with {names[j]} ({unc['corr'][k, j]:+.3f}); each is determined to its "
+                            f"interval, and {comb['expression']} to +-{100 * comb['halfwidth']:.2g} %")
         for n, h in held.items():
             ident[n] = (f"95 % interval +-{100 * h['relative_halfwidth']:.3g} % when free: held at its start value "
                         f"{h['start']:.6g}")
@@ -252,6 +330,10 @@ class IdentResult:
                    std={n: float(np.sqrt(unc["cov"][k, k])) for k, n in enumerate(names)},
                    covariance=unc["cov"], correlation=unc["corr"], identifiable=ident, held=held,
                    weak_directions=unc["weak"], channels=stats, adequacy=adequacy(stats, out["estimated"]),
+                   notes=notes, combinations=combos, interval_textbook={n: (float(a), float(b)) for n, (a, b)
+                                                   in zip(names, unc["interval_textbook"], strict=True)},
+                   std_textbook={n: float(v) for n, v in zip(names, unc["std_textbook"], strict=True)},
+                   robust=_robust_doc(unc.get("robust"), records),
                    sigma=dict(out["sigma"]), sigma_estimated=list(out["estimated"]), trajectories=traj,
                    info={"cost": out["cost"], "s2": unc["s2"], "evaluations": int(evaluations),
                          "wall_time": wall_time, "variants": dict(model.variants),
@@ -269,14 +351,20 @@ class IdentResult:
         for n in self.names:
             params[n] = {"start": self.start[n], "estimate": self.estimate[n], "interval": list(self.interval[n]),
                          "std": self.std[n], "identifiable": self.identifiable[n] is True,
-                         **({} if self.identifiable[n] is True else {"reason": self.identifiable[n]})}
+                         **({} if self.identifiable[n] is True else {"reason": self.identifiable[n]}),
+                         **({"note": self.notes[n], "combination": self.combinations.get(n)}
+                            if n in self.notes else {}),
+                         **({"interval_textbook": list(self.interval_textbook[n]),
+                             "std_textbook": self.std_textbook[n]} if n in self.interval_textbook else {})}
         for n, h in self.held.items():
             params[n] = {"start": h["start"], "estimate": None, "held_at": h["start"], "identifiable": False,
                          "reason": self.identifiable[n], "estimate_when_free": h["estimate_when_free"],
                          "interval_when_free": h["interval_when_free"]}
         return {"status": self.status, "adequate": self.adequacy["adequate"],
+                "verdict": self.adequacy.get("verdict", "adequate" if self.adequacy["adequate"] else "inadequate"),
                 "misfit": self.adequacy["reasons"], "intervals_trustworthy": self.adequacy["adequate"],
-                "consistency": self.adequacy.get("consistency"),
+                "model_error": self.adequacy.get("model_error"), "interval_kind": self.robust.get("kind", "textbook"),
+                "robust": self.robust, "consistency": self.adequacy.get("consistency"),
                 "parameters": params, "correlation": {
                     "names": list(self.names), "matrix": np.round(self.correlation, 6).tolist()},
                 "weak_directions": self.weak_directions, "channels": self.channels,
@@ -294,13 +382,20 @@ class IdentResult:
 
     def summary(self) -> str:
         """A Markdown summary: the parameters with intervals and verdicts, the channels."""
-        lines = ["| parameter | start | estimate | 95 % interval | identifiable |", "|---|---|---|---|---|"]
+        lines = [f"Verdict: **{self.adequacy.get('verdict', 'adequate')}**", "",
+                 "| parameter | start | estimate | 95 % interval (robust) | 95 % (textbook) | identifiable |",
+                 "|---|---|---|---|---|---|"]
         for n in self.names:
             lo, hi = self.interval[n]
+            a, b = self.interval_textbook.get(n, (float("nan"),) * 2)
             ok = "yes" if self.identifiable[n] is True else f"**no**: {self.identifiable[n]}"
-            lines.append(f"| {n} | {self.start[n]:.5g} | {self.estimate[n]:.5g} | {lo:.5g} .. {hi:.5g} | {ok} |")
+            ok += f" ({self.notes[n]})" if n in self.notes else ""
+            lines.append(f"| {n} | {self.start[n]:.5g} | {self.estimate[n]:.5g} | {lo:.5g} .. {hi:.5g} | "
+                         f"{a:.5g} .. {b:.5g} | {ok} |")
         for n, h in self.held.items():
-            lines.append(f"| {n} | {h['start']:.5g} | (held) | - | **no**: {self.identifiable[n]} |")
+            lines.append(f"| {n} | {h['start']:.5g} | (held) | - | - | **no**: {self.identifiable[n]} |")
+        for m in (self.adequacy.get("model_error") or {}).get("misfits", []):
+            lines.append(f"\nModel error: {m['text']}")
         lines += ["", "| record | channel | samples | RMS residual | sigma | RMS/sigma | lag-1 autocorr. |",
                   "|---|---|---|---|---|---|---|"]
         for c in self.channels:
@@ -330,6 +425,9 @@ class IdentResult:
         if not self.adequacy["adequate"]:
             head.append("INADEQUATE FIT: the residuals are not explained by the noise; the intervals are not "
                         "trustworthy: " + "; ".join(self.adequacy["reasons"][:3]))
+        elif self.adequacy.get("verdict") == "adequate within model error":
+            head.append("ADEQUATE WITHIN MODEL ERROR (robust intervals): "
+                        + "; ".join(m["text"] for m in self.adequacy["model_error"]["misfits"][:3]))
         for n in self.names:
             lo, hi = self.interval[n]
             tag = "" if self.identifiable[n] is True else f"  NOT IDENTIFIABLE: {self.identifiable[n]}"
@@ -365,62 +463,3 @@ class IdentResult:
         from ._plot import write_report
 
         return write_report(self, folder)
-
-
-_LINE = re.compile(r"^(\s*)([A-Za-z_]\w*)(\s*=\s*\{\s*value\s*=\s*)([^,}]+?)(\s*,.*)$")
-_TABLE = re.compile(r"^\s*\[([A-Za-z_]\w*)\]")
-
-
-_VARIANT = re.compile(r'^(\s*)([A-Za-z_]\w*)(\s*=\s*)"[^"]*"(.*)$')
-
-
-def write_fitted(params, values: dict, path: str | Path, header: str, variants: dict | None = None) -> Path:
-    """The parameter file of ``params`` (its source text, layout and comments kept) with
-    ``values`` (flat name -> SI) put in place; written atomically.
-
-    Parameters
-    ----------
-    params : Parameters
-        The set fitted (its ``source`` file is the template).
-    values : dict
-        Flat name -> new value (SI).
-    path : str or Path
-        Output file.
-    header : str
-        Comment lines written at the top.
-    variants : dict, optional
-        Variant and option choices to put in the ``[model]`` table (a structure chosen
-        by comparison).
-    """
-    from ..model.params import GROUPS
-
-    group_of = {f: g for g, cls in GROUPS.items() for f in cls.__dataclass_fields__}
-    src = Path(str(params.source))
-    comment = "".join(f"# {line}\n" for line in header.splitlines())
-    if not src.is_file():
-        return params.replace(**values).to_toml(path, header)
-    lines = src.read_text(encoding="utf-8-sig").splitlines()
-    table, done = None, set()
-    variants = dict(variants or {})
-    for i, line in enumerate(lines):
-        m = _TABLE.match(line)
-        if m:
-            table = m.group(1)
-            continue
-        mv = _VARIANT.match(line)
-        if table == "model" and mv and mv.group(2) in variants:
-            lines[i] = f'{mv.group(1)}{mv.group(2)}{mv.group(3)}"{variants.pop(mv.group(2))}"{mv.group(4)}'
-            continue
-        m = _LINE.match(line)
-        if m and m.group(2) in values and group_of.get(m.group(2)) == table:
-            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{float(values[m.group(2)])!r}{m.group(5)}"
-            done.add(m.group(2))
-    if variants:  # choices the [model] table does not name yet: added under its header
-        at = next((i for i, line in enumerate(lines) if _TABLE.match(line) and _TABLE.match(line).group(1) == "model"),
-                  None)
-        new = [f'{k} = "{v}"  # chosen by the fit' for k, v in variants.items()]
-        lines = (lines[: at + 1] + new + lines[at + 1 :]) if at is not None else ["[model]", *new, "", *lines]
-    missing = [n for n in values if n not in done]
-    if missing:  # keys the file does not set (defaults): written as the whole set instead
-        return params.replace(**values).to_toml(path, header)
-    return write_text(path, comment + "\n".join(lines) + "\n")

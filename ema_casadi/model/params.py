@@ -25,6 +25,7 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
+from .._util._notebook import Summarised
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
@@ -47,6 +48,7 @@ class UnknownParameterError(ParameterError, TypeError):
 POS = "positive"  # > 0
 NONNEG = "non-negative"  # >= 0
 FRAC = "fraction"  # 0 < x <= 1
+SFRAC = "signed fraction"  # -1 <= x <= 1, not 0
 INT = "positive integer"
 WHOLE = "whole number"  # 0, 1, 2, ... (a seed, a count of bits)
 NONPOS = "non-positive"  # <= 0
@@ -69,6 +71,8 @@ class Actuator:
     """Actuator envelope (paper Table 1)."""
 
     stroke: float = _p("m", POS, "half stroke: the rod travels +-stroke (m)")
+    v_rod_max: float = _p("m/s", POS, "rated rod speed, the ball screw's speed limit (2400 rpm of a 5 mm lead) (m/s)",
+                          default=0.2)
 
 
 @dataclass(frozen=True)
@@ -156,7 +160,8 @@ class Control:
     f_s_i: float = _p("Hz", POS, "current-loop sample rate (Hz)")
     f_s_w: float = _p("Hz", POS, "speed-loop sample rate (Hz)")
     f_s_x: float = _p("Hz", POS, "position-loop sample rate (Hz)")
-    w_aw: float = _p("1", FRAC, "clamping anti-windup band, fraction of the output limit (-)", default=0.01)
+    w_aw: float = _p("1", SFRAC, "clamping anti-windup band, fraction of the output limit: > 0 above the limit, "
+                                 "< 0 below it (-)", default=0.01)
     k_bc: float = _p("1", POS, "back-calculation tracking rate in units of K_i/K_p (-)", default=1.0)
     w_knee: float = _p("1", FRAC, "smooth limit's knee half-width, fraction of the limit (-)", default=0.05)
 
@@ -233,8 +238,8 @@ def _variant_table(model, src: str) -> dict[str, str]:
     return dict(model)
 
 
-@dataclass(frozen=True)
-class Parameters(FaultTables):
+@dataclass(frozen=True, repr=False)
+class Parameters(Summarised, FaultTables):
     """A complete, validated parameter set in SI units.
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
@@ -269,6 +274,11 @@ class Parameters(FaultTables):
     source: str = "<memory>"
     missing: tuple = ()
     overrides: tuple = ()
+
+    def _facts(self) -> dict:
+        return {"source": Path(self.source).name, "parameters": len(self.names()),
+                "variants": ", ".join(f"{k}={v}" for k, v in self.variants.items()) or None,
+                "missing": ", ".join(self.missing) or None}
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod
@@ -410,6 +420,8 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
         raise ParameterError(f"{where}: must be non-negative, got {value}")
     if check == FRAC and not 0 < value <= 1:
         raise ParameterError(f"{where}: must be in (0, 1], got {value}")
+    if check == SFRAC and not (-1 <= value <= 1 and value != 0):
+        raise ParameterError(f"{where}: must be in [-1, 1] and not 0, got {value}")
     if check == INT and not (value >= 1 and value == int(value)):
         raise ParameterError(f"{where}: must be a positive integer, got {value}")
     if check == WHOLE and not (value >= 0 and value == int(value)):

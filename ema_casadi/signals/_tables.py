@@ -65,8 +65,29 @@ def unit_scale(unit: str, kind: str, where: str, stroke: float | None) -> float:
     return units[unit]
 
 
+def separator(text: str) -> str:
+    """The cell separator of a table: ``,``, or ``;`` or a tab when the first line that
+    is neither empty nor a ``#`` comment (the header, or the first row) holds that and no
+    comma (spreadsheets in locales with a decimal comma write ``;``).
+
+    Parameters
+    ----------
+    text : str
+        The table's text.
+    """
+    for line in text.splitlines():
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        if "," in s:
+            return ","
+        return ";" if ";" in s else ("\t" if "\t" in s else ",")
+    return ","
+
+
 def table_rows(path: Path) -> list[list[str]]:
-    """The rows of a CSV table as ``(line number, stripped cells)``, empty and ``#`` rows left out.
+    """The rows of a CSV table as ``(line number, stripped cells)``, empty and ``#`` rows left out;
+    the separator ``,``, ``;`` or tab (:func:`separator`).
 
     Parameters
     ----------
@@ -75,7 +96,7 @@ def table_rows(path: Path) -> list[list[str]]:
     """
     text = read_text(path, "signal table")
     try:
-        rows = list(csv.reader(io.StringIO(text, newline="")))
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=separator(text)))
     except csv.Error as exc:
         raise SignalError(f"{path}: not a CSV table ({exc})") from None
     numbered = [(i + 1, [c.strip() for c in r]) for i, r in enumerate(rows)]

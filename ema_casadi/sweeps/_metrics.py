@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from .._util._checks import nearest, number
+from ..model.components import SIGNAL_KEYS
 
 __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "PointFailed"]
 
@@ -38,6 +39,8 @@ __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "Poi
 class PointFailed(Exception):
     """A metric whose analysis reported a failed point (the run is failed)."""
 
+#: The metric option of the margins and the bandwidth: the load of their operating point (N), by its file key.
+F_EXT = SIGNAL_KEYS["load"]
 _LOOP_FIELDS = (("gm_db", "dB"), ("gm_down_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"),
                 ("f_down_hz", "Hz"), ("disk_margin", "1"))
 
@@ -77,16 +80,16 @@ def _names(where, opts, key, allowed, error, default):
 # -- option checks: (spec, options, where, error) -> (checked options, [(column, unit)]) --
 def _step(spec, o, where, error, models):
     o = _opts(where, o, ("at", "amplitude", "band", "until"), error)
-    x_cmd = spec.scenario["signals"].get("x_cmd")
+    x_cmd, key = spec.scenario["signals"].get("command"), SIGNAL_KEYS["command"]
     if x_cmd is None:
-        raise error(f"{where}: the scenario has no x_cmd step")
+        raise error(f"{where}: the scenario has no {key} step")
     at = _number(where, o, "at", error, next(iter(x_cmd.breakpoints()), None))
     if at is None:
-        raise error(f"{where} at: give the time of the step (x_cmd has no breakpoint)")
+        raise error(f"{where} at: give the time of the step ({key} has no breakpoint)")
     amp = _number(where, o, "amplitude", error,
                   float(x_cmd(np.array([at + 1e-12]))[0] - x_cmd(np.array([max(at - 1e-12, 0.0)]))[0]))
     if amp == 0:
-        raise error(f"{where} amplitude: x_cmd does not jump at t = {at:g} s; give the step's amplitude (m)")
+        raise error(f"{where} amplitude: {key} does not jump at t = {at:g} s; give the step's amplitude (m)")
     band = _number(where, o, "band", error, 0.02, positive=True)
     # the step's window: up to the next change of the command (a sine starting, a second
     # step), where the response stops being the step's; else the end of the scenario
@@ -109,19 +112,19 @@ def _hunting(spec, o, where, error, models):
 def _margins(spec, o, where, error, models):
     # the loops every swept model closes (the aircraft loop only with an airframe)
     common = [lp for lp in models[0].loops if all(lp in m.loops for m in models)]
-    o = _opts(where, o, ("loops", "f_ext", "outer"), error)
+    o = _opts(where, o, ("loops", F_EXT, "outer"), error)
     loops = _names(where, o, "loops", common, error, common)
     outer = _names(where, o, "outer", ["closed", "open"], error, "closed")[0]
-    f_ext = _number(where, o, "f_ext", error, 0.0)
+    f_ext = _number(where, o, F_EXT, error, 0.0)
     cols = [(f"margins_{lp}_{k}", u) for lp in loops for k, u in _LOOP_FIELDS]
-    return {"loops": loops, "f_ext": f_ext, "outer": outer}, cols
+    return {"loops": loops, F_EXT: f_ext, "outer": outer}, cols
 
 
 def _bandwidth(spec, o, where, error, models):
-    o = _opts(where, o, ("level_db", "f_ext"), error)
+    o = _opts(where, o, ("level_db", F_EXT), error)
     level = number(o.get("level_db", -3.0), f"{where} level_db", error, unit="dB below the low-frequency gain",
                    negative=True)  # the same check as bandwidth()'s
-    return ({"level_db": level, "f_ext": _number(where, o, "f_ext", error, 0.0)},
+    return ({"level_db": level, F_EXT: _number(where, o, F_EXT, error, 0.0)},
             [("bandwidth_hz", "Hz")])
 
 
@@ -168,15 +171,21 @@ def _peak(spec, o, where, error, models):
     o = _opts(where, o, ("signals",), error)
     m = models[0]
     names = [*m.outputs, *(s for s in m.states if s not in m.outputs), *m.inputs]
-    sigs = _names(where, o, "signals", names, error, None if "signals" in o else "x_rod")
+    sigs = _names(where, o, "signals", names, error, None if "signals" in o else m.output_with("rod_position"))
     return {"signals": sigs}, [(f"peak_{s}", m.units.get(s, "")) for s in sigs]
+
+
+def _maximum(spec, o, where, error, models):
+    o, _ = _peak(spec, o, where, error, models)
+    m = models[0]
+    return o, [(f"max_{s}", m.units.get(s, "")) for s in o["signals"]]
 
 
 #: name -> (option check, needs the scenario's simulation)
 METRICS = {
     "step": (_step, True), "hunting": (_hunting, True), "margins": (_margins, False),
     "bandwidth": (_bandwidth, False), "sine_stream": (_sine, False), "peak_temperature": (_temperature, True),
-    "energy": (_energy, True), "peak": (_peak, True),
+    "energy": (_energy, True), "peak": (_peak, True), "maximum": (_maximum, True),
 }
 
 
@@ -213,8 +222,26 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
         for m in models:
             check_run(m, sc["duration"], dt=sc["dt"], dt_out=sc.get("dt_out"), solver=sc["solver"],
                       rtol=sc.get("rtol", 1e-8), atol=sc.get("atol", 1e-11), event_tol=sc.get("event_tol", 1e-7),
-                      labels=labels, error=error)
+                      zoh=bool(sc.get("zoh")), labels=labels, error=error)
+            _check_step(m, sc, labels["dt"], error)
     return out
+
+
+def _check_step(model, sc, label, error) -> None:
+    """With rk4: the step against the ECU's sample periods (refused where one step would
+    hold two instants) and RK4's
+    stability limit at the nominal parameters and the scenario's largest load (warned:
+    the runs then skip the check, one limit stands for the sweep)."""
+    from ..simulation import choose_solver, input_signals, sampling_split, step_check
+
+    zoh = bool(sc.get("zoh"))
+    if choose_solver(model, sc["solver"], zoh)[0] != "rk4":
+        return
+    pv = model.p()
+    if zoh:
+        sampling_split(model, sc["dt"], pv, error, label)
+    given = {model.input_name(k): v for k, v in sc["signals"].items()}
+    step_check(model, sc["dt"], input_signals(model, given, pv, sc["duration"]), pv, zoh, sc["duration"], label)
 
 
 def metric_columns(metrics: dict) -> list[tuple[str, str]]:
@@ -239,7 +266,7 @@ def simulate_scenario(model, pv, scenario):
 
     kw = {k: scenario[k] for k in ("dt_out", "rtol", "atol", "event_tol", "zoh") if k in scenario}
     return simulate(model, scenario["duration"], p=pv, solver=scenario["solver"], dt=scenario["dt"],
-                    **kw, **scenario["signals"])
+                    check_step=False, **kw, inputs=scenario["signals"])  # the step is checked once, at the spec
 
 
 def compute_metrics(name: str, opts: dict, model, params, pv, res) -> dict:
@@ -286,7 +313,7 @@ def _c_margins(o, model, params, pv, res):
     from ..frequency import loop_margins
     from ..linearisation import operating_point
 
-    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
+    op = operating_point(model, inputs={"load": o[F_EXT]}, p=pv)
     lm = loop_margins(model, op, o["loops"], outer=o["outer"])
     return {f"margins_{lp}_{k}": (math.nan if getattr(m, k) is None else float(getattr(m, k)))
             for lp, m in lm.items() for k, _ in _LOOP_FIELDS}
@@ -296,7 +323,7 @@ def _c_bandwidth(o, model, params, pv, res):
     from ..frequency import bandwidth, closed_loop
     from ..linearisation import operating_point
 
-    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
+    op = operating_point(model, inputs={"load": o[F_EXT]}, p=pv)
     return {"bandwidth_hz": float(bandwidth(closed_loop(model, op), o["level_db"]))}
 
 
@@ -319,12 +346,18 @@ def _c_temperature(o, model, params, pv, res):
 
 def _c_energy(o, model, params, pv, res):
     loss = sum(res[n] for n in model.outputs_of("loss"))
-    return {"energy_in_J": float(np.trapezoid(res["P_dc"], res.t)), "energy_loss_J": float(np.trapezoid(loss, res.t))}
+    return {"energy_in_J": float(np.trapezoid(res[model.output_with("electrical_power")], res.t)),
+            "energy_loss_J": float(np.trapezoid(loss, res.t))}
 
 
 def _c_peak(o, model, params, pv, res):
     return {f"peak_{s}": float(np.max(np.abs(res[s]))) for s in o["signals"]}
 
 
+def _c_maximum(o, model, params, pv, res):
+    return {f"max_{s}": float(np.max(res[s])) for s in o["signals"]}
+
+
 _COMPUTE = {"step": _c_step, "hunting": _c_hunting, "margins": _c_margins, "bandwidth": _c_bandwidth,
-            "sine_stream": _c_sine, "peak_temperature": _c_temperature, "energy": _c_energy, "peak": _c_peak}
+            "sine_stream": _c_sine, "peak_temperature": _c_temperature, "energy": _c_energy, "peak": _c_peak,
+            "maximum": _c_maximum}

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ._journal import write_table
 from ._metrics import metric_columns
 
@@ -31,8 +32,8 @@ def spearman(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.corrcoef(rx, ry)[0, 1])
 
 
-@dataclass
-class SweepResult:
+@dataclass(repr=False)
+class SweepResult(Summarised):
     """One row per run: the run's number, swept variants and parameters (SI), the
     metrics (SI, unit in the column name or :meth:`units`), ``status`` (``ok`` or
     ``failed``) and ``reason``.
@@ -131,11 +132,9 @@ class SweepResult:
 
         return data_frame({c: [r.get(c) for r in self.rows] for c in self.columns}, index="run", units=self.units())
 
-    def __repr__(self) -> str:
-        from .._util._notebook import short_repr
-
-        return short_repr("SweepResult", {"sweep": self.spec.name, "runs": len(self.rows),
-                                          "failed": self.info.get("failed"), "metrics": len(self.metrics)})
+    def _facts(self) -> dict:
+        return {"sweep": self.spec.name, "runs": len(self.rows), "failed": self.info.get("failed"),
+                "metrics": len(self.metrics)}
 
     def plot(self, path: str | Path | None = None, max_panels: int = 6):
         """One row per metric: its histogram, then the metric against each swept
@@ -156,7 +155,7 @@ class SweepResult:
         matplotlib.figure.Figure or Path
             The figure, or ``path`` when one was given.
         """
-        from ..plots._base import finish, plt
+        from ..plots._base import finish, subplots
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids
@@ -164,7 +163,7 @@ class SweepResult:
         empty = [m for m in self.metrics if m not in drawable]
         metrics, params = drawable[:max_panels], varied[:max_panels]
         nrow, ncol = max(len(metrics), 1), 1 + len(params)
-        fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.3 * nrow + 0.6), squeeze=False,
+        fig, axes = subplots(nrow, ncol, figsize=(3.2 * ncol, 2.3 * nrow + 0.6), squeeze=False,
                                  layout="constrained")
         units = self.units()
         sens = self.summary()["sensitivity_spearman"]

@@ -163,13 +163,14 @@ def test_time_flag_unit_unknown_named(capsys):
 @pytest.mark.parametrize(("argv", "joined"), [
     (["linearize", "--f-ext", "30", "kN"], ["linearize", "--f-ext", "30kN"]),
     (["linearize", "--f-ext=-30", "kN"], ["linearize", "--f-ext=-30kN"]),
+    (["linearize", "--f-e", "-30", "kN"], ["linearize", "--f-e=-30kN"]),  # negative, a prefix and a unit: one pass
     (["simulate", "--t-end", "500", "ms", "m.toml"], ["simulate", "--t-end", "500ms", "m.toml"]),
     (["simulate", "m.toml", "--", "--t-end", "5", "ms"], ["simulate", "m.toml", "--", "--t-end", "5", "ms"]),
 ])
 def test_value_and_unit_apart_joined(argv, joined):
-    from ema_casadi.cli._parser import join_unit_values
+    from ema_casadi.cli import join_values
 
-    assert join_unit_values(argv, PARSER) == joined
+    assert join_values(argv, PARSER) == joined
 
 
 def test_interrupt_message_names_resume(capsys):
@@ -262,3 +263,20 @@ def test_frequency_record_error_names_the_value(tmp_path, capsys, rows, words):
     for w in words:
         assert w in line, (w, line)
     assert not out.exists()
+
+
+def test_a_library_warning_is_one_line(capsys):
+    """What a library warns during a command (here the warning matplotlib gives for an
+    empty legend) reaches stderr as the contract's one line, once, without Python's file
+    and source lines."""
+    import warnings
+
+    from ema_casadi.cli._run import one_line_warnings
+
+    with one_line_warnings("faults"), warnings.catch_warnings():
+        warnings.simplefilter("always")
+        for _ in range(2):
+            warnings.warn("No artists with labels found to put in legend.\n  Note that ...", UserWarning,
+                          stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == "ema faults: warning: No artists with labels found to put in legend.\n", err

@@ -114,10 +114,30 @@ def misfit_record(params, tmp_path_factory):
 def test_an_inadequate_fit_exits_3_and_says_so_in_the_file_name(tmp_path, capsys, misfit_record):
     code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
                            "--json", "--no-progress"], capsys)
-    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "not white" in err, err
+    # the effect size first: x_rod's running-mean misfit is 11.8 noise levels (the inertia error)
+    assert code == 3 and err.count("\n") == 1 and "inadequate fit" in err and "systematic misfit" in err, err
+    assert "x_rod" in err and "sigma" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.inadequate.toml"]
-    assert json.loads(out)["adequate"] is False
+    doc = json.loads(out)
+    assert doc["adequate"] is False and doc["verdict"] == "inadequate"
+    assert any("not white" in m for m in doc["misfit"])  # the statistical tests stay listed
+    assert doc["model_error"]["largest_sigma"] > 5
     assert "INADEQUATE FIT" in (tmp_path / "fit.inadequate.toml").read_text()
+
+
+def test_a_tolerated_model_error_exits_0_and_names_it(tmp_path, capsys, misfit_record):
+    """--model-error above the misfit's 11.8 noise levels: adequate within model error,
+    status 0, the fitted file under its own name, the misfit named in the JSON."""
+    code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
+                           "--json", "--no-progress", "--model-error", "20"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and doc["verdict"] == "adequate within model error" and doc["adequate"] is True, err
+    assert doc["model_error"]["threshold_sigma"] == 20 and doc["model_error"]["misfits"][0]["channel"] == "x_rod"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.toml"]
+    assert "ADEQUATE WITHIN MODEL ERROR" in (tmp_path / "fit.toml").read_text()
+    for bad in ("0", "-1", "nan"):
+        code, _, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--model-error", bad], capsys)
+        assert code == 2 and err.count("\n") == 1 and "--model-error" in err, err
 
 
 def test_allow_misfit_warns_and_succeeds(tmp_path, capsys, misfit_record):
@@ -201,3 +221,28 @@ def test_a_clamping_ecu_is_inadequate_by_default_and_found_by_compare(params, tm
     for n, v in truth.items():
         assert abs(doc["parameters"][n]["estimate"] - v) <= 3 * doc["parameters"][n]["std"], n
     assert (tmp_path / "g.toml").exists()
+
+
+def test_example_records_refused_where_they_cannot_go(tmp_path, capsys):
+    """--example-records names a new folder, and writes records, never fits them."""
+    (tmp_path / "rec").mkdir()
+    code, _, err = _run(["identify", "--example-records", str(tmp_path / "rec")], capsys)
+    assert code == 2 and "--example-records" in err and "exists" in err and err.count("\n") == 1, err
+    code, _, err = _run(["identify", "a.csv", "--example-records", str(tmp_path / "new")], capsys)
+    assert code == 2 and "a.csv given too" in err and not (tmp_path / "new").exists(), err
+
+
+@pytest.mark.slow
+def test_example_records_are_what_the_guide_fits(tmp_path, capsys):
+    """The guide's records: the four of the seven-parameter case and the four of the
+    health trend, whose fit crosses the 300 N limit where the truth does (150 N +
+    0.05 N/h: 3000 h) within its 95 % interval."""
+    rec = tmp_path / "rec"
+    code, out, err = _run(["identify", "--example-records", str(rec), "--json"], capsys)
+    assert code == 0, err
+    assert sorted(p.name for p in rec.iterdir()) == sorted(idn.GUIDE_FILES)
+    code, out, err = _run(["identify", "--track", *[str(rec / f"rig_{h:04d}h.csv") for h in (0, 500, 1000, 1500)],
+                           "--free", "F_seal", "--limit", "F_seal=300N", "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    lo, hi = json.loads(out)["trend"]["F_seal"]["crossing_interval"]
+    assert lo <= 3000.0 <= hi

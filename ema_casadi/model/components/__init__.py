@@ -31,6 +31,8 @@ from ._part import (
     OUTPUT_KINDS,
     OUTPUT_ROLES,
     POLICIES,
+    RATING_SENSES,
+    SIGNAL_KEYS,
     AssemblyError,
     Bound,
     Bus,
@@ -44,6 +46,7 @@ from ._part import (
     Node,
     Output,
     Part,
+    Rating,
     Seed,
     State,
     der,
@@ -51,14 +54,17 @@ from ._part import (
     node_outflow,
 )
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
+from .monitors import TAU_LATCH, TAU_RESET
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
     "sensor", "supply", "thermal",
-    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES",
-    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
+    "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS",
+    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit", "Rating", "RATING_SENSES",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
+    # the monitors' timer reset and latch time constants (s): what a statistic's detection obeys
+    "TAU_RESET", "TAU_LATCH",
 ]

@@ -13,12 +13,15 @@ loops and by the motor parts for the current loop; see ``docs/guide/ecu-structur
     error drives it further into the limit, z' = K_i [e - g(d+) max(e, 0) - g(d-) min(e, 0)]
     with the excess d = u - u_sat, d+ = max(d, 0), d- = max(-d, 0) and the gate
     g(d) = s^2 (3 - 2 s), s = min(d/w, 1), a smooth switch over the band
-    w = w_aw u_lim (:func:`clamping_rate`).
+    w = w_aw u_lim (:func:`clamping_rate`). A negative ``w_aw`` puts the band below the
+    limit, as some ECUs clamp: the excess is then taken over (1 + w_aw) u_lim and the
+    integrator is fully stopped at the limit (:func:`clamping_band`).
 
 The shape of each switch is a declared parameter of ``[control]``, so a fit can free it
 like any other: ``w_aw`` (-, the clamping band as a fraction of the limit, 0.01 on the
 reference set), ``k_bc`` (-, the back-calculation rate in units of K_i/K_p, 1) and
-``w_knee`` (-, the smooth limit's knee, 0.05).
+``w_knee`` (-, the smooth limit's knee, 0.05). ``w_aw`` is signed: > 0 the band
+runs from the limit to (1 + w_aw) of it, < 0 from (1 + w_aw) of it to the limit.
 
 Both are continuous in the state, so variable-step solvers see no jump, and at an
 unsaturated operating point (d = 0 nearby) the anti-windup terms and their derivatives
@@ -45,7 +48,7 @@ import casadi as ca
 from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = [
-    "clamp", "soft_clip", "limit", "clamping_rate", "pi_law", "position_law", "velocity_law",
+    "clamp", "soft_clip", "limit", "clamping_rate", "clamping_band", "pi_law", "position_law", "velocity_law",
     "current_law_simple", "current_law_foc",
     "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP", "ANTI_WINDUP", "LIMIT_SHAPES",
     "AW_OPTION", "SWITCH_PARAMS",
@@ -153,6 +156,28 @@ def clamping_rate(e, excess, K_i, w):
     return K_i * (e - _gate(excess, w) * ca.fmax(e, 0) - _gate(-excess, w) * ca.fmin(e, 0))
 
 
+def clamping_band(u, u_sat, u_lim, w_aw):
+    """(excess, width) for :func:`clamping_rate` with the signed band ``w_aw`` (-):
+    ``w_aw > 0`` the excess over the limit, u - u_sat, and the width w_aw u_lim (the
+    integrator fully stopped at (1 + w_aw) u_lim); ``w_aw < 0`` the excess over the
+    band's start (1 + w_aw) u_lim and the width |w_aw| u_lim (fully stopped at the
+    limit). Continuous in ``w_aw`` except at 0, which the parameter check excludes.
+
+    Parameters
+    ----------
+    u, u_sat : SX
+        Output before and after the limit (output unit).
+    u_lim : SX
+        The limit (output unit).
+    w_aw : SX
+        The band as a signed fraction of the limit (-).
+    """
+    below = ca.fmin(w_aw, 0)
+    start = u_lim * (1 + below)
+    excess = ca.if_else(w_aw < 0, u - clamp(u, -start, start), u - u_sat)
+    return excess, ca.fmax(ca.fabs(w_aw), 1e-6) * u_lim
+
+
 def pi_law(e, z, K_p, K_i, u_lim, P, u_ff=0, anti_windup="backcalc", shape="clip"):
     """PI with symmetric limit +-u_lim, feed-forward and anti-windup.
 
@@ -185,7 +210,8 @@ def pi_law(e, z, K_p, K_i, u_lim, P, u_ff=0, anti_windup="backcalc", shape="clip
     if anti_windup == "backcalc":
         z_dot = K_i * e + (P.k_bc * (K_i / K_p)) * (u_sat - u)
     elif anti_windup == "clamping":
-        z_dot = clamping_rate(e, u - u_sat, K_i, P.w_aw * u_lim)
+        excess, width = clamping_band(u, u_sat, u_lim, P.w_aw)
+        z_dot = clamping_rate(e, excess, K_i, width)
     else:
         raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
     return u_sat, u, z_dot
@@ -321,10 +347,12 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
     mag = ca.sqrt(v_d_u**2 + v_q_u**2 + 1e-12)
     scale = ca.fmin(1, v_lim / mag)
     v_d, v_q = scale * v_d_u, scale * v_q_u
-    if anti_windup == "clamping":
-        w = P.w_aw * v_lim
-        return (v_d, v_q, clamping_rate(e_d, v_d_u - v_d, P.K_i_i, w),
-                clamping_rate(e_q, v_q_u - v_q, P.K_i_i, w))
+    if anti_windup == "clamping":  # the signed band on the circle: excess over the radius (1 + min(w_aw, 0)) v_lim
+        start = v_lim * (1 + ca.fmin(P.w_aw, 0))
+        inner = ca.fmin(1, start / mag)
+        w = ca.fmax(ca.fabs(P.w_aw), 1e-6) * v_lim
+        return (v_d, v_q, clamping_rate(e_d, v_d_u - inner * v_d_u, P.K_i_i, w),
+                clamping_rate(e_q, v_q_u - inner * v_q_u, P.K_i_i, w))
     if anti_windup != "backcalc":
         raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
     w_bc = P.k_bc * (P.K_i_i / P.K_p_i)
@@ -369,7 +397,7 @@ class PositionP(Part):
     )
     outputs = (
         Output("omega_cmd", "rad/s", "motor speed command of the position loop"),
-        Output("i_cmd", "A", "q-current command of the speed loop"),
+        Output("i_cmd", "A", "q-current command of the speed loop", roles=("current_command",)),
     )
     params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w", *SWITCH_PARAMS)
     trim_limits = _LIMITS
@@ -382,6 +410,7 @@ class PositionP(Part):
     )
     options = {**AW_OPTION, "limit_shape": LIMIT_SHAPES}
     integral = False
+    smooth = {"limit_shape": "smooth"}  # the clip's corners
 
     def signals(self):
         aw = self.opt.get("anti_windup", ANTI_WINDUP[0])

@@ -1,0 +1,326 @@
+"""``design_experiment()``: the rig test that makes the chosen parameters' intervals
+smallest within the test's limits, and its comparison with the standard tests."""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from .._util._checks import integer, nearest, number
+from ..identification import SENSOR_NOISE, IdentificationError, free_parameters
+from ..model.assembly import build_model
+from ..model.params import Parameters
+from ..simulation import RunFailed, progress_bar
+from ._excitation import realise, standard_test
+from ._fisher import information, intervals
+from ._library import admissible, candidates, evaluate
+from ._optimise import CRITERIA, efficient_rounding, optimal_weights
+from ._optimise import criterion as criterion_value
+
+__all__ = ["DesignError", "DesignFailed", "design_experiment", "read_prior", "DEFAULT_FREE", "SPREAD"]
+
+#: The seven parameters of the recovery case (friction, backlash, stiffness, the motor).
+DEFAULT_FREE = ("F_seal", "C_bear", "c_v", "B", "C", "J_m", "psi")
+#: Relative standard deviation of the prior's draws where no fitted file gives one.
+SPREAD = 0.2
+#: A test shorter than this many segments has no room for a design.
+MIN_SEGMENTS = 2
+
+
+class DesignError(ValueError):
+    """A mistake in an experiment-design request (a parameter, a flag, limits no test can
+    keep): one line naming it. The command line reports it with exit status 2."""
+
+
+class DesignFailed(RunFailed):
+    """A design that could not be made (every candidate failed or left the limits, the
+    optimiser did not converge): exit status 3.
+
+    Parameters
+    ----------
+    what : str
+        The reason, one line.
+    """
+
+    def __init__(self, what: str):
+        super().__init__(what, 0.0, None)
+        self.reason = what
+        self.args = (what,)
+
+
+_PRIOR = re.compile(r"^#\s+([A-Za-z_]\w*):\s*(\S+)\s*->\s*(\S+)\s*\(95 %:\s*(\S+)\s*\.\.\s*(\S+)\)")
+
+
+def read_prior(path) -> dict:
+    """The 95 % intervals of a fitted parameter file (the header ``ema identify`` writes:
+    ``# NAME: start -> estimate (95 %: LO .. HI)``): name -> (estimate, lo, hi), SI.
+
+    Parameters
+    ----------
+    path : str or Path
+        The fitted ``.toml`` file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DesignError(f"--prior {path}: no such file")
+    out = {}
+    for line in path.read_text(encoding="utf-8-sig").splitlines():
+        if not line.startswith("#"):
+            break
+        m = _PRIOR.match(line)
+        if m:
+            try:
+                out[m.group(1)] = tuple(float(m.group(k)) for k in (3, 4, 5))
+            except ValueError:
+                continue
+    if not out:
+        raise DesignError(f"--prior {path}: no fitted intervals in its header (a file written by ema identify --out)")
+    return out
+
+
+def _thetas(fr, prior: dict | None, draws: int, spread: float, seed: int) -> tuple[list, np.ndarray]:
+    """The prior's draws (the first the centre) and the standard deviations of the
+    optimiser coordinates they were drawn with."""
+    sd = np.full(len(fr.names), spread)
+    if prior is not None:
+        for k, n in enumerate(fr.names):
+            if n in prior:
+                est, lo, hi = prior[n]
+                sd[k] = (math.log(hi / lo) if fr.log[k] and lo > 0 else (hi - lo) / abs(est or 1.0)) / (2 * 1.959964)
+            else:
+                sd[k] = 0.0
+    rng = np.random.default_rng(seed)
+    z_lo, z_hi = fr.z_bounds()
+    thetas = [fr.theta0.copy()]
+    for _ in range(1, draws):
+        z = np.clip(rng.normal(0.0, sd), z_lo + 1e-9, z_hi - 1e-9)
+        thetas.append(fr.theta(z))
+    return thetas, sd
+
+
+def _sigma(model, channels, sigma) -> dict:
+    """Measured channel -> noise level (SI): given, else the typical rig's
+    (``identification.SENSOR_NOISE``)."""
+    given = dict(sigma or {})
+    names = (*model.states, *model.outputs)
+    for c in given:
+        if c not in channels:
+            raise DesignError(f"--sigma {c}: not a measured channel (--channels {','.join(channels)})")
+    out = {}
+    for c in channels:
+        if c not in names:
+            raise DesignError(f"--channels {c}: not a state or output of the model{nearest(c, names)}")
+        v = given.get(c, SENSOR_NOISE.get(c))
+        if v is None:
+            raise DesignError(f"--sigma {c}=VALUE: give the noise of channel {c} (no typical value known)")
+        out[c] = number(v, f"--sigma {c}", DesignError, positive=True)
+    return out
+
+
+def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "D",
+                      weights: dict | None = None, stroke: float = 0.01, max_load: float = 15e3,
+                      sigma: dict | None = None, channels=None, prior=None, draws: int | None = None,
+                      spread: float = SPREAD, segment: float = 1.0, rate: float = 2000.0,
+                      library=None, variants: dict | None = None, seed: int = 0, progress: bool = False):
+    """Design the rig test (command and load profile) whose 95 % intervals of the ``free``
+    parameters are smallest by a criterion, within the test's stroke, the load capability
+    and the limits the parts declare (motor current, speed command, voltage), from the
+    Fisher information of exact forward sensitivities (the ones ``identify`` fits with).
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set (the values the test is designed at; the centre of the prior).
+    free : sequence of str or str
+        Flat names of the parameters to pin down.
+    duration : float
+        Test length (s), a whole number of segments.
+    criterion : {"D", "A", "E"}
+        D: the volume of the confidence ellipsoid; A: the sum of the (weighted) relative
+        variances; E: the largest (weighted) variance.
+    weights : dict, optional
+        Name -> weight of a free parameter in the criterion (default 1 each; 0: not of
+        interest, D then takes the others' ellipsoid).
+    stroke : float
+        The test's stroke (m): the rod stays within +-stroke (with a 5 % margin).
+    max_load : float
+        Load capability of the rig (N): load levels within +-max_load (0: no load).
+    sigma : dict, optional
+        Channel -> sensor noise (SI); default a typical rig's (0.3 um, 0.05 A, ...).
+    channels : sequence of str, optional
+        Measured channels (default the rod position and the motor current).
+    prior : str, Path or dict, optional
+        A fitted parameter file (its 95 % intervals) or name -> (estimate, lo, hi): the
+        design averages the information over draws from it.
+    draws : int, optional
+        Parameter draws the information is averaged over (default 1 without a prior,
+        4 with one; the first is the centre).
+    spread : float
+        Relative standard deviation of the draws of a parameter the prior does not give.
+    segment : float
+        Segment length (s): the period of the lowest multisine frequency.
+    rate : float
+        Sample rate of the test's tables (Hz).
+    library : sequence of Segment, optional
+        The candidate segments to choose from (default :func:`~ema_casadi.design.candidates`:
+        multisines and slews at five load levels and three amplitudes).
+    variants : dict, optional
+        Variant overrides of the model.
+    seed : int
+        Seed of the prior's draws.
+    progress : bool
+        One line of progress on stderr.
+
+    Returns
+    -------
+    DesignResult
+        The designed test, its predicted intervals and correlation, the standard test's,
+        the limits used.
+    """
+    t_wall = time.perf_counter()
+    req = _request(params, free, duration, criterion, weights, stroke, max_load, sigma, channels, prior, draws, spread,
+                   segment, rate, library, variants, seed)
+    return _run(req, progress, t_wall)
+
+
+def _peak_speed(model, infos) -> float:
+    """The rod's largest predicted speed over the draws as a fraction of the rate limit
+    (the ECU clips the speed command there; the rod may overshoot it briefly)."""
+    v = model.output_with("rod_velocity")
+    limit = model.limit_values().get("rod_speed", math.inf)
+    return float(max(np.max(np.abs(r["y"][v])) for i in infos for r in i.runs) / limit)
+
+
+def _request(params, free, duration, criterion, weights, stroke, max_load, sigma, channels, prior, draws, spread,
+             segment, rate, library, variants, seed) -> SimpleNamespace:
+    """Every argument checked (DesignError naming the first mistake), before any run."""
+    if not isinstance(params, Parameters):
+        raise DesignError("params: a Parameters object (from load_parameters)")
+    model = build_model(params, variants)
+    if isinstance(free, str):
+        free = [s.strip() for s in free.split(",") if s.strip()]
+    try:
+        fr = free_parameters(model, free)
+    except IdentificationError as exc:
+        raise DesignError(str(exc).replace("free parameter", "--free")) from None
+    if criterion not in CRITERIA:
+        raise DesignError(f"--criterion {criterion}: unknown (use {', '.join(CRITERIA)})")
+    segment = number(segment, "--segment", DesignError, positive=True)
+    duration = number(duration, "--duration", DesignError, positive=True)
+    n_seg = duration / segment
+    if n_seg < MIN_SEGMENTS - 1e-9 or abs(n_seg - round(n_seg)) > 1e-6:
+        raise DesignError(f"--duration {duration:g} s: too short for the lowest frequency {1 / segment:g} Hz or not a "
+                          f"whole number of {segment:g} s segments (at least {MIN_SEGMENTS})")
+    n_seg = int(round(n_seg))
+    rate = number(rate, "--rate", DesignError, positive=True)
+    if abs(segment * rate - round(segment * rate)) > 1e-6:
+        raise DesignError(f"--rate {rate:g} Hz: a {segment:g} s segment must hold a whole number of samples")
+    stroke = number(stroke, "--stroke", DesignError, positive=True)
+    pos = model.output_with("rod_position")
+    reach = model.envelope().get(pos, math.inf)
+    if stroke >= reach:
+        raise DesignError(f"--stroke {stroke * 1e3:g} mm: at or beyond the actuator's travel ({reach * 1e3:g} mm)")
+    max_load = number(max_load, "--max-load", DesignError, nonneg=True)
+    held = model.envelope_limits().get("held_load", math.inf)
+    if max_load >= 0.95 * held:
+        raise DesignError(f"--max-load {max_load / 1e3:g} kN: the current limit holds at most {held / 1e3:.3g} kN; "
+                          f"no excitation keeps the motor current within it at that load")
+    pw = np.ones(len(fr.names))
+    for n, w in dict(weights or {}).items():
+        if n not in fr.names:
+            raise DesignError(f"--weights {n}: not a free parameter{nearest(n, fr.names)}")
+        pw[fr.names.index(n)] = number(w, f"--weights {n}", DesignError, nonneg=True)
+    if not pw.any():
+        raise DesignError("--weights: give at least one parameter a weight above 0")
+    if channels is None:
+        channels = (model.output_with("rod_position"), model.output_with("motor_current"))
+    elif isinstance(channels, str):
+        channels = [c.strip() for c in channels.split(",") if c.strip()]
+    sig = _sigma(model, list(channels), sigma)
+    if isinstance(prior, (str, Path)):
+        prior = read_prior(prior)
+    if prior is not None:
+        unknown = [n for n in prior if n in fr.names and not prior[n][1] < prior[n][2]]
+        if unknown:
+            raise DesignError(f"--prior: interval of {unknown[0]} is empty")
+    draws = integer(draws if draws is not None else (4 if prior is not None else 1), "--draws", DesignError,
+                    minimum=1)
+    spread = number(spread, "--spread", DesignError, nonneg=True)
+    seed = integer(seed, "--seed", DesignError)
+    if library is not None:
+        from ._excitation import Segment
+
+        library = list(library)
+        if not library or not all(isinstance(s, Segment) for s in library):
+            raise DesignError("library: a non-empty sequence of Segment")
+    names = (model.input_with("command"), model.input_with("load"))
+    return SimpleNamespace(**{k: v for k, v in locals().items() if k != 'exc'})
+
+
+def _run(req, progress: bool, t_wall: float):
+    """The design: candidates, weights, the realised test, the standard test."""
+    from ._result import DesignResult
+
+    params, model, fr, sig, names = req.params, req.model, req.fr, req.sig, req.names
+    segment, rate, stroke, max_load, n_seg = req.segment, req.rate, req.stroke, req.max_load, req.n_seg
+    criterion, pw, duration, variants, library = req.criterion, req.pw, req.duration, req.variants, req.library
+    prior, draws, spread, seed = req.prior, req.draws, req.spread, req.seed
+    thetas, prior_sd = _thetas(fr, prior, draws, spread, seed)
+
+    def bar(f, what):
+        progress_bar(f, progress, "design-experiment", what)
+
+    # the candidates: information per segment, limits along their predictions
+    cands = candidates(segment, stroke, max_load) if library is None else list(library)
+    t0 = time.perf_counter()
+    ev = evaluate(model, cands, segment, rate, fr, sig, thetas, stroke, max_load, names,
+                  lambda f: bar(0.8 * f, "candidates"))
+    t_cand = time.perf_counter() - t0
+    ok = [k for k, e in enumerate(ev) if e is not None and admissible(e[1])]
+    if not ok:
+        raise DesignFailed("no candidate segment keeps the limits (stroke, current, voltage) on its prediction")
+    segs = [cands[k] for k in ok]
+    Ms = np.array([ev[k][0] for k in ok])
+    t0 = time.perf_counter()
+    opt = optimal_weights(Ms, criterion, pw, n_seg)
+    t_opt = time.perf_counter() - t0
+    if not opt["success"]:
+        raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
+    counts = efficient_rounding(opt["w"], n_seg)
+    order = sorted([k for k in range(len(segs)) for _ in range(counts[k])],
+                   key=lambda k: (segs[k].load, segs[k].kind, segs[k].band, segs[k].amplitude))
+    test = realise([segs[k] for k in order], segment, rate, *names)
+    bar(0.85, "the designed test")
+    infos = [information(model, test, fr, sig, th, stroke=stroke, max_load=max_load) for th in thetas]
+    standard = standard_test(duration, stroke, max_load, rate, *names)
+    bar(0.95, "the standard test")
+    std_infos = [information(model, standard, fr, sig, th, stroke=stroke, max_load=max_load) for th in thetas]
+    usage = {n: max(i.usage[n] for i in infos) for n in infos[0].usage}
+    if not admissible(usage):
+        worst = max(usage, key=lambda n: usage[n] / (0.95 if n == "stroke" else 1.0))
+        raise DesignFailed(f"the designed test's prediction leaves the {worst} limit ({usage[worst]:.3g} x it)")
+    M = np.mean([i.M for i in infos], axis=0)
+    M_std = np.mean([i.M for i in std_infos], axis=0)
+    bar(1.0, "done")
+    table = [{"segment": s.label(), "kind": s.kind, "band": list(s.band), "load": s.load, "amplitude": s.amplitude,
+              "share": float(opt["w"][ok_k]), "count": int(counts[ok_k])}
+             for ok_k, s in enumerate(segs) if counts[ok_k] > 0 or opt["w"][ok_k] > 1e-3]
+    info = {"criterion": criterion, "weights": dict(zip(fr.names, pw.tolist(), strict=True)),
+            "criterion_value": criterion_value(M, criterion, pw),
+            "criterion_standard": criterion_value(M_std, criterion, pw),
+            "ipopt": {"status": opt["status"], "iterations": opt["iterations"]},
+            "candidates": len(cands), "admissible": len(ok), "draws": len(thetas),
+            "prior_sd": dict(zip(fr.names, prior_sd.tolist(), strict=True)),
+            "additive_criterion": opt["value"], "segment": segment, "rate": rate, "duration": duration,
+            "stroke": stroke, "max_load": max_load, "sigma": sig, "variant_overrides": dict(variants or {}),
+            "time_candidates": t_cand, "time_optimiser": t_opt, "wall_time": time.perf_counter() - t_wall,
+            "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage},
+            "rod_speed_peak": {"designed": _peak_speed(model, infos), "standard": _peak_speed(model, std_infos)}}
+    return DesignResult(params=params, model=model, free=fr, test=test, standard=standard, M=M, M_standard=M_std,
+                        predicted=intervals(M, fr, fr.theta0), standard_predicted=intervals(M_std, fr, fr.theta0),
+                        usage=usage, segments=table, thetas=thetas, info=info, runs=infos[0].runs)

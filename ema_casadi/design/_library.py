@@ -1,0 +1,131 @@
+"""The candidate segments, their information and their use of the limits.
+
+Candidates: multisines in :data:`BANDS` and slews of :data:`SLEWS`, at every load
+level of :data:`LOAD_LEVELS` (fractions of the load capability) and every amplitude of
+:data:`AMPLITUDES` (fractions of the stroke). Each is run once alone from rest with
+forward sensitivities (:func:`~ema_casadi.design.information`): its information per
+segment and the largest use of every limit along its predicted trajectory. A
+candidate is admissible when its rod stays within :data:`STROKE_MARGIN` of the stroke
+and the motor current, the rod speed and the voltage within their limits to
+:data:`LIMIT_TOLERANCE` (the ECU's limiters hold them there; what they let through,
+the current loop's overshoot above I_max, counts).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .._util._parallel import cores
+from ..simulation import RunFailed
+from ._excitation import Segment, realise
+from ._fisher import information
+
+__all__ = ["BANDS", "SLEWS", "LOAD_LEVELS", "AMPLITUDES", "STROKE_MARGIN", "LIMIT_TOLERANCE", "candidates",
+           "admissible", "evaluate"]
+
+#: Multisine bands (Hz): harmonics of the segment's base frequency within each.
+BANDS = ((1.0, 4.0), (4.0, 16.0), (15.0, 50.0))
+#: Slew segments: moves per segment and the share of a move spent reversing.
+SLEWS = ((2, 0.1), (4, 0.1), (6, 0.3))
+#: Load levels, fractions of the load capability.
+LOAD_LEVELS = (-1.0, -0.5, 0.0, 0.5, 1.0)
+#: Command amplitudes, fractions of the stroke (the rod then stays about that far in).
+AMPLITUDES = (0.92, 0.3, 0.08)
+#: The predicted rod position stays within this fraction of the stroke (room for the
+#: parameters' uncertainty: the truth is not the prediction).
+STROKE_MARGIN = 0.95
+#: The motor current, rod speed and voltage at most this fraction of their limits.
+LIMIT_TOLERANCE = 1.005
+
+
+def candidates(tau: float, stroke: float, max_load: float) -> list[Segment]:
+    """The candidate segments.
+
+    Parameters
+    ----------
+    tau : float
+        Segment length (s).
+    stroke : float
+        The test's stroke (m).
+    max_load : float
+        Load capability (N).
+    """
+    out = []
+    loads = sorted({round(f * max_load, 6) for f in LOAD_LEVELS}) if max_load > 0 else [0.0]
+    shapes = [("multisine", (max(lo, 1 / tau), hi)) for lo, hi in BANDS if hi * tau >= 1]
+    shapes += [("slews", s) for s in SLEWS]
+    for F in loads:
+        for kind, band in shapes:
+            for a in AMPLITUDES:
+                out.append(Segment(kind, band, float(F), a * stroke))
+    return out
+
+
+def admissible(usage: dict) -> bool:
+    """Whether a predicted trajectory's limit use (:func:`~ema_casadi.design.limit_usage`)
+    keeps every limit.
+
+    Parameters
+    ----------
+    usage : dict
+        Limit name -> largest value as a fraction of the limit.
+    """
+    return all(v <= (STROKE_MARGIN if k == "stroke" else LIMIT_TOLERANCE) for k, v in usage.items())
+
+
+def evaluate(model, segs, tau: float, rate: float, free, sigma: dict, thetas, stroke: float, max_load: float,
+             names: tuple, progress=None) -> list:
+    """Per candidate: ``(M averaged over thetas, worst usage over thetas)`` or None
+    where a run fails; candidates run on the cores at once.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    segs : sequence of Segment
+        The candidates.
+    tau, rate : float
+        Segment length (s) and sample rate (Hz).
+    free : Free
+        The free parameters.
+    sigma : dict
+        Channel -> noise (SI).
+    thetas : sequence of ndarray
+        Parameter values of the prior's draws (SI).
+    stroke, max_load : float
+        The test's stroke (m) and load capability (N).
+    names : tuple of str
+        The command and load input names.
+    progress : callable, optional
+        Called with the fraction done.
+    """
+    jobs = [(k, th) for k in range(len(segs)) for th in range(len(thetas))]
+    done = [0]
+
+    def one(job):
+        k, d = job
+        try:
+            info = information(model, realise([segs[k]], tau, rate, *names), free, sigma, thetas[d], threads=1,
+                               stroke=stroke, max_load=max_load)
+        except RunFailed:
+            info = None
+        done[0] += 1
+        if progress is not None:
+            progress(done[0] / len(jobs))
+        return info
+
+    infos = [one(jobs[0])]  # the first alone: the compiled functions are built (and cached) once
+    with ThreadPoolExecutor(max(1, min(cores(), len(jobs))), thread_name_prefix="ema-design") as pool:
+        infos += list(pool.map(one, jobs[1:]))
+    out = []
+    for k in range(len(segs)):
+        mine = infos[k * len(thetas) : (k + 1) * len(thetas)]
+        if any(i is None for i in mine):
+            out.append(None)
+            continue
+        M = np.mean([i.M for i in mine], axis=0)
+        usage = {n: max(i.usage[n] for i in mine) for n in mine[0].usage}
+        out.append((M, usage))
+    return out

@@ -1,0 +1,126 @@
+"""Experiment design: the Fisher information of a test is the covariance identify
+reports, the criteria and the optimal weights against analytic optima, the rounding,
+a small design end to end, and bad requests refused before any work."""
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import assert_glance
+from ema_casadi.design import (
+    DesignError,
+    Segment,
+    criterion,
+    design_experiment,
+    efficient_rounding,
+    information,
+    optimal_weights,
+    realise,
+)
+from ema_casadi.identification import free_parameters, identify, synthetic_record
+from ema_casadi.signals import Signal
+
+SIGMA = {"x_rod": 0.3e-6, "i_q": 0.05}
+
+
+@pytest.fixture(scope="module")
+def small(params):
+    """A two-parameter, two-segment design from a three-segment library (2 s at 1 kHz)."""
+    lib = [Segment("multisine", (1.0, 8.0), 0.0, 2e-3), Segment("slews", (2, 0.2), 8e3, 4e-3),
+           Segment("multisine", (4.0, 16.0), -8e3, 1e-3)]
+    return design_experiment(params, ["F_seal", "psi"], 2.0, library=lib, rate=1000.0, max_load=8e3)
+
+
+def test_information_is_the_covariance_identify_reports(params, model_cache, tmp_path):
+    """The inverse of the predicted information is the covariance identify computes from
+    its Jacobian when it fits the same test, noise-free, with these noise levels (it
+    starts at the truth and stays there): its textbook intervals (the headline ones are
+    the robust sandwich, which scales with the residuals: zero here)."""
+    model = model_cache()
+    seg = Segment("multisine", (1.0, 8.0), 5e3, 2e-3)
+    test = realise([seg], 1.0, 1000.0, "x_cmd", "f_ext")
+    fr = free_parameters(model, ["F_seal", "J_m"])
+    info = information(model, test, fr, SIGMA)
+    rec = test.records[0]
+    path = synthetic_record(params, tmp_path / "r.csv", t_end=1.0, x_cmd=Signal.table(rec["t"], rec["inputs"]["x_cmd"]),
+                            f_ext=Signal.table(rec["t"], rec["inputs"]["f_ext"]), noise={c: 0.0 for c in SIGMA},
+                            rate=1000.0)
+    res = identify(params, [path], ["F_seal", "J_m"], sigma=SIGMA, consistency=False, hold_unidentifiable=False)
+    # identify's 95 % intervals in log coordinates: half-width 1.96 sd_z
+    sd_pred = np.sqrt(np.diag(np.linalg.inv(info.M)))
+    sd_fit = np.array([math.log(res.interval_textbook[n][1] / res.interval_textbook[n][0]) / (2 * 1.959963984540054)
+                       for n in ("F_seal", "J_m")])
+    # the same sensitivities on the same steps: measured 1.2e-10 relative (the CSV's 17 digits,
+    # the fit's last step of 1e-10); 1e-6 leaves room for another CPU's rounding and step choice
+    assert np.allclose(sd_fit, sd_pred, rtol=1e-6), (sd_fit, sd_pred)
+
+
+def test_d_and_a_criteria_are_the_textbook_ones():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(4, 6))
+    M = A @ A.T
+    assert criterion(M, "D") == pytest.approx(-np.linalg.slogdet(M)[1], rel=1e-12)
+    assert criterion(M, "A") == pytest.approx(np.trace(np.linalg.inv(M)), rel=1e-12)
+    lam = np.linalg.eigvalsh(np.linalg.inv(M))[-1]
+    # Phi_16 lies between the largest eigenvalue and n^(1/16) times it (log form)
+    assert math.log(lam) <= criterion(M, "E") <= math.log(lam) + math.log(4) / 16 + 1e-12
+    # D_s on the first two: log det of their covariance block
+    C = np.linalg.inv(M)
+    assert criterion(M, "D", [1, 1, 0, 0]) == pytest.approx(np.linalg.slogdet(C[:2, :2])[1], rel=1e-12)
+
+
+def test_optimal_weights_reach_the_analytic_optimum():
+    """Two candidates that each see one parameter: D-optimal splits the time equally;
+    A-optimal with information 4 and 1 per unit time minimises 1/(4w) + 1/(1-w): w = 1/3."""
+    Ms = [np.diag([1.0, 0.0]), np.diag([0.0, 1.0])]
+    d = optimal_weights(Ms, "D")
+    assert d["success"] and np.allclose(d["w"], [0.5, 0.5], atol=1e-7)
+    a = optimal_weights([np.diag([4.0, 0.0]), np.diag([0.0, 1.0])], "A")
+    assert a["success"] and np.allclose(a["w"], [1 / 3, 2 / 3], atol=1e-7)
+
+
+def test_efficient_rounding_keeps_the_total_and_the_support():
+    n = efficient_rounding([0.5, 0.3, 0.2, 0.0], 10)
+    assert n.sum() == 10 and n[3] == 0 and list(n) == [5, 3, 2, 0]
+    n = efficient_rounding([0.62, 0.38], 3)
+    assert n.sum() == 3 and all(n >= 1)
+
+
+def test_a_small_design_beats_its_worst_single_segment_and_keeps_the_limits(small):
+    assert_glance(small)
+    r = small
+    assert r.info["ipopt"]["status"] == "Solve_Succeeded"
+    assert sum(s["count"] for s in r.segments) == 2
+    assert r.usage["stroke"] <= 0.95 and r.usage["current"] <= 1.005
+    c = r.comparison()
+    assert set(c["parameters"]) == {"F_seal", "psi"} and np.isfinite(c["geometric_mean_ratio"])
+    assert abs(r.correlation("F_seal", "psi")) < 1
+    assert "| F_seal |" in r.table()
+
+
+def test_the_design_is_written_in_the_toolkits_layout(small, tmp_path):
+    from ema_casadi.design import output_names
+    from ema_casadi.signals import parse_signal
+
+    folder = small.write(tmp_path / "out")
+    assert sorted(p.name for p in folder.iterdir()) == sorted(output_names())
+    rec = small.test.records[0]
+    for col, kind in (("x_cmd", "length"), ("f_ext", "force")):  # the table ema simulate plays, read back
+        sig = parse_signal(f"{folder / 'design.csv'}:{col}", kind)
+        assert np.array_equal(sig(rec["t"]), rec["inputs"][col])
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"free": ["F_seel"]}, "F_seel"),
+    ({"duration": 0.5}, "too short for the lowest frequency"),
+    ({"criterion": "G"}, "unknown"),
+    ({"max_load": 60e3}, "current limit holds"),
+    ({"stroke": 0.2}, "travel"),
+    ({"weights": {"psi_x": 1.0}}, "psi_x"),
+    ({"sigma": {"omega": 0.1}}, "not a measured channel"),
+])
+def test_bad_requests_are_refused_before_any_work(params, kwargs, match):
+    kw = {"free": ["F_seal", "psi"], "duration": 2.0, **kwargs}
+    with pytest.raises(DesignError, match=match):
+        design_experiment(params, kw.pop("free"), kw.pop("duration"), **kw)
