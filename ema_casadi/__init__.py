@@ -43,6 +43,7 @@ _EXPORTS = {
     ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
     ".limitcycle": ("OrbitNotFound", "PeriodicOrbit", "periodic_orbit"),
     ".design": ("DesignError", "DesignResult", "design_experiment"),
+    ".optimal": ("Infeasible", "OptimalError", "OptimalMove", "optimal_move"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -79,4 +80,5 @@ __all__ = [
     "FaultError", "FaultResult", "load_faults", "run_faults",
     "OrbitNotFound", "PeriodicOrbit", "periodic_orbit",
     "DesignError", "DesignResult", "design_experiment",
+    "Infeasible", "OptimalError", "OptimalMove", "optimal_move",
 ]

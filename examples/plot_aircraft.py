@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt
 
 import ema_casadi as ema
 from ema_casadi.aircraft import aircraft_margins, aircraft_point, pitch_step
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params, {"airframe": "transport"})
@@ -37,3 +38,5 @@ ax_x.set(xlabel="time (s)", ylabel="rod position (mm)")
 for ax in (ax_t, ax_x):
     ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

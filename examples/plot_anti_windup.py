@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema_casadi as ema
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
@@ -33,3 +34,5 @@ for ax, (controller, p) in zip(axes, (("P", params), ("PI", params.replace(K_i_x
     ax.legend()
 axes[0].set_ylabel("x_rod (mm)")
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

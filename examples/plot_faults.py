@@ -10,6 +10,7 @@ inputs are driven from the onset on; nothing is rebuilt).
 """
 
 import ema_casadi as ema
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 study = {
@@ -25,3 +26,5 @@ for row in res.rows:
             if (d := row[f"detected_{m}_s"]) is not None}
     print(f"{row['case']:10s} detected (ms after the onset): {hits or 'none'}")
 fig = res.plot()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema_casadi as ema
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 stroke = params.actuator.stroke                       # 0.075 m
@@ -48,3 +49,5 @@ fig.tight_layout()
 c10 = amps.curve(amplitude=0.1 * stroke)
 print(f"10 % amplitude, gain at 2.5 Hz: {np.interp(2.5, c10['freq_Hz'], c10['gain_db']):.2f} dB")
 print("points not converged:", len(amps.not_converged()) + len(loads.not_converged()))
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 
 import ema_casadi as ema
 from ema_casadi import Signal
+from ema_casadi.plots import write_figures
 from ema_casadi.simulation import hunting_metrics
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
@@ -36,3 +37,5 @@ ax.set(xlabel="time (s)", ylabel="x_rod - x_cmd (um)", xlim=(1.0, 4.0), ylim=(-1
 ax.legend()
 ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -12,10 +12,9 @@ noise level.
 
 import tempfile
 
-import matplotlib.pyplot as plt
-
 import ema_casadi as ema
 from ema_casadi import identification as idn
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 folder = tempfile.mkdtemp()
@@ -36,4 +35,5 @@ figs["intervals"]
 # The correlation of the estimates: inertia and flux linkage both scale the
 # acceleration per ampere, so these records determine mainly their ratio
 figs["correlation"]
-plt.show()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -18,6 +18,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi import Signal
 from ema_casadi.limitcycle import cycle_of, describing_function, harmonic_balance, refine
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params, {"controller": "PI", "friction": "hybrid"})
@@ -44,3 +45,5 @@ ax.set(xlabel="phase of L_N (deg)", ylabel="|L_N| (dB)", title="describing funct
 ax.legend(fontsize=8)
 ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

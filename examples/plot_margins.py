@@ -14,6 +14,7 @@ import numpy as np
 import ema_casadi as ema
 from ema_casadi.frequency import frequency_grid
 from ema_casadi.linearisation import loop_model
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params)
@@ -44,3 +45,5 @@ ax_c.legend()
 for ax in (ax_l, ax_c):
     ax.grid(alpha=0.3, which="both")
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

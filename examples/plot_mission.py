@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt
 
 import ema_casadi as ema
 from ema_casadi.mission import parse_mission, run_mission
+from ema_casadi.plots import write_figures
 
 MISSION = """
 [mission]
@@ -65,3 +66,5 @@ ax_x.set(xlabel="time (s)", ylabel="rod position (mm)")
 for ax in (ax_T, ax_x):
     ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -10,10 +10,10 @@ matrices where the screw's contact switches). The multipliers say how strongly t
 cycle attracts; a few continuation steps over the backlash show how it grows.
 """
 
-import matplotlib.pyplot as plt
 
 import ema_casadi as ema
 from ema_casadi.limitcycle import continue_orbit
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()
 model = ema.build_model(params, {"controller": "PI", "friction": "smooth", "screw_lock": "blend"})
@@ -29,4 +29,5 @@ branch = continue_orbit(model, "B", 0.0, 100e-6, p=p, orbit=orbit, steps=3, dire
 for B, a, T in zip(branch.values, branch.amplitudes, branch.periods, strict=True):
     print(f"B = {B * 1e6:5.1f} um: amplitude {a * 1e6:.2f} um, {1 / T:.3f} Hz")
 branch.plot()
-plt.show()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -14,6 +14,7 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import Signal
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 pwm = ema.build_model(params, {"inverter": "pwm"})
@@ -45,3 +46,5 @@ ax_s.legend(loc="upper right", ncol=3)
 for ax in (ax_i, ax_s):
     ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

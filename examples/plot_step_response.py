@@ -14,6 +14,7 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import Signal
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 model = ema.build_model(params)
@@ -36,3 +37,5 @@ for col, (res, title) in enumerate([(small, "1 mm step"), (large, "20 mm step")]
 for ax in axes.flat:
     ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

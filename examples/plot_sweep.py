@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema_casadi as ema
+from ema_casadi.plots import write_figures
 from ema_casadi.sweeps import parse_sweep
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
@@ -43,3 +44,5 @@ ax.set(xlabel="backlash B (mm)", ylabel="hunting amplitude (um, 1/2 p-p)",
        title=f"{len(table)} runs: backlash grid x seal-friction draws")
 ax.grid(alpha=0.3, which="both")
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 
 import ema_casadi as ema
 from ema_casadi import Signal
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 result = ema.tune(params, loads=[0.0])
@@ -34,3 +35,5 @@ ax.set(xlabel="time (ms)", ylabel="rod position (mm)", title="1 mm step, nonline
 ax.legend()
 ax.grid(alpha=0.3)
 fig.tight_layout()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

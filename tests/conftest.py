@@ -1,11 +1,14 @@
 """Shared fixtures (the reference parameter set and its models, built once) and helpers."""
 
+import os
 from pathlib import Path
 
-import numpy as np
+os.environ.setdefault("MPLBACKEND", "Agg")  # off screen, whatever display the machine has
+
+import numpy as np  # noqa: E402
 import pytest
 
-from ema_casadi import build_model, load_parameters
+from ema_casadi import build_model, load_parameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "models" / "cesa_ema.toml"
@@ -21,6 +24,16 @@ dt = 1e-4
 [metrics]
 peak = {}
 """
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """The figures a test's plot() calls leave with pyplot are released after it."""
+    yield
+    import sys
+
+    if "matplotlib.pyplot" in sys.modules:
+        sys.modules["matplotlib.pyplot"].close("all")
 
 
 @pytest.fixture(scope="session")

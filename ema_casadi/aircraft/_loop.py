@@ -68,7 +68,8 @@ def ideal_loop(model: Model, op: OperatingPoint) -> LinearModel:
     op : OperatingPoint
         From :func:`aircraft_point`.
     """
-    lin = linear_model(model, op, open_loops=["aircraft"], inputs=["d_fcs"], outputs=["x_cmd_fcs"])
+    brk = model.loops["aircraft"]  # the loop break: its injection and the law's rod command
+    lin = linear_model(model, op, open_loops=["aircraft"], inputs=[brk.injection], outputs=[brk.measured])
     ia = _airframe_states(model)
     ie = [i for i in range(model.nx) if i not in ia]
     travel = model.travel(op.p)
@@ -78,7 +79,8 @@ def ideal_loop(model: Model, op: OperatingPoint) -> LinearModel:
     c = lin.C[0, ia]
     d = float(lin.C[0, ie] @ t)
     return LinearModel(A=A, B=b[:, None], C=-c[None, :], D=np.array([[-d]]),
-                       states=tuple(model.states[i] for i in ia), inputs=("x_rod",), outputs=("-x_cmd_fcs",),
+                       states=tuple(model.states[i] for i in ia), inputs=(model.output_with("rod_position"),),
+                       outputs=(f"-{brk.measured}",),
                        op=op, name="L_aircraft_ideal", open_loops=("aircraft",))
 
 
@@ -162,6 +164,6 @@ def aircraft_margins(model: Model, condition: str = "cruise_sl", op: OperatingPo
     Li, Le = ideal_loop(model, op), ema_loop(model, op)
     mi = margins(Li, f_min=F_WINDOW[0], f_max=F_WINDOW[1], loop="aircraft (ideal actuator)")
     me = margins(Le, f_min=F_WINDOW[0], f_max=F_WINDOW[1], loop="aircraft (EMA)")
-    trim = {**op.policy.get("trim_free", {}), "delta_e_deg": math.degrees(op.output("delta_e")),
-            "x_cmd_m": op.x_cmd, "F_surf_rod_N": op.output("F_surf_rod")}
+    trim = {**op.policy.get("trim_free", {}), "delta_e_deg": math.degrees(op.output(model.output_with("elevator"))),
+            "x_cmd_m": op.x_cmd, "F_surf_rod_N": op.output(model.output_with("surface_load"))}
     return AircraftMargins(condition, mi, me, equivalent_delay(Li, Le, f_crossover=mi.f_gc_hz), trim)

@@ -15,8 +15,11 @@ from ._conditions import condition_overrides
 
 __all__ = ["one_minus_cosine", "pitch_step", "gust_response", "RESPONSE_SIGNALS"]
 
-#: Signals a response reports (those the model has).
-RESPONSE_SIGNALS = ("theta", "q", "alpha", "n_z", "delta_e", "delta_cmd", "x_cmd", "x_rod", "F_surf_rod", "i_q")
+#: Roles of the signals a response reports (those the model has), under the model's names:
+#: pitch attitude, rate and angle of attack, load factor, elevator and its command, the
+#: rod command and position, the surface load on the rod, the motor current.
+RESPONSE_SIGNALS = ("pitch_attitude", "pitch_rate", "angle_of_attack", "load_factor", "elevator", "elevator_command",
+                    "rod_command", "rod_position", "surface_load", "motor_current")
 
 
 def one_minus_cosine(amplitude: float, duration: float, t0: float = 1.0, points: int = 200) -> Signal:
@@ -49,7 +52,8 @@ def _run(model: Model, op: OperatingPoint, p, t_end: float, dt: float, dt_out: f
     fixed = {n: float(op.u[model.inputs.index(n)]) for n in op.policy.get("trim_free", {})}
     fixed.update(signals)
     res = simulate(model, t_end, dt=dt, dt_out=dt_out, p=p, x0=op.x, zoh=zoh, **fixed)
-    return {"t": res.t, **{n: np.asarray(res[n]) for n in RESPONSE_SIGNALS if n in res.columns()},
+    shown = [n for role in RESPONSE_SIGNALS for n in model.signals_with(role)]
+    return {"t": res.t, **{n: np.asarray(res[n]) for n in dict.fromkeys(shown)},
             "wall_time_s": res.info["wall_time"]}
 
 
@@ -75,13 +79,14 @@ def pitch_step(model: Model, op: OperatingPoint, condition: str = "cruise_sl", s
         Flat parameter values (SI), e.g. ``B`` or ``K_i_x``.
     """
     p = _params(model, condition, overrides)
-    th0 = float(op.u[model.inputs.index(model.input_with("attitude_command"))])
-    out = _run(model, op, p, t_end, dt, dt_out, zoh, theta_cmd=Signal.step(step, t_step) + constant(th0))
+    att, theta = model.input_with("attitude_command"), model.signal_with("pitch_attitude")
+    th0 = float(op.u[model.inputs.index(att)])
+    out = _run(model, op, p, t_end, dt, dt_out, zoh, **{att: Signal.step(step, t_step) + constant(th0)})
     on = out["t"] >= t_step
     out["metrics"] = None
     if on.sum() > 1:
-        th_start = float(out["theta"][np.argmax(on)])
-        out["metrics"] = step_response_metrics(out["t"][on] - t_step, (out["theta"][on] - th_start) / step)
+        th_start = float(out[theta][np.argmax(on)])
+        out["metrics"] = step_response_metrics(out["t"][on] - t_step, (out[theta][on] - th_start) / step)
     return out
 
 
@@ -107,9 +112,12 @@ def gust_response(model: Model, op: OperatingPoint, condition: str = "cruise_sl"
         Flat parameter values (SI).
     """
     p = _params(model, condition, overrides)
-    th0 = float(op.u[model.inputs.index(model.input_with("attitude_command"))])
-    out = _run(model, op, p, t_end, dt, dt_out, zoh, w_g=one_minus_cosine(amplitude, duration, t0), theta_cmd=th0)
-    out["peaks"] = {"theta_dev_rad": float(np.max(np.abs(out["theta"] - op.state("theta")))),
-                    "n_z_dev": float(np.max(np.abs(out["n_z"] - op.output("n_z")))),
-                    "F_surf_rod_max_N": float(np.max(np.abs(out["F_surf_rod"])))}
+    att = model.input_with("attitude_command")
+    th0 = float(op.u[model.inputs.index(att)])
+    out = _run(model, op, p, t_end, dt, dt_out, zoh,
+               **{model.input_with("gust"): one_minus_cosine(amplitude, duration, t0), att: th0})
+    theta, n_z, F_surf = (model.signal_with(r) for r in ("pitch_attitude", "load_factor", "surface_load"))
+    out["peaks"] = {"theta_dev_rad": float(np.max(np.abs(out[theta] - op.state(theta)))),
+                    "n_z_dev": float(np.max(np.abs(out[n_z] - op.output(n_z)))),
+                    "F_surf_rod_max_N": float(np.max(np.abs(out[F_surf])))}
     return out

@@ -42,9 +42,9 @@ from ._options import DEFAULT_MODEL, add_progress, model_path, progress_of, stag
 
 __all__ = ["main", "UserError", "DEFAULT_MODEL", "EXIT_FAILED", "check_output_path", "check_output_dir",
            "add_progress", "progress_of", "stage", "second_file", "model_path", "load", "jsonable", "add_common",
-           "build_parser", "get_parser", "join_negative_values"]
+           "build_parser", "get_parser", "join_values"]
 
-_PARSER_NAMES = ("add_common", "build_parser", "get_parser", "join_negative_values")
+_PARSER_NAMES = ("add_common", "build_parser", "get_parser", "join_values")
 
 
 def __getattr__(name):  # the parser's names load argparse: only when asked for

@@ -1,17 +1,106 @@
 """Shared checks of the commands' flags: parameter values set by flags (checked as a
-parameter file's values, named by the flag), flags given where they do not apply, the
+parameter file's values, named by the flag), flags given where they have no effect
+(each command's ``NO_EFFECT`` table, :class:`NoEffect`), the
 airframe chosen by ``--variant airframe=...`` or ``--airframe``, and an output folder
 of several files written whole or not at all."""
 
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from . import UserError, check_output_dir, check_output_path
 
-__all__ = ["overrides", "refuse_unused", "refuse_dt", "fill_defaults", "airframe_variant", "new_output_folder",
-           "output_folder"]
+__all__ = ["overrides", "refuse_dt", "fill_defaults", "airframe_variant", "new_output_folder",
+           "output_folder", "NoEffect", "COMMON", "given", "no_effect", "refuse_no_effect"]
+
+
+@dataclass(frozen=True)
+class NoEffect:
+    """A combination in which a flag has no effect: given there, the flag is refused in
+    one line (``FLAG has no effect WHY``), never silently dropped.
+
+    Every command declares ``NO_EFFECT``: each flag it adds -> the combinations that
+    disable it (an empty tuple: the flag acts in every combination). The command-line
+    tests run every ``example`` and check the one line, so a flag added without a
+    declaration, or a declared combination that is not refused, fails them.
+
+    Attributes
+    ----------
+    example : tuple of str
+        A command line after the command's name, the flag included, where the flag has
+        no effect (the tests run it: exit status 2, one line naming the flag).
+    why : str
+        The end of the message after "FLAG has no effect"; ``{attr}`` fields are filled
+        from the parsed arguments (``"with --format {format}"``).
+    when : callable, optional
+        ``when(args) -> bool`` on the parsed arguments: checked by the dispatcher
+        before any work (:func:`refuse_no_effect`). None where it takes the model (the
+        command checks it with :func:`no_effect` once the model is built).
+    """
+
+    example: tuple
+    why: str
+    when: Callable | None = None
+
+
+#: The flags every command has (:func:`~ema_casadi.cli._parser.add_common`,
+#: :func:`~ema_casadi.cli._options.add_progress`): they act everywhere unless the
+#: command's own ``NO_EFFECT`` says otherwise.
+COMMON = {"--variant": (), "--json": (), "--progress": ()}
+
+
+def given(args, flag: str) -> bool:
+    """Whether ``flag`` was on the command line (also at its default value): the set the
+    dispatcher records (``args._given``), else, for arguments built by hand, a value
+    other than None, False or empty.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments.
+    flag : str
+        The flag's long name (``"--dt"``).
+    """
+    marks = getattr(args, "_given", None)
+    if marks is not None:
+        return flag in marks
+    return getattr(args, flag[2:].replace("-", "_"), None) not in (None, False, [], ())
+
+
+def no_effect(args, flag: str, why: str) -> None:
+    """Refuse ``flag`` when it was given: UserError ``FLAG has no effect WHY``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments.
+    flag : str
+        The flag.
+    why : str
+        Where and why it has no effect (``"with --solver rk4: ..."``).
+    """
+    if given(args, flag):
+        raise UserError(f"{flag} has no effect {why}")
+
+
+def refuse_no_effect(args, table: dict) -> None:
+    """The first flag of a command's ``NO_EFFECT`` table that was given in a combination
+    whose ``when`` holds: UserError, one line naming it (before any work).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments (``args._given``: the flags on the command line).
+    table : dict
+        Flag -> tuple of :class:`NoEffect`.
+    """
+    for flag, rules in table.items():
+        for rule in rules:
+            if rule.when is not None and given(args, flag) and rule.when(args):
+                no_effect(args, flag, rule.why.format(**vars(args)))
 
 
 def new_output_folder(out: Path, names, flag: str = "--out") -> Path | None:
@@ -77,25 +166,6 @@ def overrides(params, flags: dict) -> dict:
     return out
 
 
-def refuse_unused(args, flags: dict, why: str) -> None:
-    """A flag given where it does not apply is a mistake, not silently ignored:
-    UserError for the first of ``flags`` (flag -> attribute name) whose value was given
-    (not None, False or empty).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed arguments (the flags concerned default to None, False or []).
-    flags : dict
-        Flag -> attribute of ``args``.
-    why : str
-        Why they do not apply (``"with --no-responses (nothing is simulated)"``).
-    """
-    for flag, attr in flags.items():
-        if getattr(args, attr, None) not in (None, False, []):
-            raise UserError(f"{flag}: does not apply {why}")
-
-
 def refuse_dt(dt, solver, hint: str = "give --solver rk4 or drop --dt") -> None:
     """``--dt`` is the RK4 step: given while another solver runs (``solver`` the one
     chosen, or True where the model switches and RK4 always steps) it would be dropped
@@ -116,7 +186,7 @@ def refuse_dt(dt, solver, hint: str = "give --solver rk4 or drop --dt") -> None:
 
 def fill_defaults(args, defaults: dict) -> None:
     """Set each attribute of ``defaults`` that is None in ``args`` to its default (flags
-    whose default is None so that :func:`refuse_unused` can tell whether they were given).
+    whose default is None so that a command can tell whether they were given).
 
     Parameters
     ----------

@@ -12,7 +12,7 @@ import sys
 from ._options import DEFAULT_MODEL
 
 __all__ = ["VariantHelpFormatter", "variant_help", "add_common", "build_parser", "get_parser",
-           "join_negative_values", "join_unit_values", "unknown_flag"]
+           "join_values", "unknown_flag", "given_flags", "flag_name"]
 
 #: The ``--variant`` help as declared; :class:`VariantHelpFormatter` shows the registry's keys and
 #: values in its place (another formatter shows this sentence).
@@ -109,46 +109,38 @@ def get_parser():
     return parser
 
 
-def _subparsers(parser) -> argparse._SubParsersAction:
-    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+def flag_name(action) -> str:
+    """The name a flag goes by in messages and ``NO_EFFECT`` tables: its first long option
+    (``--progress`` for ``--progress/--no-progress``)."""
+    return next(o for o in action.option_strings if o.startswith("--"))
 
 
-def join_negative_values(argv: list[str], parser) -> list[str]:
-    """``--f-ext -30kN`` -> ``--f-ext=-30kN``: a token that starts with '-' and a digit or
-    '.' after a flag that takes a value is that flag's value (argparse alone reads
-    ``-30kN`` as an unknown option). Long flags and their unambiguous prefixes are
-    recognised; nothing after ``--`` is touched.
+def given_flags(sub, words: list[str]) -> set[str]:
+    """The flags on a command's line (by :func:`flag_name`), also those given at their
+    default value: ``words`` parsed again by the command's parser ``sub`` with every
+    default suppressed, so that only what was given is set.
 
     Parameters
     ----------
-    argv : list of str
-        Arguments after the program name.
-    parser : argparse.ArgumentParser
-        The ``ema`` parser (its subcommands say which flags take a value).
+    sub : argparse.ArgumentParser
+        The command's parser.
+    words : list of str
+        The arguments after the command's name (already parsed once, so valid).
     """
-    import re
+    flags = {a.dest: flag_name(a) for a in sub._actions if any(o.startswith("--") for o in a.option_strings)}
+    saved = [(a, a.default) for a in sub._actions]
+    try:
+        for a, _ in saved:
+            a.default = argparse.SUPPRESS
+        ns, _ = sub.parse_known_args(words)
+    finally:
+        for a, d in saved:
+            a.default = d
+    return {flags[d] for d in vars(ns) if d in flags}
 
-    negative = re.compile(r"-[0-9.]")
-    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-    choices = subs[0].choices if subs else {}
-    out, i, sub = [], 0, None
-    while i < len(argv):
-        tok = argv[i]
-        if tok == "--":
-            return out + argv[i:]
-        if sub is None and tok in choices:
-            sub = choices[tok]
-        elif sub is not None and tok.startswith("--") and "=" not in tok and i + 1 < len(argv) \
-                and negative.match(argv[i + 1]):
-            flags = {o: a.nargs is None for a in sub._actions for o in a.option_strings if o.startswith("--")}
-            match = [o for o in flags if o == tok] or [o for o in flags if o.startswith(tok)]
-            if len(match) == 1 and flags[match[0]]:
-                out.append(f"{tok}={argv[i + 1]}")
-                i += 2
-                continue
-        out.append(tok)
-        i += 1
-    return out
+
+def _subparsers(parser) -> argparse._SubParsersAction:
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
 
 
 def unknown_flag(argv: list[str], parser) -> str | None:
@@ -193,42 +185,59 @@ UNIT_WORDS = ("N", "kN", "MN", "m", "mm", "um", "%", "m/s", "mm/s", "us", "ms", 
               "Hz", "kHz", "V", "A", "K", "degC")
 
 
-def join_unit_values(argv: list[str], parser) -> list[str]:
-    """``--f-ext 30 kN`` -> ``--f-ext 30kN``: a number after a flag that takes a value,
-    followed by a unit word of :data:`UNIT_WORDS`, is one value (argparse alone reads
-    ``kN`` as the parameter file). Nothing after ``--`` is touched.
+def join_values(argv: list[str], parser) -> list[str]:
+    """A flag's value as argparse must see it, in one pass over the arguments:
+
+    - ``--f-ext -30kN`` -> ``--f-ext=-30kN``: a token that starts with '-' and a digit or
+      '.' after a flag that takes a value is that flag's value (argparse alone reads
+      ``-30kN`` as an unknown option);
+    - ``--f-ext 30 kN`` -> ``--f-ext 30kN`` (and ``--f-ext=-30 kN`` -> ``--f-ext=-30kN``):
+      a number followed by a unit word of :data:`UNIT_WORDS` is one value (argparse
+      alone reads ``kN`` as the parameter file).
+
+    Long flags and their unambiguous prefixes are recognised; nothing after ``--`` is touched.
 
     Parameters
     ----------
     argv : list of str
-        Arguments after the program name (after :func:`join_negative_values`).
+        Arguments after the program name.
     parser : argparse.ArgumentParser
-        The ``ema`` parser.
+        The ``ema`` parser (its subcommands say which flags take a value).
     """
     import re
 
+    negative = re.compile(r"-[0-9.]")
     number = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
     choices = _subparsers(parser).choices
-    out, sub = [], None
-    i = 0
+    out, i, takes = [], 0, None
+
+    def unit_after(j: int) -> bool:
+        return j < len(argv) and argv[j] in UNIT_WORDS
+
     while i < len(argv):
         tok = argv[i]
         if tok == "--":
             return out + argv[i:]
-        if sub is None and tok in choices:
-            sub = choices[tok]
-        elif sub is not None and tok.startswith("--") and i + 1 < len(argv):
-            takes = {o for a in sub._actions for o in a.option_strings if a.nargs is None}
+        if takes is None and tok in choices:  # the subcommand: which of its flags take a value
+            flags = {o: a.nargs is None for a in choices[tok]._actions for o in a.option_strings if o.startswith("--")}
+            takes = {o for o, value in flags.items() if value}
+            known = list(flags)
+        elif takes and tok.startswith("--") and i + 1 < len(argv):
             flag, eq, value = tok.partition("=")
-            if eq and flag in takes and number.fullmatch(value) and argv[i + 1] in UNIT_WORDS:
-                out.append(tok + argv[i + 1])
-                i += 2
-                continue
-            if not eq and flag in takes and i + 2 < len(argv) and number.fullmatch(argv[i + 1]) \
-                    and argv[i + 2] in UNIT_WORDS:
-                out += [tok, argv[i + 1] + argv[i + 2]]
-                i += 3
-                continue
+            match = [o for o in known if o == flag] or [o for o in known if o.startswith(flag)]
+            if len(match) == 1 and match[0] in takes:
+                if eq and number.fullmatch(value) and unit_after(i + 1):
+                    out.append(tok + argv[i + 1])
+                    i += 2
+                    continue
+                nxt = argv[i + 1]
+                if not eq and (negative.match(nxt) or number.fullmatch(nxt)):
+                    k = i + 2
+                    if number.fullmatch(nxt) and unit_after(k):
+                        nxt, k = nxt + argv[k], k + 1
+                    out += [f"{tok}={nxt}"] if nxt.startswith("-") else [tok, nxt]
+                    i = k
+                    continue
         out.append(tok)
         i += 1
     return out

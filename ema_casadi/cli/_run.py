@@ -10,7 +10,7 @@ import threading
 from .._util import _interrupts
 from ._common import EXIT_FAILED, jsonable, user_errors
 from ._options import model_path
-from ._parser import build_parser, join_negative_values, join_unit_values, unknown_flag
+from ._parser import _subparsers, build_parser, given_flags, join_values, unknown_flag
 
 
 def _reader_gone() -> int:
@@ -83,14 +83,16 @@ def _run(argv, stop) -> int:
     from .._util import _files
     from ..simulation import RunFailed
 
+    os.environ.setdefault("MPLBACKEND", "Agg")  # the command line draws off screen (PNG files only)
     parser, mods = build_parser()
-    argv = join_unit_values(join_negative_values(list(sys.argv[1:] if argv is None else argv), parser), parser)
+    argv = join_values(list(sys.argv[1:] if argv is None else argv), parser)
     unknown = unknown_flag(argv, parser)
     if unknown:
         sys.stderr.write(unknown + "\n")
         return 2
     args = parser.parse_args(argv)
     stop.command = args.command
+    args._given = given_flags(_subparsers(parser).choices[args.command], argv[argv.index(args.command) + 1:])
     args.model_given = args.model is not None
     args.model = model_path(args)
     mod = mods[args.command]
@@ -99,6 +101,9 @@ def _run(argv, stop) -> int:
     errors = user_errors()
     try:
         with _files.transaction():
+            from ._flags import COMMON, refuse_no_effect
+
+            refuse_no_effect(args, {**COMMON, **getattr(mod, "NO_EFFECT", {})})  # before any work
             result = mod.run(args)
             _interrupts.check()
     except errors as exc:

@@ -13,7 +13,7 @@ import time
 
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
-from ._flags import airframe_variant, fill_defaults, refuse_dt, refuse_unused
+from ._flags import NoEffect, airframe_variant, fill_defaults, refuse_dt
 from ._options import seconds
 
 COMMAND = "aircraft"
@@ -43,13 +43,20 @@ def add_arguments(p):
 
 #: The response flags' defaults (None in the parser: given or not, for --no-responses).
 RESPONSE_DEFAULTS = {"step_deg": 1.0, "gust": 5.0, "gust_time": 1.0, "t_end": 20.0, "dt": 1e-4}
+_QUIET = NoEffect((), "with --no-responses (nothing is simulated)", lambda a: a.no_responses)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--airframe": (), "--condition": (), "--no-responses": (), "--plot-dir": (),
+    **{flag: (NoEffect(("--no-responses", flag, *value), _QUIET.why, _QUIET.when),)
+       for flag, value in (("--step-deg", ("2",)), ("--gust", ("3",)), ("--gust-time", ("2",)), ("--t-end", ("10",)),
+                           ("--zoh", ()))},
+    # RK4 steps the responses only with --zoh or hybrid friction: checked once the model is built
+    "--dt": (NoEffect(("--no-responses", "--dt", "1e-4"), _QUIET.why, _QUIET.when),
+             NoEffect(("--dt", "1e-9", "--t-end", "3600"), "(the RK4 step): the solver chosen is rosenbrock")),
+}
 
 
 def _check(args):
-    if args.no_responses:
-        refuse_unused(args, {"--step-deg": "step_deg", "--gust": "gust", "--gust-time": "gust_time",
-                             "--t-end": "t_end", "--dt": "dt", "--zoh": "zoh"},
-                      "with --no-responses (nothing is simulated)")
     fill_defaults(args, RESPONSE_DEFAULTS)
     for flag, val, ok in (("--step-deg", args.step_deg, 0 < abs(args.step_deg) <= 10),
                           ("--gust", args.gust, abs(args.gust) <= 30), ("--gust-time", args.gust_time,

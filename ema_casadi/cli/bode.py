@@ -13,14 +13,22 @@ import math
 
 from ..linearisation import LOOPS, OUTER
 from . import UserError, check_output_path, load
-from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
-from .margins import add_frequency_window, check_window
+from ._flags import NoEffect
+from .linearize import OPERATING_POINT, add_operating_point_arguments, op_summary, operating_point_from_args
+from .margins import OUTERMOST, add_frequency_window, check_window, refuse_outer
 
 COMMAND = "bode"
 ORDER = 5
 HELP = "Bode data: closed loop, dynamic stiffness or open loop at a break; --plot"
 KINDS = ("closed", "stiffness", "open")
 
+
+_OPEN = NoEffect((), "with --kind {kind}: it sets the loop break of --kind open", lambda a: a.kind != "open")
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {**OPERATING_POINT, "--kind": (), "--fmin": (), "--fmax": (), "--points": (), "--plot": (),
+             "--loop": (NoEffect(("--kind", "stiffness", "--loop", "velocity"), _OPEN.why, _OPEN.when),),
+             "--outer": (NoEffect(("--outer", "open"), _OPEN.why, _OPEN.when),
+                         NoEffect(("--kind", "open", *OUTERMOST.example), OUTERMOST.why))}
 
 def add_arguments(p):
     p.add_argument("--kind", choices=KINDS, default="closed", help="closed (x_rod/x_cmd, default), stiffness, open")
@@ -72,6 +80,7 @@ def run(args) -> dict:
         unit, label = "N/m", "dynamic stiffness -f_ext/x_rod"
         extra["magnitude_n_per_m"] = b["magnitude"]
     else:
+        refuse_outer(args, model, [args.loop])
         L = loop_model(model, args.loop, op, outer=args.outer)
         b = bode(L, f)
         unit, label = "1", f"L at the {args.loop} break"

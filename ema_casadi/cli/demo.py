@@ -12,6 +12,9 @@ ORDER = 1
 HELP = "main job: responses, Bode, margins, frequency-response map -> out/"
 
 
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--out": ()}
+
 def add_arguments(p):
     p.add_argument("--out", default="out", metavar="DIR",
                    help="output folder, assembled beside it and moved into place at the end; an existing folder "

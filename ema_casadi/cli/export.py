@@ -27,16 +27,13 @@ from pathlib import Path
 from ..export import FUNCTION_FORMATS, LINEAR_FORMATS, MODEL_FORMATS
 from ..linearisation import LOOPS
 from . import UserError, check_output_path, load
-from ._flags import refuse_unused
+from ._flags import NoEffect
 from ._options import seconds
 from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "export"
 ORDER = 8
 HELP = "export the linear model (mat/npz/json) or the nonlinear one (fmu-me/fmu-cs/c/casadi)"
-#: The operating-point flags (ema linearize's) with their defaults: only the linear formats use them.
-OPERATING_POINT_FLAGS = {"--x-cmd": ("x_cmd", "0"), "--f-ext": ("f_ext", "0"), "--v-rod": ("v_rod", "0"),
-                         "--friction": ("friction", "off"), "--backlash": ("backlash", "off")}
 SUFFIX = {"mat": ".mat", "npz": ".npz", "json": ".json", "casadi": ".casadi", "c": ".c"}
 
 
@@ -85,19 +82,41 @@ def _run_model_export(args) -> dict:
 
 
 def _applicable(args) -> None:
-    """Flags that mean nothing for the format given are refused, not ignored."""
     if args.out is not None and not args.out.strip():
         raise UserError("--out: empty path; name the output")
-    if args.format in LINEAR_FORMATS:  # the model formats check theirs (ema_casadi.export.fmu)
-        refuse_unused(args, {"--fmi-version": "fmi_version", "--dt": "dt"},
-                      f"to --format {args.format} (a linear model: nothing steps, no FMI)")
-    else:
-        refuse_unused(args, {"--open": "open"}, f"to --format {args.format} (linear formats only)")
-        for flag, (attr, default) in OPERATING_POINT_FLAGS.items():
-            if getattr(args, attr) != default:
-                raise UserError(f"{flag} has no effect on ema export --format {args.format}: the nonlinear model "
-                                "takes x_cmd and f_ext as inputs and keeps every nonlinearity (an operating point "
-                                "is for the linear formats mat, npz, json)")
+
+
+def _nonlinear(args) -> bool:
+    return args.format not in LINEAR_FORMATS
+
+
+def _single_file(args) -> bool:
+    """c / casadi written as the single file (the Function alone, no simulator)."""
+    return args.format in FUNCTION_FORMATS and not _model_export(args)
+
+
+_OP_WHY = ("on ema export --format {format}: the nonlinear model takes x_cmd and f_ext as inputs and keeps every "
+           "nonlinearity (an operating point is for the linear formats mat, npz, json)")
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--format": (), "--out": (),
+    "--dt": (NoEffect(("--format", "mat", "--dt", "1e-3"), "with --format {format}: nothing of it steps (fmu-cs has "
+                      "a fixed step; c and casadi folders a simulator's default step)",
+                      lambda a: a.format in LINEAR_FORMATS),
+             NoEffect(("--format", "fmu-me", "--dt", "1e-5"), "with --format {format}: nothing of it steps (a "
+                      "model-exchange FMU's solver is the importing tool's; the fixed-step FMU is fmu-cs)",
+                      lambda a: a.format == "fmu-me"),
+             NoEffect(("--format", "c", "--out", "f.c", "--dt", "1e-5"), "with --format {format} written as the "
+                      "single file {out} (the Function alone; a folder holds the simulator that steps)", _single_file)),
+    "--fmi-version": (NoEffect(("--format", "fmu-me", "--fmi-version", "3.0"), "with --format {format}: only fmu-cs "
+                               "has a choice (fmu-me is FMI 3.0; the other formats are not FMUs)",
+                               lambda a: a.format != "fmu-cs"),),
+    "--open": (NoEffect(("--format", "fmu-cs", "--open", "position"), "with --format {format}: loops are opened in "
+                        "the linear formats mat, npz, json", _nonlinear),),
+    **{flag: (NoEffect(("--format", "fmu-me", flag, value), _OP_WHY, _nonlinear),)
+       for flag, value in (("--x-cmd", "5mm"), ("--f-ext", "10kN"), ("--v-rod", "20mm/s"), ("--friction", "smooth"),
+                           ("--backlash", "keep"))},
+}
 
 
 def run(args) -> dict:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .._util._resources import REFERENCE_FAULTS
 from . import UserError, add_progress, jsonable, progress_of, second_file
-from ._flags import new_output_folder, output_folder
+from ._flags import NoEffect, new_output_folder, output_folder
 
 COMMAND = "faults"
 DEFAULT_FAULTS = REFERENCE_FAULTS
@@ -32,6 +32,15 @@ DEFAULT_OUT = "out/faults"
 ORDER = 13
 HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detection per monitor, coverage"
 
+
+_LIST = NoEffect((), "with --list (it prints the fault kinds and monitors and stops)", lambda a: a.list)
+_HEALTHY = NoEffect((), "without --healthy-runs N (it sets the healthy runs)", lambda a: a.healthy_runs == 0)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--faults": (), "--list": (),
+             "--out": (NoEffect(("--list", "--out", "o"), _LIST.why, _LIST.when),),
+             "--healthy-runs": (NoEffect(("--list", "--healthy-runs", "3"), _LIST.why, _LIST.when),),
+             **{flag: (NoEffect(("--list", flag, "2"), _LIST.why, _LIST.when),
+                       NoEffect((flag, "2"), _HEALTHY.why, _HEALTHY.when)) for flag in ("--jobs", "--seed")}}
 
 def add_arguments(p):
     p.add_argument("faults", metavar="FAULTS.toml", nargs="?", default=None,

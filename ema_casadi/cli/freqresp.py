@@ -26,11 +26,18 @@ import numpy as np
 
 from ..sinestream import check_grid, parse_amplitudes, parse_freqs, parse_loads, plot_bode, sine_stream
 from . import UserError, add_progress, check_output_path, load, progress_of
+from ._flags import NoEffect
 
 COMMAND = "freqresp"
 ORDER = 6
 HELP = "nonlinear frequency response (sine stream): gain, phase, distortion per point"
 
+
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--amplitudes": (), "--freqs": (), "--loads": (), "--scheduler": (), "--max-periods": (), "--tol-db": (),
+             "--tol-deg": (), "--out": (), "--plot": (),
+             "--jobs": (NoEffect(("--scheduler", "tcp://localhost:8786", "--jobs", "2"), "with --scheduler (the "
+                                 "cluster's workers run the points)", lambda a: a.scheduler is not None),)}
 
 def add_arguments(p):
     p.add_argument("--amplitudes", default="0.5%,1%,2%,5%,10%", metavar="LIST",

@@ -34,12 +34,18 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
-from ._flags import refuse_unused
+from ._flags import NoEffect, no_effect
 
 COMMAND = "identify"
 ORDER = 12
 #: The records' time-stamp field of --track when --stamp is not given.
 STAMP = "flight_hours"
+#: The health-trend records of --example-records: flight hours -> seal friction F_seal (N), 150 N new,
+#: +0.05 N per flight hour.
+TREND_RECORDS = {0: 150.0, 500: 175.0, 1000: 200.0, 1500: 225.0}
+#: The files --example-records writes (docs: guide, identification).
+EXAMPLE_FILES = ("steps.csv", "chirp.csv", "slews_push.csv", "slews_pull.csv",
+                 *(f"rig_{h:04d}h.csv" for h in TREND_RECORDS))
 HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
 
 
@@ -83,6 +89,10 @@ def add_arguments(p):
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
+    p.add_argument("--example-records", default=None, metavar="DIR",
+                   help="write the records the guide fits into the new folder DIR and stop: "
+                        f"{', '.join(EXAMPLE_FILES[:4])} (seven parameters away from the reference set) and "
+                        f"{EXAMPLE_FILES[4]} .. {EXAMPLE_FILES[-1]} (seal friction growing with flight_hours)")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
     add_progress(p)
@@ -144,30 +154,79 @@ def _split(args) -> list:
     return records
 
 
-def _combinations(args) -> None:
-    """The options that have no effect in the combination given are refused, not dropped:
-    --track fits each record alone (no comparison, profile or validation), --compare
-    ranks combinations (no profile or validation), --limit and --stamp belong to
-    --track, --max-fits to --compare."""
-    if args.track:
-        refuse_unused(args, {"--compare": "compare", "--max-fits": "max_fits", "--profile": "profile",
-                             "--validate": "validate"}, "with --track (each record is fitted alone, in order)")
-    else:
-        refuse_unused(args, {"--limit": "limit"}, "without --track (the limit is what a health trend runs to)")
-        if args.stamp != STAMP:
-            raise UserError(f"--stamp {args.stamp}: does not apply without --track (it orders the records of a "
-                            "health trend)")
-    if args.compare:
-        refuse_unused(args, {"--profile": "profile", "--validate": "validate"},
-                      "with --compare (the combinations are ranked; profile or validate the best one's fit)")
-    else:
-        refuse_unused(args, {"--max-fits": "max_fits"}, "without --compare (it caps the combinations compared)")
+def _example_run(args) -> bool:
+    """No records: the built-in example (one plain fit of its two records)."""
+    return not args.records and (args.model is None or Path(args.model).suffix.lower() == ".toml")
+
+
+_TRACK = NoEffect((), "with --track (each record is fitted alone, in order)", lambda a: a.track)
+_COMPARE = NoEffect((), "with --compare (the combinations are ranked; profile or validate the best one's fit)",
+                    lambda a: bool(a.compare))
+_COMPARE_FIT = NoEffect((), "with --compare (each combination is one fit from the file's values with the defaults: "
+                        "one start, no bounds, the unidentifiable held)",
+                        lambda a: bool(a.compare))
+_EXAMPLE = NoEffect((), "without records (the built-in example is one plain fit; write its records with "
+                    "--example-records DIR and fit those)", _example_run)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (),
+    "--example-records": (),
+    "--track": (NoEffect(("--track",), _EXAMPLE.why, _EXAMPLE.when),),
+    "--model-error": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--model-error", "2"), "with --track "
+                               "(a trend's fits are judged one by one; give it without --track)", _TRACK.when),
+                      NoEffect(("--model-error", "2"), _EXAMPLE.why, _EXAMPLE.when)),
+    "--compare": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--compare", "anti_windup=backcalc,clamping"),
+                           _TRACK.why, _TRACK.when),
+                  NoEffect(("--compare", "anti_windup=backcalc,clamping"), _EXAMPLE.why, _EXAMPLE.when)),
+    "--estimate-x0": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--estimate-x0"), "with --track (a trend's "
+                               "records start at rest; fit them one by one instead)", _TRACK.when),
+                      NoEffect(("--estimate-x0",), _EXAMPLE.why, _EXAMPLE.when)),
+    "--max-fits": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--max-fits", "3"), _TRACK.why, _TRACK.when),
+                   NoEffect(("a.csv", "--free", "F_seal", "--max-fits", "3"), "without --compare (it caps the "
+                            "combinations compared)", lambda a: not a.compare)),
+    **{flag: (NoEffect(("a.csv", "--free", "F_seal", "--track", flag, "c.csv"), _TRACK.why, _TRACK.when),
+              NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", flag, "c.csv"),
+                       _COMPARE.why, _COMPARE.when))
+       for flag in ("--profile", "--validate")},
+    "--limit": (NoEffect(("a.csv", "--free", "F_seal", "--limit", "F_seal=300N"), "without --track (the limit is what "
+                         "a health trend runs to)", lambda a: not a.track),),
+    "--stamp": (NoEffect(("a.csv", "--free", "F_seal", "--stamp", "hours"), "without --track (it orders the records "
+                         "of a health trend)", lambda a: not a.track),),
+    "--out": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--out", "f.toml"), "with --track (a trend "
+                       "has one fit per record; use --report DIR)", _TRACK.when),),
+    "--starts": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--starts", "3"), "with --track (each "
+                          "record is fitted once, from the file's values)", _TRACK.when),
+                 NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--starts", "3"),
+                          _COMPARE_FIT.why, _COMPARE_FIT.when)),
+    "--jobs": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--jobs", "2"), "with --track (each record "
+                        "is fitted once, in turn)", _TRACK.when),
+               NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--jobs", "2"),
+                        _COMPARE_FIT.why, _COMPARE_FIT.when),
+               NoEffect(("a.csv", "--free", "F_seal", "--jobs", "2"), "with one start (the workers run the --starts "
+                        "fits in parallel)", lambda a: a.starts == 1)),
+    "--bounds": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--bounds",
+                           "F_seal=1:500"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
+    "--keep-unidentifiable": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping",
+                                        "--keep-unidentifiable"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
+}
+#: A value of each flag for the examples of the --example-records rule (flags without one take none).
+_SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
+           "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
+           "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
+           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2"}
+for _flag in NO_EFFECT:  # --example-records writes the records and stops: every other flag is idle
+    if _flag != "--example-records":
+        _value = [_SAMPLE[_flag]] if _flag in _SAMPLE else []
+        NO_EFFECT[_flag] = (NoEffect(("--example-records", "rec", _flag, *_value),
+                                     "with --example-records (it writes the records and stops; fit them after)",
+                                     lambda a: a.example_records is not None), *NO_EFFECT[_flag])
 
 
 def run(args) -> dict:
     from ..identification import IdentificationError
 
-    _combinations(args)
+    if args.example_records is not None:
+        return _write_examples(args)
     out = check_output_path(args.out, (".toml",), "--out")
     records = _split(args)
     if args.starts < 1:
@@ -200,6 +259,30 @@ def run(args) -> dict:
         return _fit(args, params, model, records, free, kw, out)
     except IdentificationError as exc:
         raise UserError(str(exc)) from None
+
+
+def _write_examples(args) -> dict:
+    """--example-records DIR: the guide's records, simulated from the packaged set (or
+    MODEL.toml) with worn parameters and seeded sensor noise, written into a new folder
+    whole or not at all."""
+    from ..identification import recovery_records, synthetic_record
+    from ._flags import new_output_folder, output_folder
+
+    records = _split(args)
+    if records:
+        raise UserError(f"--example-records writes records; {records[0]} given too (fit the records after)")
+    out = Path(args.example_records)
+    if out.exists():
+        raise UserError(f"--example-records {out}: exists; name a new folder")
+    top = new_output_folder(out, EXAMPLE_FILES, "--example-records")
+    params, _ = load(args)
+    with output_folder(out, top) as folder:
+        paths, truth = recovery_records(params, folder)
+        for h, f_seal in TREND_RECORDS.items():
+            paths.append(synthetic_record(params, folder / f"rig_{h:04d}h.csv", t_end=0.5, x_cmd="step:1mm@0.02",
+                                          truth={"F_seal": f_seal}, seed=h, fields={"flight_hours": h}))
+    return {"model": args.model, "truth": truth, "trend_truth": {"F_seal": TREND_RECORDS},
+            "written": [str(out / p.name) for p in paths]}
 
 
 def _fit(args, params, model, records, free, kw, out) -> dict:
@@ -257,6 +340,9 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
+    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error"):  # the linear fit: none
+        no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
+                  "values, none held)")
     from ..identification import report_names
 
     report = check_output_dir(args.report, report_names(len(records), len(free)), "--report")
@@ -359,6 +445,11 @@ def _example(args, params, model, out, progress) -> dict:
 def report(result: dict) -> None:
     """Print the parameter table and the channels' residuals."""
     w = sys.stdout.write
+    if "trend_truth" in result:  # --example-records
+        w("example records: " + ", ".join(f"{k} = {v:.4g}" for k, v in result["truth"].items()) + "\n")
+        for p in result["written"]:
+            w(f"wrote {p}\n")
+        return
     if "trend" in result:
         from ..identification import report_text
 

@@ -21,7 +21,7 @@ import time
 
 from ..simulation import check_run
 from . import UserError, add_progress, check_output_path, load, stage
-from ._flags import airframe_variant, overrides, refuse_unused
+from ._flags import NoEffect, airframe_variant, no_effect, overrides, refuse_dt
 from ._options import seconds
 
 COMMAND = "limit-cycle"
@@ -30,6 +30,37 @@ HELP = "limit cycles at a loop break by describing function, confirmed by a long
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
+#: The RK4 step when --dt is not given (s).
+DEFAULT_DT = 1e-4
+
+
+def _no_df(args) -> bool:
+    return args.method == "shooting" and args.no_df
+
+
+_SHOOTING = NoEffect((), "with --method {method}: it belongs to the shooting (give --method shooting)",
+                     lambda a: a.method != "shooting")
+_GRID = NoEffect((), "with --method shooting --no-df: no describing function is computed", _no_df)
+_POSITION = NoEffect((), "with --loop position: it sets the aircraft loop (give --loop aircraft)",
+                     lambda a: a.loop == "position")
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--loop": (), "--backlash": (), "--t-end": (), "--plot": (), "--method": (),
+    "--airframe": (NoEffect(("--airframe", "transport"), _POSITION.why, _POSITION.when),),
+    "--condition": (NoEffect(("--condition", "landing"), _POSITION.why, _POSITION.when),),
+    "--continue": (NoEffect(("--continue", "B=0:0.1"), _SHOOTING.why, _SHOOTING.when),),
+    "--csv": (NoEffect(("--csv", "o.csv"), _SHOOTING.why, _SHOOTING.when),),
+    "--no-df": (NoEffect(("--no-df",), _SHOOTING.why, _SHOOTING.when),),
+    **{flag: (NoEffect(("--method", "shooting", "--no-df", flag, *value), _GRID.why, _GRID.when),)
+       for flag, value in (("--amplitudes", ("1um,5um",)), ("--freqs", ("2,4",)), ("--periods", ("8",)),
+                           ("--no-refine", ()))},
+    "--harmonics": (NoEffect(("--no-refine", "--harmonics", "3"), "with --no-refine (the harmonic balance refines "
+                             "the grid's prediction)", lambda a: a.no_refine),
+                    NoEffect(("--method", "shooting", "--no-df", "--harmonics", "3"), _GRID.why, _GRID.when)),
+    # the model decides: RK4 steps only a hybrid or switched model; K_i_x acts only with controller=PI
+    "--dt": (NoEffect(("--dt", "1e-9"), "(the RK4 step): the solver chosen is rosenbrock"),),
+    "--k-i-x": (NoEffect(("--k-i-x", "3000"), "(the position loop's integral gain): the controller is P"),),
+}
 
 
 def add_arguments(p):
@@ -45,7 +76,9 @@ def add_arguments(p):
                                                  "0.3-5:8 (aircraft)")
     p.add_argument("--k-i-x", type=float, default=None, help="position-loop integral gain (1/s^2), PI controller")
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
-    p.add_argument("--dt", type=seconds, default=1e-4, help="RK4 step (s); default 1e-4")
+    p.add_argument("--dt", type=seconds, default=None,
+                   help=f"RK4 step (s) where RK4 runs (hybrid friction, a switched model; refused where the "
+                        f"variable-step solver runs); default {DEFAULT_DT:g}")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
     p.add_argument("--t-end", type=seconds, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
@@ -59,9 +92,10 @@ def add_arguments(p):
                    help="df: describing function (and harmonic balance); shooting: the periodic orbit by "
                         "shooting with its Floquet multipliers, the describing function beside it; default df")
     p.add_argument("--continue", dest="cont", default=None, metavar="NAME=LO:HI",
-                   help="shooting: continue the orbit over a parameter from LO to HI (B in mm unless a unit is "
-                        "given, e.g. B=0:100um; other parameters in SI), the parameter's value set to the "
-                        "range's nearest end inside it when outside")
+                   help="shooting: continue the orbit over a parameter or a held input from LO to HI (B in mm "
+                        "unless a unit is given, e.g. B=0:100um; a gain such as K_i_x in SI; the load f_ext (or "
+                        "'load') in N, e.g. f_ext=0:2kN), the value set to the range's nearest end inside it "
+                        "when outside")
     p.add_argument("--csv", default=None, metavar="FILE.csv", help="shooting: the orbit over one period (CSV)")
     p.add_argument("--no-df", action="store_true", help="shooting: no describing function beside the orbit")
 
@@ -99,7 +133,10 @@ def _orders(text: str) -> tuple:
 
 
 def _continuation(args, params, model):
-    """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work."""
+    """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work: a
+    parameter (checked as a parameter file's value) or a driven input held constant (the
+    load ``f_ext`` or ``load``, in N unless a unit is given; inside the model's envelope)."""
+    from ..limitcycle import checked_inputs
     from ..model import checked
     from ..model.params import ParameterError
     from ..signals import SignalError, parse_quantity
@@ -111,17 +148,25 @@ def _continuation(args, params, model):
     name = name.strip()
     if not sep or not sep2 or not name:
         raise UserError(f"--continue {args.cont!r}: expected NAME=LO:HI (e.g. B=0:100um)")
-    if name not in model.param_names:
-        raise UserError(f"--continue: no parameter {name!r} in the model")
+    name = model.input_with("load") if name == "load" else name
+    info = model.input_info.get(name)
+    driven = info is not None and not info.injection
+    if name not in model.param_names and not driven:
+        raise UserError(f"--continue: no parameter or driven input {name!r} in the model")
     try:
-        if name == "B":
+        if driven:
+            lo, hi = (parse_quantity(v, info.kind, info.unit) for v in (lo_txt, hi_txt))
+            for v in (lo, hi):
+                checked_inputs(model, {name: v}, model.p())
+        elif name == "B":
             lo, hi = parse_quantity(lo_txt, "length", "mm"), parse_quantity(hi_txt, "length", "mm")
         else:
             lo, hi = float(lo_txt), float(hi_txt)
-        for v in (lo, hi):
+        for v in (lo, hi) if not driven else ():
             checked(name, v, f"--continue {name}={v:g}")
     except (SignalError, ValueError, ParameterError) as exc:
-        raise UserError(str(exc).split(", got ")[0]) from None
+        msg = str(exc).split(", got ")[0]
+        raise UserError(f"--continue: {msg.removeprefix('inputs: ')}" if driven else msg) from None
     if not lo < hi:
         raise UserError(f"--continue {args.cont}: need LO < HI")
     return name, lo, hi
@@ -130,19 +175,22 @@ def _continuation(args, params, model):
 def _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont):
     import numpy as np
 
-    from ..limitcycle import OrbitNotFound, confirm_cycle, continue_orbit, periodic_orbit
+    from ..limitcycle import OrbitNotFound, confirm_cycle, continue_orbit, input_value, periodic_orbit
 
     pred = next((c for c in cycles if c.get("stable")), cycles[0] if cycles else None)
     p = s["p"] if args.loop == "position" else model.p(**over)
-    if cont is not None:
+    held = {}
+    if cont is not None and cont[0] in model.param_names:
         k = list(model.param_names).index(cont[0])
         p = np.array(p, float).copy()
         p[k] = min(max(p[k], cont[1]), cont[2])
+    elif cont is not None:  # a held input: its value moved into the range the same way
+        held = {cont[0]: min(max(input_value(model, cont[0], p), cont[1]), cont[2])}
     out = {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
            "method": "shooting", "predicted": cycles, "written": []}
     stage(args, "limit-cycle", 0.3, "periodic orbit by shooting")
     try:
-        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred)
+        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred, inputs=held)
         out["orbit"] = orb.as_dict()
         if cont is not None:
             stage(args, "limit-cycle", 0.5, f"continuation over {cont[0]}")
@@ -169,9 +217,8 @@ def run(args) -> dict:
 
     plot = check_output_path(args.plot, (".png",), "--plot")
     shooting = args.method == "shooting"
-    if not shooting:
-        refuse_unused(args, {"--continue": "cont", "--csv": "csv", "--no-df": "no_df"},
-                      "to the describing function (give --method shooting)")
+    dt_given = args.dt
+    args.dt = DEFAULT_DT if args.dt is None else args.dt
     csv = check_output_path(args.csv, (".csv",), "--csv")
     amps, freqs, t_end = _axes(args)
     orders = _orders(args.harmonics)
@@ -180,17 +227,26 @@ def run(args) -> dict:
     t0 = time.perf_counter()
     if args.loop == "aircraft":
         airframe_variant(args, "b747", ("b747", "transport"))
-    else:
-        refuse_unused(args, {"--airframe": "airframe", "--condition": "condition"}, "to the position loop "
-                      "(give --loop aircraft)")
     args.condition = args.condition or "cruise_sl"
     params, model = load(args)
+    from ..simulation import choose_solver
+
+    refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto")[0],
+              "give --variant friction=hybrid (RK4 with the stick/slip logic) or drop --dt")
+    if "K_i_x" not in {g.name for g in model.gains}:
+        no_effect(args, "--k-i-x", f"(the position loop's integral gain): the controller is "
+                  f"{model.variants.get('controller')} (give --variant controller=PI)")
     if t_end > 0:  # the confirming run's size and step, named by the flags
         spacing = max(args.dt, 1e-4 if args.loop == "position" else 1e-3)  # what confirm_cycle keeps
         check_run(model, t_end, dt=args.dt, dt_out=spacing,
                   labels={"t_end": "--t-end", "dt": "--dt", "dt_out": "its sample spacing"}, error=UserError)
     over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
     cont = _continuation(args, params, model) if shooting else None
+    if shooting:
+        from ..limitcycle import unsupported
+
+        if (why := unsupported(model)) is not None:
+            raise UserError(f"--method shooting: {why}")
     s = setup(model, args.loop, model.p(**over), args.condition)
     if shooting and args.no_df:
         return _shooting(args, model, s, over, [], t_end, t0, plot, csv, cont)

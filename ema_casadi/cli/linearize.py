@@ -23,6 +23,11 @@ ORDER = 3
 HELP = "operating point + linear model (A B C D with names); --out .mat/.npz/.json"
 
 
+#: The operating-point flags of linearize, margins, bode (each acts on the trim).
+OPERATING_POINT = {"--x-cmd": (), "--f-ext": (), "--v-rod": (), "--friction": (), "--backlash": ()}
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {**OPERATING_POINT, "--open": (), "--out": ()}
+
 def add_operating_point_arguments(p) -> None:
     """The trim and small-signal-policy flags shared by linearize, margins, bode, export."""
     p.add_argument("--x-cmd", default="0", metavar="LENGTH",

@@ -16,12 +16,27 @@ import time
 
 from ..linearisation import LOOPS, OUTER
 from . import UserError, check_output_path, load
-from .linearize import add_operating_point_arguments, op_summary, operating_point_from_args
+from ._flags import NoEffect, no_effect
+from .linearize import OPERATING_POINT, add_operating_point_arguments, op_summary, operating_point_from_args
 
 COMMAND = "margins"
 ORDER = 4
 HELP = "gain, phase and disk margins of the position/velocity/current loops"
 
+
+#: --outer with the outermost loop: nothing lies outside it (checked on the model's loops).
+OUTERMOST = NoEffect(("--loop", "position", "--outer", "open"), "with --loop position: no loop of this model lies "
+                     "outside it (--outer opens the loops outside the break)")
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {**OPERATING_POINT, "--loop": (), "--outer": (OUTERMOST,), "--fmin": (), "--fmax": (), "--plot": ()}
+
+
+def refuse_outer(args, model, loops) -> None:
+    """--outer given where every loop broken is the model's outermost one: refused."""
+    order = list(model.loops)
+    if all(order.index(k) == 0 for k in loops if k in order):
+        no_effect(args, "--outer", f"with --loop {args.loop}: no loop of this model lies outside it (--outer opens "
+                  "the loops outside the break)")
 
 def add_frequency_window(p, f_min: float, f_max: float) -> None:
     p.add_argument("--fmin", type=float, default=f_min, help=f"lowest frequency (Hz); default {f_min:g}")
@@ -59,6 +74,7 @@ def run(args) -> dict:
     check_window(args, per_decade=200)
     t0 = time.perf_counter()
     params, model = load(args)
+    refuse_outer(args, model, list(LOOPS) if args.loop == "all" else [args.loop])
     op = operating_point_from_args(args, params, model)
     res = loop_margins(model, op, args.loop, outer=args.outer, f_min=args.fmin, f_max=args.fmax)
     written = []

@@ -26,7 +26,7 @@ from pathlib import Path
 from .._util._resources import REFERENCE_MISSION
 from ..mission import FAST_DT
 from . import UserError, add_progress, jsonable, progress_of, second_file
-from ._flags import new_output_folder, output_folder
+from ._flags import NoEffect, new_output_folder, output_folder
 from ._options import seconds
 
 COMMAND = "mission"
@@ -37,6 +37,11 @@ DEFAULT_OUT = "out/mission"
 ORDER = 9
 HELP = "flight mission: temperatures, losses, energy per part and segment, peaks vs limits"
 
+
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--mission": (), "--out": (), "--from-trim": (), "--fast": (), "--dt-out": (), "--csv-dt": (),
+             "--dt": (NoEffect(("--fast", "--dt", "1e-4"), "with --fast (it sets the step): give --fast or --dt, "
+                               "not both", lambda a: a.fast),)}
 
 def add_arguments(p):
     p.add_argument("mission", metavar="MISSION.toml", nargs="?", default=None,

@@ -45,7 +45,7 @@ from ..simulation import (
     simulate,
 )
 from . import UserError, add_progress, check_output_path, load, progress_of
-from ._flags import refuse_dt
+from ._flags import NoEffect, no_effect, refuse_dt
 from ._options import seconds
 
 COMMAND = "simulate"
@@ -100,6 +100,26 @@ def add_arguments(p):
     add_progress(p)
 
 
+_DT_WHY = "where --solver {solver} runs (--dt is the RK4 step): give --solver rk4 or drop --dt"
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {
+    "--x-cmd": (), "--f-ext": (), "--input": (), "--t-end": (), "--dt-out": (), "--solver": (), "--from-trim": (),
+    "--out": (), "--plot": (),
+    # with --solver auto the solver is the model's (rosenbrock on a continuous one): checked once it is built
+    "--dt": (NoEffect(("--solver", "cvodes", "--dt", "1e-5"), _DT_WHY, lambda a: a.solver in ("cvodes", "rosenbrock")),
+             NoEffect(("--t-end", "0.1", "--dt", "0.5"), "(the RK4 step): the solver chosen is rosenbrock")),
+    "--event-tol": (NoEffect(("--solver", "rk4", "--event-tol", "1e-6"), "with --solver {solver}: it locates the "
+                             "stick/slip instants of --solver cvodes", lambda a: a.solver != "cvodes"),
+                    NoEffect(("--solver", "cvodes", "--event-tol", "1e-6"), "(the stick/slip instants of hybrid "
+                             "friction): this model has none")),
+    "--zoh": (NoEffect(("--variant", "inverter=pwm", "--t-end", "1ms", "--zoh"), "(a sampled ECU): with a switched "
+                       "model the ECU is always sampled"),),
+    "--instantaneous": (NoEffect(("--instantaneous",), "without --out (it adds columns to the table written)",
+                                 lambda a: a.out is None),
+                        NoEffect(("--instantaneous", "--out", "run.csv"), "(the power and loss columns' sampled "
+                                 "values): the model does not switch, its columns are instantaneous already")),
+}
+
 #: simulate()'s argument names as the flags that set them (messages name the flag).
 FLAGS = {"t_end": "--t-end", "dt": "--dt", "dt_out": "--dt-out", "event_tol": "--event-tol",
          "solver": "--solver", "zoh": "--zoh", "from_trim": "--from-trim"}
@@ -127,6 +147,13 @@ def run(args) -> dict:
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
     refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
+    if not model.hybrid:
+        no_effect(args, "--event-tol", "(the stick/slip instants of hybrid friction): this model has none")
+    if model.switched:
+        no_effect(args, "--zoh", "(a sampled ECU): with a switched model the ECU is always sampled")
+    else:
+        no_effect(args, "--instantaneous", "(the power and loss columns' sampled values): the model does not "
+                  "switch, its columns are instantaneous already")
     args.dt = DEFAULT_DT if args.dt is None else args.dt
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
         if args.solver not in ("rk4", "auto"):

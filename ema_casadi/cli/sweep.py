@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from .._util._resources import REFERENCE_SWEEP
 from . import UserError, add_progress, check_output_path, progress_of, second_file
+from ._flags import NoEffect
 
 COMMAND = "sweep"
 #: The sweep run without a SPEC.toml (packaged).
@@ -29,6 +30,15 @@ DEFAULT_SPEC = REFERENCE_SWEEP
 ORDER = 10
 HELP = "sweep / Monte Carlo: parameters on a grid or from distributions, metrics per run"
 
+
+_CLUSTER = NoEffect((), "with --scheduler (it runs on the cluster's workers)", lambda a: a.scheduler is not None)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--spec": (), "--out": (), "--plot": (), "--scheduler": (),
+             "--jobs": (NoEffect(("--scheduler", "tcp://localhost:8786", "--jobs", "2"), _CLUSTER.why, _CLUSTER.when),),
+             "--threads": (NoEffect(("--scheduler", "tcp://localhost:8786", "--threads"), _CLUSTER.why,
+                                    _CLUSTER.when),),
+             "--resume": (NoEffect(("--resume",), "without --out (the table whose journal holds the finished rows)",
+                                   lambda a: a.out is None),)}
 
 def add_arguments(p):
     p.add_argument("spec", metavar="SPEC.toml", nargs="?", default=None,

@@ -28,6 +28,7 @@ from pathlib import Path
 from .._util._files import atomic_dir
 from ..signals import SignalError, parse_quantity
 from . import UserError, add_progress, check_output_dir, check_output_path, load, stage
+from ._flags import NoEffect
 
 #: The files --plot-dir receives (the folder is replaced whole: it may hold only these).
 PLOT_FILES = ("tune_bode.png", "tune_step.png", "tune_cascade.png")
@@ -36,6 +37,17 @@ COMMAND = "tune"
 ORDER = 7
 HELP = "tune the loop gains by IPOPT (margins, overshoot, limits; several load cases)"
 
+
+_MS = NoEffect((), "with --ms (the sensitivity peak sets the margins every loop must reach)",
+               lambda a: a.ms is not None)
+#: Each flag -> the combinations where it has no effect (refused; docs: cli).
+NO_EFFECT = {"--free": (), "--loads": (), "--objective": (), "--ms": (), "--overshoot": (), "--bandwidth-min": (),
+             "--sigma": (), "--step": (), "--rate-ratio": (), "--separation": (), "--command-noise": (),
+             "--start-scale": (), "--hessian": (), "--max-iter": (), "--sim-step": (), "--out": (), "--plot-dir": (),
+             "--gm": (NoEffect(("--ms", "1.5", "--gm", "8"), _MS.why, _MS.when),),
+             "--pm": (NoEffect(("--ms", "1.5", "--pm", "50"), _MS.why, _MS.when),),
+             "--sensor-noise": (NoEffect(("--command-noise", "0", "--sensor-noise", "2um"), "with --command-noise 0 "
+                                         "(the noise bound is off)", lambda a: a.command_noise == 0),)}
 
 def add_arguments(p):
     add_progress(p)

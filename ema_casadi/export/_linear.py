@@ -46,7 +46,7 @@ import numpy as np
 
 from .._util._checks import describe, instance
 from .._util._files import scratch_dir, transaction, write_with
-from ..linearisation import LinearModel, OperatingPoint
+from ..linearisation import REQUEST_KEYS, LinearModel, OperatingPoint
 from ..model.assembly import Model
 from ._errors import ExportError
 
@@ -88,7 +88,7 @@ def _op_dict(op: OperatingPoint | None) -> dict:
         return {}
     return {
         "x": op.x.tolist(), "u": op.u.tolist(), "y": op.y.tolist(),
-        "x_cmd": op.x_cmd, "f_ext": op.f_ext, "v_rod": op.v_rod,
+        **op.request(),
         "state_names": list(op.states), "input_names": list(op.inputs), "output_names": list(op.outputs),
         "param_names": list(op.param_names), "param_values": op.p.tolist(),
         "policy": op.policy, "variants": dict(op.variants), "residual": op.residual,
@@ -147,8 +147,8 @@ def save_linear(lin: LinearModel, path: str | Path, fmt: str | None = None, unit
     if op:
         mat["op"] = {
             "x": np.array(op["x"]).reshape(-1, 1), "u": np.array(op["u"]).reshape(-1, 1),
-            "y": np.array(op["y"]).reshape(-1, 1), "x_cmd": op["x_cmd"], "f_ext": op["f_ext"],
-            "v_rod": op["v_rod"], "state_names": cell(op["state_names"]), "input_names": cell(op["input_names"]),
+            "y": np.array(op["y"]).reshape(-1, 1), **{k: op[k] for k in REQUEST_KEYS},
+            "state_names": cell(op["state_names"]), "input_names": cell(op["input_names"]),
             "output_names": cell(op["output_names"]), "param_names": cell(op["param_names"]),
             "param_values": np.array(op["param_values"]).reshape(-1, 1),
             "policy": json.dumps(op["policy"]), "variants": json.dumps(op["variants"]),

@@ -64,6 +64,8 @@ class FaultResult:
             Wall time and the like, kept in :attr:`info`.
         """
         monitors = model.outputs_of("alarm")
+        rod = model.output_with("rod_position")
+        flight = [n for r in ("pitch_attitude", "load_factor") for n in model.signals_with(r)]
         ref = runs[0][0]
         rows = []
         for case, (res, reason) in zip(spec.cases, runs, strict=True):
@@ -78,12 +80,11 @@ class FaultResult:
                 continue
             n = min(len(res.t), len(ref.t))
             after = res.t[:n] >= t0
-            dev = np.abs(res["x_rod"][:n] - ref["x_rod"][:n])[after]
+            dev = np.abs(res[rod][:n] - ref[rod][:n])[after]
             row["peak_deviation_m"] = float(dev.max()) if dev.size else math.nan
-            for name in ("theta", "n_z"):  # the aircraft loop's pitch and load-factor excursions
-                if name in res.columns():
-                    d = np.abs(res[name][:n] - ref[name][:n])[after]
-                    row[f"peak_{name}_dev"] = float(d.max()) if d.size else math.nan
+            for name in flight:  # the aircraft loop's pitch and load-factor excursions
+                d = np.abs(res[name][:n] - ref[name][:n])[after]
+                row[f"peak_{name}_dev"] = float(d.max()) if d.size else math.nan
             det = {}
             for m in monitors:
                 t = _first(res.t, res[m] >= 0.5)
@@ -97,7 +98,7 @@ class FaultResult:
     @property
     def columns(self) -> list[str]:
         """The table's columns, in order."""
-        extra = [c for c in ("peak_theta_dev", "peak_n_z_dev") if self.rows and c in self.rows[0]]
+        extra = [c for c in (self.rows[0] if self.rows else ()) if c.startswith("peak_") and c.endswith("_dev")]
         return ["case", "kind", "target", "onset_s", "severity", "unit", "status", "peak_deviation_m", *extra,
                 *(f"detected_{m}_s" for m in self.monitors), "first_monitor", "reason"]
 

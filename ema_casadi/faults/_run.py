@@ -40,16 +40,19 @@ def _start(model, spec: FaultSpec):
     from the trim of the whole loop at its flight condition, its attitude command on
     top of the trim's."""
     sc = spec.scenario
-    if sc["condition"] is None:  # inputs the model lacks (a segment's T_amb without thermal) are left out
-        return model.p(), None, {k: v for k, v in sc["signals"].items() if k in model.inputs}
+    # the scenario's signals by the role they drive; one the model lacks (a segment's cavity
+    # temperature without the thermal network) is left out
+    sig = {model.input_with(role): v for role, v in sc["signals"].items() if model.inputs_with(role)}
+    if sc["condition"] is None:
+        return model.p(), None, sig
     from ..aircraft import aircraft_point, condition_overrides
     from ..signals import constant
 
     pv = model.p(**condition_overrides(sc["condition"]))
     op = aircraft_point(model, sc["condition"])
     fixed = {n: float(v) for n, v in op.policy.get("trim_free", {}).items()}
-    sig = dict(sc["signals"])
-    sig["theta_cmd"] = sig["theta_cmd"] + constant(float(op.u[model.inputs.index("theta_cmd")]))
+    theta_cmd = model.input_with("attitude_command")
+    sig[theta_cmd] = sig[theta_cmd] + constant(float(op.u[model.inputs.index(theta_cmd)]))
     return pv, op.x, {**fixed, **sig}
 
 
@@ -142,7 +145,7 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     progress : bool
         Progress on stderr.
     """
-    from ..sweeps import parse_sweep, sweep
+    from ..sweeps import make_sweep, sweep
 
     n = integer(n, "n", FaultError, minimum=1)
     h = spec.healthy or {"duration": spec.scenario["duration"], "dt": spec.scenario["dt"],
@@ -160,18 +163,17 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     # a seed per run for every noise sequence (the parameters the noise inputs name)
     seeds = sorted({i.seed for i in model.input_info.values() if i.noise is not None and i.seed})
     tol = {"distribution": "uniform", "low": 1 - tolerance, "high": 1 + tolerance, "relative": True}
-    data = {
-        "sweep": {"name": "healthy runs", "seed": int(seed), "samples": n},
-        "variants": v,
-        "parameters": {**{name: tol for name in h["vary"]},
-                       **{name: {"distribution": "uniform", "low": 0.0, "high": 2.0**31} for name in seeds}},
-        "scenario": {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
-                     "zoh": True, **spec.scenario["text"]},
-        "metrics": {"peak": {"signals": list(alarms)}},
-    }
-    if not data["parameters"]:
+    parameters = {**{name: tol for name in h["vary"]},
+                  **{name: {"distribution": "uniform", "low": 0.0, "high": 2.0**31} for name in seeds}}
+    if not parameters:
         raise FaultError("healthy runs: nothing varies (no noise inputs, no [healthy] vary parameters)")
-    sw = parse_sweep(data, spec.params, f"{spec.source} (healthy runs)")
+    # a sweep object from the scenario's signals as they were read (by role; one the model lacks
+    # left out; a chirp keeps the scenario's duration), no file text written and parsed back
+    signals = {role: s for role, s in spec.scenario["signals"].items() if model.inputs_with(role)}
+    sw = make_sweep(spec.params, {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
+                                  "zoh": True, "signals": signals},
+                    {"peak": {"signals": list(alarms)}}, parameters=parameters, variants=v, seed=int(seed),
+                    samples=n, name="healthy runs", source=f"{spec.source} (healthy runs)")
     res = sweep(sw, jobs=jobs, progress=progress)
     ok = [r for r in res.rows if r["status"] == "ok"]
     by = {a: sum(1 for r in ok if r[f"peak_{a}"] >= 0.5) for a in alarms}

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util._checks import nearest, read_toml
-from ..model.components import REGISTRY, Fault
+from ..model.components import REGISTRY, SIGNAL_KEYS, Fault
 from ..model.params import ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 
@@ -57,7 +57,9 @@ __all__ = ["FaultError", "FaultCase", "FaultSpec", "load_faults", "parse_faults"
 
 _TABLES = ("scenario", "fault", "monitor", "healthy")
 _HEALTHY = ("duration", "dt", "dt_out", "tolerance", "vary")
-_SCENARIO = ("duration", "x_cmd", "f_ext", "dt", "dt_out", "condition", "theta_cmd", "w_g", "mission", "segment")
+#: The scenario's signal keys (the file's, from the one key table): rod command, load, attitude command, gust.
+X_CMD, F_EXT, THETA_CMD, W_G = (SIGNAL_KEYS[r] for r in ("command", "load", "attitude_command", "gust"))
+_SCENARIO = ("duration", X_CMD, F_EXT, "dt", "dt_out", "condition", THETA_CMD, W_G, "mission", "segment")
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
 
@@ -111,8 +113,8 @@ class FaultSpec:
     variants : dict
         The variant choice of every run (faults and monitors on).
     scenario : dict
-        ``duration``, ``dt``, ``dt_out`` (s), ``signals`` (input -> Signal) and ``text``
-        (input -> the file's value).
+        ``duration``, ``dt``, ``dt_out`` (s), ``signals`` (input role -> Signal: ``command``,
+        ``load``, ...) and ``text`` (the file's key -> its value).
     healthy : dict
         The healthy runs' ``duration``, ``dt``, ``dt_out`` (s), ``tolerance`` (-) and
         ``vary`` (the parameters drawn within it).
@@ -283,12 +285,12 @@ def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) ->
     P = SimpleNamespace(**params.as_dict())
     parts = parts_for(variants)[0]
     held = [float(part.limits["held_load"](P)) for part in parts if "held_load" in part.limits]
-    role = {r: i.name for part in parts for i in part.inputs for r in i.roles}  # the model's inputs by role
-    for key, limit, unit, scale, what in (
-            (role.get("command"), stroke, "mm", 1e3, "beyond the stroke"),
-            (role.get("load"), max(held) if held else math.inf, "kN", 1e-3,
+    roles = {r for part in parts for i in part.inputs for r in i.roles}  # the model's input roles
+    for role, limit, unit, scale, what in (
+            ("command", stroke, "mm", 1e3, "beyond the stroke"),
+            ("load", max(held) if held else math.inf, "kN", 1e-3,
              "more than the actuator holds at standstill at its current limit")):
-        sig = sc["signals"].get(key)
+        sig, key = (sc["signals"].get(role) if role in roles else None), SIGNAL_KEYS[role]
         if sig is None or not math.isfinite(limit):
             continue
         v = np.asarray(sig(t), dtype=float) * np.ones_like(t)
@@ -299,11 +301,11 @@ def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) ->
 
 
 def _aircraft(variants: dict) -> bool:
-    """Whether the model flies: a part commands the attitude (``theta_cmd`` is an input)."""
+    """Whether the model flies: an input of its parts is the attitude command."""
     from ..model.components import parts_for
 
     parts, _ = parts_for(variants)
-    return any(i.name == "theta_cmd" for part in parts for i in part.inputs)
+    return any("attitude_command" in i.roles for part in parts for i in part.inputs)
 
 
 def _healthy(table, sc: dict, src: str, params: Parameters) -> dict:
@@ -378,31 +380,32 @@ def _scenario(table: dict, params: Parameters, src: str, aircraft: bool = False)
     if aircraft:
         from ..aircraft import CONDITIONS
 
-        if "x_cmd" in table:
-            raise FaultError(f"{where} x_cmd: in the aircraft loop the flight-control law commands the rod; "
-                             "give theta_cmd (and w_g) instead")
+        if X_CMD in table:
+            raise FaultError(f"{where} {X_CMD}: in the aircraft loop the flight-control law commands the rod; "
+                             f"give {THETA_CMD} (and {W_G}) instead")
         cond = out["condition"] = table.get("condition", "cruise_sl")
         if cond not in CONDITIONS:
             raise FaultError(f"{where} condition: '{cond}' unknown{nearest(str(cond), CONDITIONS)}; choose one of "
                              f"{', '.join(CONDITIONS)}")
-        inputs = (("theta_cmd", "angle", "deg"), ("w_g", None, None), ("f_ext", "force", "N"))
+        inputs = (("attitude_command", "angle", "deg"), ("gust", None, None), ("load", "force", "N"))
     else:
-        for key in ("condition", "theta_cmd", "w_g"):
+        for key in ("condition", THETA_CMD, W_G):
             if key in table:
                 raise FaultError(f"{where} {key}: only with an airframe (airframe = \"transport\" or \"b747\")")
-        inputs = (("x_cmd", "length", "mm"), ("f_ext", "force", "N"))
+        inputs = (("command", "length", "mm"), ("load", "force", "N"))
     if "mission" in table or "segment" in table:
         return _segment(table, params, out, where)
     sig, text = {}, {}
-    for key, kind, bare in inputs:
+    for role, kind, bare in inputs:  # the signals by the role they drive, the text by the file's key
+        key = SIGNAL_KEYS[role]
         value = table.get(key, 0)
         text[key] = value
-        if key == "w_g":  # a speed in m/s: parsed as a plain number of its unit
+        if role == "gust":  # a speed in m/s: parsed as a plain number of its unit
             kind, bare = "dimensionless", None
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise FaultError(f"{where} {key}: expected a signal such as \"step:1mm@0.01\", got {value!r}")
         try:
-            sig[key] = parse_signal(str(value), kind, bare=bare, stroke=params.actuator.stroke,
+            sig[role] = parse_signal(str(value), kind, bare=bare, stroke=params.actuator.stroke,
                                     duration=out["duration"])
         except SignalError as exc:
             raise FaultError(f"{where} {key}: {exc}") from None
@@ -414,7 +417,7 @@ def _segment(table: dict, params: Parameters, out: dict, where: str) -> dict:
     """The scenario of one segment of a mission file (its command, load, cavity)."""
     from ..mission import MissionError, load_mission
 
-    for key in ("x_cmd", "f_ext", "condition", "theta_cmd", "w_g"):
+    for key in (X_CMD, F_EXT, "condition", THETA_CMD, W_G):
         if key in table:
             raise FaultError(f"{where} {key}: the mission segment gives the scenario's signals")
     if not isinstance(table.get("mission"), str) or not isinstance(table.get("segment"), str):
@@ -430,8 +433,8 @@ def _segment(table: dict, params: Parameters, out: dict, where: str) -> dict:
                          f"mission has {', '.join(names)}")
     if "duration" not in table:
         out["duration"] = float(seg.duration)
-    out["signals"] = {"x_cmd": seg.x_cmd, "f_ext": seg.f_ext, "T_amb": seg.T_amb}
-    out["text"] = {k: seg.text.get(k, "0") for k in ("x_cmd", "f_ext")}
+    out["signals"] = {"command": seg.x_cmd, "load": seg.f_ext, "ambient_temperature": seg.T_amb}
+    out["text"] = {k: seg.text.get(k, "0") for k in (X_CMD, F_EXT)}
     return out
 
 

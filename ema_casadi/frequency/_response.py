@@ -376,7 +376,8 @@ def closed_loop(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> 
     """
     check_keywords("closed_loop", op_kwargs, _OP_KEYWORDS)
     _model_op(model, op)
-    lin = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"], **op_kwargs)
+    lin = linear_model(model, op, inputs=[model.input_with("command")], outputs=[model.output_with("rod_position")],
+                       **op_kwargs)
     lin.name = "T_x"
     return lin
 
@@ -398,7 +399,8 @@ def compliance(model: Model, op: OperatingPoint | None = None, **op_kwargs) -> L
     """
     check_keywords("compliance", op_kwargs, _OP_KEYWORDS)
     _model_op(model, op)
-    lin = linear_model(model, op, inputs=["f_ext"], outputs=["x_rod"], **op_kwargs)
+    lin = linear_model(model, op, inputs=[model.input_with("load")], outputs=[model.output_with("rod_position")],
+                       **op_kwargs)
     lin.name = "compliance"
     return lin
 

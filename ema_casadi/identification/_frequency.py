@@ -26,6 +26,7 @@ import numpy as np
 
 from .._util._checks import nearest
 from ..model.assembly import build_model
+from ..model.components import SIGNAL_KEYS
 from ..signals import SignalError, table_rows
 from ._lm import levenberg_marquardt
 from ._problem import free_parameters
@@ -82,8 +83,8 @@ def read_frequency_record(path, model) -> Record:
             raise IdentificationError(f"{path}: line {lines[k]}: freq_hz {f:g}: frequencies must be positive and "
                                       "increasing" + (f" (the row before has {data[k - 1, 0]:g})" if k else ""))
     fields = _fields(path.read_text(encoding="utf-8-sig"))
-    fields.setdefault("input", "x_cmd")
-    fields.setdefault("output", "x_rod")
+    fields.setdefault("input", model.input_with("command"))
+    fields.setdefault("output", model.output_with("rod_position"))
     if fields["input"] not in model.inputs:
         raise IdentificationError(f"{path}: input '{fields['input']}' is not a model input"
                                   f"{nearest(str(fields['input']), model.inputs)}")
@@ -115,7 +116,8 @@ def _response(model, rec: Record, pv) -> dict:
     from ..frequency import bode
     from ..linearisation import linear_model, operating_point
 
-    op = operating_point(model, x_cmd=float(rec.fields.get("x_cmd", 0.0)), f_ext=float(rec.fields.get("f_ext", 0.0)),
+    # the record's operating point: its '# x_cmd:' and '# f_ext:' fields (the keys of the roles)
+    op = operating_point(model, inputs={r: float(rec.fields.get(SIGNAL_KEYS[r], 0.0)) for r in ("command", "load")},
                          p=pv)
     lin = linear_model(model, op, inputs=[rec.fields["input"]], outputs=[rec.fields["output"]])
     b = bode(lin, rec.t)

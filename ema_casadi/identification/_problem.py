@@ -191,7 +191,8 @@ def rest_state(model, rec: Record, pv) -> np.ndarray:
     position, else 0."""
     x0 = model.x0()
     pos = model.state_with("rod_position") if model.states_with("rod_position") else None
-    first = rec.inputs.get("x_cmd", rec.channels.get(pos))
+    cmd = model.inputs_with("command")
+    first = rec.inputs.get(cmd[0]) if cmd and cmd[0] in rec.inputs else rec.channels.get(pos)
     if first is None:
         return x0
     P = model.pdict(pv)

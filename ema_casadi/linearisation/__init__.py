@@ -69,10 +69,10 @@ from ._common import (
 )
 from ._flight import flight_point
 from ._linear import LinearModel, linear_model, linearize, loop_model, loop_transfer
-from ._trim import OperatingPoint, operating_point, small_signal_point
+from ._trim import REQUEST_KEYS, OperatingPoint, operating_point, small_signal_point
 
 __all__ = [
     "LOOPS", "OUTER", "FRICTION_POLICIES", "BACKLASH_POLICIES", "LinearizationError", "OperatingPointError",
     "OperatingPoint", "LinearModel", "operating_point", "linear_model", "linearize", "loop_model",
-    "loop_transfer", "signal_outputs", "jacobian_function", "flight_point", "small_signal_point",
+    "loop_transfer", "signal_outputs", "jacobian_function", "flight_point", "small_signal_point", "REQUEST_KEYS",
 ]

@@ -30,6 +30,7 @@ from ._trim import (
     _lifted,
     _policy_vector,
     _row_scale,
+    efficiency,
 )
 
 __all__ = ["flight_point"]
@@ -159,7 +160,7 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
     _check_limits(model, y, p_pol, float(y[model.yindex("F_load_rod")]) if "F_load_rod" in model.outputs else 0.0,
                   0.0)
     u_lin, p_lin = _freeze_efficiency(model, u, p_pol, g)
-    x_cmd = float(y[model.yindex("x_cmd")])
+    x_cmd = float(y[model.yindex(model.output_with("rod_command"))])
     return OperatingPoint(
         x=x, u=u, y=y, p=p_pol, x_cmd=x_cmd, f_ext=float(u[j_load]), v_rod=0.0,
         xdot=np.zeros(model.nx), policy={"friction": "off", "backlash": "off", "overrides": overrides,
@@ -167,5 +168,5 @@ def flight_point(model: Model, *, f_ext: float = 0.0, params: Parameters | None 
                                          "trim_free": {n: float(u[model.inputs.index(n)]) for n in free},
                                          "trim_fix": fix},
         states=model.states, inputs=model.inputs, outputs=model.outputs, param_names=model.param_names,
-        residual=rel, variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin,
+        residual=rel, variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin, eta=efficiency(model, u),
     )

@@ -10,9 +10,14 @@ import numpy as np
 
 from .._util._checks import instance, integer, number, vector
 from ..model.assembly import AssemblyError, Model
-from ..model.components import POLICIES
+from ..model.components import POLICIES, SIGNAL_KEYS
 from ..model.params import Parameters
 from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
+
+#: The keys of a trim request in files, reports and the keyword conveniences of
+#: :func:`operating_point` (the command, the load and the rod velocity), and the efficiency's.
+REQUEST_KEYS = tuple(SIGNAL_KEYS[r] for r in ("command", "load", "rod_velocity"))
+ETA = SIGNAL_KEYS["efficiency"]
 
 
 @dataclass
@@ -42,6 +47,8 @@ class OperatingPoint:
     u_lin, p_lin : ndarray
         Where the Jacobian is evaluated: ``u`` and ``p`` with the efficiency blend
         frozen (friction policy ``off``; package docstring).
+    eta : float or None
+        The screw-efficiency input at the point (-); None for a model without one.
     """
 
     x: np.ndarray
@@ -62,6 +69,7 @@ class OperatingPoint:
     # evaluation point of the Jacobian (frozen efficiency): see module docstring
     u_lin: np.ndarray | None = None
     p_lin: np.ndarray | None = None
+    eta: float | None = None
 
     def state(self, name: str) -> float:
         """A state's value at the point (SI).
@@ -83,11 +91,15 @@ class OperatingPoint:
         """
         return float(self.y[self.outputs.index(name)])
 
+    def request(self) -> dict:
+        """The requested command (m), load (N) and rod velocity (m/s) by their keys in
+        files and reports (:data:`REQUEST_KEYS`: ``x_cmd``, ``f_ext``, ``v_rod``)."""
+        return dict(zip(REQUEST_KEYS, (self.x_cmd, self.f_ext, self.v_rod), strict=True))
+
     def as_dict(self) -> dict:
         """JSON-ready summary (SI units)."""
         return {
-            "x_cmd": self.x_cmd, "f_ext": self.f_ext, "v_rod": self.v_rod,
-            "eta": float(self.u[self.inputs.index("eta")]),
+            **self.request(), ETA: self.eta,
             "states": {n: float(v) for n, v in zip(self.states, self.x, strict=False)},
             "inputs": {n: float(v) for n, v in zip(self.inputs, self.u, strict=False)},
             "outputs": {n: float(v) for n, v in zip(self.outputs, self.y, strict=False)},
@@ -366,8 +378,14 @@ def operating_point(
         x=x, u=u, y=y, p=p_pol, x_cmd=float(x_cmd), f_ext=float(f_ext), v_rod=float(v_rod),
         xdot=target, policy=policy, states=model.states, inputs=model.inputs,
         outputs=model.outputs, param_names=model.param_names, residual=rel,
-        variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin,
+        variants=dict(model.variants), u_lin=u_lin, p_lin=p_lin, eta=efficiency(model, u),
     )
+
+
+def efficiency(model: Model, u: np.ndarray) -> float | None:
+    """The screw-efficiency input in ``u`` (-); None if the model has none."""
+    names = model.inputs_with("efficiency")
+    return float(u[model.inputs.index(names[0])]) if names else None
 
 
 def _by_role(model, inputs, x_cmd, f_ext, eta):
@@ -401,13 +419,13 @@ def _check_request(model, x_cmd, f_ext, v_rod, eta, params, p, tol, max_iter) ->
     """Types and values of a trim request: OperatingPointError naming the argument."""
     err = OperatingPointError
     instance(model, Model, "model", err, " (from build_model)")
-    for name, val, unit in (("x_cmd", x_cmd, "m"), ("f_ext", f_ext, "N"), ("v_rod", v_rod, "m/s")):
+    for name, val, unit in zip(REQUEST_KEYS, (x_cmd, f_ext, v_rod), ("m", "N", "m/s"), strict=True):
         if isinstance(val, str):
             raise err(f"{name}: expected a number in {unit}, got str {val!r} (text with units is for the "
                       "command line; ema_casadi.signals.parse_quantity reads it)")
         number(val, name, err, unit=unit)
     if eta is not None:
-        number(eta, "eta", err, unit="-", positive=True)
+        number(eta, ETA, err, unit="-", positive=True)
     if params is not None:
         instance(params, Parameters, "params", err, " (from load_parameters)")
     if p is not None:
@@ -423,11 +441,12 @@ def _request_vector(model: Model, params, p, x_cmd, f_ext, v_rod) -> np.ndarray:
     for loop in model.loops.values():
         pv[names.index(loop.flag)] = 1.0
     stroke = pv[names.index("stroke")]
-    for label, val in (("x_cmd", x_cmd), ("f_ext", f_ext), ("v_rod", v_rod)):
+    for label, val in zip(REQUEST_KEYS, (x_cmd, f_ext, v_rod), strict=True):
         if not math.isfinite(val):
             raise OperatingPointError(f"{label} must be a finite number, got {val}")
     if abs(x_cmd) > stroke:
-        raise OperatingPointError(f"x_cmd = {x_cmd * 1e3:.4g} mm is outside the stroke +-{stroke * 1e3:.4g} mm")
+        raise OperatingPointError(f"{REQUEST_KEYS[0]} = {x_cmd * 1e3:.4g} mm is outside the stroke "
+                                  f"+-{stroke * 1e3:.4g} mm")
     # far beyond what the actuator can hold or reach there is no point to solve for (and
     # the Newton iteration meets overflowing numbers): refused by the model's envelope
     bounds = model.envelope(pv)

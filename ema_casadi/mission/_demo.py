@@ -87,5 +87,5 @@ def demo_mission(params: Parameters, out: str | Path, written: list | None = Non
     s = res.summary()
     return {"mission": s["mission"], "duration_s": s["duration_s"], "limits_ok": s["limits_ok"],
             "peaks_degC": {n: p["peak_degC"] for n, p in s["peaks"].items()},
-            "energy_by_part_J": s["energy_by_part_J"], "electrical_in_J": s["energy_J"]["P_dc"],
+            "energy_by_part_J": s["energy_by_part_J"], "electrical_in_J": s["energy_J"][res.names["electrical_power"]],
             "heat_balance": s["heat_balance"], "wall_time_s": time.perf_counter() - t0}

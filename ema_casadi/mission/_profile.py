@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
-from ..model.components import REGISTRY, VariantError, parts_for, validate_variants
+from ..model.components import REGISTRY, SIGNAL_KEYS, VariantError, parts_for, validate_variants
 from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
@@ -43,7 +43,9 @@ MISSION_VARIANTS = {"thermal": "lumped", "friction": "hybrid", "iron_loss": "on"
 
 _TOP = {"mission", "model", "limits", "segment"}
 _MISSION_KEYS = {"name", "T_start", "description"}
-_SEGMENT_KEYS = {"name", "duration", "x_cmd", "f_ext", "T_amb"}
+#: A segment's signal keys (the file's, from the one key table): command, load, cavity temperature.
+X_CMD, F_EXT, T_AMB = (SIGNAL_KEYS[r] for r in ("command", "load", "ambient_temperature"))
+_SEGMENT_KEYS = {"name", "duration", X_CMD, F_EXT, T_AMB}
 _SAMPLE_RATE = 1000.0  # Hz: commands and loads are checked against the envelope on this grid
 _CHUNK = 1_000_000  # samples checked at a time
 #: Most envelope samples of one segment: 1e5 s, the MAX_STEPS of the full model's step.
@@ -362,17 +364,17 @@ def _check_samples(where: str, seg: Segment, params: Parameters, F_hold: float, 
     x = seg.x_cmd(t)
     if np.max(np.abs(x)) > stroke:
         k = int(np.argmax(np.abs(x)))
-        raise MissionError(f"{where} x_cmd: reaches {x[k] * 1e3:.4g} mm at {t[k]:.4g} s, beyond the stroke "
+        raise MissionError(f"{where} {X_CMD}: reaches {x[k] * 1e3:.4g} mm at {t[k]:.4g} s, beyond the stroke "
                            f"+-{stroke * 1e3:.4g} mm")
     f = seg.f_ext(t)
     if np.max(np.abs(f)) > F_hold:
         k = int(np.argmax(np.abs(f)))
-        raise MissionError(f"{where} f_ext: reaches {f[k] / 1e3:.4g} kN at {t[k]:.4g} s, more than the "
+        raise MissionError(f"{where} {F_EXT}: reaches {f[k] / 1e3:.4g} kN at {t[k]:.4g} s, more than the "
                            f"{F_hold / 1e3:.3g} kN the actuator holds at standstill at its current limit")
     T = seg.T_amb(t)
     if not np.all(np.isfinite(T)) or T.min() < -100 or T.max() > 300:
-        raise MissionError(f"{where} T_amb: goes outside -100...300 degC ({T.min():.4g}...{T.max():.4g} degC)")
-    for name, v in (("x_cmd", x), ("f_ext", f)):
+        raise MissionError(f"{where} {T_AMB}: goes outside -100...300 degC ({T.min():.4g}...{T.max():.4g} degC)")
+    for name, v in ((X_CMD, x), (F_EXT, f)):
         if not np.all(np.isfinite(v)):
             raise MissionError(f"{where} {name}: non-finite value")
 
@@ -415,8 +417,8 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
         _keys(where, tab, _SEGMENT_KEYS)
         if "duration" not in tab:
             raise MissionError(f"{where}: missing key 'duration' (s)")
-        if "T_amb" not in tab:
-            raise MissionError(f"{where}: missing key 'T_amb' (cavity temperature, degC, or [start, end])")
+        if T_AMB not in tab:
+            raise MissionError(f"{where}: missing key '{T_AMB}' (cavity temperature, degC, or [start, end])")
         dur = _number(f"{where} duration", tab["duration"], "time", "s")
         if dur <= 0:
             raise MissionError(f"{where} duration: must be positive, got {dur:g} s")
@@ -426,10 +428,10 @@ def parse_mission(data: dict, params: Parameters, source: str = "<memory>") -> M
                "as long as MAX_STEPS steps of the full model's 1e-4 s")
         seg = Segment(
             name=label, duration=dur,
-            x_cmd=_signal(f"{where} x_cmd", tab.get("x_cmd", "0"), "length", "mm", stroke, dur),
-            f_ext=_signal(f"{where} f_ext", tab.get("f_ext", "0"), "force", "N", stroke, dur),
-            T_amb=_cavity(f"{where} T_amb", tab["T_amb"], dur),
-            text={key: tab.get(key, "0") for key in ("x_cmd", "f_ext", "T_amb")},
+            x_cmd=_signal(f"{where} {X_CMD}", tab.get(X_CMD, "0"), "length", "mm", stroke, dur),
+            f_ext=_signal(f"{where} {F_EXT}", tab.get(F_EXT, "0"), "force", "N", stroke, dur),
+            T_amb=_cavity(f"{where} {T_AMB}", tab[T_AMB], dur),
+            text={key: tab.get(key, "0") for key in (X_CMD, F_EXT, T_AMB)},
         )
         _check_envelope(where, seg, params, held)
         segments.append(seg)

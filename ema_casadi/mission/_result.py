@@ -52,6 +52,9 @@ class MissionResult:
     info : dict
         ``dt``, ``dt_out`` (s), ``steps``, ``wall_time``, ``compile_time`` (s),
         ``mode_switches``, ``blocks``, ``variants``, ``model``.
+    names : dict
+        Role -> the signal of the model that plays it (``load`` -> ``f_ext``): the kept
+        signals the report reads by role (:data:`~ema_casadi.mission.KEPT`).
     """
 
     mission: Mission
@@ -65,6 +68,7 @@ class MissionResult:
     P: SimpleNamespace
     capacity: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    names: dict = field(default_factory=dict)
     _cum: dict = field(default_factory=dict, repr=False)
 
     def __getitem__(self, name: str) -> np.ndarray:
@@ -124,7 +128,7 @@ class MissionResult:
             Interval (s); default the whole mission.
         """
         if "W_load" not in self._cum:
-            f, x = self.series["f_ext"], self.series["x_mech"]
+            f, x = self.series[self.names["load"]], self.series["x_mech"]
             self._cum["W_load"] = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(x))])
         c = self._cum["W_load"]
         a = self.t[0] if t0 is None else t0
@@ -147,10 +151,12 @@ class MissionResult:
             node_heat = heat[self.heat_of[n]] if self.heat_of.get(n) in state_of else raw[n]
             out[n] = node_heat * raw[n] / total if total > 0 else node_heat / len(group)
         out.update({f"Q_{node}": q for node, q in heat.items()})
-        out["P_load"] = self.load_work(a, b)
-        stored = float(np.interp(b, self.t, self.series["E_stored"]) - np.interp(a, self.t, self.series["E_stored"]))
-        out["P_dc"] = stored + sum(heat.values()) + out["P_load"]
-        out["P_amb"] = self.energy("P_amb", a, b)
+        name = self.names
+        out[name["load_power"]] = work = self.load_work(a, b)
+        E = self.series[name["stored_energy"]]
+        out[name["electrical_power"]] = (float(np.interp(b, self.t, E) - np.interp(a, self.t, E)) + sum(heat.values())
+                                         + work)
+        out[name["ambient_heat"]] = self.energy(name["ambient_heat"], a, b)
         return out
 
     def energies(self) -> dict:
@@ -190,8 +196,9 @@ class MissionResult:
         temperatures) + heat to the ambient. Returns the three (J) and the relative
         residual (the sampling error of the losses, and anything the network loses)."""
         lost = sum(self.energy(n) for n in self.losses)
-        stored = float(self.series["E_th"][-1] - self.series["E_th"][0])
-        ambient = self.energy("P_amb")
+        E_th = self.series[self.names["thermal_energy"]]
+        stored = float(E_th[-1] - E_th[0])
+        ambient = self.energy(self.names["ambient_heat"])
         return {"losses_J": lost, "stored_heat_J": stored, "heat_to_ambient_J": ambient,
                 "relative_residual": (lost - stored - ambient) / lost if lost else 0.0}
 
@@ -219,7 +226,7 @@ class MissionResult:
         for ((a, b), seg), (_label, e) in zip(zip(self._bounds(), self.mission.segments, strict=True),
                                               self.energies().items(), strict=False):
             sel = (self.t >= a - 1e-9) & (self.t <= b + 1e-9)
-            T_amb = self.series["T_amb"][sel]
+            T_amb = self.series[self.names["ambient_temperature"]][sel]
             rows.append({
                 "name": seg.name, "t_start_s": float(a), "duration_s": float(b - a),
                 "T_amb_degC": {"min": float(T_amb.min()), "max": float(T_amb.max())},
@@ -262,7 +269,9 @@ class MissionResult:
         if t_rows[-1] < self.t[-1] - 1e-9:
             t_rows = np.append(t_rows, self.t[-1])
         seg = np.clip(np.searchsorted(self.mission.starts, t_rows, side="right"), 1, len(self.mission.segments))
-        names = ["time", "segment", "T_amb", *self.nodes, "x_cmd", "x_rod", "f_ext", *self.losses, "P_dc", "P_amb"]
+        n = self.names
+        names = ["time", "segment", n["ambient_temperature"], *self.nodes, n["command"], n["rod_position"], n["load"],
+                 *self.losses, n["electrical_power"], n["ambient_heat"]]
         cols = [t_rows, seg.astype(float)]
         for n in names[2:]:
             y = self.series[n]

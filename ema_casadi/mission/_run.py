@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.assembly import Model, build_model
-from ..model.components import node_outflow
+from ..model.components import SIGNAL_KEYS, node_outflow
 from ..model.params import Parameters
 from ..simulation import (
     STEPS_PER_CALL,
@@ -40,13 +40,15 @@ FAST_DT = 2e-4
 #: 5 s mission to 3 % (the sampling of the losses' first seconds); 10 % is no answer.
 HEAT_RESIDUAL_TOL = 0.1
 
-#: Signals kept besides the losses, the temperature states and the heat flows.
-KEPT = ("x_cmd", "x_rod", "f_ext", "T_amb", "i_q", "R_w", "psi_m", "eta_screw", "P_dc", "P_load", "P_amb",
-        "E_th", "E_stored")
+#: Roles of the signals kept besides the losses, the temperature states and the heat flows
+#: (the result knows them by role: :attr:`MissionResult.names`).
+KEPT = ("command", "rod_position", "load", "ambient_temperature", "motor_current", "winding_resistance",
+        "magnet_flux", "screw_efficiency", "electrical_power", "load_power", "ambient_heat", "thermal_energy",
+        "stored_energy")
 
 
-#: The mission file's segment signals (the file's keys, unchanged) and the input roles they drive.
-SEGMENT_ROLES = {"x_cmd": "command", "f_ext": "load", "T_amb": "ambient_temperature"}
+#: The input roles a mission segment drives (its keys: :data:`~ema_casadi.model.components.SIGNAL_KEYS`).
+SEGMENT_ROLES = ("command", "load", "ambient_temperature")
 
 
 class MissionFailed(RuntimeError):
@@ -67,7 +69,7 @@ def _rod_travel(model: Model) -> str:
     position state, or the nut position where that state is a play operator's output
     (the rigid screw's rod moves with the nut)."""
     rod = model.state_with("rod_position")
-    return "x_in" if "play" in model.state_info[rod].roles else rod
+    return model.output_with("nut_position") if "play" in model.state_info[rod].roles else rod
 
 
 def _blocks(t_total: float, dt: float, dt_out: float, block: float) -> list[tuple[float, float]]:
@@ -143,7 +145,8 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     nodes = {n: model.state_info[n].node for n in temps if model.state_info[n].node is not None}
     flows = tuple(node_outflow(node.name) for node in nodes.values())
     x_mech = _rod_travel(model)
-    keep = tuple(dict.fromkeys((*temps, *losses, *heat, *flows, *KEPT, x_mech)))
+    names = {role: model.signal_with(role) for role in KEPT}
+    keep = tuple(dict.fromkeys((*temps, *losses, *heat, *flows, *names.values(), x_mech)))
     wall0 = time.perf_counter()
     t, series, info = _simulate_blocks(model, mission, keep, _blocks(mission.duration, dt, dt_out, block),
                                        dt=dt, dt_out=dt_out, jit=jit, progress=progress, solver=solver,
@@ -156,7 +159,7 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
         nodes={n: nodes[n].name if n in nodes else n for n in temps},
         capacity={n: float(node.capacity(model.pdict())) for n, node in nodes.items()},
         heat_of={n: node for part in model.parts for n, node in part.heat.items() if n in losses},
-        P=model.pdict(), info=info)
+        P=model.pdict(), info=info, names=names)
     residual = res.heat_balance()["relative_residual"]
     if not abs(residual) <= HEAT_RESIDUAL_TOL:  # NaN too: heat not conserved is no answer
         raise MissionFailed(f"{mission.source}: the heat balance does not close: residual {100 * residual:+.3g} % "
@@ -184,7 +187,7 @@ def _simulate_blocks(model: Model, mission: Mission, keep: tuple, blocks: list, 
     x = model.x0()
     for n in temps:
         x[model.index(n)] = mission.T_start
-    sig = {model.input_with(role): mission.signal(key) for key, role in SEGMENT_ROLES.items()}
+    sig = {model.input_with(role): mission.signal(SIGNAL_KEYS[role]) for role in SEGMENT_ROLES}
     if from_trim:
         x = trimmed_start(model, sig, model.p(), x)
     used, why = choose_solver(model, solver)

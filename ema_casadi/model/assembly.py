@@ -55,7 +55,8 @@ from .params import ParameterError, Parameters
 __all__ = ["Model", "build_model", "AssemblyError"]
 
 #: Outputs the assembly adds to those of the parts.
-_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy"),)
+_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy",
+                roles=("stored_energy",)),)
 
 
 @dataclass
@@ -329,6 +330,18 @@ class Model(Contract):
                 if d.bound is not None:
                     out[name] = min(out.get(name, math.inf), float(d.bound.limit(E)))
         return out
+
+    def smooth(self) -> Model:
+        """The model with the smooth counterpart of every part that switches
+        (:attr:`smooth_variants`), on the same parameters: what an optimiser's exact
+        derivatives need. The model itself when it is smooth already."""
+        over = self.smooth_variants
+        if not over:
+            return self
+        key = ("smooth", tuple(sorted(over.items())))
+        if key not in self.cache:
+            self.cache[key] = build_model(self.params, {**self.variants, **over})
+        return self.cache[key]
 
     def travel(self, p=None) -> dict[str, float]:
         """Position-like states -> rod travel (m) per unit of the state.

@@ -70,6 +70,8 @@ class Actuator:
     """Actuator envelope (paper Table 1)."""
 
     stroke: float = _p("m", POS, "half stroke: the rod travels +-stroke (m)")
+    v_rod_max: float = _p("m/s", POS, "rated rod speed, the ball screw's speed limit (2400 rpm of a 5 mm lead) (m/s)",
+                          default=0.2)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """Plots: every figure of the package (simulation, Bode and margins, PWM, sine stream,
-limit cycles, missions, tuning, aircraft). Functions return or save matplotlib figures
-with the Agg backend; the CLI's PNG writers and the analyses' ``plot_*`` functions call
+limit cycles, missions, tuning, aircraft). Functions return matplotlib figures managed
+by pyplot (``plt.show()`` shows them; a notebook displays them once) or save them as
+PNG (closed); the CLI's PNG writers and the analyses' ``plot_*`` functions call
 them.
 
 This layer sits above the analyses. The analyses' public ``plot_*`` names
@@ -13,13 +14,14 @@ first use, so importing an analysis does not load matplotlib.
 from importlib import import_module
 
 _EXPORTS = {
-    "._base": ("plot_simulation", "save"),
+    "._base": ("plot_simulation", "save", "write_figures"),
     "._frequency": ("plot_bode", "plot_loop_margins"),
     "._pwm": ("plot_switched", "plot_pwm_vs_averaged"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
-__all__ = ["plot_simulation", "save", "plot_bode", "plot_loop_margins", "plot_switched", "plot_pwm_vs_averaged"]
+__all__ = ["plot_simulation", "save", "write_figures", "plot_bode", "plot_loop_margins", "plot_switched",
+           "plot_pwm_vs_averaged"]
 
 
 def __getattr__(name):

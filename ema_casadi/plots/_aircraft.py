@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._base import plt, save
+from ._base import save, subplots
 
 __all__ = ["plot_condition"]
 
@@ -37,7 +37,7 @@ def plot_condition(curves: dict, condition: str, delay_s: float, step, gust, fri
                              title=f"aircraft loop at the actuator command, {condition}: ideal actuator | EMA "
                                    f"(equivalent delay {delay_s * 1e3:.1f} ms)")]
     path = folder / f"aircraft_{condition}_responses.png"
-    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex="col")
+    fig, axes = subplots(3, 2, figsize=(11, 8), sharex="col")
     for j, (r, what) in enumerate(((step, "theta_cmd step"), (gust, "1-cosine gust"))):
         if r is None:
             continue

@@ -22,15 +22,12 @@ def plot_coverage(result, path=None):
         A PNG to write (atomically); the Figure is returned either way (and closed
         once written).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ._base import subplots
 
     cov = result.coverage()
     cases, mons = list(cov), [m.removeprefix("latch_") for m in result.monitors]
     D = np.array([[math.nan if cov[c][m] is None else 1e3 * cov[c][m] for m in result.monitors] for c in cases])
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 0.45 * len(cases) + 2.0), width_ratios=(1.1, 1))
+    fig, (ax, bx) = subplots(1, 2, figsize=(12, 0.45 * len(cases) + 2.0), width_ratios=(1.1, 1))
     shown = np.where(np.isfinite(D), np.log10(np.maximum(D, 1e-3) + 1), np.nan)
     ax.imshow(np.ma.masked_invalid(shown), cmap="viridis_r", aspect="auto", vmin=0, vmax=4)
     for i in range(len(cases)):

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
-from ._base import finish, save  # sets the Agg backend before pyplot is imported
+from ._base import finish, save, subplots
 
 __all__ = ["plot_bode", "plot_loop_margins"]
 
@@ -77,7 +76,7 @@ def plot_bode(curves, path: str | Path | None = None, *, title: str = "", margin
     """
     if isinstance(curves, dict):
         curves = [curves]
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    fig, (ax_m, ax_p) = subplots(2, 1, figsize=(8, 7), sharex=True)
     draw_m, key_m = (ax_m.loglog, "magnitude") if linear_magnitude else (ax_m.semilogx, "mag_db")
     for c in curves:
         f, mag, ph = np.asarray(c["freq_hz"]), np.asarray(c[key_m]), np.asarray(c["phase_deg"])
@@ -120,7 +119,7 @@ def plot_loop_margins(loops: dict, path: str | Path, *, title: str = "") -> Path
         ``path``.
     """
     n = len(loops)
-    fig, axes = plt.subplots(2, n, figsize=(5.2 * n, 7), sharex="col", squeeze=False)
+    fig, axes = subplots(2, n, figsize=(5.2 * n, 7), sharex="col", squeeze=False)
     for j, (bode, m) in enumerate(loops.values()):
         ax_m, ax_p = axes[0, j], axes[1, j]
         ax_m.semilogx(bode["freq_hz"], bode["mag_db"], lw=1.3)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._base import plt, save
+from ._base import plt, save, subplots
 
 __all__ = ["plot_nichols", "plot_orbit", "plot_bifurcation"]
 
@@ -26,7 +26,7 @@ def plot_nichols(df, path: str | Path, *, unit_scale: float = 1e6, unit: str = "
     title : str
         Figure title.
     """
-    fig, ax = plt.subplots(figsize=(7.5, 6))
+    fig, ax = subplots(figsize=(7.5, 6))
     cmap = plt.get_cmap("viridis")
     for i, A in enumerate(df.amplitudes):
         L, ok = df.L[i], df.answered[i]
@@ -65,7 +65,7 @@ def plot_orbit(orbit, path: str | Path | None = None, *, signals=None):
         Signals drawn (default the orbit's summarised ones).
     """
     names = list(signals or orbit.signals)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [2, 1]})
+    fig, axes = subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [2, 1]})
     ax = axes[0]
     for n in names:
         y = np.asarray(orbit[n])
@@ -105,7 +105,7 @@ def plot_bifurcation(cont, path: str | Path | None = None):
     """
     xs, unit = (1e6, "um") if cont.unit == "m" else (1.0, cont.unit)
     v, a = np.asarray(cont.values) * xs, np.asarray(cont.amplitudes) * 1e6
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = subplots(figsize=(7, 4.5))
     st = np.asarray(cont.stable)
     for i in range(len(v) - 1):
         good = st[i] and st[i + 1]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._base import finish, plt
+from ._base import finish, subplots
 
 __all__ = ["plot_mission"]
 
@@ -36,7 +36,7 @@ def plot_mission(res, path: str | Path | None = None, title: str = ""):
         Figure title (default the mission's name).
     """
     t = res.t / 60.0
-    fig, ax = plt.subplots(3, 1, figsize=(11, 10), sharex=True, gridspec_kw={"height_ratios": [3, 2, 1.4]})
+    fig, ax = subplots(3, 1, figsize=(11, 10), sharex=True, gridspec_kw={"height_ratios": [3, 2, 1.4]})
     starts = res.mission.starts / 60.0
     ends = starts + np.array([s.duration for s in res.mission.segments]) / 60.0
     for k, (a, b, seg) in enumerate(zip(starts, ends, res.mission.segments, strict=True)):

@@ -1,6 +1,6 @@
 """Plots of a switched (PWM) run: phase currents, leg states, phase and line voltages
 over a few carrier periods, the DC-link voltage over the run; and the PWM-against-
-averaged figure of the demo. Matplotlib (Agg), PNG written atomically."""
+averaged figure of the demo. Matplotlib, PNG written atomically."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._base import plt, save
+from ._base import save, subplots
 
 __all__ = ["plot_switched", "plot_pwm_vs_averaged"]
 
@@ -34,7 +34,7 @@ def plot_switched(res, path: str | Path, periods: int = 4, f_sw: float | None = 
         f_sw = res.info["carrier_periods"] / res.info["t_end"]
     win = t >= t[-1] - periods / f_sw - 1e-12
     tw = (t[win] - t[win][0]) * 1e6
-    fig, ax = plt.subplots(5, 1, figsize=(8, 11))
+    fig, ax = subplots(5, 1, figsize=(8, 11))
     for k in "abc":
         ax[0].plot(tw, res[f"i_{k}"][win], lw=1.0, label=f"i_{k}")
     ax[0].set_ylabel("phase current (A)")
@@ -78,7 +78,7 @@ def plot_pwm_vs_averaged(sw, av, path: str | Path, pp: int, periods: int = 6, f_
     f_sw : float
         Carrier frequency (Hz).
     """
-    fig, ax = plt.subplots(3, 1, figsize=(8, 8))
+    fig, ax = subplots(3, 1, figsize=(8, 8))
     ax[0].plot(av.t, av["x_rod"] * 1e3, lw=1.5, label="averaged")
     ax[0].plot(sw.t, sw["x_rod"] * 1e3, "--", lw=1.0, label="switched PWM")
     ax[0].plot(av.t, av["x_cmd"] * 1e3, "k:", lw=0.8, label="x_cmd")

@@ -25,11 +25,10 @@ def draw_bode(f, curves: dict, titles: list, suptitle: str, path: str | Path | N
     path : str or Path
         PNG file, written atomically.
     """
-    import matplotlib.pyplot as plt
 
-    from ._base import finish  # first: it selects the Agg backend
+    from ._base import finish, subplots
 
-    fig, ax = plt.subplots(2, len(titles), figsize=(17, 7), sharex=True, squeeze=False)
+    fig, ax = subplots(2, len(titles), figsize=(17, 7), sharex=True, squeeze=False)
     for lbl, (ls, bodes) in curves.items():
         for j, b in enumerate(bodes):
             ax[0, j].semilogx(f, b["mag_db"], ls, label=lbl)
@@ -59,11 +58,10 @@ def draw_step(steps: dict, path: str | Path | None = None):
     path : str or Path
         PNG file, written atomically.
     """
-    import matplotlib.pyplot as plt
 
-    from ._base import finish  # first: it selects the Agg backend
+    from ._base import finish, subplots
 
-    fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    fig, ax = subplots(2, 1, figsize=(8, 7), sharex=True)
     amp = None
     for lbl, (ls, nl) in steps.items():
         amp = nl["amp_m"]
@@ -99,12 +97,11 @@ def cascade_figure(f, curves: dict, loops: list, suptitle: str, path: str | Path
     path : str or Path, optional
         PNG file, written atomically; without it the Figure is returned.
     """
-    import matplotlib.pyplot as plt
 
-    from ._base import finish  # first: it selects the Agg backend
+    from ._base import finish, subplots
 
 
-    fig, ax = plt.subplots(2, len(loops), figsize=(5 * len(loops), 6.5), sharex=True, squeeze=False)
+    fig, ax = subplots(2, len(loops), figsize=(5 * len(loops), 6.5), sharex=True, squeeze=False)
     for k, (lbl, per_loop) in enumerate(curves.items()):
         for j, (b, fcs, pm) in enumerate(per_loop):
             fc = ", ".join(f"{x:.3g}" for x in fcs)

@@ -34,6 +34,7 @@ import numpy as np
 
 from .._util._checks import describe, instance, integer, number, vector
 from ..model.assembly import Model
+from ..model.components import SIGNAL_KEYS
 from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
@@ -171,7 +172,9 @@ def _given(model, x_cmd, f_ext, eta, inputs, signals) -> dict:
     An input given twice is refused."""
     from ..model import AssemblyError
 
-    given = {name: value for name, value in {"x_cmd": x_cmd, "f_ext": f_ext, "eta": eta}.items() if value is not None}
+    # the conveniences drive the input of their role (a model without one: refused by that key's name below)
+    given = {(model.inputs_with(role) or (SIGNAL_KEYS[role],))[0]: value
+             for role, value in (("command", x_cmd), ("load", f_ext), ("efficiency", eta)) if value is not None}
     given.update(signals)
     if inputs is not None and not isinstance(inputs, dict):
         raise SimulationError(f"inputs: expected a dict name or role -> value, got {describe(inputs)}")
@@ -449,7 +452,7 @@ def _thin(res: SimResult, keep: np.ndarray) -> SimResult:
     return SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
                      outputs={k: v[keep] for k, v in res.outputs.items()},
                      states={k: v[keep] for k, v in res.states.items()}, info=res.info, unit_table=res.unit_table,
-                     kinds=res.kinds)
+                     kinds=res.kinds, roles=res.roles)
 
 
 def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress) -> SimResult:
@@ -487,6 +490,6 @@ def _run_cvodes(model, plan: _Plan, sig, pv, x0, rtol, atol, event_tol, progress
         t=t, inputs={name: s(t) for name, s in sig.items()},
         outputs={k: np.append(v, last.outputs[k][-1]) for k, v in head.outputs.items()},
         states={k: np.append(v, last.states[k][-1]) for k, v in head.states.items()},
-        info=info, unit_table=head.unit_table, kinds=head.kinds,
+        info=info, unit_table=head.unit_table, kinds=head.kinds, roles=head.roles,
     )
 

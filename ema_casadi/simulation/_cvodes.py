@@ -163,7 +163,8 @@ def _hybrid_integrators(model, sig, rtol, atol):
     for name, s in sig.items():
         u[model.inputs.index(name)] = s.sym(t0 + H * tau)
     xdot, y = model.f(x, u, p)
-    stick = y[model.yindex("stick")]
+    k_stick = model.yindex(model.output_with("stuck"))
+    stick = y[k_stick]
     dae = {"x": x, "p": ca.vertcat(p, t0, H), "t": tau, "ode": H * xdot, "quad": H * ca.vertcat(stick, 1 - stick)}
     opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 10**7}
     cache = {}
@@ -174,7 +175,7 @@ def _hybrid_integrators(model, sig, rtol, atol):
         return cache[n]
 
     uu = ca.SX.sym("u", model.nu)
-    mode = ca.Function("mode", [x, uu, p], [model.f(x, uu, p)[1][model.yindex("stick")]])
+    mode = ca.Function("mode", [x, uu, p], [model.f(x, uu, p)[1][k_stick]])
     return get, mode
 
 

@@ -372,7 +372,7 @@ def _finish(model, sig, pv, g, t, Xa, S, names_q, Q_end, cinfo, t_comp, jit):
         res = SimResult(t=res.t[keep], inputs={k: v[keep] for k, v in res.inputs.items()},
                         outputs={k: v[keep] for k, v in res.outputs.items()},
                         states={k: v[keep] for k, v in res.states.items()}, info=info, unit_table=res.unit_table,
-                        kinds=res.kinds)
+                        kinds=res.kinds, roles=res.roles)
     if not g.resolve:
         _window_averages(res)
     return res

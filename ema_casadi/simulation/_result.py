@@ -36,6 +36,8 @@ class SimResult:
         Signal name -> SI unit (the model's :attr:`~ema_casadi.model.assembly.Model.units`).
     kinds : dict
         Output name -> its kind (``loss``, ``power``, ...), for :meth:`energies`.
+    roles : dict
+        Output name -> the roles it declares (``x_rod`` -> ``("rod_position",)``).
     """
 
     t: np.ndarray
@@ -45,6 +47,7 @@ class SimResult:
     info: dict = field(default_factory=dict)
     unit_table: dict = field(default_factory=dict)
     kinds: dict = field(default_factory=dict)
+    roles: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name in ("t", "time"):
@@ -83,7 +86,7 @@ class SimResult:
         units = dict(self.unit_table) | {f"{k}_inst": self.unit_table.get(k, "") for k in inst}
         kinds = dict(self.kinds) | {f"{k}_inst": "aux" for k in inst}
         return SimResult(t=self.t, inputs=self.inputs, outputs=outputs, states=self.states, info=self.info,
-                         unit_table=units, kinds=kinds)
+                         unit_table=units, kinds=kinds, roles=self.roles)
 
     def final(self) -> dict:
         """Last value of every output."""
@@ -137,8 +140,9 @@ class SimResult:
     def _repr_html_(self) -> str:
         from .._util._notebook import html_summary
 
+        shown = {"rod_position", "rod_velocity", "motor_current", "screw_force"}
         final = {k: f"{v:.6g} {self.unit_table.get(k, '')}" for k, v in self.final().items()
-                 if k in ("x_rod", "v_rod", "i_q", "F_in")}
+                 if shown & set(self.roles.get(k, ()))}
         return html_summary("SimResult", {**self._facts(), **{f"final {k}": v for k, v in final.items()}})
 
     def to_csv(self, path: str | Path) -> Path:
@@ -322,4 +326,6 @@ def _result(model, sig, t, X, Y, info):
     outputs = {n: Y[i] for i, n in enumerate(model.outputs)}
     states = {n: X[i] for i, n in enumerate(model.states)}
     kinds = {n: o.kind for n, o in model.output_info.items()}
-    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units, kinds=kinds)
+    roles = {n: o.roles for n, o in model.output_info.items() if o.roles}
+    return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units, kinds=kinds,
+                     roles=roles)

@@ -258,7 +258,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         if model.hybrid:
             # the mode decided inside each step (identical to the rule in f except at
             # the instant of a band crossing) and the switches counted at every step
-            Y_all[model.yindex("stick")] = np.concatenate([[stick0], X_out[model.nx + nh, :n]])
+            Y_all[model.yindex(model.output_with("stuck"))] = np.concatenate([[stick0], X_out[model.nx + nh, :n]])
             info["mode_switches"] = int(round(X_out[model.nx + nh + 1, n - 1])) if n else 0
         return _result(model, sig, t_out, X_all, Y_all, info)
 

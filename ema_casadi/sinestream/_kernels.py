@@ -17,6 +17,7 @@ import numpy as np
 from .._util import _interrupts
 from .._util._compiled import BufferCall
 from ..model.assembly import Model, build_model
+from ..model.components import SIGNAL_KEYS
 from ..model.params import Parameters
 from ..signals import Signal
 from ..simulation import STEPS_PER_CALL, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure, simulate
@@ -274,10 +275,12 @@ def _settle(step, x0, pa, A, freq, s: _Settle, keep: bool, stop=None) -> dict:
 
 
 def _kept_samples(kept: list, A: float, freq: float) -> dict:
-    """The x_rod and i_q samples of all simulated periods, with t (s) and x_cmd (m)."""
+    """The measured samples (:data:`MEASURED`) of all simulated periods, with t (s) and the
+    command (m), under their report keys (``x_cmd``, ``x_rod``, ``i_q``)."""
     Y = np.hstack(kept)
     t = np.arange(1, Y.shape[1] + 1) / (freq * kept[-1].shape[1])
-    return {"t": t, "x_cmd": A * np.sin(2 * np.pi * freq * t), "x_rod": Y[0], "i_q": Y[1]}
+    return {"t": t, SIGNAL_KEYS["command"]: A * np.sin(2 * np.pi * freq * t),
+            **{SIGNAL_KEYS[role]: Y[k] for k, role in enumerate(MEASURED)}}
 
 
 def _failed(k, reason: str):

@@ -26,9 +26,9 @@ from ._journal import journal_path, write_table
 from ._metrics import METRICS
 from ._result import SweepResult, spearman
 from ._run import BACKENDS, sweep
-from ._spec import DISTRIBUTIONS, MAX_RUNS, Run, SweepError, SweepSpec, load_sweep, parse_sweep
+from ._spec import DISTRIBUTIONS, MAX_RUNS, Run, SweepError, SweepSpec, load_sweep, make_sweep, parse_sweep
 
 __all__ = [
-    "sweep", "load_sweep", "parse_sweep", "SweepSpec", "SweepResult", "SweepError", "Run", "METRICS",
+    "sweep", "load_sweep", "parse_sweep", "make_sweep", "SweepSpec", "SweepResult", "SweepError", "Run", "METRICS",
     "DISTRIBUTIONS", "BACKENDS", "MAX_RUNS", "journal_path", "spearman", "write_table",
 ]

@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from .._util._checks import nearest, number
+from ..model.components import SIGNAL_KEYS
 
 __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "PointFailed"]
 
@@ -38,6 +39,8 @@ __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "Poi
 class PointFailed(Exception):
     """A metric whose analysis reported a failed point (the run is failed)."""
 
+#: The metric option of the margins and the bandwidth: the load of their operating point (N), by its file key.
+F_EXT = SIGNAL_KEYS["load"]
 _LOOP_FIELDS = (("gm_db", "dB"), ("gm_down_db", "dB"), ("pm_deg", "deg"), ("f_gc_hz", "Hz"), ("f_pc_hz", "Hz"),
                 ("f_down_hz", "Hz"), ("disk_margin", "1"))
 
@@ -77,16 +80,16 @@ def _names(where, opts, key, allowed, error, default):
 # -- option checks: (spec, options, where, error) -> (checked options, [(column, unit)]) --
 def _step(spec, o, where, error, models):
     o = _opts(where, o, ("at", "amplitude", "band", "until"), error)
-    x_cmd = spec.scenario["signals"].get("x_cmd")
+    x_cmd, key = spec.scenario["signals"].get("command"), SIGNAL_KEYS["command"]
     if x_cmd is None:
-        raise error(f"{where}: the scenario has no x_cmd step")
+        raise error(f"{where}: the scenario has no {key} step")
     at = _number(where, o, "at", error, next(iter(x_cmd.breakpoints()), None))
     if at is None:
-        raise error(f"{where} at: give the time of the step (x_cmd has no breakpoint)")
+        raise error(f"{where} at: give the time of the step ({key} has no breakpoint)")
     amp = _number(where, o, "amplitude", error,
                   float(x_cmd(np.array([at + 1e-12]))[0] - x_cmd(np.array([max(at - 1e-12, 0.0)]))[0]))
     if amp == 0:
-        raise error(f"{where} amplitude: x_cmd does not jump at t = {at:g} s; give the step's amplitude (m)")
+        raise error(f"{where} amplitude: {key} does not jump at t = {at:g} s; give the step's amplitude (m)")
     band = _number(where, o, "band", error, 0.02, positive=True)
     # the step's window: up to the next change of the command (a sine starting, a second
     # step), where the response stops being the step's; else the end of the scenario
@@ -109,19 +112,19 @@ def _hunting(spec, o, where, error, models):
 def _margins(spec, o, where, error, models):
     # the loops every swept model closes (the aircraft loop only with an airframe)
     common = [lp for lp in models[0].loops if all(lp in m.loops for m in models)]
-    o = _opts(where, o, ("loops", "f_ext", "outer"), error)
+    o = _opts(where, o, ("loops", F_EXT, "outer"), error)
     loops = _names(where, o, "loops", common, error, common)
     outer = _names(where, o, "outer", ["closed", "open"], error, "closed")[0]
-    f_ext = _number(where, o, "f_ext", error, 0.0)
+    f_ext = _number(where, o, F_EXT, error, 0.0)
     cols = [(f"margins_{lp}_{k}", u) for lp in loops for k, u in _LOOP_FIELDS]
-    return {"loops": loops, "f_ext": f_ext, "outer": outer}, cols
+    return {"loops": loops, F_EXT: f_ext, "outer": outer}, cols
 
 
 def _bandwidth(spec, o, where, error, models):
-    o = _opts(where, o, ("level_db", "f_ext"), error)
+    o = _opts(where, o, ("level_db", F_EXT), error)
     level = number(o.get("level_db", -3.0), f"{where} level_db", error, unit="dB below the low-frequency gain",
                    negative=True)  # the same check as bandwidth()'s
-    return ({"level_db": level, "f_ext": _number(where, o, "f_ext", error, 0.0)},
+    return ({"level_db": level, F_EXT: _number(where, o, F_EXT, error, 0.0)},
             [("bandwidth_hz", "Hz")])
 
 
@@ -168,7 +171,7 @@ def _peak(spec, o, where, error, models):
     o = _opts(where, o, ("signals",), error)
     m = models[0]
     names = [*m.outputs, *(s for s in m.states if s not in m.outputs), *m.inputs]
-    sigs = _names(where, o, "signals", names, error, None if "signals" in o else "x_rod")
+    sigs = _names(where, o, "signals", names, error, None if "signals" in o else m.output_with("rod_position"))
     return {"signals": sigs}, [(f"peak_{s}", m.units.get(s, "")) for s in sigs]
 
 
@@ -239,7 +242,7 @@ def simulate_scenario(model, pv, scenario):
 
     kw = {k: scenario[k] for k in ("dt_out", "rtol", "atol", "event_tol", "zoh") if k in scenario}
     return simulate(model, scenario["duration"], p=pv, solver=scenario["solver"], dt=scenario["dt"],
-                    **kw, **scenario["signals"])
+                    **kw, inputs=scenario["signals"])
 
 
 def compute_metrics(name: str, opts: dict, model, params, pv, res) -> dict:
@@ -286,7 +289,7 @@ def _c_margins(o, model, params, pv, res):
     from ..frequency import loop_margins
     from ..linearisation import operating_point
 
-    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
+    op = operating_point(model, inputs={"load": o[F_EXT]}, p=pv)
     lm = loop_margins(model, op, o["loops"], outer=o["outer"])
     return {f"margins_{lp}_{k}": (math.nan if getattr(m, k) is None else float(getattr(m, k)))
             for lp, m in lm.items() for k, _ in _LOOP_FIELDS}
@@ -296,7 +299,7 @@ def _c_bandwidth(o, model, params, pv, res):
     from ..frequency import bandwidth, closed_loop
     from ..linearisation import operating_point
 
-    op = operating_point(model, inputs={"load": o["f_ext"]}, p=pv)
+    op = operating_point(model, inputs={"load": o[F_EXT]}, p=pv)
     return {"bandwidth_hz": float(bandwidth(closed_loop(model, op), o["level_db"]))}
 
 
@@ -319,7 +322,8 @@ def _c_temperature(o, model, params, pv, res):
 
 def _c_energy(o, model, params, pv, res):
     loss = sum(res[n] for n in model.outputs_of("loss"))
-    return {"energy_in_J": float(np.trapezoid(res["P_dc"], res.t)), "energy_loss_J": float(np.trapezoid(loss, res.t))}
+    return {"energy_in_J": float(np.trapezoid(res[model.output_with("electrical_power")], res.t)),
+            "energy_loss_J": float(np.trapezoid(loss, res.t))}
 
 
 def _c_peak(o, model, params, pv, res):

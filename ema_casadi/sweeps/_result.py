@@ -156,7 +156,7 @@ class SweepResult:
         matplotlib.figure.Figure or Path
             The figure, or ``path`` when one was given.
         """
-        from ..plots._base import finish, plt
+        from ..plots._base import finish, subplots
 
         ok = np.array([r["status"] == "ok" for r in self.rows])
         varied = [p for p in self.parameters if np.ptp(self.column(p)) > 0]  # not the one-value grids
@@ -164,7 +164,7 @@ class SweepResult:
         empty = [m for m in self.metrics if m not in drawable]
         metrics, params = drawable[:max_panels], varied[:max_panels]
         nrow, ncol = max(len(metrics), 1), 1 + len(params)
-        fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.3 * nrow + 0.6), squeeze=False,
+        fig, axes = subplots(nrow, ncol, figsize=(3.2 * ncol, 2.3 * nrow + 0.6), squeeze=False,
                                  layout="constrained")
         units = self.units()
         sens = self.summary()["sensitivity_spearman"]

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
-from ..model.components import VARIANTS, validate_variants
+from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 from ._metrics import METRICS, check_metrics
@@ -61,8 +61,11 @@ MAX_REDRAWS = 1000
 #: Most runs one sweep may hold.
 MAX_RUNS = 10**6
 _TABLES = ("sweep", "variants", "parameters", "scenario", "metrics")
-_SCENARIO_KEYS = ("duration", "x_cmd", "f_ext", "inputs", "solver", "dt", "dt_out", "rtol", "atol", "event_tol",
-                  "zoh")
+#: The scenario's command and load: their roles, the signal kinds and bare units, and their keys in
+#: the file (from the one key table); other inputs go by name under ``inputs``.
+_DRIVEN = (("command", "length", "mm"), ("load", "force", "N"))
+_SETTINGS = ("duration", "solver", "dt", "dt_out", "rtol", "atol", "event_tol", "zoh")
+_SCENARIO_KEYS = (*_SETTINGS[:1], *(SIGNAL_KEYS[r] for r, _, _ in _DRIVEN), "inputs", *_SETTINGS[1:])
 _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
@@ -107,7 +110,8 @@ class SweepSpec:
     parameters : dict
         Parameter -> its checked description (grid values or distribution).
     scenario : dict
-        The simulation: ``duration``, ``signals`` (input -> Signal), solver options.
+        The simulation: ``duration``, ``signals`` (input role or name -> Signal: the
+        command and load by role, other inputs by name), solver options.
     metrics : dict
         Metric name -> its options (:data:`~ema_casadi.sweeps.METRICS`).
     seed : int or None
@@ -143,7 +147,8 @@ class SweepSpec:
 
     def _hash(self) -> str:
         doc = {"params": self.params.as_dict(), "runs": [[r.index, list(r.variant), r.values] for r in self.runs],
-               "scenario": {k: (v if k != "signals" else {n: s.text or repr(s) for n, s in v.items()})
+               "scenario": {k: (v if k != "signals" else {SIGNAL_KEYS.get(n, n): s.text or repr(s)
+                                                          for n, s in v.items()})
                             for k, v in self.scenario.items()},
                "metrics": self.metrics, "version": 1}
         return hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()[:16]
@@ -199,18 +204,73 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
     vspec = _variants(_table(data, "variants", src), params, variants or {}, src)
     pspec = {k: _parameter(f"{src} [parameters] {k}", k, v, params)
              for k, v in _table(data, "parameters", src).items()}
+    metrics = _table(data, "metrics", src)
+    return _assembled(str(head.get("name", name)), src, params, vspec, pspec, seed, samples, metrics,
+                      lambda: _scenario(_table(data, "scenario", src), params, src, vspec))
+
+
+def make_sweep(params: Parameters, scenario: dict, metrics: dict, *, parameters: dict | None = None,
+               variants: dict | None = None, seed: int | None = None, samples: int = 1, name: str = "sweep",
+               source: str = "<sweep>") -> SweepSpec:
+    """A sweep built from Python objects (no file text): the scenario's signals as
+    :class:`~ema_casadi.signals.Signal` objects, checked as :func:`parse_sweep` checks a file.
+
+    Parameters
+    ----------
+    params : Parameters
+        The parameter set the runs start from.
+    scenario : dict
+        ``duration``, ``dt``, ``dt_out``, ``rtol``, ``atol``, ``event_tol`` (s or -),
+        ``solver``, ``zoh``, as a file's ``[scenario]``, and ``signals``: input role or
+        name -> Signal (``{"command": Signal.step(1e-3, 0.01)}``).
+    metrics : dict
+        Metric name -> its options (:data:`~ema_casadi.sweeps.METRICS`), as ``[metrics]``.
+    parameters : dict, optional
+        Parameter -> its description (grid or distribution), as ``[parameters]``.
+    variants : dict, optional
+        Variant key -> a value or a list of values, as ``[variants]``.
+    seed : int, optional
+        The Monte Carlo seed (needed with a distribution).
+    samples : int
+        Draws per grid point.
+    name, source : str
+        The sweep's name, and where it came from (named in error messages).
+    """
+    if not isinstance(params, Parameters):
+        raise SweepError("params: expected a Parameters (from load_parameters)")
+    for what, value in (("scenario", scenario), ("metrics", metrics), ("parameters", parameters or {}),
+                        ("variants", variants or {})):
+        if not isinstance(value, dict):
+            raise SweepError(f"{source} {what}: expected a dict, got {type(value).__name__}")
+    vspec = _variants(dict(variants or {}), params, {}, source)
+    pspec = {k: _parameter(f"{source} parameters {k}", k, v, params) for k, v in (parameters or {}).items()}
+
+    def checked() -> dict:
+        where = f"{source} scenario"
+        _known(where, scenario, (*_SETTINGS, "signals"), "key")
+        signals = scenario.get("signals", {})
+        bad = [k for k, s in signals.items() if not isinstance(s, Signal)] if isinstance(signals, dict) else [None]
+        if bad:
+            raise SweepError(f"{where} signals: expected input (role or name) -> Signal, got {signals!r}")
+        return {**_settings(scenario, where), "signals": dict(signals)}
+
+    return _assembled(name, source, params, vspec, pspec, seed, samples, metrics, checked)
+
+
+def _assembled(name, src, params, vspec, pspec, seed, samples, metrics, scenario) -> SweepSpec:
+    """The checked sweep: its runs expanded and checked, then its scenario (``scenario()``)
+    and its metrics."""
     if any("distribution" in d for d in pspec.values()) and seed is None:
         raise SweepError(f"{src} [sweep] seed: needed when a parameter is drawn from a distribution")
     if not any("distribution" in d for d in pspec.values()) and samples > 1:
         raise SweepError(f"{src} [sweep] samples = {samples}: no parameter is drawn from a distribution")
-    metrics = _table(data, "metrics", src)
     if not metrics:
         raise SweepError(f"{src} [metrics]: name at least one metric ({', '.join(METRICS)})")
-    spec = SweepSpec(name=str(head.get("name", name)), source=src, params=params, variants=vspec, parameters=pspec,
+    spec = SweepSpec(name=name, source=src, params=params, variants=vspec, parameters=pspec,
                      scenario={}, metrics={}, seed=seed, samples=samples)
     spec.runs = _expand(spec)
     _check_runs(spec, src)
-    spec.scenario = _scenario(_table(data, "scenario", src), params, src, vspec)
+    spec.scenario = scenario()
     spec.metrics = check_metrics(spec, metrics, src, SweepError)
     return spec
 
@@ -405,9 +465,8 @@ def _shown(values: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" for k, v in values.items())
 
 
-def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
-    _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
-    where = f"{src} [scenario]"
+def _settings(table: dict, where: str) -> dict:
+    """The scenario's run settings (duration, steps, tolerances, solver, zoh), checked."""
     out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
     for key in ("duration", "dt", "dt_out", "rtol", "atol", "event_tol"):
         if key in table:
@@ -418,11 +477,19 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
         if not isinstance(table["zoh"], bool):
             raise SweepError(f"{where} zoh: expected true or false, got {table['zoh']!r}")
         out["zoh"] = table["zoh"]
+    return out
+
+
+def _scenario(table: dict, params: Parameters, src: str, variants: dict | None = None) -> dict:
+    _known(f"{src} [scenario]", table, _SCENARIO_KEYS, "key")
+    where = f"{src} [scenario]"
+    out = _settings(table, where)
     stroke, T = params.actuator.stroke, out["duration"]
     sig = {}
-    for key, kind, bare in (("x_cmd", "length", "mm"), ("f_ext", "force", "N")):
+    for role, kind, bare in _DRIVEN:
+        key = SIGNAL_KEYS[role]
         if key in table:
-            sig[key] = _signal(f"{where} {key}", table[key], kind, bare, stroke, T)
+            sig[role] = _signal(f"{where} {key}", table[key], kind, bare, stroke, T)
     inputs = table.get("inputs", {})
     if not isinstance(inputs, dict):
         raise SweepError(f"{where} inputs: expected a table input = signal, got {inputs!r}")
@@ -434,7 +501,7 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
         parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
         info.update({i.name: i for part in parts for i in part.inputs})
     for name, value in inputs.items():
-        if name in ("x_cmd", "f_ext") or name not in info:
+        if name not in info or {r for r, _, _ in _DRIVEN} & set(info[name].roles):  # those have their own keys
             raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
         sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
     out["signals"] = sig

@@ -23,8 +23,9 @@ def _io(model: Model) -> tuple[list[int], list[int]]:
         raise TuneError(f"the tuner serves the {', '.join(_LOOP_ORDER)} cascade; this model's loops are "
                         f"{', '.join(model.loops)}")
     loops = model.loops.values()
-    ins = [model.inputs.index(lp.injection) for lp in loops] + [model.inputs.index("x_cmd")]
-    outs = [model.outputs.index(lp.measured) for lp in loops] + [model.outputs.index(n) for n in ("v_d", "v_q")]
+    ins = [model.inputs.index(lp.injection) for lp in loops] + [model.inputs.index(model.input_with("command"))]
+    outs = [model.outputs.index(lp.measured) for lp in loops] + [model.outputs.index(model.output_with(r))
+                                                                 for r in ("d_voltage", "q_voltage")]
     return ins, outs
 
 
@@ -43,7 +44,8 @@ class _ClosedLoop:
         self.names = list(model.param_names)
         self.ins, self.outs = _io(model)
         #: the current command, whose response to position-sensor noise is bounded
-        self.i_cmd = model.outputs.index("i_cmd") if "i_cmd" in model.outputs else None
+        i_cmd = model.outputs_with("current_command")
+        self.i_cmd = model.outputs.index(i_cmd[0]) if i_cmd else None
         self._reduce(cases)
 
     def _opened(self, op, opened) -> tuple[np.ndarray, np.ndarray]:

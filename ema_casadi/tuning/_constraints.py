@@ -111,13 +111,13 @@ def _overshoot_group(X, t: np.ndarray, c_rod, d_rod, req: Requirements, F: float
     return group, ise
 
 
-def _limit_groups(op, X, Cs, ds, req: Requirements, limits: dict) -> list[_Group]:
-    """Current and voltage limits (:func:`ecu_limits`) along the step (rows of Cs/ds:
-    i_q, v_d, v_q; operating values added)."""
+def _limit_groups(op, X, Cs, ds, req: Requirements, limits: dict, names: tuple) -> list[_Group]:
+    """Current and voltage limits (:func:`ecu_limits`) along the step (rows of Cs/ds: the
+    outputs ``names`` with the motor-current, d- and q-voltage roles, i_q, v_d, v_q;
+    operating values added)."""
     F = op.f_ext
     Y = Cs @ X + ca.repmat(ds * req.step, 1, X.shape[1])
-    i_q = op.output("i_q") + Y[0, :]
-    v_d, v_q = op.output("v_d") + Y[1, :], op.output("v_q") + Y[2, :]
+    i_q, v_d, v_q = (op.output(name) + Y[k, :] for k, name in enumerate(names))
     v_lim = limits["voltage"]
     r_i = (i_q / limits["current"]) ** 2
     r_v = (v_d**2 + v_q**2) / v_lim**2

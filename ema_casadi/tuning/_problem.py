@@ -256,14 +256,15 @@ class TuningProblem(_Inspection):
             j = len(self._trajectories) - 1
         self._case_step.append(j)
         X, t = self._trajectories[j]
-        k = self._same("x_rod", [Ak, b, Cs[0, :], ds[0]])
+        k = self._same("rod", [Ak, b, Cs[0, :], ds[0]])
         if k is not None:  # same rod response as an earlier load case: its overshoot group
             self._share(("overshoot",), k, F)
             ise = None
         else:
-            grp, ise = _overshoot_group(X, t, Cs[0, :], ds[0], req, F, len(self._signatures["x_rod"]) - 1)
+            grp, ise = _overshoot_group(X, t, Cs[0, :], ds[0], req, F, len(self._signatures["rod"]) - 1)
             self.groups.append(grp)
-        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, ecu_limits(self.model, op.p)))
+        limited = tuple(self.model.output_with(r) for r in ("motor_current", "d_voltage", "q_voltage"))
+        self.groups.extend(_limit_groups(op, X, Cs[1:, :], ds[1:], req, ecu_limits(self.model, op.p), limited))
         return ise
 
     def _frequency_groups(self, op, case, A_eig, loop_matrices, opened, noise):

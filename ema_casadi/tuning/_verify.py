@@ -102,8 +102,9 @@ def _check_cascade(model, op, label, req, failures) -> dict:
             failures.append(f"{label}: {inner} loop crossover only {ratio:.3g} x the {outer} loop's "
                             f"(outer loops open); separation {req.separation:g} required")
     out = {"loops": loops, "separation": sep, "noise_gain_A_per_m": None}
-    if "i_cmd" in model.outputs:
-        H = freqresp(linear_model(model, op, inputs=[model.loops[names[0]].injection], outputs=["i_cmd"]), _F_NOISE)
+    if model.outputs_with("current_command"):
+        H = freqresp(linear_model(model, op, inputs=[model.loops[names[0]].injection],
+                                  outputs=[model.output_with("current_command")]), _F_NOISE)
         gain = out["noise_gain_A_per_m"] = float(np.max(np.abs(H)))
         bound = req.noise_gain_max(ecu_limits(model, op.p)["current"])
         if bound is not None and gain > bound * (1 + 1e-4):
@@ -118,16 +119,16 @@ def _linear_step(model, op, amp, t_end):
     time, peak |i_q| and |v_dq| including the operating values."""
     import control as ct
 
-    outs = ["x_rod", "i_q", "v_d", "v_q"]
-    lin = linear_model(model, op, inputs=["x_cmd"], outputs=outs)
+    outs = [model.output_with(r) for r in ("rod_position", "motor_current", "d_voltage", "q_voltage")]
+    lin = linear_model(model, op, inputs=[model.input_with("command")], outputs=outs)
     keep = [i for i in range(lin.A.shape[0]) if np.any(lin.A[:, i] != 0) or np.any(lin.C[:, i] != 0)]
     sys = ct.ss(lin.A[np.ix_(keep, keep)], lin.B[keep], lin.C[:, keep], lin.D)
     t = np.linspace(0.0, t_end, int(round(t_end / 2e-5)) + 1)  # 20 us: resolves the current peak
     r = ct.forced_response(sys, t, np.full_like(t, amp))
     y = np.atleast_2d(r.outputs)
     x = y[0] / amp
-    i_q = op.output("i_q") + y[1]
-    v = np.hypot(op.output("v_d") + y[2], op.output("v_q") + y[3])
+    i_q = op.output(outs[1]) + y[1]
+    v = np.hypot(op.output(outs[2]) + y[2], op.output(outs[3]) + y[3])
     m = step_response_metrics(t, x)
     return {"overshoot": m["overshoot"], "settling_time_s": m["settling_time_s"],
             "i_q_peak_A": float(np.max(np.abs(i_q))), "v_dq_peak_V": float(np.max(v))}
@@ -138,7 +139,7 @@ def _check_load(model, op, F, req, limits, worst, failures) -> dict:
     v_lim V)."""
     label = _load_label(F)
     loops = _check_loops(model, op, label, req, worst, failures)
-    A = linear_model(model, op, inputs=["x_cmd"], outputs=["x_rod"]).A
+    A = linear_model(model, op, inputs=[model.input_with("command")], outputs=[model.output_with("rod_position")]).A
     keep = [i for i in range(A.shape[0]) if np.any(A[:, i] != 0)]
     alpha = float(np.max(np.linalg.eigvals(A[np.ix_(keep, keep)]).real))
     stable = alpha < 0
@@ -249,17 +250,18 @@ def step_metrics(model: Model, params: Parameters, amp: float = 1e-3, *, f_ext: 
     dict
         ``overshoot`` (fraction), ``settling_time_s`` (from the step; inf if it has not
         settled by t_end), ``rise_time_s`` (10-90 %), ``i_q_peak_A``, ``v_dq_peak_V``,
-        ``x_final_m``, ``amp_m``, ``f_ext_N``, and the series ``t`` (s), ``x_rod`` (m),
-        ``i_q`` (A) for plots.
+        ``x_final_m``, ``amp_m``, ``f_ext_N``, and the series ``t`` (s), the rod position
+        (``x_rod``, m) and the motor current (``i_q``, A), by the model's names, for plots.
     """
     pv = params.vector()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "inside the backlash gap" at no load: expected here
         # at rest under the load, the nut against the loaded flank of the gap
-        x0 = operating_point(model, f_ext=f_ext, backlash="keep", p=pv).x
-    res = simulate(model, t_end, x_cmd=Signal.step(amp, t0), f_ext=f_ext, p=pv, x0=x0,
+        x0 = operating_point(model, inputs={"load": f_ext}, backlash="keep", p=pv).x
+    res = simulate(model, t_end, inputs={"command": Signal.step(amp, t0), "load": f_ext}, p=pv, x0=x0,
                    solver="cvodes", dt=1e-4, dt_out=1e-4, rtol=1e-7, atol=1e-10)
-    t, x = res.t, res["x_rod"]
+    rod, i_q, v_d, v_q = (model.output_with(r) for r in ("rod_position", "motor_current", "d_voltage", "q_voltage"))
+    t, x = res.t, res[rod]
     # relative to the rest position before the step (a load compresses the screw)
     x0 = float(np.interp(t0, t, x))
     after = t >= t0
@@ -269,8 +271,8 @@ def step_metrics(model: Model, params: Parameters, amp: float = 1e-3, *, f_ext: 
         "overshoot": m["overshoot"],
         "settling_time_s": m["settling_time_s"],
         "rise_time_s": m["rise_time_s"],
-        "i_q_peak_A": float(np.max(np.abs(res["i_q"]))),
-        "v_dq_peak_V": float(np.max(np.hypot(res["v_d"], res["v_q"]))),
+        "i_q_peak_A": float(np.max(np.abs(res[i_q]))),
+        "v_dq_peak_V": float(np.max(np.hypot(res[v_d], res[v_q]))),
         "x_final_m": float(x[-1]),
-        "t": t, "x_rod": x, "i_q": res["i_q"],
+        "t": t, rod: x, i_q: res[i_q],
     }

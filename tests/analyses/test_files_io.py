@@ -7,7 +7,7 @@ import scipy.io
 
 import ema_casadi as ema
 from conftest import REFERENCE
-from ema_casadi.cli import build_parser, join_negative_values, main
+from ema_casadi.cli import build_parser, join_values, main
 from ema_casadi.signals import Signal, SignalError, parse_signal
 
 TEXT = REFERENCE.read_text()
@@ -189,7 +189,7 @@ def test_rk4_refuses_a_t_end_that_is_not_whole_steps(model_cache):
 # -- flags ------------------------------------------------------------------------------
 def test_negative_values_follow_their_flags():
     parser, _ = build_parser()
-    j = join_negative_values
+    j = join_values
     assert j(["simulate", "--f-ext", "-30kN"], parser) == ["simulate", "--f-ext=-30kN"]
     assert j(["simulate", "--f-e", "-.5kN"], parser) == ["simulate", "--f-e=-.5kN"]  # a unique prefix
     assert j(["freqresp", "--loads", "-30kN,0"], parser) == ["freqresp", "--loads=-30kN,0"]

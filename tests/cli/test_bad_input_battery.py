@@ -244,9 +244,9 @@ TIME_FLAGS = {
     "dt-out-negative-spaced": (["--dt-out", "-1"], "--dt-out must be"),
     "dt-out-nan": (["--dt-out", "nan"], "--dt-out must be"),
     "dt-out-inf": (["--dt-out", "inf"], "--dt-out must be"),
-    "event-tol-zero": (["--event-tol", "0"], "--event-tol must be"),
-    "event-tol-nan": (["--event-tol", "nan"], "--event-tol must be"),
-    "event-tol-inf": (["--event-tol", "inf"], "--event-tol must be"),
+    "event-tol-zero": (["--solver", "cvodes", "--event-tol", "0"], "--event-tol must be"),
+    "event-tol-nan": (["--solver", "cvodes", "--event-tol", "nan"], "--event-tol must be"),
+    "event-tol-inf": (["--solver", "cvodes", "--event-tol", "inf"], "--event-tol must be"),
     "t-end-huge": (["--t-end", "1e9", "--solver", "rk4"], ["--t-end 1e+09 s / --dt 5e-06 s", "RK4 steps", "MAX_STEPS"]),
     "dt-tiny": (["--t-end", "0.2", "--dt", "1e-10", "--solver", "rk4"],
                 ["--dt 1e-10 s", "2e+09 RK4 steps", "0.7 us per step"]),
@@ -427,7 +427,6 @@ SWEEP = {
     "samples-without-draws": ("[sweep]\nsamples = 3\n" + SWEEP_OK, ["[sweep] samples", "no parameter is drawn"]),
     "jobs-zero": (SWEEP_OK, "--jobs must be a positive integer", ["--jobs", "0"]),
     "out-suffix": (SWEEP_OK, "--out", ["--out", "{tmp}/s.txt"]),
-    "scheduler-address": (SWEEP_OK, "--scheduler localhost", ["--scheduler", "localhost"]),
     "journal-exists": (SWEEP_OK, ["s.csv.journal", "--resume"], [], {".s.csv.journal": "{}\n"}),
 }
 for case_id, (text, message, *more) in SWEEP.items():
@@ -436,7 +435,9 @@ for case_id, (text, message, *more) in SWEEP.items():
     add(f"sweep-{case_id}", Case("sweep", extra, message, files))
 add("sweep-spec-missing", Case("sweep", [], ["none.toml", "no such sweep file"],
                                raw=["sweep", REF, "none.toml", "--jobs", "1"]))
-add("sweep-resume-without-out", Case("sweep", [], "--resume needs --out", {"s.toml": SWEEP_OK},
+add("sweep-scheduler-address", Case("sweep", [], "--scheduler localhost", {"s.toml": SWEEP_OK},
+                                    raw=["sweep", REF, "s.toml", "--scheduler", "localhost"]))
+add("sweep-resume-without-out", Case("sweep", [], "--resume has no effect without --out", {"s.toml": SWEEP_OK},
                                      raw=["sweep", REF, "s.toml", "--resume"]))
 add("top-unknown-command", Case("simulate", [], "invalid choice: 'simulat'", raw=["simulat", REF]))
 add("top-no-command", Case("simulate", [], "required: COMMAND", raw=[]))

@@ -57,7 +57,7 @@ def test_hybrid_model_exchange_refused(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, pattern", [
     (["--format", "fmu-cs", "--dt", "0", "--out", "x.fmu"], "dt must be a step"),
-    (["--format", "fmu-me", "--dt", "1e-5", "--out", "x.fmu"], "has no step"),
+    (["--format", "fmu-me", "--dt", "1e-5", "--out", "x.fmu"], "nothing of it steps"),
     (["--format", "c", "--fmi-version", "3.0", "--out", "ema_c"], "only fmu-cs has a choice"),
     (["--format", "fmu-me", "--fmi-version", "2.0", "--out", "x.fmu"], "fmu-me is FMI 3.0"),
 ])

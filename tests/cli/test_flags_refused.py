@@ -163,13 +163,14 @@ def test_time_flag_unit_unknown_named(capsys):
 @pytest.mark.parametrize(("argv", "joined"), [
     (["linearize", "--f-ext", "30", "kN"], ["linearize", "--f-ext", "30kN"]),
     (["linearize", "--f-ext=-30", "kN"], ["linearize", "--f-ext=-30kN"]),
+    (["linearize", "--f-e", "-30", "kN"], ["linearize", "--f-e=-30kN"]),  # negative, a prefix and a unit: one pass
     (["simulate", "--t-end", "500", "ms", "m.toml"], ["simulate", "--t-end", "500ms", "m.toml"]),
     (["simulate", "m.toml", "--", "--t-end", "5", "ms"], ["simulate", "m.toml", "--", "--t-end", "5", "ms"]),
 ])
 def test_value_and_unit_apart_joined(argv, joined):
-    from ema_casadi.cli._parser import join_unit_values
+    from ema_casadi.cli import join_values
 
-    assert join_unit_values(argv, PARSER) == joined
+    assert join_values(argv, PARSER) == joined
 
 
 def test_interrupt_message_names_resume(capsys):

@@ -221,3 +221,30 @@ def test_a_clamping_ecu_is_inadequate_by_default_and_found_by_compare(params, tm
     for n, v in truth.items():
         assert abs(doc["parameters"][n]["estimate"] - v) <= 3 * doc["parameters"][n]["std"], n
     assert (tmp_path / "g.toml").exists()
+
+
+def test_example_records_refused_where_they_cannot_go(tmp_path, capsys):
+    """--example-records names a new folder, and writes records, never fits them."""
+    (tmp_path / "rec").mkdir()
+    code, _, err = _run(["identify", "--example-records", str(tmp_path / "rec")], capsys)
+    assert code == 2 and "--example-records" in err and "exists" in err and err.count("\n") == 1, err
+    code, _, err = _run(["identify", "a.csv", "--example-records", str(tmp_path / "new")], capsys)
+    assert code == 2 and "a.csv given too" in err and not (tmp_path / "new").exists(), err
+
+
+@pytest.mark.slow
+def test_example_records_are_what_the_guide_fits(tmp_path, capsys):
+    """The guide's records: the four of the seven-parameter case and the four of the
+    health trend, whose fit crosses the 300 N limit where the truth does (150 N +
+    0.05 N/h: 3000 h) within its 95 % interval."""
+    rec = tmp_path / "rec"
+    code, out, err = _run(["identify", "--example-records", str(rec), "--json"], capsys)
+    assert code == 0, err
+    from ema_casadi.cli.identify import EXAMPLE_FILES
+
+    assert sorted(p.name for p in rec.iterdir()) == sorted(EXAMPLE_FILES)
+    code, out, err = _run(["identify", "--track", *[str(rec / f"rig_{h:04d}h.csv") for h in (0, 500, 1000, 1500)],
+                           "--free", "F_seal", "--limit", "F_seal=300N", "--json", "--no-progress"], capsys)
+    assert code == 0, err
+    lo, hi = json.loads(out)["trend"]["F_seal"]["crossing_interval"]
+    assert lo <= 3000.0 <= hi

@@ -168,7 +168,7 @@ def test_bad_mission_exits_2_with_one_line(tmp_path, short, capsys, edit, patter
     [
         (["none.toml"], r"none.toml: no such mission file"),
         (["--dt", "0"], r"--dt must be a positive number of seconds"),
-        (["--fast", "--dt", "1e-4"], r"--fast sets the step; give --fast or --dt, not both"),
+        (["--fast", "--dt", "1e-4"], r"--dt has no effect with --fast \(it sets the step\): give --fast or --dt"),
         (["--csv-dt", "0.001"], r"--csv-dt \(0.001 s\) must not be shorter than --dt-out"),
         (["--variant", "thermal=off"], r"a mission needs the thermal network: variant thermal = lumped"),
         (["--variant", "termal=off"], r"unknown variant key 'termal' \(did you mean 'thermal'\?\)"),

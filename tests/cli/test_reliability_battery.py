@@ -132,7 +132,8 @@ for level in ("10", "0"):
              {"s.toml": SWEEP.replace("peak = {}", f"bandwidth = {{ level_db = {level} }}")}))
 for flag, value, message in (("--k-i-x", "-3000", "must be non-negative"), ("--backlash", "-0.1", "must be non-neg"),
                              ("--k-i-x", "nan", "finite"), ("--backlash", "inf", "finite")):
-    add(f"value-limit-cycle{flag}{value}", Case([*LC, f"{flag}={value}"], [f"{flag} {value}", message]))
+    add(f"value-limit-cycle{flag}{value}", Case([*LC, "--variant", "controller=PI", f"{flag}={value}"],
+                                                [f"{flag} {value}", message]))
 for flag, value in (("--amplitudes", "30um-1um:7"), ("--freqs", "10-1:5"), ("--amplitudes", "1um-30um:1"),
                     ("--amplitudes", "0um-30um:5")):
     argv = [*LC]
@@ -168,7 +169,7 @@ NOT_APPLYING = {
     "export-dt-json": (["export", "{model}", "--format", "json", "--dt", "1e-5"], "--dt"),
     "export-dt-mat": (["export", "{model}", "--format", "mat", "--dt", "1e-5"], "--dt"),
     "export-dt-npz": (["export", "{model}", "--format", "npz", "--dt", "1e-5"], "--dt"),
-    "export-dt-fmu-me": (["export", "{model}", "--format", "fmu-me", "--dt", "1e-5"], ["--dt", "has no step"]),
+    "export-dt-fmu-me": (["export", "{model}", "--format", "fmu-me", "--dt", "1e-5"], ["--dt", "nothing of it steps"]),
     "export-open-fmu-cs": (["export", "{model}", "--format", "fmu-cs", "--open", "position"], "--open"),
     "export-open-casadi": (["export", "{model}", "--format", "casadi", "--open", "velocity"], "--open"),
     "limit-cycle-airframe-position": ([*LC, "--airframe", "b747"], "--airframe"),
@@ -179,7 +180,7 @@ for flag in ("--dt", "--t-end", "--gust", "--gust-time", "--step-deg"):
                                                     flag)
 NOT_APPLYING["aircraft-zoh-no-responses"] = ([*AC, "--no-responses", "--zoh"], "--zoh")
 for case_id, (argv, flag) in NOT_APPLYING.items():
-    add(f"unused-{case_id}", Case(argv, flag if isinstance(flag, list) else [flag, "does not apply"]))
+    add(f"unused-{case_id}", Case(argv, flag if isinstance(flag, list) else [flag, "has no effect"]))
 
 # -- crashes on valid input, and values beyond any physical meaning ----------------------------
 for af in ("b747", "transport"):
@@ -216,7 +217,7 @@ for loads in ("60kN", "-60kN", "0,55kN", "100kN"):
 # -- messages that name the flags, not internals ---------------------------------------------------
 add("names-limit-cycle-t-end", Case([*LC[:-4], "--t-end", "7000", "--periods", "4"], ["--t-end 7000 s", "MAX_"]))
 add("names-limit-cycle-backlash", Case([*LC, "--backlash=-1"], "--backlash -1"))
-add("names-limit-cycle-k-i-x", Case([*LC, "--k-i-x=-1"], "--k-i-x -1"))
+add("names-limit-cycle-k-i-x", Case([*LC, "--variant", "controller=PI", "--k-i-x=-1"], "--k-i-x -1"))
 
 
 # -- the harness ------------------------------------------------------------------------------------

@@ -2,12 +2,14 @@
 
 The ```python blocks of one page run in order as one script (a page reads like a
 notebook: a later block may use what an earlier one defined), in a fresh process and
-an empty temporary folder, where ``models`` points at the repository's reference
-files so that the paths the docs use (``models/cesa_ema.toml``) resolve as they do
-from the repository's root. A block that is not meant to run says so in its fence,
-```python {no-run} (keep those rare). Console blocks (```sh, ```console, ```shell) run
-the lines that call ``ema ... --help`` or ``ema --version``: each must exit 0; the
-commands that do real work are covered by their own tests.
+an empty temporary folder outside the repository, as a user who installed the package
+runs them: no ``models/`` beside them (the docs load the packaged reference set,
+``ema.load_parameters()``), and the user's PYTHONPATH replaced by the folder of the
+package under test alone (the installed one, or the working tree being tested). A
+block that is not meant to run says so in its fence, ```python {no-run} (keep those
+rare). Console blocks (```sh, ```console, ```shell) run the lines that call
+``ema ... --help`` or ``ema --version``: each must exit 0; the commands that do real
+work are covered by their own tests, and none names ``models/``.
 
 The pages' code is written with short runs, so the whole test stays within tens of
 seconds (each page is allowed ``TIMEOUT`` seconds, generous for a loaded machine).
@@ -79,13 +81,23 @@ _HELP_PAGES = [p for p in _pages() if _help_lines(p)]
 
 
 def _workdir(tmp_path: Path) -> Path:
-    (tmp_path / "models").symlink_to(ROOT / "models", target_is_directory=True)
+    assert ROOT not in tmp_path.resolve().parents, "the pages' code must run outside the repository"
     return tmp_path
 
 
-def _env() -> dict:
+def _env(tmp_path: Path) -> dict:
+    """The environment of a page's code: the package under test and nothing else on the
+    path (a folder holding only a link to the package: not the repository root, whose
+    studies/, tests/ and models/ a user does not have)."""
+    import ema_casadi
+
+    site = tmp_path.parent / f"{tmp_path.name}_site"
+    site.mkdir(exist_ok=True)
+    link = site / "ema_casadi"
+    if not link.exists():
+        link.symlink_to(Path(ema_casadi.__file__).resolve().parent, target_is_directory=True)
     env = dict(os.environ, MPLBACKEND="Agg")
-    env.pop("PYTHONPATH", None)
+    env["PYTHONPATH"] = str(site)
     return env
 
 
@@ -108,13 +120,27 @@ def test_the_readme_and_the_guide_have_code_to_run():
     assert sum(n.startswith("docs/guide/") for n in names) >= 5
 
 
+def test_no_example_reads_the_repository_s_models_folder():
+    """The pages' Python and their ``ema`` commands load the packaged files
+    (``ema.load_parameters()``, the commands' defaults), never ``models/...``, which a
+    user who installed the package does not have."""
+    bad = []
+    for page in _pages():
+        for lang, _, code in blocks(page):
+            lines = code.splitlines() if lang == "python" else \
+                [ln for ln in code.splitlines() if ln.strip().removeprefix("$ ").startswith("ema ")] \
+                if lang in _CONSOLE else []
+            bad += [f"{page.relative_to(ROOT)}: {ln.strip()}" for ln in lines if "models/" in ln]
+    assert not bad, bad
+
+
 @pytest.mark.parametrize("page", _CODE_PAGES, ids=_ids(_CODE_PAGES))
 def test_python_blocks_run(page, tmp_path):
     """The page's ```python blocks, as one script, exit 0 (its stderr is the message)."""
     script = _workdir(tmp_path) / "page_code.py"
     script.write_text(_python(page), encoding="utf-8")
     proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
-                          timeout=TIMEOUT, env=_env())
+                          timeout=TIMEOUT, env=_env(tmp_path))
     assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
 
 
@@ -124,5 +150,5 @@ def test_help_commands_run(page, tmp_path):
     ema, cwd = [sys.executable, "-m", "ema_casadi.cli"], _workdir(tmp_path)
     for line in _help_lines(page):
         proc = subprocess.run(ema + shlex.split(line)[1:], cwd=cwd, capture_output=True,
-                              text=True, timeout=60, env=_env())
+                              text=True, timeout=60, env=_env(tmp_path))
         assert proc.returncode == 0 and proc.stdout.strip(), f"{page.relative_to(ROOT)}: '{line}' failed: {proc.stderr}"

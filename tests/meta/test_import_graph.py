@@ -40,7 +40,7 @@ PKG = "ema_casadi"
 ROOT = Path(ema_casadi.__file__).parent
 
 ANALYSES = ("simulation", "linearisation", "frequency", "export", "sinestream", "limitcycle", "aircraft", "mission",
-            "tuning", "sweeps", "identification", "faults", "design")
+            "tuning", "sweeps", "identification", "faults", "design", "optimal")
 #: Layer of each top-level module or package, bottom (0) to top.
 LAYERS = [("_util",), ("signals",), ("model",), ("plots",), ANALYSES, ("demo",), ("cli",)]
 RANK = {name: rank for rank, names in enumerate(LAYERS) for name in names}
@@ -195,6 +195,11 @@ LONG_MODULES = {
     "ema_casadi/model/components/_part.py": (560, "the part contract: what every part declares (states, inputs, "
                                                   "outputs with their roles, loops, holds, bounds) and the Part and "
                                                   "Bus they meet through"),
+    "ema_casadi/linearisation/_trim.py": (540, "the operating point: the request (by name or role, checked "
+                                               "against the envelope), the Newton trim and the point it returns"),
+    "ema_casadi/sweeps/_spec.py": (540, "the sweep description, read from a file or built from objects and "
+                                        "checked by the same rules: variants, parameter grids and draws, runs, "
+                                        "scenario"),
     "ema_casadi/signals/_signal.py": (560, "the signal algebra and its quantities (the Signal class, the unit "
                                            "table and the parsers of a quantity are one vocabulary)"),
 }

@@ -74,7 +74,8 @@ def layout_doc(model: Model, dt: float | None = None) -> dict:
     exposed = {v.index for v in lay.parameters}
     units = model.units
     punits = Parameters.units()
-    extra = [{"name": "stick", "unit": "1", "description": "friction mode after the step: 1 stuck, 0 sliding"},
+    extra = [{"name": model.output_with("stuck"), "unit": "1",
+              "description": "friction mode after the step: 1 stuck, 0 sliding"},
              {"name": "mode_switches", "unit": "1", "description": "stick/slip switches counted since the start"}]
     return {
         "variants": dict(model.variants),

@@ -43,7 +43,7 @@ def augmented_names(model: Model) -> list[str]:
     model : Model
         The assembled model.
     """
-    return list(model.states) + (["stick", "mode_switches"] if model.hybrid else [])
+    return list(model.states) + ([model.output_with("stuck"), "mode_switches"] if model.hybrid else [])
 
 
 def fixed_step_functions(model: Model, n_sim: int | None = None, prefix: str = "ema") -> dict:
@@ -77,7 +77,7 @@ def fixed_step_functions(model: Model, n_sim: int | None = None, prefix: str = "
     fns["step"] = ca.Function(f"{prefix}_step", [xa, U3, p, h], [step], ["xa", "U3", "p", "h"], ["xa_next"], opts)
     y_out = model.f(xa[:nx], u, p)[1]
     if model.hybrid:
-        k = model.yindex("stick")
+        k = model.yindex(model.output_with("stuck"))
         y_out = ca.vertcat(y_out[:k], xa[nx], y_out[k + 1 :])
     fns["out"] = ca.Function(f"{prefix}_out", [xa, u, p], [y_out], ["xa", "u", "p"], ["y"], opts)
     if n_sim:

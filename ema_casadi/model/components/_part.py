@@ -36,12 +36,13 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, RATING_SENSES, Fault, Freeze, Gain, Limit, Node, Rating, Seed, node_outflow
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Rating", "RATING_SENSES", "Freeze",
+    "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
-    "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "MARGIN", "HEAT_NODES", "heat_signal",
+    "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
 
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
@@ -53,8 +54,30 @@ OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
 #: Roles of model inputs, what analyses ask the model for: the rod command, the external load
 #: on the rod, the screw efficiency, the ambient temperature, the pitch-attitude command, the gust.
 INPUT_ROLES = ("command", "load", "efficiency", "ambient_temperature", "attitude_command", "gust")
-#: Roles of model outputs: rod position and velocity, motor speed and current, the screw force.
-OUTPUT_ROLES = ("rod_position", "rod_velocity", "motor_speed", "motor_current", "screw_force")
+#: Roles of model outputs: rod position and velocity, motor speed and current, the screw force;
+#: the nut position, the speed loop's current command, the winding voltages (d and q axes),
+#: the hybrid friction's stuck flag; powers (to the load, drawn from the supply, heat to the
+#: ambient) and energies (stored mechanically and magnetically, stored as heat); the
+#: temperature-dependent winding resistance, magnet flux and screw efficiency; behind an
+#: airframe the rod command it gives, its law's rod and elevator commands, the elevator, the
+#: surface load on the rod and the normal load factor.
+OUTPUT_ROLES = ("rod_position", "rod_velocity", "motor_speed", "motor_current", "screw_force",
+                "nut_position", "current_command", "d_voltage", "q_voltage", "stuck",
+                "load_power", "electrical_power", "ambient_heat", "stored_energy", "thermal_energy",
+                "winding_resistance", "magnet_flux", "screw_efficiency",
+                "rod_command", "law_command", "elevator_command", "elevator", "surface_load", "load_factor")
+
+#: The key under which a role's signal is written in files, flags and reports (the CLI
+#: contract: a mission segment's ``x_cmd``, a sweep scenario's ``f_ext``, a trim's JSON
+#: ``v_rod``, a record's ``x_rod`` column): the reference model's names, written here once.
+#: Analyses read a key from this table and ask the model for the signal by role
+#: (:meth:`~ema_casadi.model.Model.input_with`), so a model whose load is another input
+#: still reads the file's ``f_ext``.
+SIGNAL_KEYS = {
+    "command": "x_cmd", "load": "f_ext", "efficiency": "eta", "ambient_temperature": "T_amb",
+    "attitude_command": "theta_cmd", "gust": "w_g",
+    "rod_position": "x_rod", "rod_velocity": "v_rod", "motor_current": "i_q",
+}
 
 #: Quantity kinds of model inputs, as understood by the signal parser.
 INPUT_KINDS = ("length", "force", "dimensionless", "angular_velocity", "current", "temperature", "angle", "rate")
@@ -133,7 +156,9 @@ class State:
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
         friction contact), ``current``, ``controller_integral``, ``play`` (a memory
-        element without dynamics of its own), ``temperature`` (a thermal node, degC).
+        element without dynamics of its own), ``temperature`` (a thermal node, degC),
+        ``hysteresis`` (a rate-independent memory whose rate switches with the sign of a
+        speed and saturates at its band's edges: the screw's self-locking memory).
     x0 : float
         Initial value (SI; temperatures in degC).
     scale : callable
@@ -352,6 +377,12 @@ class Part:
     freeze: ClassVar[tuple] = ()
     #: Saturations a trim must keep inactive (:class:`Limit`).
     trim_limits: ClassVar[tuple] = ()
+    #: Operating limits (:class:`Rating`): the constraints of an optimal move.
+    ratings: ClassVar[tuple] = ()
+    #: Variant key -> value of the smooth counterpart an optimiser uses in this part's
+    #: place (hybrid friction -> smooth, the switched bridge -> averaged): see
+    #: :meth:`~ema_casadi.model.assembly.Model.smooth`.
+    smooth: ClassVar[dict] = {}
     #: Gains a tuner may move (:class:`Gain`), outer loop first.
     gains: ClassVar[tuple] = ()
     #: Named operating conditions (the airframe's flight conditions): name -> flat

@@ -159,14 +159,16 @@ _INPUTS = (
     Input("d_fcs", "m", "length", "injection at the actuator command (aircraft loop break)", injection=True),
 )
 _OUTPUTS = (
-    Output("delta_e", "rad", "elevator angle, trailing edge down"),
-    Output("delta_cmd", "rad", "elevator command of the flight-control law"),
-    Output("x_cmd_fcs", "m", "rod command of the flight-control law, r sin(delta_cmd) clamped to the stroke"),
-    Output("x_cmd", "m", "actuator command: loop_a x_cmd_fcs + d_fcs"),
+    Output("delta_e", "rad", "elevator angle, trailing edge down", roles=("elevator",)),
+    Output("delta_cmd", "rad", "elevator command of the flight-control law", roles=("elevator_command",)),
+    Output("x_cmd_fcs", "m", "rod command of the flight-control law, r sin(delta_cmd) clamped to the stroke",
+           roles=("law_command",)),
+    Output("x_cmd", "m", "actuator command: loop_a x_cmd_fcs + d_fcs", roles=("rod_command",)),
     Output("H_hinge", "N*m", "hinge moment, positive trailing edge down"),
-    Output("F_surf_rod", "N", "surface load on the rod (hinge moment and inertia), positive pushes in"),
+    Output("F_surf_rod", "N", "surface load on the rod (hinge moment and inertia), positive pushes in",
+           roles=("surface_load",)),
     Output("M_surf_rod", "kg", "surface inertia referred to the rod, J_e/r_e^2", kind="aux"),
-    Output("n_z", "1", "normal load factor at the centre of gravity"),
+    Output("n_z", "1", "normal load factor at the centre of gravity", roles=("load_factor",)),
 )
 _PARAMS = ("r_horn", "a_pin", "S_c_e", "C_h0", "C_h_a", "C_h_d", "J_e", "K_q", "K_th", "K_ith", "f_s_a",
            "stroke", "loop_a")
@@ -249,7 +251,7 @@ class Transport(_Airframe):
     doc = "Stevens & Lewis medium transport, nonlinear longitudinal, pitch-attitude hold"
     states = (
         State("V_T", "m/s", "true airspeed", roles=("airspeed",), x0=152.4, scale=lambda P: P.V_0),
-        State("alpha", "rad", "angle of attack", x0=0.0101, scale=lambda P: 0.2),
+        State("alpha", "rad", "angle of attack", roles=("angle_of_attack",), x0=0.0101, scale=lambda P: 0.2),
         State("theta", "rad", "pitch attitude", roles=("pitch_attitude",), x0=0.0101, scale=lambda P: 0.2),
         State("q", "rad/s", "pitch rate", roles=("pitch_rate",), scale=lambda P: 0.2),
         State("h", "m", "altitude", roles=("altitude",), scale=lambda P: 1000.0 + P.h_0),

@@ -397,7 +397,7 @@ class PositionP(Part):
     )
     outputs = (
         Output("omega_cmd", "rad/s", "motor speed command of the position loop"),
-        Output("i_cmd", "A", "q-current command of the speed loop"),
+        Output("i_cmd", "A", "q-current command of the speed loop", roles=("current_command",)),
     )
     params = ("K_x", "K_p_w", "T_i_w", "v_max", "p", "I_max", "loop_x", "loop_w", "f_s_x", "f_s_w", *SWITCH_PARAMS)
     trim_limits = _LIMITS
@@ -410,6 +410,7 @@ class PositionP(Part):
     )
     options = {**AW_OPTION, "limit_shape": LIMIT_SHAPES}
     integral = False
+    smooth = {"limit_shape": "smooth"}  # the clip's corners
 
     def signals(self):
         aw = self.opt.get("anti_windup", ANTI_WINDUP[0])

@@ -156,7 +156,7 @@ def stick_entry(v_prev, v, F_hold, F_r, P):
 # contact (F_drive minus friction), besides its outputs.
 _OUT = (
     Output("F_friction", "N", "friction force at the contact, referred to the rod"),
-    Output("stick", "1", "1 while stuck (hybrid friction)", kind="flag"),
+    Output("stick", "1", "1 while stuck (hybrid friction)", kind="flag", roles=("stuck",)),
     Output("P_friction", "W", "seal/bearing (Coulomb) friction loss", kind="loss"),
     Output("P_viscous", "W", "viscous loss (rod and shaft)", kind="loss"),
 )
@@ -203,6 +203,7 @@ class Hybrid(Part):
     outputs = _OUT
     heat = Smooth.heat
     params = _PARAMS + ("eps", "r_start")
+    smooth = {"friction": "smooth"}
     # the stick band closed too: the hybrid model then linearises exactly like the smooth one
     small_signal = {"friction": {
         "off": {"F_seal": 0.0, "C_bear": 0.0, "eps": 0.0},

@@ -110,8 +110,8 @@ class Ideal(Part):
     family, value = "inverter", "ideal"
     doc = "averaged bridge: winding voltage = controller voltage, averaged losses"
     outputs = (
-        Output("v_d", "V", "d-axis winding voltage (0 for the dc motor)"),
-        Output("v_q", "V", "q-axis winding voltage (dc motor: its voltage / 1.5)"),
+        Output("v_d", "V", "d-axis winding voltage (0 for the dc motor)", roles=("d_voltage",)),
+        Output("v_q", "V", "q-axis winding voltage (dc motor: its voltage / 1.5)", roles=("q_voltage",)),
         Output("P_inv_cond", "W", "inverter conduction loss", kind="loss"),
         Output("P_inv_sw", "W", "inverter switching loss", kind="loss"),
         _P_BRIDGE,
@@ -278,11 +278,12 @@ class Pwm(Part):
     """
 
     family, value = "inverter", "pwm"
+    smooth = {"inverter": "ideal"}
     doc = "switched 2-level bridge, SVPWM at f_sw, exact switching instants"
     requires = {"motor": ("pmsm",)}
     outputs = (
-        Output("v_d", "V", "d-axis winding voltage (Park of the phase voltages)"),
-        Output("v_q", "V", "q-axis winding voltage"),
+        Output("v_d", "V", "d-axis winding voltage (Park of the phase voltages)", roles=("d_voltage",)),
+        Output("v_q", "V", "q-axis winding voltage", roles=("q_voltage",)),
         Output("v_d_avg", "V", "d-axis voltage of the averaged bridge: the held reference within v_dc/sqrt(3)"),
         Output("v_q_avg", "V", "q-axis voltage of the averaged bridge"),
         Output("P_inv_cond", "W", "inverter conduction loss (IGBTs and diodes)", kind="loss"),

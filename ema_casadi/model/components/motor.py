@@ -19,7 +19,7 @@ import math
 import casadi as ca
 
 from . import controller
-from ._part import MARGIN, Bound, Fault, Gain, Hold, Input, Limit, Loop, Output, Part, State, der
+from ._part import MARGIN, Bound, Fault, Gain, Hold, Input, Limit, Loop, Output, Part, Rating, State, der
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm", "Dc",
            "CURRENT_LOOP", "CURRENT_BOUND"]
@@ -253,6 +253,17 @@ def _iron(opt):
 _LIMITS = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
                  lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
 _GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+#: Operating limits (:class:`~ema_casadi.model.components.Rating`): the current vector within
+#: I_max, the voltage vector within the linear-SVPWM circle k_v V_dc/sqrt(3).
+_RATINGS = (
+    Rating("current", "current limit", ("i_d", "i_q"), lambda P: P.I_max, "I_max", "A"),
+    Rating("voltage", "voltage circle", ("v_d", "v_q"), lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)",
+           "V"),
+)
+#: The FOC commands i_d = 0: a negative i_d (field weakening) would raise the top speed
+#: beyond the voltage circle's psi-limited one; the drive as commissioned does not use it.
+_NO_FIELD_WEAKENING = Rating("field_weakening", "no field weakening (the FOC commands i_d = 0)", ("i_d",),
+                             lambda P: 0.0, "i_d >= 0", "A", sense="min", role="strategy")
 
 
 class Pmsm(Part):
@@ -275,6 +286,7 @@ class Pmsm(Part):
     params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e",
               "w_aw", "k_bc")
     trim_limits = _LIMITS
+    ratings = (*_RATINGS, _NO_FIELD_WEAKENING)
     gains = _GAINS
     options = _OPTIONS | _SHORT
     heat = _HEAT
@@ -339,6 +351,7 @@ class Dc(Part):
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e", "w_aw", "k_bc")
     trim_limits = _LIMITS
+    ratings = _RATINGS
     gains = _GAINS
     options = _OPTIONS
     heat = _HEAT

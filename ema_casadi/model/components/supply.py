@@ -28,7 +28,7 @@ from ._part import Bound, Output, Part, State, der
 __all__ = ["Ideal", "Line"]
 
 _V_DC = Output("v_dc", "V", "DC-link voltage (the controller's measured supply voltage)")
-_P_DC = Output("P_dc", "W", "power drawn at the 270 V input", kind="power")
+_P_DC = Output("P_dc", "W", "power drawn at the 270 V input", kind="power", roles=("electrical_power",))
 
 
 class Ideal(Part):

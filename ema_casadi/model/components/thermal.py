@@ -164,15 +164,18 @@ class Lumped(Part):
     )
     inputs = (ETA, T_AMB)
     outputs = (
-        Output("R_w", "Ohm", "winding resistance at T_w", kind="aux"),
-        Output("psi_m", "Wb", "magnet flux linkage at T_h", kind="aux"),
-        Output("eta_screw", "1", "screw-nut direct efficiency used (eta(T_s) or the eta input)", kind="aux"),
+        Output("R_w", "Ohm", "winding resistance at T_w", kind="aux", roles=("winding_resistance",)),
+        Output("psi_m", "Wb", "magnet flux linkage at T_h", kind="aux", roles=("magnet_flux",)),
+        Output("eta_screw", "1", "screw-nut direct efficiency used (eta(T_s) or the eta input)", kind="aux",
+               roles=("screw_efficiency",)),
         *(Output(heat_signal(node), "W", f"heat into the {node} node (the losses routed there)", kind="power")
           for node, _ in NODES.values()),
-        Output("P_amb", "W", "heat to the ambient, from the housing and the inverter", kind="power"),
+        Output("P_amb", "W", "heat to the ambient, from the housing and the inverter", kind="power",
+               roles=("ambient_heat",)),
         *(Output(node_outflow(node), "W", f"heat the {node} node passes on to its neighbours and the ambient",
                  kind="power") for node, _ in NODES.values()),
-        Output("E_th", "J", "heat stored in the network, sum of C_th (T - T_ref)", kind="energy"),
+        Output("E_th", "J", "heat stored in the network, sum of C_th (T - T_ref)", kind="energy",
+               roles=("thermal_energy",)),
     )
     params = ("R", "psi", "eta", "eta_inv", "alpha_Cu", "alpha_psi", "T_ref", "feedback_R", "feedback_psi",
               "feedback_eta", "C_th_w", "R_th_ws", "C_th_h", "R_th_ha", "C_th_s", "R_th_sh", "C_th_inv",
