@@ -15,7 +15,7 @@ A fit that does not converge ends with exit status 3 and writes nothing. The
 verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
 whiteness, records' consistency); adequate within model error (a test fails but
 every channel's systematic misfit is at most --model-error noise levels and no
-record's estimates move by more than 3x that in robust sd: status 0, the misfit
+record's estimates move by more than 5x that in sandwich sd: status 0, the misfit
 named); inadequate: exit status 3 with the fitted file written as
 FILE.inadequate.toml, or status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level

@@ -33,7 +33,9 @@ their sandwich covariances (independent records: they add):
 
 and the robust covariance is S^2 C_HAC (each chi2_k is chi-square(dim V_k) when the
 records agree within their robust uncertainty: S^2 then has expectation about 1).
-sqrt(chi2_k / dim V_k) is record k's shift in robust standard deviations.
+sqrt(chi2_k / dim V_k) is record k's shift in sandwich standard deviations, and that
+over S its shift in the headline (robust) ones: a record out of line with the others'
+common disagreement.
 """
 
 from __future__ import annotations
@@ -113,7 +115,8 @@ def robust_covariance(J, r, blocks) -> dict:
     dict
         ``cov_hac`` and ``cov`` (S^2 cov_hac) (n x n), ``scale_factor`` S, ``chi2``,
         ``dof``, per record ``bandwidth`` (samples), ``shift_sd`` (its estimates'
-        shift against the others' in robust standard deviations) and ``directions``.
+        shift against the others' in sandwich standard deviations, RMS over its
+        directions), ``shift_robust_sd`` (the same over S) and ``directions``.
     """
     A = J.T @ J
     Ainv = _pinv(A)
@@ -145,5 +148,7 @@ def robust_covariance(J, r, blocks) -> dict:
                 chi2, dof = chi2 + c2, dof + V.shape[1]
         recs.append(rec)
     S2 = max(1.0, chi2 / dof) if dof else 1.0
+    for rec in recs:  # the shift in the headline (scaled) standard deviations: a record out of line with the rest
+        rec["shift_robust_sd"] = rec["shift_sd"] / np.sqrt(S2)
     return {"cov_hac": cov_hac, "cov": S2 * cov_hac, "scale_factor": float(np.sqrt(S2)), "chi2": float(chi2),
             "dof": int(dof), "records": recs}
