@@ -129,6 +129,7 @@ def _robust_doc(rob, records) -> dict:
             for rec, r in zip(records, rob["records"], strict=True)]
     return {"kind": "robust (Newey-West sandwich per record, x records' scale factor)",
             "scale_factor": rob["scale_factor"], "records_chi2": rob["chi2"], "records_dof": rob["dof"],
+            "records_p": rob.get("p"),
             "records": recs}
 
 
