@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..simulation import RunFailed
 from ._flow import Flow, OrbitNotFound, input_value
@@ -33,8 +34,8 @@ from ._setup import setup
 __all__ = ["Continuation", "continue_orbit"]
 
 
-@dataclass
-class Continuation:
+@dataclass(repr=False)
+class Continuation(Summarised):
     """A branch of periodic orbits over one parameter (:func:`continue_orbit`).
 
     Parameters
@@ -68,6 +69,11 @@ class Continuation:
     stable: np.ndarray
     bifurcations: list
     info: dict = field(default_factory=dict)
+
+    def _facts(self) -> dict:
+        v = np.asarray(self.values, float)
+        return {"parameter": self.name, "range": f"{v.min():.4g} .. {v.max():.4g} {self.unit}" if v.size else None,
+                "orbits": int(v.size), "bifurcations": ", ".join(b["kind"] for b in self.bifurcations) or "none"}
 
     @property
     def onset(self) -> float | None:
@@ -305,7 +311,7 @@ def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "p
         orbit = periodic_orbit(model, loop, p=pv0, condition=condition, dt=dt, inputs=inputs)
     s = setup(model, loop, pv0, condition)
     flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], orbit.info.get("method", "sensitivities"),
-                dt or 1e-5)
+                dt or orbit.info.get("dt", 1e-5), bool(orbit.info.get("zoh")))
     br = _Branch(model, flow, k, lo, hi, orbit.T, s["signal"], tol)
     t0 = time.perf_counter()
     u0 = br.pack(orbit.x0, orbit.T, start)

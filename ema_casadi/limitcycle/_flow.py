@@ -67,8 +67,8 @@ def _u(model: Model, sig: dict) -> np.ndarray:
 class Flow:
     """phi(T; x0, p) and its derivatives for one model and held inputs."""
 
-    def __init__(self, model: Model, held: dict, pv, method: str, dt: float):
-        self.model, self.held, self.method, self.dt = model, dict(held), method, dt
+    def __init__(self, model: Model, held: dict, pv, method: str, dt: float, zoh: bool = False):
+        self.model, self.held, self.method, self.dt, self.zoh = model, dict(held), method, dt, zoh
         self.set_p(pv)
         self.runs = 0
 
@@ -254,7 +254,7 @@ class Flow:
         """x(T) by the fixed-step rollout (the RK4 fallback)."""
         n = max(1, math.ceil(T / self.dt))
         res = simulate(self.model, T, dt=T / n, dt_out=T, p=self.pv if pv is None else pv, x0=np.asarray(x0, float),
-                       solver="rk4", **(self.sig if sig is None else sig))
+                       solver="rk4", zoh=self.zoh, **(self.sig if sig is None else sig))
         return np.array([res.states[s][-1] for s in self.model.states])
 
     def _run_fd(self, x0, T, k_param):
@@ -287,7 +287,7 @@ class Flow:
         if self.method == "rk4":
             m = max(1, math.ceil(T / n / self.dt))
             res = simulate(self.model, T, dt=T / n / m, dt_out=T / n, p=self.pv, x0=np.asarray(x0, float),
-                           solver="rk4", **self.sig)
+                           solver="rk4", zoh=self.zoh, **self.sig)
             X = np.array([res.states[s] for s in self.model.states])
             grid = np.asarray(res.t)
         else:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..simulation import RunFailed
 from ._df import cycle_of
@@ -55,8 +56,8 @@ STALL = 3
 FD_TOL = 1e-5
 
 
-@dataclass
-class PeriodicOrbit:
+@dataclass(repr=False)
+class PeriodicOrbit(Summarised):
     """A periodic orbit of a closed loop (from :func:`periodic_orbit`).
 
     Parameters
@@ -170,10 +171,9 @@ class PeriodicOrbit:
 
         return plot_orbit(self, path, signals=signals)
 
-    def __repr__(self) -> str:
-        s = "stable" if self.stable else "unstable"
-        return (f"PeriodicOrbit(loop={self.loop!r}, freq={self.freq_hz:.6g} Hz, {s}, "
-                f"residual={self.residual:.2g}, |mu|max={np.max(np.abs(self.multipliers[1:])):.4g})")
+    def _facts(self) -> dict:
+        return {"loop": repr(self.loop), "freq": f"{self.freq_hz:.6g} Hz", "stable": bool(self.stable),
+                "residual": f"{self.residual:.2g}", "|mu|max": f"{np.max(np.abs(self.multipliers[1:])):.4g}"}
 
 
 def summaries(flow: Flow, t, X, Y, names) -> dict:
@@ -232,8 +232,8 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
                         f"{iterations} Newton steps (need < {tol:g})")
 
 
-def _start_from_simulation(model, s, t_warm, signal, dt, inputs):
-    res = s["confirm"](t_warm, dt, **inputs)
+def _start_from_simulation(model, s, t_warm, signal, dt, inputs, zoh=False):
+    res = s["confirm"](t_warm, dt, **inputs, **({"zoh": True} if zoh else {}))
     t = np.asarray(res.t)
     y = np.asarray(res[signal])
     cyc = cycle_of(t, y, t_warm / 2)
@@ -334,7 +334,17 @@ def checked_p(model: Model, p) -> np.ndarray:
     return pv
 
 
-def _start(model, s, start, t_warm, loop, sig_name, dt, inputs):
+def _default_step(model: Model, pv, loop: str, zoh: bool) -> float:
+    """The RK4 step of the start run and the fallback: 1e-5 s (position loop) or 1e-4 s
+    (aircraft loop), inside RK4's stability limit on the model (80 % of it, dividing the
+    ECU's sample periods)."""
+    from ..simulation import rk4_step_limit, sample_periods
+
+    cap = 1e-5 if loop == "position" else 1e-4
+    return rk4_step_limit(model, p=pv, zoh=zoh).inside(sample_periods(model, pv).values(), cap=cap)
+
+
+def _start(model, s, start, t_warm, loop, sig_name, dt, inputs, zoh):
     """(x0, T0, the start run's cycle or None, t_warm) from ``start``."""
     if isinstance(start, dict):
         if "x0" not in start or "T" not in start:
@@ -342,7 +352,7 @@ def _start(model, s, start, t_warm, loop, sig_name, dt, inputs):
         return np.asarray(start["x0"], float), float(start["T"]), None, None
     if start == "simulation":
         t_warm = t_warm or (2.0 if loop == "position" else 60.0)
-        return (*_start_from_simulation(model, s, t_warm, sig_name, dt, inputs), t_warm)
+        return (*_start_from_simulation(model, s, t_warm, sig_name, dt, inputs, zoh), t_warm)
     raise ValueError(f"start: {start!r}; 'simulation' or {{'x0': ..., 'T': ...}}")
 
 
@@ -359,7 +369,7 @@ def _compare(prediction, summ, sig_name, T):
 def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: str = "cruise_sl",
                    start: str | dict = "simulation", t_warm: float | None = None, dt: float | None = None,
                    signals=None, prediction: dict | None = None, method: str = "auto", tol: float = 1e-10,
-                   iterations: int = 25, inputs: dict | None = None, stop=None) -> PeriodicOrbit:
+                   iterations: int = 25, inputs: dict | None = None, zoh: bool = False, stop=None) -> PeriodicOrbit:
     """The periodic orbit of a closed loop by shooting, with its Floquet multipliers.
 
     Parameters
@@ -378,7 +388,8 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     t_warm : float, optional
         Start run length (s); default 2 s (position), 60 s (aircraft).
     dt : float, optional
-        RK4 step of the start run and of the fallback (s); default 1e-5 / 1e-4.
+        RK4 step of the start run and of the fallback (s); default 1e-5 / 1e-4 s or less:
+        inside RK4's stability limit on the model.
     signals : sequence of str, optional
         Signals summarised (default x_rod and, for the aircraft loop, x_cmd).
     prediction : dict, optional
@@ -393,6 +404,11 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     inputs : dict, optional
         Driven inputs held at these values (SI) over the loop's own (e.g. the load
         ``{"f_ext": 2000.0}``), in the start run and on the orbit.
+    zoh : bool
+        The ECU sampled at its rates (zero-order hold): the finite-difference fallback
+        on the RK4 rollout with the sampled ECU, each rollout from the ECU sampling at its
+        start (the sample clock restarted each period: the hunting cycle of a sampled loop
+        is locked to its clock only approximately; see docs for the measured effect).
     stop : callable, optional
         Called before each Newton step (raises to interrupt).
 
@@ -412,23 +428,23 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     why = unsupported(model)
     if why is not None:
         raise ValueError(why)
-    switching = bool(model.switched) or bool(getattr(model, "hybrid", False))
+    switching = bool(model.switched) or bool(getattr(model, "hybrid", False)) or zoh
     if method == "auto":
         method = "rk4" if switching else "sensitivities"
     if method == "sensitivities" and switching:
-        raise ValueError("method: the model switches (hybrid friction or a switched part): its flow has no "
-                         "sensitivities; use method='rk4'")
+        raise ValueError("method: the model switches (hybrid friction, a sampled ECU or a switched part): its "
+                         "flow has no sensitivities; use method='rk4'")
     p = checked_p(model, p)
     inputs = checked_inputs(model, inputs, p)
     s = setup(model, loop, p, condition)
-    dt = dt or (1e-5 if loop == "position" else 1e-4)
+    dt = dt or _default_step(model, s["p"], loop, zoh)
     sig_name = s["signal"]
     names = tuple(signals) if signals else tuple(dict.fromkeys([model.output_with("rod_position"), sig_name]))
     for n in names:
         if n not in model.outputs and n not in model.states:
             raise ValueError(f"signals: no signal {n!r} in the model")
-    x0, T0, warm, t_warm = _start(model, s, start, t_warm, loop, sig_name, dt, inputs)
-    flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], method, dt)
+    x0, T0, warm, t_warm = _start(model, s, start, t_warm, loop, sig_name, dt, inputs, zoh)
+    flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], method, dt, zoh)
     tol_eff = tol if method == "sensitivities" else max(tol, FD_TOL)
     try:
         x, T, M, xT, residuals, its = _newton(flow, x0, T0, tol_eff, iterations, stop)
@@ -440,6 +456,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     pred = _compare(prediction, summ, sig_name, T)
     units = dict(model.units)
     info = {"iterations": its, "runs": flow.runs, "method": method, "residuals": residuals, "inputs": inputs,
+            "zoh": zoh, "dt": dt,
             "wall_time": time.perf_counter() - t_start, "start": "given" if warm is None else
             {"t_warm_s": t_warm, "freq_hz": warm["freq_hz"], "amplitude": warm["amplitude"]}}
     D = model.full_scale(s["p"])
