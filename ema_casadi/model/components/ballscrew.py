@@ -348,7 +348,7 @@ class Elastic(Part):
         if self.memory:
             self.states = type(self).states + (
                 State("z_lock", "1", "screw-nut self-locking memory: -1 back-driven edge, +1 driving edge",
-                      scale=lambda P: 1.0),)
+                      roles=("hysteresis",), scale=lambda P: 1.0),)
             self.params = type(self).params + ("x_lock",)
             self.small_signal = _SMALL_SIGNAL_LOCK
             self.smooth = {**type(self).smooth, "screw_lock": "blend"}  # the memory is stiff at speed
