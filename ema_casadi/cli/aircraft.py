@@ -86,6 +86,14 @@ def run(args) -> dict:
     refuse_dt(dt_given, solver, "give --zoh (RK4 at the sampling instants) or drop --dt")
     if solver in (True, "rk4"):  # inside RK4's stability limit, dividing the sample periods
         args.dt = rk4_step(model, dt_given, args.dt, args.zoh or model.switched)
+    if not args.no_responses:  # the responses' size and step, named by the flags, before any work
+        import inspect
+
+        from ..simulation import check_run
+
+        spacing = inspect.signature(pitch_step).parameters["dt_out"].default
+        check_run(model, args.t_end, dt=args.dt, dt_out=spacing, zoh=args.zoh, error=UserError,
+                  labels={"t_end": "--t-end", "dt": "--dt", "dt_out": f"the responses' sample spacing {spacing:g} s"})
     out, plots = {}, {}
     for k, c in enumerate(conds):
         stage(args, "aircraft", k / len(conds), f"{c}: trim, margins" + ("" if args.no_responses else ", responses"))

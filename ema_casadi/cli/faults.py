@@ -13,7 +13,7 @@ case), OUT/<file>.json and OUT/<file>.png (coverage matrix and transients).
 +-5 % friction and stiffness tolerances (the sweep engine, --jobs local workers).
 --thresholds runs the threshold study instead: per monitor, over thresholds from 0.1 to
 2 x its reference, the detection delay of every case (the model's confirmation logic
-on the case's statistic) and the false-alarm rate per flight hour (a Gumbel fit of the
+on the case's statistic) and the false-alarm rate per flight hour (an extreme-value fit of the
 largest statistic of each of --healthy-runs N healthy runs, default 1000); writes
 OUT/<file>_thresholds.csv and .png, and the margins (largest healthy statistic against
 each threshold) in the JSON.

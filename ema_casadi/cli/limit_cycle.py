@@ -226,8 +226,11 @@ def run(args) -> dict:
     csv = check_output_path(args.csv, (".csv",), "--csv")
     amps, freqs, t_end = _axes(args)
     orders = _orders(args.harmonics)
-    if not (0 < args.dt <= 1e-3 and 4 <= args.periods <= 200 and 0 <= t_end <= 7200):
-        raise UserError("--dt in (0, 1e-3] s, --periods 4..200, --t-end 0..7200 s")
+    for flag, value, ok, span in (("--dt", args.dt, 0 < args.dt <= 1e-3, "(0, 1e-3] s"),
+                                  ("--periods", args.periods, 4 <= args.periods <= 200, "4..200"),
+                                  ("--t-end", t_end, 0 <= t_end <= 7200, "0..7200 s")):
+        if not ok:
+            raise UserError(f"{flag} {value:g}: outside {span}")
     t0 = time.perf_counter()
     if args.loop == "aircraft":
         airframe_variant(args, "b747", ("b747", "transport"))

@@ -50,6 +50,7 @@ from ..simulation import (
 )
 from . import UserError, add_progress, check_output_path, load, progress_of
 from ._flags import NoEffect, no_effect, refuse_dt
+from ._flags import given as flag_given
 from ._options import seconds
 
 COMMAND = "simulate"
@@ -156,6 +157,9 @@ def run(args) -> dict:
                       ("--event-tol", args.event_tol)):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
+    if flag_given(args, "--event-tol") and not args.event_tol < args.t_end:
+        raise UserError(f"--event-tol {args.event_tol:g} s: not below --t-end {args.t_end:g} s (it locates the "
+                        "switching instants inside the run)")
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
     _refuse_idle(args, model)

@@ -27,6 +27,8 @@ LEVELS = ("drive", "ecu")
 INTERVALS = 40
 #: RK4 substeps are kept at this fraction of RK4's stability limit |h lambda| = 2.78.
 STABILITY_FRACTION = 0.5
+#: Substeps in all (intervals x substeps) up to which the NLP is expanded to SX with its exact Hessian.
+EXPAND_LIMIT = 400
 #: A limit counts as binding where the optimum sits within this fraction of it.
 BINDING = 1e-3
 #: Node spacing: the share of a cosine (Chebyshev) grid in the shooting grid of a
@@ -307,8 +309,13 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     x0 = prob.start_state()
     guess = initial_guess(prob, x0)
     opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
-    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": True},
-                {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "adaptive"})
+    # a small problem expanded to SX with its exact Hessian; a long chain of substeps kept
+    # as calls (MX) with a quasi-Newton Hessian (the exact one of thousands of substeps is slow)
+    small = prob.N * prob.substeps <= EXPAND_LIMIT
+    ipopt = {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "adaptive"}
+    if not small:
+        ipopt["hessian_approximation"] = "limited-memory"
+    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, ipopt)
     t_setup = time.perf_counter() - t0
     try:
         sol = opti.solve()

@@ -111,7 +111,7 @@ def plot_thresholds(study, path=None):
         bx.set_xlabel(f"threshold ({d['unit']}); -- reference, : healthy max")
         bx.set_ylabel("false alarms per flight hour")
         bx.set_ylim(1e-12, None)
-    fig.suptitle(f"thresholds: detection vs false alarms (Gumbel fit of {study.runs} healthy runs' maxima)",
+    fig.suptitle(f"thresholds: detection vs false alarms (GEV fit of {study.runs} healthy runs' maxima)",
                  fontsize=10)
     fig.tight_layout()
     if path is not None:

@@ -396,7 +396,7 @@ def _rk4_plan(t_end, dt, dt_out, decimate, lab, error) -> _Plan:
     n_steps = _steps_in(t_end, dt)
     if n_steps is None:
         raise error(f"{lab('t_end')} {t_end:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
-                    f"({steps:.6g}); choose a dt that divides t_end")
+                    f"({steps:.6g}); choose a {lab('dt')} that divides {lab('t_end')}")
     if decimate is not None:
         k = decimate
     elif dt_out is not None:

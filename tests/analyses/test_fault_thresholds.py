@@ -37,6 +37,22 @@ def test_detection_time_follows_the_timer_and_latch():
     assert detection_time(t, stat, 1.5, 5e-3, TAU_RESET, TAU_LATCH) is None
 
 
+def test_the_extreme_value_fit_recovers_a_known_law():
+    # 1000 maxima drawn from a GEV with a bounded tail (SciPy shape c = 0.3, endpoint loc + scale/c):
+    # the fit's shape within 0.1 (its standard error ~0.03 at n = 1000) and the tail beyond the
+    # endpoint 0, where a Gumbel fit would still put probability
+    from scipy import stats
+
+    from ema_casadi.faults._thresholds import _exceedance, _gev
+
+    m = stats.genextreme.rvs(0.3, loc=2e-5, scale=2e-6, size=1000, random_state=np.random.default_rng(3))
+    c, loc, scale = _gev(m)
+    assert c == pytest.approx(0.3, abs=0.1) and loc == pytest.approx(2e-5, rel=0.02)
+    end = 2e-5 + 2e-6 / 0.3
+    assert _exceedance((c, loc, scale), 1.2 * end, m) == 0.0
+    assert stats.gumbel_r.sf(1.2 * end, *stats.gumbel_r.fit(m)) > 1e-4
+
+
 @pytest.fixture(scope="module")
 def study(params):
     spec = parse_faults(SMALL, params, "<small>")
@@ -87,7 +103,7 @@ def test_margins_are_the_healthy_maxima_against_the_thresholds(study, params):
         assert m["threshold"] == getattr(params.monitor, m["threshold_param"])
     assert 0 < h["margins"]["latch_track"]["margin"] < 1  # the tracking error stays below 1 mm
     assert h["false_alarms"] == 0
-    # the Gumbel rate at the reference threshold is tiny where the maxima sit far below it
+    # the fitted rate at the reference threshold is tiny where the maxima sit far below it
     ref = next(r for r in st.monitors["latch_track"]["rows"] if r["scale"] == 1.0)
     assert ref["expected_in_runs"] < 1e-3 and ref["observed_in_runs"] == 0
     assert math.isfinite(ref["false_alarms_per_hour"])
