@@ -62,6 +62,15 @@ class DesignResult:
                 f"{', '.join(self.free.names)}: interval widths {c['geometric_mean_ratio']:.3g}x narrower "
                 f"(geometric mean) than {self.standard.name})")
 
+    def _repr_html_(self) -> str:
+        from .._util._notebook import html_summary
+
+        c = self.comparison()
+        return html_summary("DesignResult", {"criterion": self.info["criterion"],
+                                             "duration": f"{self.test.duration:g} s",
+                                             "free": ", ".join(self.free.names),
+                                             "narrower": f"{c['geometric_mean_ratio']:.3g}x than {self.standard.name}"})
+
     def comparison(self) -> dict:
         """The designed against the standard test: per parameter the predicted relative
         95 % interval widths and their ratio, the geometric mean of the ratios, the

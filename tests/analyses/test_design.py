@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import assert_glance
 from ema_casadi.design import (
     DesignError,
     Segment,
@@ -87,6 +88,7 @@ def test_efficient_rounding_keeps_the_total_and_the_support():
 
 
 def test_a_small_design_beats_its_worst_single_segment_and_keeps_the_limits(small):
+    assert_glance(small)
     r = small
     assert r.info["ipopt"]["status"] == "Solve_Succeeded"
     assert sum(s["count"] for s in r.segments) == 2

@@ -88,8 +88,8 @@ def test_a_fit_writes_the_file_and_the_report(tmp_path, capsys, record):
     est = doc["parameters"]["F_seal"]
     assert abs(est["estimate"] - 210.0) <= 3 * est["std"] and est["identifiable"]
     assert doc["sigma"] == {"x_rod": 3e-7, "i_q": 0.05} and doc["sigma_estimated"] == []
-    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["fit_0.png", "intervals.png", "summary.json",
-                                                                   "summary.md"]
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["fit_0.png", "intervals.png", "misfit.png",
+                                                                   "summary.json", "summary.md"]
     assert "F_seal = { value = " + repr(est["estimate"]) in (tmp_path / "fit.toml").read_text()
 
 
@@ -240,9 +240,7 @@ def test_example_records_are_what_the_guide_fits(tmp_path, capsys):
     rec = tmp_path / "rec"
     code, out, err = _run(["identify", "--example-records", str(rec), "--json"], capsys)
     assert code == 0, err
-    from ema_casadi.cli.identify import EXAMPLE_FILES
-
-    assert sorted(p.name for p in rec.iterdir()) == sorted(EXAMPLE_FILES)
+    assert sorted(p.name for p in rec.iterdir()) == sorted(idn.GUIDE_FILES)
     code, out, err = _run(["identify", "--track", *[str(rec / f"rig_{h:04d}h.csv") for h in (0, 500, 1000, 1500)],
                            "--free", "F_seal", "--limit", "F_seal=300N", "--json", "--no-progress"], capsys)
     assert code == 0, err

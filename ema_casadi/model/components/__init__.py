@@ -54,6 +54,7 @@ from ._part import (
     node_outflow,
 )
 from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
+from .monitors import TAU_LATCH, TAU_RESET
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
@@ -64,4 +65,6 @@ __all__ = [
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
+    # the monitors' timer reset and latch time constants (s): what a statistic's detection obeys
+    "TAU_RESET", "TAU_LATCH",
 ]
