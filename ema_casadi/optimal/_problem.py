@@ -187,7 +187,9 @@ class Problem:
         U, H = self._inputs(C)
         P = ca.repmat(ca.MX(self.p), 1, N)
         DT = dts
-        X_next = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
+        out = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
+        power = self._power_outputs()
+        X_next, cost = (out[0], ca.sum2(out[1])) if power else (out, 0)
         opti.subject_to(Xs[:, 0] == x0 / scale)
         # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
         rest_on = m.rest_states(self.p)
@@ -201,10 +203,6 @@ class Problem:
             opti.subject_to(ca.vec(X[i, 1:] - self._signal(sig, X[:, 1:], Y1)) / scale[i] == 0)
         for Xn, Yn in ((X[:, :-1], Y0), (X[:, 1:], Y1)):
             self._constrain(opti, Xn, Yn)
-        power = self._power_outputs()
-        cost = 0
-        for n in power:
-            cost = cost + 0.5 * ca.sum2(dts * (self._signal(n, X[:, :-1], Y0) + self._signal(n, X[:, 1:], Y1)))
         # the end: at the target, at rest, every rate but the temperatures' zero
         xdot, y = self._rates(X[:, N], C[:, N - 1])
         opti.subject_to(self._signal(self.rod, X[:, N], y) == self.target)
@@ -221,6 +219,7 @@ class Problem:
         opti.minimize(T / guess["T"] if self.objective == "time" else cost / guess["cost_scale"])
         opti.set_initial(Xs, guess["X"] / scale[:, None])
         opti.set_initial(Cs, guess["C"] / c_scale[:, None])
+        self.cost = cost
         return opti, Xs, Cs, T, scale, c_scale
 
     def _control_scale(self) -> np.ndarray:
@@ -254,7 +253,7 @@ class Problem:
         dt_max = (guess["T"] if self.objective == "time" else self.duration) * np.diff(self.fractions()).max()
         n = max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
         self.substeps = n
-        return interval_function(self.model, held=held, substeps=n)
+        return interval_function(self.model, held=held, substeps=n, quadrature=self._power_outputs())
 
 
 def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
@@ -327,9 +326,10 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
+    cost = Tv if prob.objective == "time" else float(val(prob.cost))
     out = {"T": Tv, "X": X, "C": C, "t": Tv * prob.fractions(), "status": stats["return_status"],
            "iterations": int(stats["iter_count"]), "solve_time_s": time.perf_counter() - t0 - t_setup,
-           "setup_time_s": t_setup, "guess": guess, "x0": x0, "substeps": prob.substeps}
+           "setup_time_s": t_setup, "cost": cost, "guess": guess, "x0": x0, "substeps": prob.substeps}
     out["Y"] = _outputs(prob, X, C)
     out["margins"] = _margins(prob, X, out["Y"])
     if not ok:
