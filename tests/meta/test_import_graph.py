@@ -200,6 +200,9 @@ LONG_MODULES = {
     "ema_casadi/sweeps/_spec.py": (540, "the sweep description, read from a file or built from objects and "
                                         "checked by the same rules: variants, parameter grids and draws, runs, "
                                         "scenario"),
+    "ema_casadi/model/components/controller.py": (560, "the ECU: every loop's law (PI, limits, anti-windup, "
+                                                       "FOC) and the parts that close the loops, the outer loops "
+                                                       "and the current controllers the motor parts bring"),
     "ema_casadi/signals/_signal.py": (560, "the signal algebra and its quantities (the Signal class, the unit "
                                            "table and the parsers of a quantity are one vocabulary)"),
 }
