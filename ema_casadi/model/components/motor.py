@@ -269,6 +269,13 @@ class Pmsm(Part):
 
     @classmethod
     def form(cls, options: dict) -> type:
+        """:class:`ShortedPmsm` with ``winding_short = "on"``, else the healthy PMSM.
+
+        Parameters
+        ----------
+        options : dict
+            The values of the options the part reads.
+        """
         return ShortedPmsm if options.get("winding_short", "off") == "on" else cls
 
     def signals(self):
