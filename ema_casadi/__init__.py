@@ -35,14 +35,15 @@ _EXPORTS = {
                        "operating_point"),
     "._util._resources": ("packaged_file", "packaged_files"),
     ".signals": ("Signal", "SignalError", "parse_signal"),
-    ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate"),
+    ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate", "rk4_step_limit", "StepLimitWarning"),
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
     ".tuning": ("Requirements", "TuneError", "TuneResult", "tune"),
     ".sweeps": ("SweepError", "SweepResult", "load_sweep", "sweep"),
     ".identification": ("IdentificationError", "IdentResult", "identify"),
-    ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults"),
+    ".faults": ("FaultError", "FaultResult", "load_faults", "run_faults", "threshold_study"),
     ".limitcycle": ("OrbitNotFound", "PeriodicOrbit", "periodic_orbit"),
     ".design": ("DesignError", "DesignResult", "design_experiment"),
+    ".optimal": ("Infeasible", "OptimalError", "OptimalMove", "optimal_move"),
 }
 _WHERE = {name: mod for mod, names in _EXPORTS.items() for name in names}
 
@@ -68,7 +69,7 @@ __all__ = [
     "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "packaged_file", "packaged_files",
     "Signal", "SignalError", "parse_signal",
-    "RunFailed", "SimResult", "SimulationError", "simulate",
+    "RunFailed", "SimResult", "SimulationError", "simulate", "rk4_step_limit", "StepLimitWarning",
     "LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer", "operating_point",
     "bode", "closed_loop", "dynamic_stiffness", "loop_margins", "margins",
     "ExportError", "export_function", "load_linear", "save_linear",
@@ -76,7 +77,8 @@ __all__ = [
     "Requirements", "TuneError", "TuneResult", "tune",
     "SweepError", "SweepResult", "load_sweep", "sweep",
     "IdentificationError", "IdentResult", "identify",
-    "FaultError", "FaultResult", "load_faults", "run_faults",
+    "FaultError", "FaultResult", "load_faults", "run_faults", "threshold_study",
     "OrbitNotFound", "PeriodicOrbit", "periodic_orbit",
     "DesignError", "DesignResult", "design_experiment",
+    "Infeasible", "OptimalError", "OptimalMove", "optimal_move",
 ]

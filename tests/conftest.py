@@ -54,6 +54,22 @@ def model_cache(params):
     return get
 
 
+#: A result's repr is a glance: at most this many lines and characters (the attributes
+#: hold the rest; a notebook shows the same facts as a table, ``_repr_html_``).
+GLANCE_LINES, GLANCE_CHARS = 5, 400
+
+
+def assert_glance(obj) -> str:
+    """``repr(obj)`` within :data:`GLANCE_LINES` lines and :data:`GLANCE_CHARS`
+    characters, naming the class, and an HTML table for notebooks; returns the repr."""
+    name = type(obj).__name__
+    text = repr(obj)
+    assert text.startswith(f"{name}(") and text.count("\n") < GLANCE_LINES and len(text) <= GLANCE_CHARS, text
+    page = obj._repr_html_()
+    assert page.startswith(f"<b>{name}</b><table>") and page.count("<tr>") >= 2 and len(page) < 4000, page
+    return text
+
+
 def on_grid(res, dt=1e-3):
     """The rows of an FMPy result at the multiples of dt (the last row where an event
     recorded a time twice)."""

@@ -167,7 +167,8 @@ def read_text_file(path, what: str, error: type) -> str:
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise error(f"{path}: no such {what}") from None
+        hint = "" if path.suffix else " (a value's unit apart from it? write it joined, e.g. 500ms)"
+        raise error(f"{path}: no such {what}{hint}") from None
     except IsADirectoryError:
         raise error(f"{path}: is a folder, not a {what}") from None
     except OSError as exc:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..frequency import freqresp, margins
 from ..linearisation import LinearModel, OperatingPoint, flight_point, linear_model, loop_model
 from ..model.assembly import Model
@@ -118,8 +119,8 @@ def equivalent_delay(L_ideal, L_ema, band=DELAY_BAND_RAD_S, points: int = 100,
     return out
 
 
-@dataclass
-class AircraftMargins:
+@dataclass(repr=False)
+class AircraftMargins(Summarised):
     """Margins at the actuator-command break, ideal actuator and linearised EMA.
 
     Parameters
@@ -139,6 +140,13 @@ class AircraftMargins:
     ema: object
     delay: dict
     trim: dict = field(default_factory=dict)
+
+    def _facts(self) -> dict:
+        def m(x):
+            return f"GM {x.gm_db:.3g} dB, PM {x.pm_deg:.3g} deg"
+
+        return {"condition": self.condition, "ideal": m(self.ideal), "ema": m(self.ema),
+                "delay": f"{self.delay.get('tau_s', float('nan')) * 1e3:.3g} ms"}
 
     def as_dict(self) -> dict:
         return {"condition": self.condition, "trim": self.trim, "ideal": self.ideal.as_dict(),

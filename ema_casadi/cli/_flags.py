@@ -13,7 +13,7 @@ from pathlib import Path
 
 from . import UserError, check_output_dir, check_output_path
 
-__all__ = ["overrides", "refuse_dt", "fill_defaults", "airframe_variant", "new_output_folder",
+__all__ = ["overrides", "refuse_dt", "rk4_step", "fill_defaults", "airframe_variant", "new_output_folder",
            "output_folder", "NoEffect", "COMMON", "given", "no_effect", "refuse_no_effect"]
 
 
@@ -182,6 +182,40 @@ def refuse_dt(dt, solver, hint: str = "give --solver rk4 or drop --dt") -> None:
     """
     if dt is not None and solver not in (True, "rk4"):
         raise UserError(f"--dt is the RK4 step; the solver chosen is {solver}: {hint}")
+
+
+def rk4_step(model, dt_given, default: float, zoh: bool, load: float = 0.0, margin: float = 0.8) -> float:
+    """The RK4 step of a command: ``--dt`` refused above RK4's stability limit on the
+    model at ``load`` (N) and, with ``zoh``, where one step would hold two ECU sampling
+    instants; without ``--dt`` the largest step under ``margin`` x the limit and
+    ``default`` that divides them (:meth:`~ema_casadi.simulation.StepLimit.inside`).
+
+    Parameters
+    ----------
+    model : Model
+        The model that runs.
+    dt_given : float or None
+        The --dt given.
+    default : float
+        The command's largest default step (s).
+    zoh : bool
+        The ECU is sampled.
+    load : float
+        The run's largest load (N).
+    margin : float
+        The default's fraction of the limit.
+    """
+    from ..simulation import rk4_step_limit, sample_periods, sampling_split
+
+    limit = rk4_step_limit(model, load=load, zoh=zoh)
+    if dt_given is None:
+        return limit.inside(sample_periods(model).values() if zoh else (), margin, default)
+    text = limit.message(dt_given, "--dt")
+    if text is not None:
+        raise UserError(text)
+    if zoh and not model.switched:  # split at the instants; refused where a step holds two
+        sampling_split(model, dt_given, model.p(), UserError, "--dt")
+    return dt_given
 
 
 def fill_defaults(args, defaults: dict) -> None:

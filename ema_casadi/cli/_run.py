@@ -3,6 +3,7 @@ report; what an interrupt or a closed stdout does (:class:`_Stop`, :func:`_reade
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import threading
@@ -76,6 +77,29 @@ class _Silent:
         pass
 
 
+@contextlib.contextmanager
+def one_line_warnings(command: str):
+    """A library's warning (matplotlib's, NumPy's, SciPy's) as the contract's one line on
+    stderr, ``ema COMMAND: warning: <its first line>``, each text once, instead of
+    Python's two lines with a file name and a source line."""
+    import warnings
+
+    shown = set()
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = (str(message).strip().splitlines() or [category.__name__])[0]
+        if text not in shown:
+            shown.add(text)
+            sys.stderr.write(f"ema {command}: warning: {text}\n")
+
+    before = warnings.showwarning
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = before
+
+
 def _run(argv, stop) -> int:
     """Parse, run the command in one output transaction, report; the exit status."""
     import json
@@ -85,7 +109,8 @@ def _run(argv, stop) -> int:
 
     os.environ.setdefault("MPLBACKEND", "Agg")  # the command line draws off screen (PNG files only)
     parser, mods = build_parser()
-    argv = join_values(list(sys.argv[1:] if argv is None else argv), parser)
+    process = argv is None  # the ema process itself (not main() called from Python)
+    argv = join_values(list(sys.argv[1:] if process else argv), parser)
     unknown = unknown_flag(argv, parser)
     if unknown:
         sys.stderr.write(unknown + "\n")
@@ -99,8 +124,9 @@ def _run(argv, stop) -> int:
     hint = getattr(mod, "interrupt_hint", None)
     stop.hint = hint(args) if hint else ""
     errors = user_errors()
+    quiet = one_line_warnings(args.command) if process else contextlib.nullcontext()
     try:
-        with _files.transaction():
+        with quiet, _files.transaction():
             from ._flags import COMMON, refuse_no_effect
 
             refuse_no_effect(args, {**COMMON, **getattr(mod, "NO_EFFECT", {})})  # before any work

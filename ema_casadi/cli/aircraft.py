@@ -13,7 +13,7 @@ import time
 
 from .._util._files import atomic_dir
 from . import UserError, add_progress, check_output_dir, load, stage
-from ._flags import NoEffect, airframe_variant, fill_defaults, refuse_dt
+from ._flags import NoEffect, airframe_variant, fill_defaults, refuse_dt, rk4_step
 from ._options import seconds
 
 COMMAND = "aircraft"
@@ -82,8 +82,18 @@ def run(args) -> dict:
     plot_dir = check_output_dir(args.plot_dir, names, "--plot-dir")
     t0 = time.perf_counter()
     params, model = load(args)
-    refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto", args.zoh)[0],
-              "give --zoh (RK4 at the sampling instants) or drop --dt")
+    solver = True if model.switched else choose_solver(model, "auto", args.zoh)[0]
+    refuse_dt(dt_given, solver, "give --zoh (RK4 at the sampling instants) or drop --dt")
+    if solver in (True, "rk4"):  # inside RK4's stability limit, dividing the sample periods
+        args.dt = rk4_step(model, dt_given, args.dt, args.zoh or model.switched)
+    if not args.no_responses:  # the responses' size and step, named by the flags, before any work
+        import inspect
+
+        from ..simulation import check_run
+
+        spacing = inspect.signature(pitch_step).parameters["dt_out"].default
+        check_run(model, args.t_end, dt=args.dt, dt_out=spacing, zoh=args.zoh, error=UserError,
+                  labels={"t_end": "--t-end", "dt": "--dt", "dt_out": f"the responses' sample spacing {spacing:g} s"})
     out, plots = {}, {}
     for k, c in enumerate(conds):
         stage(args, "aircraft", k / len(conds), f"{c}: trim, margins" + ("" if args.no_responses else ", responses"))

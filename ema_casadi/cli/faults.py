@@ -11,6 +11,12 @@ PMSM's winding_short = on), so no case rebuilds it. Writes OUT/<file>.csv (one r
 case), OUT/<file>.json and OUT/<file>.png (coverage matrix and transients).
 --healthy-runs N adds the false-alarm count over N healthy runs with sensor noise and
 +-5 % friction and stiffness tolerances (the sweep engine, --jobs local workers).
+--thresholds runs the threshold study instead: per monitor, over thresholds from 0.1 to
+2 x its reference, the detection delay of every case (the model's confirmation logic
+on the case's statistic) and the false-alarm rate per flight hour (an extreme-value fit of the
+largest statistic of each of --healthy-runs N healthy runs, default 1000); writes
+OUT/<file>_thresholds.csv and .png, and the margins (largest healthy statistic against
+each threshold) in the JSON.
 --list prints the fault kinds the model injects and the monitors.
 Exit status: 2 for a mistake in a file or flag (unknown kind or target, onset outside
 the run, severity out of range, a threshold in the wrong unit), before any run.
@@ -29,14 +35,18 @@ from ._flags import NoEffect, new_output_folder, output_folder
 COMMAND = "faults"
 DEFAULT_FAULTS = REFERENCE_FAULTS
 DEFAULT_OUT = "out/faults"
+#: Healthy runs of --thresholds without --healthy-runs.
+STUDY_RUNS = 1000
 ORDER = 13
 HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detection per monitor, coverage"
 
 
 _LIST = NoEffect((), "with --list (it prints the fault kinds and monitors and stops)", lambda a: a.list)
-_HEALTHY = NoEffect((), "without --healthy-runs N (it sets the healthy runs)", lambda a: a.healthy_runs == 0)
+_HEALTHY = NoEffect((), "without --healthy-runs N or --thresholds (they run the healthy runs)",
+                    lambda a: a.healthy_runs == 0 and not a.thresholds)
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {"--faults": (), "--list": (),
+             "--thresholds": (NoEffect(("--list", "--thresholds"), _LIST.why, _LIST.when),),
              "--out": (NoEffect(("--list", "--out", "o"), _LIST.why, _LIST.when),),
              "--healthy-runs": (NoEffect(("--list", "--healthy-runs", "3"), _LIST.why, _LIST.when),),
              **{flag: (NoEffect(("--list", flag, "2"), _LIST.why, _LIST.when),
@@ -53,6 +63,9 @@ def add_arguments(p):
                    help="false alarms over N healthy runs (noise, +-5 %% friction and stiffness); default 0")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers of the healthy runs")
     p.add_argument("--seed", type=int, default=1, help="seed of the healthy runs' draws; default 1")
+    p.add_argument("--thresholds", action="store_true",
+                   help="threshold study: per monitor, detection delay per case and false alarms per flight hour "
+                        "over 0.1-2 x the reference thresholds (with --healthy-runs, default 1000)")
     p.add_argument("--list", action="store_true", help="print the fault kinds and monitors of the model and exit")
     add_progress(p)
 
@@ -92,21 +105,39 @@ def run(args) -> dict:
                               default=DEFAULT_FAULTS)
     stem = Path(args.faults).stem
     names = [f"{stem}.csv", f"{stem}.json", f"{stem}.png"]
+    if args.thresholds:
+        args.healthy_runs = args.healthy_runs or STUDY_RUNS
+        if args.healthy_runs < 3:
+            raise UserError(f"--healthy-runs {args.healthy_runs}: the threshold study fits the healthy maxima, "
+                            "give at least 3")
+        names += [f"{stem}_thresholds.csv", f"{stem}_thresholds.png"]
     top = None if args.list else new_output_folder(out, names)  # the outputs checked before any work
     params = load_parameters(args.model)
     if args.list:
         return _listing(params, dict(args.variant))
     try:
         spec = load_faults(args.faults, params, dict(args.variant))
-        res = run_faults(faults=spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
-                         progress=progress_of(args))
+        res = run_faults(faults=spec, healthy=0 if args.thresholds else args.healthy_runs, jobs=args.jobs,
+                         seed=args.seed, progress=progress_of(args))
+        study = None
+        if args.thresholds:
+            from ..faults import threshold_study
+
+            study = threshold_study(spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
+                                    progress=progress_of(args), table=res)
+            res.healthy = study.healthy
     except FaultError as exc:
         raise UserError(str(exc)) from None
     with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names[0])
-        res.to_json(folder / names[1])
+        if study is not None:
+            study.to_csv(folder / names[3])
+            study.plot(folder / names[4])
+        res.to_json(folder / names[1], extra=None if study is None else {"thresholds": study.summary()})
         res.plot(folder / names[2])
     summary = res.summary()
+    if study is not None:
+        summary["thresholds"] = study.summary()
     summary["written"] = [str(out / n) for n in names]
     return jsonable(summary)
 
@@ -136,5 +167,18 @@ def report(r: dict) -> None:
     if h:
         print(f"healthy runs: {h['false_alarms']} of {h['runs']} with a false alarm ({h['failed']} failed) in "
               f"{h['wall_time']:.1f} s on {h['jobs']} workers")
+    for latch, m in (h or {}).get("margins", {}).items():
+        print(f"margin {latch.removeprefix('latch_'):6s}: healthy max {m['healthy_max']:.4g} {m['unit']} against "
+              f"{m['threshold_param']} = {m['threshold']:.4g} ({m['margin']:.0%} below it)")
+    th = r.get("thresholds")
+    if th:
+        print(f"threshold study ({th['runs']} healthy runs of {th['run_duration_s']:g} s; {th['false_alarm_method']}):")
+        for latch, m in th["monitors"].items():
+            ref = next(x for x in m["rows"] if x["scale"] == 1.0) if any(x["scale"] == 1.0 for x in m["rows"]) \
+                else None
+            if ref is not None:
+                print(f"  {latch.removeprefix('latch_'):6s} at {m['threshold_param']} = {m['reference']:.4g}: "
+                      f"{ref['false_alarms_per_hour']:.3g} false alarms per flight hour, expected "
+                      f"{ref['expected_in_runs']:.3g} in the runs, observed {ref['observed_in_runs']}")
     for w in r.get("written", []):
         print(f"wrote {w}")

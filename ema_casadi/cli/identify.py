@@ -40,12 +40,6 @@ COMMAND = "identify"
 ORDER = 12
 #: The records' time-stamp field of --track when --stamp is not given.
 STAMP = "flight_hours"
-#: The health-trend records of --example-records: flight hours -> seal friction F_seal (N), 150 N new,
-#: +0.05 N per flight hour.
-TREND_RECORDS = {0: 150.0, 500: 175.0, 1000: 200.0, 1500: 225.0}
-#: The files --example-records writes (docs: guide, identification).
-EXAMPLE_FILES = ("steps.csv", "chirp.csv", "slews_push.csv", "slews_pull.csv",
-                 *(f"rig_{h:04d}h.csv" for h in TREND_RECORDS))
 HELP = "fit parameters to test records: estimates, 95 %% intervals, identifiability, health trend"
 
 
@@ -90,9 +84,9 @@ def add_arguments(p):
                    help="--track: a limit of a parameter (SI or with a unit: 0.1mm), repeatable")
     p.add_argument("--out", default=None, metavar="FILE.toml", help="the fitted parameter file")
     p.add_argument("--example-records", default=None, metavar="DIR",
-                   help="write the records the guide fits into the new folder DIR and stop: "
-                        f"{', '.join(EXAMPLE_FILES[:4])} (seven parameters away from the reference set) and "
-                        f"{EXAMPLE_FILES[4]} .. {EXAMPLE_FILES[-1]} (seal friction growing with flight_hours)")
+                   help="write the records the guide fits into the new folder DIR and stop: steps, chirp, "
+                        "slews_push, slews_pull (seven parameters away from the reference set) and rig_0000h .. "
+                        "rig_1500h (seal friction growing with flight_hours)")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="report folder (figures, summary.json, summary.md), assembled aside and moved in")
     add_progress(p)
@@ -262,26 +256,20 @@ def run(args) -> dict:
 
 
 def _write_examples(args) -> dict:
-    """--example-records DIR: the guide's records, simulated from the packaged set (or
-    MODEL.toml) with worn parameters and seeded sensor noise, written into a new folder
-    whole or not at all."""
-    from ..identification import recovery_records, synthetic_record
+    """--example-records DIR: the guide's records (identification.guide_records) from the
+    packaged set or MODEL.toml, into a new folder written whole or not at all."""
+    from ..identification import GUIDE_FILES, TREND_TRUTH, guide_records
     from ._flags import new_output_folder, output_folder
 
-    records = _split(args)
+    records, out = _split(args), Path(args.example_records)
     if records:
         raise UserError(f"--example-records writes records; {records[0]} given too (fit the records after)")
-    out = Path(args.example_records)
     if out.exists():
         raise UserError(f"--example-records {out}: exists; name a new folder")
-    top = new_output_folder(out, EXAMPLE_FILES, "--example-records")
-    params, _ = load(args)
+    top = new_output_folder(out, GUIDE_FILES, "--example-records")
     with output_folder(out, top) as folder:
-        paths, truth = recovery_records(params, folder)
-        for h, f_seal in TREND_RECORDS.items():
-            paths.append(synthetic_record(params, folder / f"rig_{h:04d}h.csv", t_end=0.5, x_cmd="step:1mm@0.02",
-                                          truth={"F_seal": f_seal}, seed=h, fields={"flight_hours": h}))
-    return {"model": args.model, "truth": truth, "trend_truth": {"F_seal": TREND_RECORDS},
+        paths, truth = guide_records(load(args)[0], folder)
+    return {"model": args.model, "truth": truth, "trend_truth": {"F_seal": TREND_TRUTH},
             "written": [str(out / p.name) for p in paths]}
 
 

@@ -92,9 +92,10 @@ def add_arguments(p):
                    help="df: describing function (and harmonic balance); shooting: the periodic orbit by "
                         "shooting with its Floquet multipliers, the describing function beside it; default df")
     p.add_argument("--continue", dest="cont", default=None, metavar="NAME=LO:HI",
-                   help="shooting: continue the orbit over a parameter from LO to HI (B in mm unless a unit is "
-                        "given, e.g. B=0:100um; other parameters in SI), the parameter's value set to the "
-                        "range's nearest end inside it when outside")
+                   help="shooting: continue the orbit over a parameter or a held input from LO to HI (B in mm "
+                        "unless a unit is given, e.g. B=0:100um; a gain such as K_i_x in SI; the load f_ext (or "
+                        "'load') in N, e.g. f_ext=0:2kN), the value set to the range's nearest end inside it "
+                        "when outside")
     p.add_argument("--csv", default=None, metavar="FILE.csv", help="shooting: the orbit over one period (CSV)")
     p.add_argument("--no-df", action="store_true", help="shooting: no describing function beside the orbit")
 
@@ -132,7 +133,10 @@ def _orders(text: str) -> tuple:
 
 
 def _continuation(args, params, model):
-    """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work."""
+    """``--continue NAME=LO:HI`` as (name, lo, hi) in SI, checked before any work: a
+    parameter (checked as a parameter file's value) or a driven input held constant (the
+    load ``f_ext`` or ``load``, in N unless a unit is given; inside the model's envelope)."""
+    from ..limitcycle import checked_inputs
     from ..model import checked
     from ..model.params import ParameterError
     from ..signals import SignalError, parse_quantity
@@ -144,17 +148,25 @@ def _continuation(args, params, model):
     name = name.strip()
     if not sep or not sep2 or not name:
         raise UserError(f"--continue {args.cont!r}: expected NAME=LO:HI (e.g. B=0:100um)")
-    if name not in model.param_names:
-        raise UserError(f"--continue: no parameter {name!r} in the model")
+    name = model.input_with("load") if name == "load" else name
+    info = model.input_info.get(name)
+    driven = info is not None and not info.injection
+    if name not in model.param_names and not driven:
+        raise UserError(f"--continue: no parameter or driven input {name!r} in the model")
     try:
-        if name == "B":
+        if driven:
+            lo, hi = (parse_quantity(v, info.kind, info.unit) for v in (lo_txt, hi_txt))
+            for v in (lo, hi):
+                checked_inputs(model, {name: v}, model.p())
+        elif name == "B":
             lo, hi = parse_quantity(lo_txt, "length", "mm"), parse_quantity(hi_txt, "length", "mm")
         else:
             lo, hi = float(lo_txt), float(hi_txt)
-        for v in (lo, hi):
+        for v in (lo, hi) if not driven else ():
             checked(name, v, f"--continue {name}={v:g}")
     except (SignalError, ValueError, ParameterError) as exc:
-        raise UserError(str(exc).split(", got ")[0]) from None
+        msg = str(exc).split(", got ")[0]
+        raise UserError(f"--continue: {msg.removeprefix('inputs: ')}" if driven else msg) from None
     if not lo < hi:
         raise UserError(f"--continue {args.cont}: need LO < HI")
     return name, lo, hi
@@ -163,19 +175,22 @@ def _continuation(args, params, model):
 def _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont):
     import numpy as np
 
-    from ..limitcycle import OrbitNotFound, confirm_cycle, continue_orbit, periodic_orbit
+    from ..limitcycle import OrbitNotFound, confirm_cycle, continue_orbit, input_value, periodic_orbit
 
     pred = next((c for c in cycles if c.get("stable")), cycles[0] if cycles else None)
     p = s["p"] if args.loop == "position" else model.p(**over)
-    if cont is not None:
+    held = {}
+    if cont is not None and cont[0] in model.param_names:
         k = list(model.param_names).index(cont[0])
         p = np.array(p, float).copy()
         p[k] = min(max(p[k], cont[1]), cont[2])
+    elif cont is not None:  # a held input: its value moved into the range the same way
+        held = {cont[0]: min(max(input_value(model, cont[0], p), cont[1]), cont[2])}
     out = {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
            "method": "shooting", "predicted": cycles, "written": []}
     stage(args, "limit-cycle", 0.3, "periodic orbit by shooting")
     try:
-        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred)
+        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred, inputs=held)
         out["orbit"] = orb.as_dict()
         if cont is not None:
             stage(args, "limit-cycle", 0.5, f"continuation over {cont[0]}")
@@ -207,8 +222,11 @@ def run(args) -> dict:
     csv = check_output_path(args.csv, (".csv",), "--csv")
     amps, freqs, t_end = _axes(args)
     orders = _orders(args.harmonics)
-    if not (0 < args.dt <= 1e-3 and 4 <= args.periods <= 200 and 0 <= t_end <= 7200):
-        raise UserError("--dt in (0, 1e-3] s, --periods 4..200, --t-end 0..7200 s")
+    for flag, value, ok, span in (("--dt", args.dt, 0 < args.dt <= 1e-3, "(0, 1e-3] s"),
+                                  ("--periods", args.periods, 4 <= args.periods <= 200, "4..200"),
+                                  ("--t-end", t_end, 0 <= t_end <= 7200, "0..7200 s")):
+        if not ok:
+            raise UserError(f"{flag} {value:g}: outside {span}")
     t0 = time.perf_counter()
     if args.loop == "aircraft":
         airframe_variant(args, "b747", ("b747", "transport"))
@@ -227,6 +245,11 @@ def run(args) -> dict:
                   labels={"t_end": "--t-end", "dt": "--dt", "dt_out": "its sample spacing"}, error=UserError)
     over = overrides(params, {"--k-i-x": ("K_i_x", args.k_i_x, 1.0), "--backlash": ("B", args.backlash, 1e-3)})
     cont = _continuation(args, params, model) if shooting else None
+    if shooting:
+        from ..limitcycle import unsupported
+
+        if (why := unsupported(model)) is not None:
+            raise UserError(f"--method shooting: {why}")
     s = setup(model, args.loop, model.p(**over), args.condition)
     if shooting and args.no_df:
         return _shooting(args, model, s, over, [], t_end, t0, plot, csv, cont)

@@ -71,6 +71,9 @@ def _check(args) -> Path:
     for flag, val in (("--dt", args.dt), ("--dt-out", args.dt_out), ("--csv-dt", args.csv_dt)):
         if not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
+    k = args.dt_out / args.dt
+    if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
+        raise UserError(f"--dt-out {args.dt_out:g} s must be a whole multiple of the step --dt {args.dt:g} s")
     if args.csv_dt < args.dt_out:
         raise UserError(f"--csv-dt ({args.csv_dt} s) must not be shorter than --dt-out ({args.dt_out} s)")
     if not args.out.strip():

@@ -42,10 +42,15 @@ from ..simulation import (
     check_run,
     check_switched,
     choose_solver,
+    peak_load,
+    rk4_step_limit,
+    sample_periods,
+    sampling_split,
     simulate,
 )
 from . import UserError, add_progress, check_output_path, load, progress_of
 from ._flags import NoEffect, no_effect, refuse_dt
+from ._flags import given as flag_given
 from ._options import seconds
 
 COMMAND = "simulate"
@@ -54,8 +59,13 @@ COMMAND = "simulate"
 COMMAND_STROKES = 3.0
 #: The rod command when --x-cmd is not given (a model that takes x_cmd).
 DEFAULT_X_CMD = "step:1mm@0.01"
-#: The RK4 step when --dt is not given (s).
+#: The largest RK4 step when --dt is not given (s): the default is the largest round
+#: step (1, 1.25, 2, 2.5, 5 x 10^k s) under 0.8 x RK4's stability limit on the model at
+#: the run's largest load (:func:`~ema_casadi.simulation.rk4_step_limit`) and at most this,
+#: dividing every ECU sample period with --zoh.
 DEFAULT_DT = 5e-6
+#: The default step's fraction of the stability limit.
+DT_MARGIN = 0.8
 ORDER = 2
 HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
@@ -73,7 +83,10 @@ def add_arguments(p):
                         "(lengths: bare numbers in mm; other inputs in their SI unit); repeatable")
     p.add_argument("--t-end", type=seconds, default=0.2, help="end time (s); default 0.2")
     p.add_argument("--dt", type=seconds, default=None,
-                   help=f"RK4 step (s), where rk4 runs (refused where another solver runs); default {DEFAULT_DT:g}")
+                   help="RK4 step (s), where rk4 runs (refused where another solver runs, and above RK4's stability "
+                        "limit on the model at the run's largest load; with --zoh it must divide every ECU sample "
+                        f"period); default the largest round step under {DT_MARGIN:g} x that limit, at most "
+                        f"{DEFAULT_DT:g}")
     p.add_argument("--dt-out", type=seconds, default=None,
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
@@ -144,17 +157,13 @@ def run(args) -> dict:
                       ("--event-tol", args.event_tol)):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
+    if flag_given(args, "--event-tol") and not args.event_tol < args.t_end:
+        raise UserError(f"--event-tol {args.event_tol:g} s: not below --t-end {args.t_end:g} s (it locates the "
+                        "switching instants inside the run)")
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
-    refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
-    if not model.hybrid:
-        no_effect(args, "--event-tol", "(the stick/slip instants of hybrid friction): this model has none")
-    if model.switched:
-        no_effect(args, "--zoh", "(a sampled ECU): with a switched model the ECU is always sampled")
-    else:
-        no_effect(args, "--instantaneous", "(the power and loss columns' sampled values): the model does not "
-                  "switch, its columns are instantaneous already")
-    args.dt = DEFAULT_DT if args.dt is None else args.dt
+    _refuse_idle(args, model)
+    user_dt, args.dt = args.dt, DEFAULT_DT if args.dt is None else args.dt
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
         if args.solver not in ("rk4", "auto"):
             raise UserError(f"--solver {args.solver}: the model switches (inverter={model.variants['inverter']}); "
@@ -182,7 +191,9 @@ def run(args) -> dict:
     except ValueError as exc:
         raise UserError(f"--f-ext {exc}") from None
     others = _named_inputs(args.input, model, stroke, args.t_end)
-    given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})
+    given = _checked(args, model, dt_out, {"x_cmd": x_cmd, "f_ext": f_ext, **others})  # (a smaller default dt
+    if model.switched or choose_solver(model, args.solver, args.zoh)[0] == "rk4":  # samples them finer still)
+        args.dt = _step(args, model, user_dt, dt_out, {n: s for n, s in given.items() if s is not None})
     t0 = time.perf_counter()
     try:
         res = simulate(model, args.t_end, dt=args.dt, dt_out=dt_out, solver=args.solver,
@@ -219,6 +230,41 @@ def run(args) -> dict:
         **energy_report(model, res),
         "written": written,
     }
+
+
+def _step(args, model, user_dt, dt_out, signals) -> float:
+    """The RK4 step: --dt checked against RK4's stability limit at the run's largest
+    load (refused above it, naming the limit and the mode) and with --zoh against the
+    ECU's sample periods; without --dt the largest round step inside both
+    (:data:`DEFAULT_DT`, :data:`DT_MARGIN`), checked against --t-end and --dt-out."""
+    sampled = args.zoh or model.switched
+    limit = rk4_step_limit(model, load=peak_load(model, signals, args.t_end), zoh=sampled)
+    if user_dt is not None:
+        text = limit.message(user_dt, "--dt")
+        if text is not None:
+            raise UserError(text)
+        if args.zoh and not model.switched:  # split at the instants; refused where a step holds two
+            sampling_split(model, user_dt, model.p(), UserError, "--dt")
+        return user_dt
+    periods = sample_periods(model).values() if args.zoh else ()
+    dt = limit.inside(periods, DT_MARGIN, DEFAULT_DT)
+    if not model.switched:
+        check_run(model, args.t_end, dt=dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
+                  event_tol=args.event_tol, labels={**FLAGS, "dt": f"the default step (inside RK4's stability limit "
+                                                                   f"{limit.dt_max:.3g} s)"}, error=UserError)
+    return dt
+
+
+def _refuse_idle(args, model) -> None:
+    """The flags the model leaves without effect (NO_EFFECT's rules that need it)."""
+    refuse_dt(args.dt, True if model.switched else choose_solver(model, args.solver, args.zoh)[0])
+    if not model.hybrid:
+        no_effect(args, "--event-tol", "(the stick/slip instants of hybrid friction): this model has none")
+    if model.switched:
+        no_effect(args, "--zoh", "(a sampled ECU): with a switched model the ECU is always sampled")
+    else:
+        no_effect(args, "--instantaneous", "(the power and loss columns' sampled values): the model does not "
+                  "switch, its columns are instantaneous already")
 
 
 def _plot(args, model, res, given, plot) -> str:

@@ -12,7 +12,17 @@ and fits it (:mod:`._verify`).
 """
 
 from ._design import DEFAULT_FREE, SPREAD, DesignError, DesignFailed, design_experiment, read_prior
-from ._excitation import RAMP, TAPER, Segment, Test, realise, segment_command, standard_test
+from ._excitation import (
+           RAMP,
+           STANDARD_PARTS,
+           TAPER,
+           Segment,
+           Test,
+           output_names,
+           realise,
+           segment_command,
+           standard_test,
+)
 from ._fisher import PHYSICAL, Information, information, intervals, limit_usage
 from ._library import AMPLITUDES, BANDS, LIMIT_TOLERANCE, LOAD_LEVELS, SLEWS, STROKE_MARGIN, admissible, candidates
 from ._optimise import CRITERIA, criterion, efficient_rounding, optimal_weights
@@ -20,7 +30,8 @@ from ._result import DesignResult
 from ._verify import START_SPREAD
 
 __all__ = ["design_experiment", "DesignResult", "DesignError", "DesignFailed", "read_prior", "DEFAULT_FREE", "SPREAD",
-           "Segment", "Test", "realise", "segment_command", "standard_test", "RAMP", "TAPER",
+           "Segment", "Test", "STANDARD_PARTS", "output_names", "realise", "segment_command", "standard_test",
+           "RAMP", "TAPER",
            "Information", "information", "intervals", "limit_usage", "PHYSICAL",
            "candidates", "admissible", "BANDS", "SLEWS", "LOAD_LEVELS", "AMPLITUDES", "STROKE_MARGIN",
            "LIMIT_TOLERANCE", "CRITERIA", "criterion", "optimal_weights", "efficient_rounding", "START_SPREAD"]

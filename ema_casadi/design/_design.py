@@ -188,6 +188,14 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
     return _run(req, progress, t_wall)
 
 
+def _peak_speed(model, infos) -> float:
+    """The rod's largest predicted speed over the draws as a fraction of the rate limit
+    (the ECU clips the speed command there; the rod may overshoot it briefly)."""
+    v = model.output_with("rod_velocity")
+    limit = model.limit_values().get("rod_speed", math.inf)
+    return float(max(np.max(np.abs(r["y"][v])) for i in infos for r in i.runs) / limit)
+
+
 def _request(params, free, duration, criterion, weights, stroke, max_load, sigma, channels, prior, draws, spread,
              segment, rate, library, variants, seed) -> SimpleNamespace:
     """Every argument checked (DesignError naming the first mistake), before any run."""
@@ -311,7 +319,8 @@ def _run(req, progress: bool, t_wall: float):
             "additive_criterion": opt["value"], "segment": segment, "rate": rate, "duration": duration,
             "stroke": stroke, "max_load": max_load, "sigma": sig, "variant_overrides": dict(variants or {}),
             "time_candidates": t_cand, "time_optimiser": t_opt, "wall_time": time.perf_counter() - t_wall,
-            "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage}}
+            "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage},
+            "rod_speed_peak": {"designed": _peak_speed(model, infos), "standard": _peak_speed(model, std_infos)}}
     return DesignResult(params=params, model=model, free=fr, test=test, standard=standard, M=M, M_standard=M_std,
                         predicted=intervals(M, fr, fr.theta0), standard_predicted=intervals(M_std, fr, fr.theta0),
                         usage=usage, segments=table, thetas=thetas, info=info, runs=infos[0].runs)

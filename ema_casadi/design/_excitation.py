@@ -31,7 +31,11 @@ RAMP = 0.1
 #: Fraction of a segment over which the command is tapered in, and again out.
 TAPER = 0.08
 
-__all__ = ["Segment", "Test", "segment_command", "realise", "standard_test", "RAMP", "TAPER"]
+#: The standard test's records and their shares of its length.
+STANDARD_PARTS = (("steps", 0.24), ("chirp", 0.32), ("slews_push", 0.24), ("slews_pull", 0.20))
+
+__all__ = ["STANDARD_PARTS", "output_names", "Segment", "Test", "segment_command", "realise", "standard_test", "RAMP",
+           "TAPER"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,12 @@ class Test:
     def duration(self) -> float:
         """Total length of the records (s)."""
         return float(sum(r["t"][-1] for r in self.records))
+
+
+def output_names() -> tuple:
+    """The files a design's output folder holds (:meth:`DesignResult.write`)."""
+    return ("design.csv", *(f"standard_{n}.csv" for n, _ in STANDARD_PARTS), "summary.json", "comparison.md",
+            "design.png")
 
 
 def _taper(s: np.ndarray) -> np.ndarray:
@@ -202,7 +212,7 @@ def standard_test(duration: float, stroke: float, max_load: float, rate: float, 
     """
     from ..signals import Signal
 
-    parts = (("steps", 0.24), ("chirp", 0.32), ("slews_push", 0.24), ("slews_pull", 0.20))
+    parts = STANDARD_PARTS
     records = []
     for name, share in parts:
         T = duration * share

@@ -181,6 +181,6 @@ def limit_usage(model, y: dict, pv, stroke: float | None = None, max_load: float
         out[lim.name] = float(np.max(v) / lim.limit(P))
     if stroke is not None:
         out["stroke"] = float(np.max(np.abs(y[model.output_with("rod_position")])) / stroke)
-    if max_load is not None:
+    if max_load:
         out["load"] = float(np.max(np.abs(y[model.input_with("load")])) / max_load)
     return out

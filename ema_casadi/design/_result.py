@@ -59,6 +59,15 @@ class DesignResult:
                 f"{', '.join(self.free.names)}: interval widths {c['geometric_mean_ratio']:.3g}x narrower "
                 f"(geometric mean) than {self.standard.name})")
 
+    def _repr_html_(self) -> str:
+        from .._util._notebook import html_summary
+
+        c = self.comparison()
+        return html_summary("DesignResult", {"criterion": self.info["criterion"],
+                                             "duration": f"{self.test.duration:g} s",
+                                             "free": ", ".join(self.free.names),
+                                             "narrower": f"{c['geometric_mean_ratio']:.3g}x than {self.standard.name}"})
+
     def comparison(self) -> dict:
         """The designed against the standard test: per parameter the predicted relative
         95 % interval widths and their ratio, the geometric mean of the ratios, the
@@ -140,31 +149,33 @@ class DesignResult:
 
         return design_figure(self, path)
 
-    def write(self, folder) -> list:
-        """Write the test into ``folder``: ``design.csv`` (time, command, load: the table
-        the rig controller plays, the layout ``ema simulate`` and ``ema identify`` read),
-        the standard test's records ``standard_<name>.csv``, ``summary.json``,
-        ``comparison.md`` and ``design.png``. Returns the paths.
+    def write(self, folder) -> Path:
+        """Write the test into ``folder`` (assembled aside and moved in whole):
+        ``design.csv`` (time, command, load: the table the rig controller plays, the
+        layout ``ema simulate`` plays back as ``design.csv:x_cmd`` and ``ema identify``
+        reads with the measured columns added), the standard test's records
+        ``standard_<name>.csv``, ``summary.json``, ``comparison.md`` and ``design.png``.
 
         Parameters
         ----------
         folder : str or Path
-            The folder (created if needed).
+            The folder (replaced whole).
         """
-        folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
+        from .._util._files import atomic_dir
+
         units = self.model.units
-        paths = []
-        for prefix, test in (("design", self.test), ("standard_", self.standard)):
-            for rec in test.records:
-                cols = list(rec["inputs"])
-                name = f"{prefix}.csv" if prefix == "design" else f"{prefix}{rec['name']}.csv"
-                data = np.column_stack([rec["t"], *(rec["inputs"][c] for c in cols)])
-                paths.append(write_series(folder / name, ["time", *cols], ["s", *(units[c] for c in cols)], data))
-        paths.append(write_text(folder / "summary.json", json.dumps(self.to_json(), indent=1) + "\n"))
-        paths.append(write_text(folder / "comparison.md", self.table() + "\n"))
-        paths.append(self.plot(folder / "design.png"))
-        return paths
+        with atomic_dir(folder) as tmp:
+            tmp = Path(tmp)
+            for prefix, test in (("design", self.test), ("standard_", self.standard)):
+                for rec in test.records:
+                    cols = list(rec["inputs"])
+                    name = f"{prefix}.csv" if prefix == "design" else f"{prefix}{rec['name']}.csv"
+                    data = np.column_stack([rec["t"], *(rec["inputs"][c] for c in cols)])
+                    write_series(tmp / name, ["time", *cols], ["s", *(units[c] for c in cols)], data)
+            write_text(tmp / "summary.json", json.dumps(self.to_json(), indent=1) + "\n")
+            write_text(tmp / "comparison.md", self.table() + "\n")
+            self.plot(tmp / "design.png")
+        return Path(folder)
 
     def verify(self, n: int = 20, *, seed: int = 0, jobs: int | None = None, progress: bool = False) -> dict:
         """Simulate the designed test ``n`` times with the sensor noise, fit each with

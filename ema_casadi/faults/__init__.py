@@ -17,14 +17,18 @@ declarations (:func:`fault_kinds`); the monitors are its ``alarm`` outputs.
 
 Layout: ``_spec`` reads and checks the fault file; ``_run`` runs the cases and the
 healthy runs (through :mod:`ema_casadi.sweeps`); ``_result`` holds the table, the
-coverage and the files; the figure is drawn by ``plots._faults``.
+coverage and the files; ``_thresholds`` the threshold study (detection time and
+false-alarm rate per threshold, ``ema faults --thresholds``); the figures are drawn by
+``plots._faults``.
 """
 
 from ._result import FaultResult
 from ._run import DEFAULT_FAULTS, HEALTHY_TOLERANCE, healthy_runs, run_faults
 from ._spec import FaultCase, FaultError, FaultSpec, fault_kinds, fault_variants, load_faults, parse_faults
+from ._thresholds import SCALES, ThresholdStudy, detection_time, threshold_study
 
 __all__ = [
     "run_faults", "healthy_runs", "load_faults", "parse_faults", "fault_kinds", "fault_variants", "FaultSpec",
     "FaultCase", "FaultResult", "FaultError", "DEFAULT_FAULTS", "HEALTHY_TOLERANCE",
+    "threshold_study", "ThresholdStudy", "detection_time", "SCALES",
 ]

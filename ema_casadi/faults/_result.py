@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._notebook import Summarised
+
 __all__ = ["FaultResult"]
 
 
@@ -16,8 +18,8 @@ def _first(t, flag):
     return float(t[int(np.argmax(flag))]) if np.any(flag) else None
 
 
-@dataclass
-class FaultResult:
+@dataclass(repr=False)
+class FaultResult(Summarised):
     """Per case: detection time of every monitor, peak deviation, status.
 
     Attributes
@@ -47,6 +49,12 @@ class FaultResult:
     runs: list = field(repr=False, default_factory=list)
     info: dict = field(default_factory=dict)
     healthy: dict | None = None
+
+    def _facts(self) -> dict:
+        return {"cases": len(self.rows), "monitors": len(self.monitors),
+                "failed": sum(r["status"] != "ok" for r in self.rows),
+                "false_alarms_no_fault": ", ".join(self.false_alarms()) or "none",
+                "healthy_runs": None if not self.healthy else self.healthy.get("runs")}
 
     @classmethod
     def from_runs(cls, spec, model, runs, info) -> FaultResult:
@@ -121,10 +129,12 @@ class FaultResult:
         return [m for m in self.monitors if self.rows[0][f"detected_{m}_s"] is not None]
 
     def summary(self) -> dict:
-        """The JSON result: rows, coverage, false alarms, healthy runs, info."""
+        """The JSON result: rows, coverage, false alarms, healthy runs (their margins,
+        without the per-run maxima), info."""
+        healthy = None if self.healthy is None else {k: v for k, v in self.healthy.items() if k != "maxima"}
         return {"cases": len(self.rows), "monitors": list(self.monitors), "rows": self.rows,
                 "coverage_s": self.coverage(), "false_alarms_no_fault": self.false_alarms(),
-                "healthy_runs": self.healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
+                "healthy_runs": healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
                 "wall_time": self.info.get("wall_time"), "variants": self.info.get("model_variants")}
 
     def to_csv(self, path: str | Path) -> Path:
@@ -139,17 +149,19 @@ class FaultResult:
 
         return write_table(path, self.rows, self.columns)
 
-    def to_json(self, path: str | Path) -> Path:
+    def to_json(self, path: str | Path, extra: dict | None = None) -> Path:
         """Write :meth:`summary` as JSON, atomically.
 
         Parameters
         ----------
         path : str or Path
             The JSON file.
+        extra : dict, optional
+            More entries (the threshold study's).
         """
         from .._util._files import write_text
 
-        return write_text(path, json.dumps(self.summary(), indent=1, default=_plain) + "\n")
+        return write_text(path, json.dumps({**self.summary(), **(extra or {})}, indent=1, default=_plain) + "\n")
 
     def plot(self, path: str | Path | None = None):
         """The coverage matrix (cases x monitors, detection delay in ms) beside the

@@ -105,7 +105,10 @@ def run_faults(params: Parameters | None = None, faults=None, *, variants: dict 
     spec = _spec(params, faults, variants)
     healthy = integer(healthy, "healthy", FaultError, minimum=0)
     t0 = time.perf_counter()
+    from ..simulation import sampling_split
+
     model = build_model(spec.params, spec.variants)
+    sampling_split(model, spec.scenario["dt"], model.p(), FaultError, f"{spec.source} [scenario] dt")
     start = _start(model, spec)
     first = _one(model, spec, spec.cases[0], start)  # compiled once before the threads share the model
     with ThreadPoolExecutor(2, thread_name_prefix="ema-faults") as pool:
@@ -118,7 +121,7 @@ def run_faults(params: Parameters | None = None, faults=None, *, variants: dict 
 
 
 def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int = 1,
-                 tolerance: float | None = None, progress: bool = False) -> dict:
+                 tolerance: float | None = None, progress: bool = False, statistics: bool = True) -> dict:
     """False alarms over ``n`` healthy runs of the fault file's scenario (its
     ``[healthy]`` duration and step), through the sweep engine: sensor noise (a seed
     per run for every noise sequence) and the ``[healthy] vary`` parameters (the
@@ -126,8 +129,11 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     within +-``tolerance``; no fault injection.
 
     Returns a dict: ``runs``, ``false_alarms`` (runs in which some monitor latched),
-    ``by_monitor`` (latched runs per monitor), ``failed`` runs, ``wall_time`` and
-    ``jobs``.
+    ``by_monitor`` (latched runs per monitor), ``failed`` runs, ``wall_time``, ``jobs``,
+    ``duration`` (s of one run) and with ``statistics`` the monitors' margins:
+    ``maxima`` (statistic output -> its largest value in each completed run) and
+    ``margins`` (latch -> ``statistic``, ``threshold`` (its parameter's value),
+    ``healthy_max``, ``margin`` = 1 - healthy_max / threshold).
 
     Parameters
     ----------
@@ -144,6 +150,9 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
         ``[healthy] tolerance`` (HEALTHY_TOLERANCE).
     progress : bool
         Progress on stderr.
+    statistics : bool
+        Also keep the largest value of every monitor statistic per run (samples every
+        ~0.1 ms instead of 1 ms).
     """
     from ..sweeps import make_sweep, sweep
 
@@ -160,6 +169,7 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     v = spec.healthy_variants or spec.variants
     model = build_model(spec.params, v)
     alarms = model.outputs_of("alarm")
+    stats = model.outputs_of("statistic") if statistics else ()
     # a seed per run for every noise sequence (the parameters the noise inputs name)
     seeds = sorted({i.seed for i in model.input_info.values() if i.noise is not None and i.seed})
     tol = {"distribution": "uniform", "low": 1 - tolerance, "high": 1 + tolerance, "relative": True}
@@ -170,15 +180,29 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     # a sweep object from the scenario's signals as they were read (by role; one the model lacks
     # left out; a chirp keeps the scenario's duration), no file text written and parsed back
     signals = {role: s for role, s in spec.scenario["signals"].items() if model.inputs_with(role)}
-    sw = make_sweep(spec.params, {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": h["dt_out"],
+    dt_out = min(h["dt_out"], h["dt"] * max(1, math.ceil(1e-4 / h["dt"] - 1e-9))) if stats else h["dt_out"]
+    metrics = {"peak": {"signals": list(alarms)}, **({"maximum": {"signals": list(stats)}} if stats else {})}
+    sw = make_sweep(spec.params, {"duration": h["duration"], "solver": "rk4", "dt": h["dt"], "dt_out": dt_out,
                                   "zoh": True, "signals": signals},
-                    {"peak": {"signals": list(alarms)}}, parameters=parameters, variants=v, seed=int(seed),
+                    metrics, parameters=parameters, variants=v, seed=int(seed),
                     samples=n, name="healthy runs", source=f"{spec.source} (healthy runs)")
     res = sweep(sw, jobs=jobs, progress=progress)
     ok = [r for r in res.rows if r["status"] == "ok"]
     by = {a: sum(1 for r in ok if r[f"peak_{a}"] >= 0.5) for a in alarms}
     false = sum(1 for r in ok if any(r[f"peak_{a}"] >= 0.5 for a in alarms))
-    return {"runs": n, "false_alarms": false, "by_monitor": by, "failed": len(res.rows) - len(ok),
-            "wall_time": res.info["wall_time"], "jobs": res.info["jobs"], "tolerance": tolerance,
-            "worst_latch": {a: float(max((r[f"peak_{a}"] for r in ok), default=math.nan)) for a in alarms},
-            "first_failure": next((r["reason"] for r in res.rows if r["status"] != "ok"), None)}
+    out = {"runs": n, "false_alarms": false, "by_monitor": by, "failed": len(res.rows) - len(ok),
+           "wall_time": res.info["wall_time"], "jobs": res.info["jobs"], "tolerance": tolerance,
+           "duration": h["duration"],
+           "worst_latch": {a: float(max((r[f"peak_{a}"] for r in ok), default=math.nan)) for a in alarms},
+           "first_failure": next((r["reason"] for r in res.rows if r["status"] != "ok"), None)}
+    if stats:
+        out["maxima"] = {s: [float(r[f"max_{s}"]) for r in ok] for s in stats}
+        P = model.pdict()
+        out["margins"] = {}
+        for s in stats:
+            o = model.output_info[s]
+            top = max(out["maxima"][s], default=math.nan)
+            ref = float(getattr(P, o.threshold))
+            out["margins"][o.alarm] = {"statistic": s, "unit": o.unit, "threshold": ref, "threshold_param": o.threshold,
+                                       "healthy_max": top, "margin": 1 - top / ref if ref else math.nan}
+    return out

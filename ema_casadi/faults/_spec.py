@@ -6,8 +6,9 @@ Layout (TOML, SI units; ``models/faults_reference.toml`` is the reference)::
     duration = 0.6            # s
     x_cmd = "sine:5mm@1"      # signals as for ema simulate (bare numbers: mm, N)
     f_ext = "5kN"
-    dt = 1e-5                 # RK4 step (s); the ECU is sampled at its rates
+    dt = 1.25e-5              # RK4 step (s): divides every ECU sample period
     sensor = "real"           # what the ECU reads: ideal | real
+    friction = "hybrid"       # any variant key chooses the model
 
     [[fault]]
     kind = "jam"              # one of the model's fault kinds (ema faults --list)
@@ -359,6 +360,13 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
         raise FaultError(f"{src} [monitor]: {exc}") from None
 
 
+#: The RK4 step of a scenario without ``dt`` (s): divides the reference ECU's sample
+#: periods (62.5, 125, 500 us); inside RK4's stability limit with hybrid friction (0.26
+#: ms on the reference set), above it with the smooth law held under load (a warning
+#: with the limit, :func:`~ema_casadi.simulation.rk4_step_limit`).
+DEFAULT_DT = 1.25e-5
+
+
 def _whole(spacing: float, dt: float) -> float:
     """The smallest whole number of steps dt at least ``spacing`` long (s)."""
     return dt * max(1, math.ceil(spacing / dt - 1e-9))
@@ -375,7 +383,7 @@ def _positive(where, value, default=None) -> float:
 def _scenario(table: dict, params: Parameters, src: str, aircraft: bool = False) -> dict:
     where = f"{src} [scenario]"
     out = {"duration": _positive(f"{where} duration", table.get("duration"), 0.6),
-           "dt": _positive(f"{where} dt", table.get("dt"), 1e-5), "condition": None}
+           "dt": _positive(f"{where} dt", table.get("dt"), DEFAULT_DT), "condition": None}
     out["dt_out"] = _positive(f"{where} dt_out", table.get("dt_out"), _whole(1e-4, out["dt"]))
     if aircraft:
         from ..aircraft import CONDITIONS

@@ -49,6 +49,7 @@ import numpy as np
 
 from .._util._checks import describe, instance, number
 from .._util._kwargs import check_keywords, keywords_of
+from .._util._notebook import Summarised
 from ..linearisation import (
     LOOPS,
     OUTER,
@@ -172,8 +173,8 @@ def _select(sys, input, output):
 
 
 # ---------------------------------------------------------------------------------
-@dataclass
-class LoopMargins:
+@dataclass(repr=False)
+class LoopMargins(Summarised):
     """Stability margins of one loop (see the module docstring for definitions).
 
     Frequencies in Hz, gains in dB, phases in degrees, delays in s.
@@ -233,6 +234,10 @@ class LoopMargins:
     outer: str = "closed"
     gm_down_db: float = math.inf
     f_down_hz: float | None = None
+
+    def _facts(self) -> dict:
+        return {"loop": self.loop, "gm": f"{self.gm_db:.3g} dB", "pm": f"{self.pm_deg:.3g} deg",
+                "disk": f"{self.disk_margin:.3g}", "stable": self.stable, "outer": self.outer}
 
     @property
     def conditionally_stable(self) -> bool:

@@ -23,12 +23,23 @@ from ._plot import report_names
 from ._problem import Free, Predictor, free_parameters
 from ._records import MAX_BYTES, IdentificationError, Record, read_record
 from ._result import CORRELATED, WIDE, Z95, IdentResult, autocorrelation, uncertainty
-from ._synthetic import EXAMPLE_TRUTH, RECOVERY_TRUTH, SENSOR_NOISE, example_records, recovery_records, synthetic_record
+from ._synthetic import (
+    EXAMPLE_TRUTH,
+    GUIDE_FILES,
+    RECOVERY_TRUTH,
+    SENSOR_NOISE,
+    TREND_TRUTH,
+    example_records,
+    guide_records,
+    recovery_records,
+    synthetic_record,
+)
 from ._track import TrackResult, report_text, track, trend
 
 __all__ = ["identify", "IdentResult", "IdentificationError", "FitFailed", "Record", "read_record", "MAX_BYTES",
            "WIDE", "CORRELATED", "autocorrelation", "SENSOR_NOISE", "synthetic_record", "example_records",
-           "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "profile", "validate", "CHI2_95", "track", "trend",
+           "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "guide_records", "TREND_TRUTH", "GUIDE_FILES",
+           "profile", "validate", "CHI2_95", "track", "trend",
            "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record",
            "compare", "Comparison", "combinations", "bic", "MAX_FITS", "report_names", "report_text",
            # what experiment design builds on: the free-parameter set, the predictor with exact

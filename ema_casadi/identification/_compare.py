@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._util._checks import nearest
+from .._util._notebook import Summarised
 from ._fit import FitFailed, identify
 from ._records import IdentificationError
 
@@ -26,8 +27,8 @@ from ._records import IdentificationError
 MAX_FITS = 8
 
 
-@dataclass
-class Comparison:
+@dataclass(repr=False)
+class Comparison(Summarised):
     """The fits of every combination, best first.
 
     Attributes
@@ -41,6 +42,10 @@ class Comparison:
 
     rows: list = field(default_factory=list)
     results: list = field(default_factory=list)
+
+    def _facts(self) -> dict:
+        return {"structures": len(self.rows), "adequate": sum(bool(r.get("adequate")) for r in self.rows),
+                "chosen": self.rows[0]["variants"] if self.rows else None}
 
     @property
     def best(self):

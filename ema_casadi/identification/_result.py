@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._files import write_text
+from .._util._notebook import Summarised
 from ._data import plain
 from ._write import write_fitted
 
@@ -203,8 +204,8 @@ def autocorrelation(e, lags: int) -> np.ndarray:
     return np.array([float(e[: len(e) - k] @ e[k:]) / d for k in range(L + 1)])
 
 
-@dataclass
-class IdentResult:
+@dataclass(repr=False)
+class IdentResult(Summarised):
     """What :func:`~ema_casadi.identification.identify` found.
 
     Attributes
@@ -292,6 +293,11 @@ class IdentResult:
     std_textbook: dict = field(default_factory=dict)
     robust: dict = field(default_factory=dict)
     misfits: list = field(default_factory=list, repr=False)
+
+    def _facts(self) -> dict:
+        return {"fitted": ", ".join(self.names), "held": ", ".join(self.held) or None,
+                "adequate": self.adequacy.get("adequate"), "records": len(self.info.get("records", [])) or None,
+                "evaluations": self.info.get("evaluations")}
 
     @classmethod
     def _build(cls, *, model, params, free, theta, unc, out, records, preds, errors, held, wall_time, evaluations,

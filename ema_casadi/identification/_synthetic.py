@@ -16,7 +16,7 @@ from ..signals import Signal, parse_signal
 from ..simulation import as_signal, simulate
 
 __all__ = ["SENSOR_NOISE", "synthetic_record", "example_records", "EXAMPLE_TRUTH", "recovery_records",
-           "RECOVERY_TRUTH"]
+           "RECOVERY_TRUTH", "guide_records", "TREND_TRUTH", "GUIDE_FILES"]
 
 #: The worked example's actuator "as built": seal friction +40 %, viscous friction +50 %,
 #: rotor inertia +25 %, flux linkage -20 % against the reference set.
@@ -152,4 +152,36 @@ def recovery_records(params, folder, truth: dict | None = None, seed: int = 0,
     for k, (name, (t_end, x_cmd, f_ext)) in enumerate(RECOVERY_RECORDS.items()):
         paths.append(synthetic_record(params, Path(folder) / f"{name}.csv", t_end=t_end, x_cmd=x_cmd, f_ext=f_ext,
                                       truth=truth, seed=seed + k, channels=channels))
+    return paths, truth
+
+
+#: The health-trend records of :func:`guide_records`: flight hours -> seal friction F_seal
+#: (N), 150 N new, +0.05 N per flight hour (the 300 N limit crossed at 3000 h).
+TREND_TRUTH = {0: 150.0, 500: 175.0, 1000: 200.0, 1500: 225.0}
+#: The files :func:`guide_records` writes (``ema identify --example-records DIR``).
+GUIDE_FILES = (*(f"{name}.csv" for name in RECOVERY_RECORDS), *(f"rig_{h:04d}h.csv" for h in TREND_TRUTH))
+
+
+def guide_records(params, folder) -> tuple[list, dict]:
+    """The records the identification guide fits (``ema identify --example-records``):
+    the seven-parameter case of :func:`recovery_records` and four 0.5 s records of a
+    health trend, ``rig_<hours>h.csv`` with a ``# flight_hours`` field and the seal
+    friction of :data:`TREND_TRUTH`, each with sensor noise of its own seed.
+
+    Parameters
+    ----------
+    params : Parameters
+        The reference set.
+    folder : str or Path
+        Where the CSV files go (:data:`GUIDE_FILES`).
+
+    Returns
+    -------
+    paths, truth : list of Path, dict
+        The files and the truth of the seven-parameter case (the trend's: :data:`TREND_TRUTH`).
+    """
+    paths, truth = recovery_records(params, folder)
+    for h, f_seal in TREND_TRUTH.items():
+        paths.append(synthetic_record(params, Path(folder) / f"rig_{h:04d}h.csv", t_end=0.5, x_cmd="step:1mm@0.02",
+                                      truth={"F_seal": f_seal}, seed=h, fields={"flight_hours": h}))
     return paths, truth

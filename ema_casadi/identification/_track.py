@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._files import atomic_dir
+from .._util._notebook import Summarised
 from ..model.assembly import build_model
 from ._data import plain
 from ._fit import identify
@@ -18,8 +19,8 @@ from ._records import IdentificationError, read_record
 from ._result import Z95
 
 
-@dataclass
-class TrackResult:
+@dataclass(repr=False)
+class TrackResult(Summarised):
     """Estimates of successive records against their time stamp, and the trends.
 
     Attributes
@@ -40,6 +41,9 @@ class TrackResult:
     stamp: str
     rows: list
     trends: dict = field(default_factory=dict)
+
+    def _facts(self) -> dict:
+        return {"stamp": self.stamp, "records": len(self.rows), "trends": ", ".join(self.trends) or None}
 
     def to_dict(self) -> dict:
         """Plain data (``--json``)."""

@@ -8,11 +8,12 @@ Floquet multipliers (:func:`periodic_orbit`)."""
 from ..plots._limitcycle import plot_bifurcation, plot_nichols, plot_orbit
 from ._continuation import Continuation, continue_orbit
 from ._df import DescribingFunction, break_response, cycle_of, describing_function, predict, refine
+from ._flow import input_value
 from ._hb import harmonic_balance, harmonic_orders
-from ._orbit import OrbitNotFound, PeriodicOrbit, periodic_orbit
+from ._orbit import OrbitNotFound, PeriodicOrbit, checked_inputs, periodic_orbit, unsupported
 from ._setup import LOOP_SETUPS, confirm_cycle, setup
 
 __all__ = ["DescribingFunction", "break_response", "cycle_of", "describing_function", "predict", "refine",
            "harmonic_balance", "harmonic_orders", "plot_nichols", "LOOP_SETUPS", "confirm_cycle", "setup",
            "OrbitNotFound", "PeriodicOrbit", "periodic_orbit", "continue_orbit", "Continuation",
-           "plot_orbit", "plot_bifurcation"]
+           "plot_orbit", "plot_bifurcation", "checked_inputs", "input_value", "unsupported"]

@@ -15,17 +15,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..simulation import RunFailed
-from ._flow import Flow, OrbitNotFound
-from ._orbit import PeriodicOrbit, _newton, held_inputs, multipliers, periodic_orbit, summaries
+from ._flow import Flow, OrbitNotFound, input_value
+from ._orbit import (
+    PeriodicOrbit,
+    _newton,
+    checked_inputs,
+    checked_p,
+    held_inputs,
+    multipliers,
+    periodic_orbit,
+    summaries,
+)
 from ._setup import setup
 
 __all__ = ["Continuation", "continue_orbit"]
 
 
-@dataclass
-class Continuation:
+@dataclass(repr=False)
+class Continuation(Summarised):
     """A branch of periodic orbits over one parameter (:func:`continue_orbit`).
 
     Parameters
@@ -59,6 +69,11 @@ class Continuation:
     stable: np.ndarray
     bifurcations: list
     info: dict = field(default_factory=dict)
+
+    def _facts(self) -> dict:
+        v = np.asarray(self.values, float)
+        return {"parameter": self.name, "range": f"{v.min():.4g} .. {v.max():.4g} {self.unit}" if v.size else None,
+                "orbits": int(v.size), "bifurcations": ", ".join(b["kind"] for b in self.bifurcations) or "none"}
 
     @property
     def onset(self) -> float | None:
@@ -103,7 +118,8 @@ class Continuation:
 class _Branch:
     """The extended shooting system in scaled unknowns u = (x / D, T / T_scale, (lam - lo) / L)."""
 
-    def __init__(self, model, flow: Flow, k: int, lo: float, hi: float, T_scale: float, signal: str, tol: float):
+    def __init__(self, model, flow: Flow, k: int | str, lo: float, hi: float, T_scale: float, signal: str,
+                 tol: float):
         self.model, self.flow, self.k, self.lo, self.hi, self.signal, self.tol = model, flow, k, lo, hi, signal, tol
         self.pv = flow.pv.copy()
         self.D = model.full_scale(self.pv)
@@ -116,6 +132,9 @@ class _Branch:
         return np.concatenate([x / self.D, [T / self.T_scale, (lam - self.lo) / self.L]])
 
     def set_lam(self, lam):
+        if isinstance(self.k, str):  # a held input
+            self.flow.set_input(self.k, lam)
+            return
         pp = self.pv.copy()
         pp[self.k] = lam
         self.flow.set_p(pp)
@@ -241,9 +260,10 @@ def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "p
     ----------
     model : Model
     name : str
-        A parameter of ``model.param_names`` (SI).
+        A parameter of ``model.param_names`` (a gain ``K_i_x``, the backlash ``B``), or a
+        driven input held constant (the load ``f_ext``, or the role ``"load"``), SI.
     lo, hi : float
-        The range of the parameter (SI).
+        The range (SI), inside the parameter's declared range or the input's physical envelope.
     loop, p, condition, dt
         As in :func:`periodic_orbit`.
     orbit : PeriodicOrbit, optional
@@ -261,23 +281,40 @@ def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "p
     stop, progress : callable, optional
         ``stop()`` before each point (raises to interrupt); ``progress(fraction, text)``.
     """
-    if name not in model.param_names:
-        raise ValueError(f"continue: no parameter {name!r} in the model")
+    from ..model import checked
+
+    name = model.input_with(name) if name in ("load",) else name
+    driven = [n for n, i in model.input_info.items() if not i.injection]
+    if name not in model.param_names and name not in driven:
+        raise ValueError(f"continue: no parameter or driven input {name!r} in the model")
     if direction not in ("both", "down", "up"):
         raise ValueError(f"direction: {direction!r}; have both, down, up")
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
         raise ValueError(f"continue: range {lo!r}..{hi!r}: need lo < hi")
-    k = list(model.param_names).index(name)
-    pv0 = (model.p() if p is None else np.asarray(p, float)).copy()
-    if not lo <= pv0[k] <= hi:
-        raise ValueError(f"continue: {name} = {pv0[k]:g} of the first orbit outside {lo:g}..{hi:g}")
+    pv0 = checked_p(model, p).copy()
+    if name in model.param_names:
+        k = list(model.param_names).index(name)
+        for v in (lo, hi):
+            checked(name, float(v), f"continue: {name} = {v:g}")
+        start = pv0[k]
+        inputs = dict(orbit.info.get("inputs") or {}) if orbit is not None else {}
+    else:
+        k = name
+        checked_inputs(model, {name: lo}, pv0)
+        checked_inputs(model, {name: hi}, pv0)
+        inputs = dict(orbit.info.get("inputs") or {}) if orbit is not None else {}
+        inputs.setdefault(name, input_value(model, name, pv0))
+        start = inputs[name]
+    if not lo <= start <= hi:
+        raise ValueError(f"continue: {name} = {start:g} of the first orbit outside {lo:g}..{hi:g}")
     if orbit is None:
-        orbit = periodic_orbit(model, loop, p=pv0, condition=condition, dt=dt)
+        orbit = periodic_orbit(model, loop, p=pv0, condition=condition, dt=dt, inputs=inputs)
     s = setup(model, loop, pv0, condition)
-    flow = Flow(model, held_inputs(model, loop, s), s["p"], orbit.info.get("method", "sensitivities"), dt or 1e-5)
+    flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], orbit.info.get("method", "sensitivities"),
+                dt or orbit.info.get("dt", 1e-5), bool(orbit.info.get("zoh")))
     br = _Branch(model, flow, k, lo, hi, orbit.T, s["signal"], tol)
     t0 = time.perf_counter()
-    u0 = br.pack(orbit.x0, orbit.T, s["p"][k])
+    u0 = br.pack(orbit.x0, orbit.T, start)
     t_up = br.tangent(br.system(u0, br.section(orbit.x0), orbit.x0)[1])
     t_up = t_up if t_up[-1] > 0 else -t_up
     first = (u0, orbit.multipliers, br.amplitude(orbit.x0, orbit.T))
@@ -299,7 +336,7 @@ def continue_orbit(model: Model, name: str, lo: float, hi: float, loop: str = "p
         bif.insert(0, {"kind": "birth", "value": float(vals[0]), "amplitude": float(amps[0]), "index": 0})
     if end_up == "birth":
         bif.append({"kind": "birth", "value": float(vals[-1]), "amplitude": float(amps[-1]), "index": len(vals) - 1})
-    unit = model.params.units().get(name, "")
+    unit = model.params.units().get(name, "") if isinstance(k, int) else model.input_info[name].unit
     return Continuation(name, unit, s["signal"], vals, Ts, amps, mus, stab, bif,
                         {"end": {"decreasing": end_down, "increasing": end_up}, "points": len(vals),
                          "runs": flow.runs, "natural_steps": state["natural"], "wall_time": time.perf_counter() - t0})

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..signals import Signal, constant
 from ..simulation import simulate
@@ -120,8 +121,8 @@ def break_response(model: Model, loop: str, A: float, f: float, *, p, x0, inputs
     return _runner(model, loop, p, x0, dict(inputs or {}), meas0, dt, periods, settle, tuple(signals))(A, f)
 
 
-@dataclass
-class DescribingFunction:
+@dataclass(repr=False)
+class DescribingFunction(Summarised):
     """L_N on a grid: ``L[i, k]`` at ``amplitudes[i]``, ``freqs[k]`` (Hz).
 
     Parameters
@@ -141,6 +142,10 @@ class DescribingFunction:
     freqs: np.ndarray
     L: np.ndarray
     cycles: list = field(default_factory=list)
+
+    def _facts(self) -> dict:
+        return {"loop": self.loop, "grid": f"{len(self.amplitudes)} amplitudes x {len(self.freqs)} frequencies",
+                "cycles": len(self.cycles)}
 
     @property
     def answered(self) -> np.ndarray:

@@ -33,20 +33,31 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..simulation import RunFailed
 from ._df import cycle_of
 from ._flow import Flow, OrbitNotFound
 from ._setup import setup
 
-__all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit", "summaries", "multipliers", "held_inputs"]
+__all__ = ["PeriodicOrbit", "OrbitNotFound", "periodic_orbit", "summaries", "multipliers", "held_inputs",
+           "checked_inputs", "checked_p", "unsupported"]
 
 #: Smallest half peak-to-peak of the loop's signal (m) that counts as an oscillation to start from.
 MIN_START = 1e-9
+#: Newton steps without the residual halving after which the shooting gives up (not the
+#: finite-difference fallback: its Newton wanders before it converges, measured on the
+#: aircraft loop: 4e-5, 2e-3, 6e-4, 2e-4, 2e-5, 1e-5, 1e-5, 2e-5, 4e-7).
+STALL = 3
+#: Periodicity residual reached by the finite-difference fallback (of full scale): its
+#: fixed-step rollout is not smooth in the start state where the friction sticks and
+#: slips (measured on the aircraft loop: over 25 Newton steps the residual wanders between
+#: 1e-6 and 2e-5, below 1e-6 only by chance).
+FD_TOL = 1e-5
 
 
-@dataclass
-class PeriodicOrbit:
+@dataclass(repr=False)
+class PeriodicOrbit(Summarised):
     """A periodic orbit of a closed loop (from :func:`periodic_orbit`).
 
     Parameters
@@ -160,10 +171,9 @@ class PeriodicOrbit:
 
         return plot_orbit(self, path, signals=signals)
 
-    def __repr__(self) -> str:
-        s = "stable" if self.stable else "unstable"
-        return (f"PeriodicOrbit(loop={self.loop!r}, freq={self.freq_hz:.6g} Hz, {s}, "
-                f"residual={self.residual:.2g}, |mu|max={np.max(np.abs(self.multipliers[1:])):.4g})")
+    def _facts(self) -> dict:
+        return {"loop": repr(self.loop), "freq": f"{self.freq_hz:.6g} Hz", "stable": bool(self.stable),
+                "residual": f"{self.residual:.2g}", "|mu|max": f"{np.max(np.abs(self.multipliers[1:])):.4g}"}
 
 
 def summaries(flow: Flow, t, X, Y, names) -> dict:
@@ -205,6 +215,9 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
             return x, T, M, xT, residuals, it
         if it == iterations:
             break
+        if flow.method != "rk4" and it >= STALL and res > 0.5 * residuals[-1 - STALL]:  # no progress
+            raise OrbitNotFound(f"no periodic orbit near the start: the periodicity residual stalls at {res:.2g} "
+                                f"(need < {tol:g}) after {it} Newton steps")
         J = np.zeros((nx + 1, nx + 1))
         J[:nx, :nx] = (M - np.eye(nx)) * D[None, :] / D[:, None]
         J[:nx, nx] = flow.f(xT) / D * T
@@ -219,8 +232,8 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
                         f"{iterations} Newton steps (need < {tol:g})")
 
 
-def _start_from_simulation(model, s, t_warm, signal, dt):
-    res = s["confirm"](t_warm, dt)
+def _start_from_simulation(model, s, t_warm, signal, dt, inputs, zoh=False):
+    res = s["confirm"](t_warm, dt, **inputs, **({"zoh": True} if zoh else {}))
     t = np.asarray(res.t)
     y = np.asarray(res[signal])
     cyc = cycle_of(t, y, t_warm / 2)
@@ -232,17 +245,106 @@ def _start_from_simulation(model, s, t_warm, signal, dt):
     ups = np.nonzero(sel[1:] & (yy[:-1] < 0) & (yy[1:] >= 0))[0] + 1
     k = int(ups[-1])
     x0 = np.array([res.states[n][k] for n in model.states])
-    return x0, 1.0 / cyc["freq_hz"], cyc
+    # where the run has settled onto one cycle (its last four crossing spacings, each
+    # interpolated, agree within 1e-4), the last spacing is the period (the spectral
+    # estimate of cycle_of is 2.5e-3 off on the hunting run, the spacing 4e-8: one Newton
+    # step fewer); elsewhere (a stick-slip cycle, still drifting) the spectral estimate
+    tc = t[ups - 1] - yy[ups - 1] * (t[ups] - t[ups - 1]) / (yy[ups] - yy[ups - 1])
+    dT = np.diff(tc[-5:])
+    settled = len(dT) == 4 and np.ptp(dT) < 1e-4 * np.mean(dT) and abs(dT[-1] * cyc["freq_hz"] - 1) < 0.05
+    T0 = float(dT[-1]) if settled else 1 / cyc["freq_hz"]
+    return x0, T0, cyc
 
 
-def held_inputs(model: Model, loop: str, s: dict) -> dict:
-    """The loop's inputs held constant at the end of its confirming run."""
-    if loop == "position":
-        return {model.input_with("command"): 1e-3}  # the confirming run's 1 mm step, held
-    return dict(s["inputs"])
+def held_inputs(model: Model, loop: str, s: dict, inputs: dict | None = None) -> dict:
+    """The loop's inputs held constant at the end of its confirming run, ``inputs`` over them."""
+    base = {model.input_with("command"): 1e-3} if loop == "position" else dict(s["inputs"])  # position: the 1 mm step
+    return {**base, **(inputs or {})}
 
 
-def _start(model, s, start, t_warm, loop, sig_name, dt):
+def checked_inputs(model: Model, inputs, p) -> dict:
+    """Held input values given by the caller: driven inputs of the model, finite, inside
+    the model's physical envelope (ValueError naming the first that is not).
+
+    Parameters
+    ----------
+    model : Model
+    inputs : dict or None
+        Input name -> value (SI).
+    p : ndarray
+        Parameter vector (the envelope's bounds depend on it).
+    """
+    out = {}
+    bounds = model.envelope(p)
+    for name, v in (inputs or {}).items():
+        info = model.input_info.get(name)
+        if info is None or info.injection:
+            have = ", ".join(n for n, i in model.input_info.items() if not i.injection)
+            raise ValueError(f"inputs: no driven input {name!r} in the model; have {have}")
+        v = float(v)
+        if not math.isfinite(v):
+            raise ValueError(f"inputs: {name} = {v}: need a finite number ({info.unit})")
+        if name in bounds and abs(v) > bounds[name]:
+            raise ValueError(f"inputs: {name} = {v:.4g} {info.unit} is beyond the physical envelope "
+                             f"{bounds[name]:.4g} {info.unit} ({info.bound.why})")
+        out[name] = v
+    return out
+
+
+def unsupported(model: Model) -> str | None:
+    """Why the model's orbits cannot be found by shooting (one line), or None.
+
+    A hysteresis state (the screw's self-locking memory, ``screw_lock = memory``) is refused: it is a
+    rate-independent hysteresis whose rate switches with the sign of the screw's speed and
+    saturates at the band's edges, and Newton on its flow diverges (measured on the
+    hunting case: the periodicity residual grows to 18 of full scale in three steps);
+    ``screw_lock = blend`` is the supported form.
+
+    Parameters
+    ----------
+    model : Model
+    """
+    if model.states_with("hysteresis"):
+        return (f"screw_lock = memory: the hysteresis state {', '.join(model.states_with('hysteresis'))} is not "
+                "supported by shooting (Newton diverges on it); use screw_lock = blend")
+    return None
+
+
+def checked_p(model: Model, p) -> np.ndarray:
+    """The parameter vector given (default the model's): the model's length, each value
+    that differs from the model's set inside its field's range (ValueError naming it).
+
+    Parameters
+    ----------
+    model : Model
+    p : array_like or None
+        Parameter vector (SI).
+    """
+    from ..model import checked
+
+    base = model.p()
+    if p is None:
+        return base
+    pv = np.asarray(p, float)
+    if pv.shape != base.shape:
+        raise ValueError(f"p: {pv.size} values; the model has {base.size} parameters")
+    for name, v, b in zip(model.param_names, pv, base, strict=True):
+        if v != b:
+            checked(name, float(v), f"p: {name}")
+    return pv
+
+
+def _default_step(model: Model, pv, loop: str, zoh: bool) -> float:
+    """The RK4 step of the start run and the fallback: 1e-5 s (position loop) or 1e-4 s
+    (aircraft loop), inside RK4's stability limit on the model (80 % of it, dividing the
+    ECU's sample periods)."""
+    from ..simulation import rk4_step_limit, sample_periods
+
+    cap = 1e-5 if loop == "position" else 1e-4
+    return rk4_step_limit(model, p=pv, zoh=zoh).inside(sample_periods(model, pv).values(), cap=cap)
+
+
+def _start(model, s, start, t_warm, loop, sig_name, dt, inputs, zoh):
     """(x0, T0, the start run's cycle or None, t_warm) from ``start``."""
     if isinstance(start, dict):
         if "x0" not in start or "T" not in start:
@@ -250,7 +352,7 @@ def _start(model, s, start, t_warm, loop, sig_name, dt):
         return np.asarray(start["x0"], float), float(start["T"]), None, None
     if start == "simulation":
         t_warm = t_warm or (2.0 if loop == "position" else 60.0)
-        return (*_start_from_simulation(model, s, t_warm, sig_name, dt), t_warm)
+        return (*_start_from_simulation(model, s, t_warm, sig_name, dt, inputs, zoh), t_warm)
     raise ValueError(f"start: {start!r}; 'simulation' or {{'x0': ..., 'T': ...}}")
 
 
@@ -267,7 +369,7 @@ def _compare(prediction, summ, sig_name, T):
 def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: str = "cruise_sl",
                    start: str | dict = "simulation", t_warm: float | None = None, dt: float | None = None,
                    signals=None, prediction: dict | None = None, method: str = "auto", tol: float = 1e-10,
-                   iterations: int = 25, stop=None) -> PeriodicOrbit:
+                   iterations: int = 25, inputs: dict | None = None, zoh: bool = False, stop=None) -> PeriodicOrbit:
     """The periodic orbit of a closed loop by shooting, with its Floquet multipliers.
 
     Parameters
@@ -286,7 +388,8 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     t_warm : float, optional
         Start run length (s); default 2 s (position), 60 s (aircraft).
     dt : float, optional
-        RK4 step of the start run and of the fallback (s); default 1e-5 / 1e-4.
+        RK4 step of the start run and of the fallback (s); default 1e-5 / 1e-4 s or less:
+        inside RK4's stability limit on the model.
     signals : sequence of str, optional
         Signals summarised (default x_rod and, for the aircraft loop, x_cmd).
     prediction : dict, optional
@@ -298,13 +401,22 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
         friction, a sampled ECU); auto picks by the model.
     tol, iterations : float, int
         Periodicity residual to reach (of each state's full scale); Newton steps at most.
+    inputs : dict, optional
+        Driven inputs held at these values (SI) over the loop's own (e.g. the load
+        ``{"f_ext": 2000.0}``), in the start run and on the orbit.
+    zoh : bool
+        The ECU sampled at its rates (zero-order hold): the finite-difference fallback
+        on the RK4 rollout with the sampled ECU, each rollout from the ECU sampling at its
+        start (the sample clock restarted each period: the hunting cycle of a sampled loop
+        is locked to its clock only approximately; see docs for the measured effect).
     stop : callable, optional
         Called before each Newton step (raises to interrupt).
 
     Raises
     ------
     ValueError
-        Unknown loop, method, or a start without ``x0``/``T``.
+        Unknown loop, method, input, a parameter or held input outside its range, or a
+        start without ``x0``/``T``.
     OrbitNotFound
         No oscillation to start from, or Newton did not converge.
     """
@@ -313,22 +425,27 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
         raise ValueError(f"loop: unknown loop {loop!r}; have position, aircraft")
     if method not in ("auto", "sensitivities", "rk4"):
         raise ValueError(f"method: {method!r}; have auto, sensitivities, rk4")
-    switching = bool(model.switched) or bool(getattr(model, "hybrid", False))
+    why = unsupported(model)
+    if why is not None:
+        raise ValueError(why)
+    switching = bool(model.switched) or bool(getattr(model, "hybrid", False)) or zoh
     if method == "auto":
         method = "rk4" if switching else "sensitivities"
     if method == "sensitivities" and switching:
-        raise ValueError("method: the model switches (hybrid friction or a switched part): its flow has no "
-                         "sensitivities; use method='rk4'")
+        raise ValueError("method: the model switches (hybrid friction, a sampled ECU or a switched part): its "
+                         "flow has no sensitivities; use method='rk4'")
+    p = checked_p(model, p)
+    inputs = checked_inputs(model, inputs, p)
     s = setup(model, loop, p, condition)
-    dt = dt or (1e-5 if loop == "position" else 1e-4)
+    dt = dt or _default_step(model, s["p"], loop, zoh)
     sig_name = s["signal"]
     names = tuple(signals) if signals else tuple(dict.fromkeys([model.output_with("rod_position"), sig_name]))
     for n in names:
         if n not in model.outputs and n not in model.states:
             raise ValueError(f"signals: no signal {n!r} in the model")
-    x0, T0, warm, t_warm = _start(model, s, start, t_warm, loop, sig_name, dt)
-    flow = Flow(model, held_inputs(model, loop, s), s["p"], method, dt)
-    tol_eff = tol if method == "sensitivities" else max(tol, 1e-7)
+    x0, T0, warm, t_warm = _start(model, s, start, t_warm, loop, sig_name, dt, inputs, zoh)
+    flow = Flow(model, held_inputs(model, loop, s, inputs), s["p"], method, dt, zoh)
+    tol_eff = tol if method == "sensitivities" else max(tol, FD_TOL)
     try:
         x, T, M, xT, residuals, its = _newton(flow, x0, T0, tol_eff, iterations, stop)
     except RunFailed as exc:
@@ -338,7 +455,8 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     summ = summaries(flow, t, X, Y, names)
     pred = _compare(prediction, summ, sig_name, T)
     units = dict(model.units)
-    info = {"iterations": its, "runs": flow.runs, "method": method, "residuals": residuals,
+    info = {"iterations": its, "runs": flow.runs, "method": method, "residuals": residuals, "inputs": inputs,
+            "zoh": zoh, "dt": dt,
             "wall_time": time.perf_counter() - t_start, "start": "given" if warm is None else
             {"t_warm_s": t_warm, "freq_hz": warm["freq_hz"], "amplitude": warm["amplitude"]}}
     D = model.full_scale(s["p"])

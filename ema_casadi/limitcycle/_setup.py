@@ -25,8 +25,9 @@ LOOP_SETUPS = ("position", "aircraft")
 
 
 def _position(model: Model, p, condition):
-    def confirm(t_end, dt):
-        return simulate(model, t_end, x_cmd=Signal.step(1e-3, 0.01), dt=dt, dt_out=max(dt, 1e-4), p=p)
+    def confirm(t_end, dt, **held):
+        cmd = model.input_with("command")
+        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-4), p=p, **{cmd: Signal.step(1e-3, 0.01), **held})
 
     return {"p": p, "x0": model.x0(), "inputs": {}, "meas0": 0.0, "confirm": confirm,
             "signal": model.output_with("rod_position")}
@@ -45,11 +46,11 @@ def _aircraft(model: Model, p, condition):
     inputs = {n: float(op.u[model.inputs.index(n)]) for n in op.policy["trim_free"]}
     meas0 = op.output(model.output_with("law_command"))
 
-    def confirm(t_end, dt):
+    def confirm(t_end, dt, **held):
         att = model.input_with("attitude_command")
         th0, kick = inputs[att], math.radians(0.5)
         pulse = Signal.step(th0, 0.0) + Signal.step(kick, 1.0) + Signal.step(-kick, 3.0)
-        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, att: pulse})
+        return simulate(model, t_end, dt=dt, dt_out=max(dt, 1e-3), p=pv, x0=op.x, **{**inputs, **held, att: pulse})
 
     return {"p": pv, "x0": op.x, "inputs": inputs, "meas0": meas0, "confirm": confirm,
             "signal": model.output_with("rod_command"), "op": op}
@@ -57,7 +58,8 @@ def _aircraft(model: Model, p, condition):
 
 def setup(model: Model, loop: str, p=None, condition: str = "cruise_sl") -> dict:
     """Parameter vector, initial state, fixed inputs, the break signal's operating value,
-    ``confirm(t_end, dt) -> SimResult`` (the closed-loop run) and ``signal`` (the name of
+    ``confirm(t_end, dt, **inputs) -> SimResult`` (the closed-loop run, other inputs held
+    at the values given) and ``signal`` (the name of
     the break signal in it) for a loop.
 
     Parameters

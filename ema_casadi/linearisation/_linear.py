@@ -9,6 +9,7 @@ import numpy as np
 
 from .._util._checks import describe, instance
 from .._util._kwargs import check_keywords, keywords_of
+from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ._common import OUTER, LinearizationError, _eval, signal_outputs
 from ._trim import OperatingPoint, operating_point
@@ -20,8 +21,8 @@ if TYPE_CHECKING:
 
 
 
-@dataclass
-class LinearModel:
+@dataclass(repr=False)
+class LinearModel(Summarised):
     """A linear model ``dx = A x + B u, y = C x + D u`` in deviations from ``op``.
 
     Duck-compatible with ``control.StateSpace`` for the ``A, B, C, D`` attributes, so
@@ -52,6 +53,12 @@ class LinearModel:
     op: OperatingPoint | None = None
     name: str = "ema"
     open_loops: tuple = ()
+
+    def _facts(self) -> dict:
+        op = self.op
+        return {"name": self.name, "states": len(self.states), "inputs": len(self.inputs),
+                "outputs": len(self.outputs), "open_loops": ", ".join(self.open_loops) or None,
+                "at": None if op is None else f"x_cmd {op.x_cmd * 1e3:.4g} mm, f_ext {op.f_ext / 1e3:.4g} kN"}
 
     def select(self, inputs=None, outputs=None, name: str | None = None) -> LinearModel:
         """The sub-model from some inputs to some outputs (by name).

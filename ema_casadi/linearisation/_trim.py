@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._util._checks import instance, integer, number, vector
+from .._util._notebook import Summarised
 from ..model.assembly import AssemblyError, Model
 from ..model.components import POLICIES, SIGNAL_KEYS
 from ..model.params import Parameters
@@ -20,8 +21,8 @@ REQUEST_KEYS = tuple(SIGNAL_KEYS[r] for r in ("command", "load", "rod_velocity")
 ETA = SIGNAL_KEYS["efficiency"]
 
 
-@dataclass
-class OperatingPoint:
+@dataclass(repr=False)
+class OperatingPoint(Summarised):
     """A trimmed operating point and the values the linearisation uses.
 
     Attributes
@@ -70,6 +71,12 @@ class OperatingPoint:
     u_lin: np.ndarray | None = None
     p_lin: np.ndarray | None = None
     eta: float | None = None
+
+    def _facts(self) -> dict:
+        shown = (f"{self.x_cmd * 1e3:.4g} mm", f"{self.f_ext / 1e3:.4g} kN", f"{self.v_rod * 1e3:.4g} mm/s")
+        return {**dict(zip(REQUEST_KEYS, shown, strict=True)),
+                "policy": ", ".join(f"{k} {v}" for k, v in self.policy.items() if isinstance(v, str)) or None,
+                "states": len(self.states), "residual": f"{self.residual:.2g}"}
 
     def state(self, name: str) -> float:
         """A state's value at the point (SI).

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .components import POLICIES, AssemblyError, der
+from .components import POLICIES, AssemblyError, Rating, der
 
 __all__ = ["zoh_split", "switched_split", "projection", "Contract", "modify"]
 
@@ -215,6 +215,46 @@ class Contract:
         """
         P = self.pdict(p)
         return {lim.name: float(lim.limit(P)) for lim in self.trim_limits}
+
+    @property
+    def ratings(self) -> tuple:
+        """The operating limits (:class:`~ema_casadi.model.components.Rating`): the parts'
+        ratings and, for every thermal node state, its rated temperature (``<node>_temperature``)."""
+        nodes = tuple(Rating(f"{s.node.name}_temperature", f"rated {s.node.name} temperature", (n,), s.node.limit,
+                             f"the {s.node.name} node's rating", s.unit, sense="max")
+                      for n, s in self.state_info.items() if s.node is not None)
+        return tuple(r for part in self.parts for r in part.ratings) + nodes
+
+    def operating_limits(self, p=None) -> dict[str, float]:
+        """Each operating limit's value (SI) by name (``current``: A, ``voltage``: V,
+        ``stroke``: m, ``rod_speed``: m/s, ``winding_temperature``: degC, ...): what an
+        optimal move is constrained by (:attr:`ratings`).
+
+        Parameters
+        ----------
+        p : array_like, optional
+            Parameter vector (SI); default the model's set.
+        """
+        P = self.pdict(p)
+        return {r.name: float(r.limit(P)) for r in self.ratings}
+
+    def heat_outputs(self, node: str) -> tuple[str, ...]:
+        """The loss outputs the parts route to a thermal node (their ``heat`` tables).
+
+        Parameters
+        ----------
+        node : str
+            One of :data:`~ema_casadi.model.components.HEAT_NODES` (``winding``, ...).
+        """
+        routed = {n: v for part in self.parts for n, v in part.heat.items()}
+        return tuple(n for n in self.outputs if routed.get(n) == node)
+
+    @property
+    def smooth_variants(self) -> dict:
+        """Variant key -> value of the smooth counterparts the parts declare where they
+        switch (hybrid friction -> smooth, the switched bridge -> averaged, the clip
+        limits -> smooth): {} for a model that is smooth already."""
+        return {k: v for part in self.parts for k, v in part.smooth.items() if self.variants.get(k) != v}
 
     @property
     def gains(self) -> tuple:

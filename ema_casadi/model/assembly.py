@@ -46,6 +46,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._kwargs import check_keywords
+from .._util._notebook import Summarised, changed_variants
 from ._derived import Contract, modify, switched_split
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
@@ -59,8 +60,8 @@ _SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ 
                 roles=("stored_energy",)),)
 
 
-@dataclass
-class Model(Contract):
+@dataclass(repr=False)
+class Model(Summarised, Contract):
     """An assembled EMA model.
 
     Attributes
@@ -127,6 +128,13 @@ class Model(Contract):
     #: and kept with it: they live and die with the model (a cache keyed by ``id(f)``
     #: could hand a new model the functions of a freed one at the same address).
     cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def _facts(self) -> dict:
+        from .components import DEFAULT_VARIANTS
+
+        return {"variants": changed_variants(self.variants, DEFAULT_VARIANTS), "states": len(self.states),
+                "inputs": len(self.inputs), "outputs": len(self.outputs), "parameters": len(self.param_names),
+                "switched": ", ".join(self.switched) or None}
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -330,6 +338,18 @@ class Model(Contract):
                 if d.bound is not None:
                     out[name] = min(out.get(name, math.inf), float(d.bound.limit(E)))
         return out
+
+    def smooth(self) -> Model:
+        """The model with the smooth counterpart of every part that switches
+        (:attr:`smooth_variants`), on the same parameters: what an optimiser's exact
+        derivatives need. The model itself when it is smooth already."""
+        over = self.smooth_variants
+        if not over:
+            return self
+        key = ("smooth", tuple(sorted(over.items())))
+        if key not in self.cache:
+            self.cache[key] = build_model(self.params, {**self.variants, **over})
+        return self.cache[key]
 
     def travel(self, p=None) -> dict[str, float]:
         """Position-like states -> rod travel (m) per unit of the state.

@@ -25,6 +25,7 @@ import numpy as np
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
 from .._util._files import write_text
+from .._util._notebook import Summarised
 from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._params_airframe import Airframe
@@ -70,6 +71,8 @@ class Actuator:
     """Actuator envelope (paper Table 1)."""
 
     stroke: float = _p("m", POS, "half stroke: the rod travels +-stroke (m)")
+    v_rod_max: float = _p("m/s", POS, "rated rod speed, the ball screw's speed limit (2400 rpm of a 5 mm lead) (m/s)",
+                          default=0.2)
 
 
 @dataclass(frozen=True)
@@ -235,8 +238,8 @@ def _variant_table(model, src: str) -> dict[str, str]:
     return dict(model)
 
 
-@dataclass(frozen=True)
-class Parameters(FaultTables):
+@dataclass(frozen=True, repr=False)
+class Parameters(Summarised, FaultTables):
     """A complete, validated parameter set in SI units.
 
     Attributes are the groups (``params.screw.p``); :meth:`vector` flattens them in
@@ -271,6 +274,11 @@ class Parameters(FaultTables):
     source: str = "<memory>"
     missing: tuple = ()
     overrides: tuple = ()
+
+    def _facts(self) -> dict:
+        return {"source": Path(self.source).name, "parameters": len(self.names()),
+                "variants": ", ".join(f"{k}={v}" for k, v in self.variants.items()) or None,
+                "missing": ", ".join(self.missing) or None}
 
     # -- flat view ---------------------------------------------------------------
     @staticmethod

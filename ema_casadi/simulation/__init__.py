@@ -11,8 +11,12 @@ its tolerance in ``info`` (``solver``, ``solver_reason``, ``tolerance``):
     chunk): no Python per step. Input signals are sampled in NumPy at each step's
     t, t + h/2 and t + h and passed in, so one compiled rollout serves every signal,
     parameter value and step size. Optional zero-order-hold (ZOH) execution of the
-    ECU at its sample rates (each loop updates in the step that contains its
-    sampling instant, so instants are exact when dt divides the sample periods).
+    ECU at its sample rates: each loop updates at the start of the step that holds
+    its sampling instant when dt divides every loop's sample period, else in a step
+    split at the instant (RK4 up to it, the update, RK4 on), so each loop samples at
+    its own instants at any dt. A step above RK4's stability limit on the model
+    (``rk4_step_limit``: the fastest eigenvalues of the Jacobian at rest and held
+    under the run's largest load) is warned (``StepLimitWarning``).
 ``cvodes``
     Variable-step BDF (SUNDIALS CVODES through ``casadi.integrator``) on the
     continuous model with the signals as CasADi expressions of t; the run is split
@@ -65,8 +69,19 @@ from ._inputs import as_signal, check_inputs, input_matrix, input_signals, noise
 from ._interval import interval_function
 from ._pwm import check_switched
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
-from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function
+from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function, sampling_split
 from ._sensitivity import REPLAY_LIMIT, forward_sensitivities, sensitivity_library
+from ._steplimit import (
+    RK4_REAL_REACH,
+    StepLimit,
+    StepLimitWarning,
+    peak_load,
+    rk4_growth,
+    rk4_reach,
+    rk4_step_limit,
+    sample_periods,
+    step_check,
+)
 
 __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "MAX_STEPS", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
@@ -77,4 +92,7 @@ __all__ = [
     "check_run", "check_inputs", "check_switched", "trimmed_start", "as_signal", "input_signals", "input_matrix",
     "GaveUp", "captured_stderr", "integrator_failure",
     "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
+    # RK4's stability limit and the ECU's sample instants
+    "rk4_step_limit", "StepLimit", "StepLimitWarning", "rk4_reach", "rk4_growth", "RK4_REAL_REACH", "step_check",
+    "sampling_split", "sample_periods", "peak_load",
 ]

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._util._checks import describe, instance, integer, number, vector
+from .._util._checks import describe, instance, integer, number, size_text, vector
 from ..model.assembly import Model
 from ..model.components import SIGNAL_KEYS
 from ..model.params import Parameters
@@ -44,6 +44,7 @@ from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 from ._rosenbrock import _simulate_rosenbrock, library
+from ._steplimit import fixed_step, step_check
 
 if TYPE_CHECKING:
     from ..signals import Signal
@@ -79,7 +80,7 @@ def simulate(
     x0: np.ndarray | None = None, from_trim: bool = False, zoh: bool = False,
     decimate: int | None = None, dt_out: float | None = None,
     rtol: float | None = None, atol: float | None = None, event_tol: float = 1e-7,
-    jit: bool = True, progress: bool = False,
+    jit: bool = True, progress: bool = False, check_step: bool = True,
     **signals,
 ) -> SimResult:
     """Simulate ``model`` from 0 to ``t_end`` (s): samples at 0, ``dt_out``, 2 ``dt_out``,
@@ -132,6 +133,9 @@ def simulate(
         Compile the rollout to native code (cached on disk).
     progress : bool
         Progress bar on stderr.
+    check_step : bool
+        rk4: warn (:class:`StepLimitWarning`) above RK4's stability limit (:func:`rk4_step_limit`, in
+        ``info["tolerance"]["dt_max"]``) at the run's parameters and largest load; False: checked once.
     """
     instance(model, Model, "model", SimulationError, " (from build_model)")
     (solver, why), requested, (rtol, atol) = choose_solver(model, solver, zoh), solver, tolerances(solver, rtol, atol)
@@ -145,10 +149,15 @@ def simulate(
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
     sig = _checked_inputs(model, _given(model, x_cmd, f_ext, eta, inputs, signals), pv, plan, solver)
+    split, limit = fixed_step(model, plan.dt, sig, pv, zoh, plan.t_end, check_step) if solver == "rk4" else (0, 0)
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
-    run, used = _runner(model, solver, plan, sig, pv, x0, zoh, bool(jit), bool(progress), rtol, atol, event_tol)
-    return _chosen(_timed(model, solver, plan.t_end, run, used=used), requested, why, rtol, atol)
+    run, used = _runner(model, solver, plan, sig, pv, x0, (zoh, split), bool(jit), bool(progress), rtol, atol,
+                        event_tol)
+    res = _chosen(_timed(model, solver, plan.t_end, run, used=used), requested, why, rtol, atol)
+    if limit:
+        res.info["tolerance"]["dt_max"] = limit.dt_max
+    return res
 
 
 def _checked_inputs(model, given, pv, plan, solver) -> dict:
@@ -227,12 +236,12 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     if decimate is not None and (decimate != 1 or dt_out is not None):
         raise SimulationError("decimate: a switched model keeps samples by dt_out (whole carrier periods), or "
                               "every sub-interval with decimate=1")
-    every = decimate == 1
-    dt_out = None if every else (DT_OUT if dt_out is None else dt_out)
+    dt_out = None if decimate == 1 else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
     sig = input_signals(model, given, pv, float(t_end))
     check_inputs(model, _driven(model, sig), float(t_end), {f"dt {float(dt):g} s": float(dt)})
+    step_check(model, float(dt), sig, pv, True, float(t_end))
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
     out = None if dt_out is None else float(dt_out)
@@ -387,7 +396,7 @@ def _rk4_plan(t_end, dt, dt_out, decimate, lab, error) -> _Plan:
     n_steps = _steps_in(t_end, dt)
     if n_steps is None:
         raise error(f"{lab('t_end')} {t_end:g} s is not a whole number of RK4 steps {lab('dt')} {dt:g} s "
-                    f"({steps:.6g}); choose a dt that divides t_end")
+                    f"({steps:.6g}); choose a {lab('dt')} that divides {lab('t_end')}")
     if decimate is not None:
         k = decimate
     elif dt_out is not None:
@@ -405,7 +414,7 @@ def _rk4_plan(t_end, dt, dt_out, decimate, lab, error) -> _Plan:
 def _too_big(samples, n_signals, t_label, t_end, spacing_label, spacing, note="") -> str:
     size = samples * n_signals * 8
     return (f"{t_label} {t_end:g} s with {spacing_label} {spacing:g} s: {samples:.3g} samples{note} x {n_signals} "
-            f"signals x 8 B = {_bytes(size)}, above the limit of {_bytes(MAX_RESULT_BYTES)} (MAX_RESULT_BYTES); "
+            f"signals x 8 B = {size_text(size)}, above the limit of {size_text(MAX_RESULT_BYTES)} (MAX_RESULT_BYTES); "
             f"use a longer {spacing_label} or a shorter {t_label}")
 
 
@@ -420,13 +429,6 @@ def _shown(value) -> str:
     return repr(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else describe(value)
 
 
-def _bytes(n: float) -> str:
-    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
-        if n >= size:
-            return f"{n / size:.3g} {unit}"
-    return f"{n / 1e3:.3g} kB"
-
-
 def _duration(s: float) -> str:
     for unit, size in (("years", 3.15e7), ("days", 86400), ("h", 3600), ("min", 60)):
         if s >= size:
@@ -437,8 +439,8 @@ def _duration(s: float) -> str:
 # -- running the plan ----------------------------------------------------------------
 def _run_rk4(model, plan: _Plan, sig, pv, x0, zoh, jit, progress) -> SimResult:
     """The rollout at decimation ``k_run`` over ``n_steps``, thinned to every k-th step
-    plus the last one."""
-    res = _simulate_rk4(model, plan.n_steps * plan.dt, sig, pv, x0, plan.dt, zoh, plan.k_run, jit, progress)
+    plus the last one; ``zoh`` is (sampled ECU, steps split at its instants)."""
+    res = _simulate_rk4(model, plan.n_steps * plan.dt, sig, pv, x0, plan.dt, zoh[0], plan.k_run, jit, progress, zoh[1])
     if plan.k_run != plan.k:
         steps = np.arange(len(res.t)) * plan.k_run
         keep = np.nonzero((steps % plan.k == 0) | (steps == plan.n_steps))[0]

@@ -33,6 +33,7 @@ _DRIVER = r"""
 #define NU {nu}
 #define NL {nl}
 #define NY {ny}
+#define NC {nc}
 
 static casadi_int ema_max(casadi_int a, casadi_int b) {{ return a > b ? a : b; }}
 
@@ -57,14 +58,14 @@ CASADI_SYMBOL_EXPORT int ema_rollout(const double* x0, const double* U, const do
   for (long m = 0; m < M && !rc; ++m) {{
     for (long j = 0; j < K; ++j) {{
       long n = m * K + j;
-      arg[0] = buf[c]; arg[1] = U + 3 * NU * n; arg[2] = NL ? F + NL * n : 0; arg[3] = p; arg[4] = &h;
+      arg[0] = buf[c]; arg[1] = U + NC * NU * n; arg[2] = NL ? F + NL * n : 0; arg[3] = p; arg[4] = &h;
       res[0] = buf[1 - c];
       if ({step}(arg, res, iw, w, 0)) {{ rc = 1; break; }}
       c = 1 - c;
     }}
     if (rc) break;
     memcpy(X + NXA * m, buf[c], sizeof(double) * NXA);
-    arg[0] = buf[c]; arg[1] = U + NU * (3 * K * m + 3 * K - 1); arg[2] = p; arg[3] = NH ? buf[c] + NX : 0;
+    arg[0] = buf[c]; arg[1] = U + NU * (NC * K * m + NC * K - 1); arg[2] = p; arg[3] = NH ? buf[c] + NX : 0;
     res[0] = Y + NY * m;
     if ({y}(arg, res, iw, w, 0)) rc = 1;
   }}
@@ -106,15 +107,18 @@ class NativeRollout:
         Augmented state, input, loop-flag and output counts.
     k, M : int
         Steps per kept sample, kept samples per call.
+    nc : int
+        Input columns per step (3; 5 for steps split at a sampling instant).
     """
 
-    def __init__(self, path, nxa: int, nu: int, nl: int, ny: int, k: int, M: int):
+    def __init__(self, path, nxa: int, nu: int, nl: int, ny: int, k: int, M: int, nc: int = 3):
         self.lib = ctypes.CDLL(str(path))
         self.fn = self.lib.ema_rollout
         dp = ctypes.POINTER(ctypes.c_double)
         self.fn.argtypes = [dp, dp, dp, dp, ctypes.c_double, ctypes.c_long, ctypes.c_long, dp, dp]
         self.fn.restype = ctypes.c_int
         self.sizes = (nxa, nu, nl, ny, k, M)
+        self.nc = nc
 
     def __call__(self, x0, U, flags, p, h) -> list[np.ndarray]:
         nxa, nu, nl, ny, k, M = self.sizes
@@ -123,7 +127,7 @@ class NativeRollout:
         U = np.asfortranarray(U, dtype=float)
         F = np.asfortranarray(flags, dtype=float) if nl else np.zeros(1)
         p = np.ascontiguousarray(p, dtype=float).ravel()
-        if x0.size != nxa or U.shape != (nu, 3 * k * M) or (nl and F.shape != (nl, k * M)):
+        if x0.size != nxa or U.shape != (nu, self.nc * k * M) or (nl and F.shape != (nl, k * M)):
             raise ValueError(f"native rollout: argument shapes {x0.shape}, {U.shape}, {F.shape} do not match")
         X = np.empty((nxa, M), order="F")
         Y = np.empty((ny, M), order="F")
@@ -151,7 +155,7 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
     key_parts : iterable
         What determines the two functions (hashed into the cache key).
     """
-    nxa, nu, nl = step.size1_in(0), model.nu, step.size1_in(2)
+    nxa, nu, nl, nc = step.size1_in(0), model.nu, step.size1_in(2), step.size2_in(1)
     nh = out.size1_in(3) if out.n_in() > 3 else 0
 
     def source() -> str:
@@ -159,9 +163,9 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
         gen.add(step)
         gen.add(out)
         return inline_min_max(gen.dump()) + _DRIVER.format(nxa=nxa, nx=model.nx, nh=nh, nu=nu, nl=nl, ny=model.ny,
-                                           step=step.name(), y=out.name())
+                                           nc=nc, step=step.name(), y=out.name())
 
     path, info = compile_source(f"rollout_c_{k}x{M}", [*key_parts, _THIS, _cpu()], source, _FLAGS)
     if path is None:
         return None, info
-    return NativeRollout(path, nxa, nu, nl, model.ny, k, M), info
+    return NativeRollout(path, nxa, nu, nl, model.ny, k, M, nc), info

@@ -36,13 +36,20 @@ def _rk4(fx, x, h, stages=None):
     return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
-def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False) -> ca.Function:
-    """One RK4 step ``(x, U3, flags, p, h) -> x_next``.
+def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False, split: bool = False) -> ca.Function:
+    """One RK4 step ``(x, U, flags, p, h) -> x_next``.
 
-    ``U3`` holds the inputs at t, t+h/2 and t+h in its three columns. With ``zoh`` the
+    ``U`` holds the inputs at t, t+h/2 and t+h in its three columns. With ``zoh`` the
     state is augmented with the held controller outputs (``model.holds``) and
     ``flags`` (one per loop of ``model.loops``) say which loops sample at the start of
     this step.
+
+    With ``split`` (and ``zoh``) the loops sample inside the step, at ``t + theta h``
+    (``theta`` the last entry of ``flags``, in [0, 1)): RK4 over ``theta h`` with the
+    old holds, the ECU update there, RK4 over the rest with the new ones; ``U`` then
+    holds five columns, the inputs at t, t + theta h/2, t + theta h, t + theta h +
+    (1 - theta) h/2 and t + h. So each loop samples at its own instants whatever the
+    step (as the switched bridge steps to its switching instants).
 
     With hybrid friction the step ends with the model's discrete stick-entry map
     ``model.project`` (the mode is evaluated once per step, inside the compiled step).
@@ -63,28 +70,41 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
         Sampled ECU: augment the state with the held controller outputs.
     count_modes : bool
         Carry the stick flag and the switch count in the state (hybrid friction).
+    split : bool
+        Sampled ECU: the loops sample inside the step, at its fraction ``theta``.
     """
     nx, nu = model.nx, model.nu
+    split = bool(split and zoh)
     nh = len(model.holds) if zoh else 0
     nc = 2 if count_modes else 0
+    nl = len(model.loops)
     xa = ca.SX.sym("x", nx + nh + nc)
-    U3 = ca.SX.sym("U3", nu, 3)
-    flags = ca.SX.sym("flags", len(model.loops))
+    U3 = ca.SX.sym("U3", nu, 5 if split else 3)
+    flags = ca.SX.sym("flags", nl + (1 if split else 0))
     p = ca.SX.sym("p", len(model.param_names))
     h = ca.SX.sym("h")
     stages = [] if model.hybrid else None
-    if zoh:
+    if split:
+        theta, hold0 = flags[nl], xa[nx : nx + nh]
+        starts = [xa[:nx]]
+        xm = _rk4(lambda z, j: model.f_held(z, U3[:, j], p, hold0)[0], xa[:nx], theta * h, stages)
+        x, hold = model.sample(xm, U3[:, 2], p, hold0, flags[:nl])
+        starts.append(x)
+        x_next = _rk4(lambda z, j: model.f_held(z, U3[:, 2 + j], p, hold)[0], x, (1 - theta) * h, stages)
+    elif zoh:
         x, hold = model.sample(xa[:nx], U3[:, 0], p, xa[nx : nx + nh], flags)
+        starts = [x]
         x_next = _rk4(lambda z, j: model.f_held(z, U3[:, j], p, hold)[0], x, h, stages)
     else:
         x = xa[: nx + nh]
+        starts = [x]
         x_next = _rk4(lambda z, j: model.f(z, U3[:, j], p)[0], x, h, stages)
     stick = ca.SX(0)
     if model.hybrid:
         # chained: once a test zeroes the velocity the next ones see it in the band and
         # keep it zeroed (the force test does not depend on the velocity)
-        for z in [x, *stages]:
-            x_next, stick = model.project(z, x_next, U3[:, 2], p)
+        for z in [*starts, *stages]:
+            x_next, stick = model.project(z, x_next, U3[:, -1], p)
     out = [x_next]
     if zoh:
         out.append(hold)
@@ -97,8 +117,6 @@ def rk4_step_function(model: Model, zoh: bool = False, count_modes: bool = False
                        ["x_next"], opts)
 
 
-
-
 def _outputs_only(f: ca.Function) -> ca.Function:
     """``f`` without its state derivative: the outputs y alone (a kept sample costs
     about one step less)."""
@@ -106,22 +124,23 @@ def _outputs_only(f: ca.Function) -> ca.Function:
     return ca.Function(f"{f.name()}_y", args, [f(*args)[1]], f.name_in(), ["y"])
 
 
-def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
+def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool, split: bool = False):
     """Compiled chunk: M outputs, each after k RK4 steps. Cached per model/options.
 
-    Hybrid models count their mode switches inside the rollout (``count_modes``)."""
+    Hybrid models count their mode switches inside the rollout (``count_modes``);
+    ``split``: the sampled ECU updates inside the steps (:func:`rk4_step_function`)."""
     count = model.hybrid
-    key = ("rollout", zoh, k, M, jit)
+    key = ("rollout", zoh, k, M, jit, split)
     if key not in model.cache:
-        name = f"rollout_{'zoh_' if zoh else ''}{'hyb_' if count else ''}{k}x{M}"
+        name = f"rollout_{'zoh_' if zoh else ''}{'split_' if split else ''}{'hyb_' if count else ''}{k}x{M}"
         functions = (model.f, model.f_held, model.sample, model.project)
         parts = [_SOURCE, name, *(g.serialize() for g in functions if g is not None)]
         native, info = (None, {})
         if jit:  # the C loop around the generated step (same numbers, no per-step copies)
-            step = rk4_step_function(model, zoh, count)
+            step = rk4_step_function(model, zoh, count, split)
             native, info = native_rollout(model, step, _outputs_only(model.f_held if zoh else model.f), k, M, parts)
         if native is None:
-            Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name), jit)
+            Fc, info = compile_keyed(name, parts, lambda: _build_rollout(model, zoh, count, k, M, name, split), jit)
             native = BufferCall(Fc)
         model.cache[key] = (native, info)
     return model.cache[key]
@@ -131,20 +150,20 @@ def _rollout(model: Model, zoh: bool, k: int, M: int, jit: bool):
 _SOURCE = Path(__file__).read_bytes()
 
 
-def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: str) -> ca.Function:
+def _build_rollout(model: Model, zoh: bool, count: bool, k: int, M: int, name: str, split: bool = False) -> ca.Function:
     """The compiled chunk: M outputs, each after k RK4 steps (``fold`` of the step),
     stacked by ``mapaccum``; the outputs at the kept samples in the same call."""
-    step = rk4_step_function(model, zoh, count)
+    step = rk4_step_function(model, zoh, count, split)
     blk = step.fold(k) if k > 1 else step
     roll = blk.mapaccum("rollout", M)
-    nxa = step.size1_in(0)
+    nxa, ncol = step.size1_in(0), step.size2_in(1)
     x0 = ca.MX.sym("x0", nxa)
-    U = ca.MX.sym("U", model.nu, 3 * k * M)
-    Fl = ca.MX.sym("F", len(model.loops), k * M)
+    U = ca.MX.sym("U", model.nu, ncol * k * M)
+    Fl = ca.MX.sym("F", step.size1_in(2), k * M)
     p = ca.MX.sym("p", len(model.param_names))
     h = ca.MX.sym("h")
     X = roll(x0, U, Fl, p, h)
-    u_at = U[:, ca.Slice(3 * k - 1, 3 * k * M, 3 * k)]  # input at the end of each block
+    u_at = U[:, ca.Slice(ncol * k - 1, ncol * k * M, ncol * k)]  # input at the end of each block
     nh = len(model.holds) if zoh else 0
     if zoh:
         Y = _outputs_only(model.f_held).map(M)(X[: model.nx, :], u_at, p, X[model.nx : model.nx + nh, :])
@@ -206,6 +225,59 @@ def _flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
     return out
 
 
+def _split_flags(t: np.ndarray, dt: float, rates) -> np.ndarray:
+    """The flags of the split step (:func:`rk4_step_function`): per loop 1 where its
+    sampling instant n/f_s falls in [t, t + dt), and last the instant's fraction theta
+    of the step (the loops that sample in one step share the instant:
+    :func:`sampling_split` checked that)."""
+    out = np.zeros((len(rates) + 1, len(t)))
+    for j, fs in enumerate(rates):
+        first = np.ceil(t * fs - 1e-9) / fs  # the loop's first instant at or after t
+        inside = first < t + dt - 1e-9 * dt
+        out[j] = inside
+        out[-1] = np.where(inside, np.clip((first - t) / dt, 0.0, 1.0), out[-1])
+    return out
+
+
+def _whole(x: float) -> bool:
+    return abs(x - round(x)) <= 1e-6 * max(1.0, abs(x))
+
+
+def sampling_split(model: Model, dt: float, pv, error: type = ValueError, label: str = "dt") -> bool:
+    """Whether a sampled-ECU run at step ``dt`` splits its steps at the sampling
+    instants: False when ``dt`` divides every loop's sample period (each instant is a
+    step's start), True otherwise. Refused (``error``) when one step would hold two
+    different instants: ``dt`` longer than the fastest period, or loops whose periods
+    are not whole multiples of the fastest one (their instants would not coincide).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    dt : float
+        The RK4 step (s).
+    pv : ndarray
+        Its parameter vector (the loops' rates).
+    error : type
+        The exception raised.
+    label : str
+        The step's name in the message.
+    """
+    periods = {n: 1.0 / float(pv[model.param_names.index(lp.rate)]) for n, lp in model.loops.items()}
+    if not periods or all(_whole(T / dt) for T in periods.values()):
+        return False
+    name, fastest = min(periods.items(), key=lambda kv: kv[1])
+    if dt > fastest * (1 + 1e-9):
+        raise error(f"{label} {dt:g} s is longer than the {name} loop's sample period {fastest * 1e6:g} us; a step "
+                    f"holds one sampling instant at most")
+    odd = [n for n, T in periods.items() if not _whole(T / fastest)]
+    if odd:
+        raise error(f"{label} {dt:g} s does not divide the sample periods, and the {odd[0]} loop's period "
+                    f"{periods[odd[0]] * 1e6:g} us is not a whole number of the {name} loop's {fastest * 1e6:g} us: "
+                    "a step could hold two instants; choose a step that divides every period")
+    return True
+
+
 def _prefetched(make, keys):
     """``(key, make(key))`` for each key, the next one made in a helper thread while the
     caller works on the current one. The compiled rollout releases the GIL, so on a
@@ -228,7 +300,7 @@ def _prefetched(make, keys):
         pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
+def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress, split=False):
     n_steps = int(math.ceil(t_end / dt - 1e-9))
     n_out = int(math.ceil(n_steps / k))
     M = max(1, min(n_out, STEPS_PER_CALL // k))
@@ -237,7 +309,8 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
     bad = monitor.first([0.0], x0, None, input_matrix(model, sig, [0.0]))
     if bad is not None:  # before the rollout is compiled
         raise RunFailed(bad.what, 0.0, None)
-    F, cinfo = _rollout(model, zoh, k, M, jit)
+    F, cinfo = _rollout(model, zoh, k, M, jit, split)
+    ncol = 5 if split else 3
     nh = len(model.holds) if zoh else 0
     counter = [stick0, 0.0] if model.hybrid else []
     xa = np.concatenate([x0, np.zeros(nh), counter])
@@ -254,7 +327,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         y0 = outputs_at(model, x0[:, None], input_matrix(model, sig, [0.0]), pv, jit)
         Y_all = np.column_stack([y0, Y_out[:, :n]])
         info = {"status": "completed", "dt": dt, "steps": min(n_steps, n * k), "decimate": k,
-                "compute_time": time.perf_counter() - t_compute, "zoh": zoh, **cinfo}
+                "compute_time": time.perf_counter() - t_compute, "zoh": zoh, "split_samples": split, **cinfo}
         if model.hybrid:
             # the mode decided inside each step (identical to the rule in f except at
             # the instant of a band crossing) and the switches counted at every step
@@ -266,8 +339,13 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         """The chunk's inputs at t, t + h/2, t + h of each step (column-major, as the
         compiled call reads them) and the sampling flags."""
         t = np.arange(c0 * k, (c0 + M) * k) * dt
-        t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
-        Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
+        if split:  # t, t + theta h/2, t + theta h, t + theta h + (1 - theta) h/2, t + h
+            Fl = _split_flags(t, dt, rates)
+            th = Fl[-1][:, None]
+            t3 = (t[:, None] + np.hstack([0 * th, th / 2, th, (1 + th) / 2, 1 + 0 * th]) * dt).ravel()
+        else:
+            t3 = (t[:, None] + np.array([0, 0.5, 1.0]) * dt).ravel()
+            Fl = _flags(t, dt, rates) if zoh else np.zeros((len(rates), len(t)))
         return np.asfortranarray(input_matrix(model, sig, t3)), Fl
 
     chunks = _prefetched(inputs, range(0, n_out, M))
@@ -279,7 +357,7 @@ def _simulate_rk4(model, t_end, sig, pv, x0, dt, zoh, k, jit, progress):
         Y_out[:, c0 : c0 + m] = Yc[:, :m]
         # inputs at the kept samples: the end of each block of k steps
         bad = monitor.first((np.arange(c0, c0 + m) + 1) * k * dt, Xc[: model.nx, :m], Yc[:, :m],
-                            U[:, 3 * k - 1 :: 3 * k][:, :m])
+                            U[:, ncol * k - 1 :: ncol * k][:, :m])
         if bad is not None:
             what = bad.what
             if what.startswith("non-finite") and (bad.finite_before or c0 > 0):

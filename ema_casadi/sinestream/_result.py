@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._files import write_with
+from .._util._notebook import Summarised
 from ..simulation import SimulationError
 
 #: Result fields per point, with units. ``status`` is ``converged``, ``not_converged``
@@ -29,8 +30,8 @@ class FreqRespError(SimulationError):
     """Bad frequency-response request (one line, names the argument)."""
 
 
-@dataclass
-class FreqResponse:
+@dataclass(repr=False)
+class FreqResponse(Summarised):
     """Sine-stream results on a grid with named axes.
 
     Attributes
@@ -120,12 +121,10 @@ class FreqResponse:
 
         return plot_bode(self, path, title, stroke)
 
-    def __repr__(self) -> str:
-        from .._util._notebook import short_repr
-
+    def _facts(self) -> dict:
         converged = int(np.asarray(self.data["converged"]).sum())
-        return short_repr("FreqResponse", {"shape": "x".join(map(str, self.shape)), "axes": ", ".join(self.axes),
-                                           "converged": f"{converged} of {int(np.prod(self.shape))}"})
+        return {"shape": "x".join(map(str, self.shape)), "axes": ", ".join(self.axes),
+                "converged": f"{converged} of {int(np.prod(self.shape))}"}
 
     def to_csv(self, path: str | Path) -> Path:
         """Write one row per point (columns as :meth:`rows`, SI units), atomically.

@@ -175,11 +175,17 @@ def _peak(spec, o, where, error, models):
     return {"signals": sigs}, [(f"peak_{s}", m.units.get(s, "")) for s in sigs]
 
 
+def _maximum(spec, o, where, error, models):
+    o, _ = _peak(spec, o, where, error, models)
+    m = models[0]
+    return o, [(f"max_{s}", m.units.get(s, "")) for s in o["signals"]]
+
+
 #: name -> (option check, needs the scenario's simulation)
 METRICS = {
     "step": (_step, True), "hunting": (_hunting, True), "margins": (_margins, False),
     "bandwidth": (_bandwidth, False), "sine_stream": (_sine, False), "peak_temperature": (_temperature, True),
-    "energy": (_energy, True), "peak": (_peak, True),
+    "energy": (_energy, True), "peak": (_peak, True), "maximum": (_maximum, True),
 }
 
 
@@ -216,8 +222,26 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
         for m in models:
             check_run(m, sc["duration"], dt=sc["dt"], dt_out=sc.get("dt_out"), solver=sc["solver"],
                       rtol=sc.get("rtol", 1e-8), atol=sc.get("atol", 1e-11), event_tol=sc.get("event_tol", 1e-7),
-                      labels=labels, error=error)
+                      zoh=bool(sc.get("zoh")), labels=labels, error=error)
+            _check_step(m, sc, labels["dt"], error)
     return out
+
+
+def _check_step(model, sc, label, error) -> None:
+    """With rk4: the step against the ECU's sample periods (refused where one step would
+    hold two instants) and RK4's
+    stability limit at the nominal parameters and the scenario's largest load (warned:
+    the runs then skip the check, one limit stands for the sweep)."""
+    from ..simulation import choose_solver, input_signals, sampling_split, step_check
+
+    zoh = bool(sc.get("zoh"))
+    if choose_solver(model, sc["solver"], zoh)[0] != "rk4":
+        return
+    pv = model.p()
+    if zoh:
+        sampling_split(model, sc["dt"], pv, error, label)
+    given = {model.input_name(k): v for k, v in sc["signals"].items()}
+    step_check(model, sc["dt"], input_signals(model, given, pv, sc["duration"]), pv, zoh, sc["duration"], label)
 
 
 def metric_columns(metrics: dict) -> list[tuple[str, str]]:
@@ -242,7 +266,7 @@ def simulate_scenario(model, pv, scenario):
 
     kw = {k: scenario[k] for k in ("dt_out", "rtol", "atol", "event_tol", "zoh") if k in scenario}
     return simulate(model, scenario["duration"], p=pv, solver=scenario["solver"], dt=scenario["dt"],
-                    **kw, inputs=scenario["signals"])
+                    check_step=False, **kw, inputs=scenario["signals"])  # the step is checked once, at the spec
 
 
 def compute_metrics(name: str, opts: dict, model, params, pv, res) -> dict:
@@ -330,5 +354,10 @@ def _c_peak(o, model, params, pv, res):
     return {f"peak_{s}": float(np.max(np.abs(res[s]))) for s in o["signals"]}
 
 
+def _c_maximum(o, model, params, pv, res):
+    return {f"max_{s}": float(np.max(res[s])) for s in o["signals"]}
+
+
 _COMPUTE = {"step": _c_step, "hunting": _c_hunting, "margins": _c_margins, "bandwidth": _c_bandwidth,
-            "sine_stream": _c_sine, "peak_temperature": _c_temperature, "energy": _c_energy, "peak": _c_peak}
+            "sine_stream": _c_sine, "peak_temperature": _c_temperature, "energy": _c_energy, "peak": _c_peak,
+            "maximum": _c_maximum}

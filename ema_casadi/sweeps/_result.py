@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ._journal import write_table
 from ._metrics import metric_columns
 
@@ -31,8 +32,8 @@ def spearman(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.corrcoef(rx, ry)[0, 1])
 
 
-@dataclass
-class SweepResult:
+@dataclass(repr=False)
+class SweepResult(Summarised):
     """One row per run: the run's number, swept variants and parameters (SI), the
     metrics (SI, unit in the column name or :meth:`units`), ``status`` (``ok`` or
     ``failed``) and ``reason``.
@@ -131,11 +132,9 @@ class SweepResult:
 
         return data_frame({c: [r.get(c) for r in self.rows] for c in self.columns}, index="run", units=self.units())
 
-    def __repr__(self) -> str:
-        from .._util._notebook import short_repr
-
-        return short_repr("SweepResult", {"sweep": self.spec.name, "runs": len(self.rows),
-                                          "failed": self.info.get("failed"), "metrics": len(self.metrics)})
+    def _facts(self) -> dict:
+        return {"sweep": self.spec.name, "runs": len(self.rows), "failed": self.info.get("failed"),
+                "metrics": len(self.metrics)}
 
     def plot(self, path: str | Path | None = None, max_panels: int = 6):
         """One row per metric: its histogram, then the metric against each swept

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._util._notebook import Summarised
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ._problem import TuningProblem
@@ -33,8 +34,8 @@ _ACTIVE = 1e-2           # a group with its smallest normalised value below this
 _FALLBACK_CHECKS = 5
 
 
-@dataclass
-class TuneResult:
+@dataclass(repr=False)
+class TuneResult(Summarised):
     """Outcome of :func:`tune`.
 
     Attributes
@@ -140,12 +141,10 @@ class TuneResult:
         before = self.params.replace(**self.gains_before)
         return plot_tuning(self, model, before, None, reference)
 
-    def __repr__(self) -> str:
-        from .._util._notebook import short_repr
-
-        return short_repr("TuneResult", {"success": self.success, "status": self.status, "objective":
-                                         f"{self.objective} = {self.objective_value:.4g}",
-                                         "gains": ", ".join(f"{k}={v:.4g}" for k, v in self.gains_after.items())})
+    def _facts(self) -> dict:
+        return {"success": self.success, "status": self.status,
+                "objective": f"{self.objective} = {self.objective_value:.4g}",
+                "gains": ", ".join(f"{k}={v:.4g}" for k, v in self.gains_after.items())}
 
     def write(self, path) -> Path:
         """Write the parameter file with the tuned gains (atomically); returns its path.

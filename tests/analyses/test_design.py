@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import assert_glance
 from ema_casadi.design import (
     DesignError,
     Segment,
@@ -34,7 +35,8 @@ def small(params):
 def test_information_is_the_covariance_identify_reports(params, model_cache, tmp_path):
     """The inverse of the predicted information is the covariance identify computes from
     its Jacobian when it fits the same test, noise-free, with these noise levels (it
-    starts at the truth and stays there)."""
+    starts at the truth and stays there): its textbook intervals (the headline ones are
+    the robust sandwich, which scales with the residuals: zero here)."""
     model = model_cache()
     seg = Segment("multisine", (1.0, 8.0), 5e3, 2e-3)
     test = realise([seg], 1.0, 1000.0, "x_cmd", "f_ext")
@@ -47,7 +49,7 @@ def test_information_is_the_covariance_identify_reports(params, model_cache, tmp
     res = identify(params, [path], ["F_seal", "J_m"], sigma=SIGMA, consistency=False, hold_unidentifiable=False)
     # identify's 95 % intervals in log coordinates: half-width 1.96 sd_z
     sd_pred = np.sqrt(np.diag(np.linalg.inv(info.M)))
-    sd_fit = np.array([math.log(res.interval[n][1] / res.interval[n][0]) / (2 * 1.959963984540054)
+    sd_fit = np.array([math.log(res.interval_textbook[n][1] / res.interval_textbook[n][0]) / (2 * 1.959963984540054)
                        for n in ("F_seal", "J_m")])
     # the same sensitivities on the same steps: measured 1.2e-10 relative (the CSV's 17 digits,
     # the fit's last step of 1e-10); 1e-6 leaves room for another CPU's rounding and step choice
@@ -86,6 +88,7 @@ def test_efficient_rounding_keeps_the_total_and_the_support():
 
 
 def test_a_small_design_beats_its_worst_single_segment_and_keeps_the_limits(small):
+    assert_glance(small)
     r = small
     assert r.info["ipopt"]["status"] == "Solve_Succeeded"
     assert sum(s["count"] for s in r.segments) == 2
@@ -97,14 +100,14 @@ def test_a_small_design_beats_its_worst_single_segment_and_keeps_the_limits(smal
 
 
 def test_the_design_is_written_in_the_toolkits_layout(small, tmp_path):
+    from ema_casadi.design import output_names
     from ema_casadi.signals import parse_signal
 
-    paths = small.write(tmp_path)
-    names = {p.name for p in paths}
-    assert {"design.csv", "summary.json", "comparison.md", "design.png"} <= names
+    folder = small.write(tmp_path / "out")
+    assert sorted(p.name for p in folder.iterdir()) == sorted(output_names())
     rec = small.test.records[0]
     for col, kind in (("x_cmd", "length"), ("f_ext", "force")):  # the table ema simulate plays, read back
-        sig = parse_signal(f"{tmp_path / 'design.csv'}:{col}", kind)
+        sig = parse_signal(f"{folder / 'design.csv'}:{col}", kind)
         assert np.array_equal(sig(rec["t"]), rec["inputs"][col])
 
 

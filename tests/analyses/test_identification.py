@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
+from conftest import assert_glance
 from ema_casadi import identification as idn
 from ema_casadi.identification._problem import Predictor, free_parameters
 from ema_casadi.simulation import forward_sensitivities, input_signals
@@ -94,6 +95,7 @@ def test_recovery_of_the_example(example, example_fit):
 
 
 def test_a_strong_correlation_is_a_note_not_a_verdict(example_fit):
+    assert "fitted=F_seal, c_v, J_m, psi" in assert_glance(example_fit)
     """J_m and psi are correlated beyond 0.95 in these records (inertia and torque
     constant both scale the acceleration per ampere), yet each marginal interval (which
     carries the correlation) is a few tenths of a per cent: both identifiable, the
@@ -178,6 +180,7 @@ def test_health_trend_predicts_the_crossing(params, tmp_path):
                                           truth={"F_seal": 150.0 + 0.05 * h}, seed=20 + k,
                                           fields={"flight_hours": h}))
     tr = idn.track(params, paths[::-1], ["F_seal"], limits={"F_seal": 300.0})
+    assert "records=4" in assert_glance(tr)
     assert [r["stamp"] for r in tr.rows] == [0.0, 500.0, 1000.0, 1500.0]
     t = tr.trends["F_seal"]
     assert abs(t["slope"] - 0.05) <= 3 * np.sqrt(t["covariance"][1][1])
@@ -342,6 +345,7 @@ def test_compare_finds_the_ecu_structure(params, tmp_path):
                                truth=truth, seed=1, variants={"anti_windup": "clamping"})
     sigma = {"x_rod": 0.3e-6, "i_q": 0.05}
     cmp = idn.compare(params, [rec], list(truth), {"anti_windup": ["backcalc", "clamping"]}, sigma=sigma)
+    assert "structures=2" in assert_glance(cmp)
     assert [r["variants"]["anti_windup"] for r in cmp.rows] == ["clamping", "backcalc"]
     assert cmp.rows[0]["adequate"] and not cmp.rows[1]["adequate"]
     assert cmp.rows[1]["bic"] - cmp.rows[0]["bic"] > 10

@@ -9,6 +9,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import ema_casadi as ema
+from conftest import assert_glance
 
 pd = pytest.importorskip("pandas")
 
@@ -57,7 +58,7 @@ def test_a_sweep_converts(tmp_path):
     frame = res.to_pandas()
     assert frame.index.name == "run" and len(frame) == 2
     np.testing.assert_array_equal(frame["peak_x_rod"].to_numpy(), res.column("peak_x_rod"))
-    assert repr(res).startswith("SweepResult(") and "runs=2" in repr(res)
+    assert repr(res).startswith("SweepResult(") and "runs=2" in assert_glance(res)
     assert isinstance(res.plot(), Figure)
 
 
@@ -73,5 +74,5 @@ def test_a_mission_plots_and_converts(tmp_path):
     frame = res.to_pandas()
     assert frame.index.name == "time" and list(frame.index) == [0.0, 1.0, 2.0]
     assert frame.attrs["units"]["T_w"] == "degC"
-    assert repr(res).startswith("MissionResult(mission=m")
+    assert assert_glance(res).startswith("MissionResult(mission=m")
     assert res.info["solver"] == "rk4"  # the mission's hybrid friction sticks

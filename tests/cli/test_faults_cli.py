@@ -8,7 +8,7 @@ import sys
 import pytest
 
 import ema_casadi as ema
-from conftest import REFERENCE, ROOT
+from conftest import REFERENCE, ROOT, assert_glance
 
 SMALL = """
 [scenario]
@@ -64,6 +64,7 @@ def test_run_faults_api_returns_rows_and_a_figure(params):
     again = ema.run_faults(params, study)  # the cases run on two threads: the same rows, bit for bit
     assert res.rows == again.rows
     assert len(res.rows) == 3 and res.rows[1]["kind"] == "loss"
+    assert "cases=3" in assert_glance(res)
     # the rod sensor reads 0 while the rod is at 2 mm: the cross-check catches it
     assert res.rows[1]["detected_latch_cross_s"] is not None
     fig = res.plot()

@@ -263,3 +263,20 @@ def test_frequency_record_error_names_the_value(tmp_path, capsys, rows, words):
     for w in words:
         assert w in line, (w, line)
     assert not out.exists()
+
+
+def test_a_library_warning_is_one_line(capsys):
+    """What a library warns during a command (here the warning matplotlib gives for an
+    empty legend) reaches stderr as the contract's one line, once, without Python's file
+    and source lines."""
+    import warnings
+
+    from ema_casadi.cli._run import one_line_warnings
+
+    with one_line_warnings("faults"), warnings.catch_warnings():
+        warnings.simplefilter("always")
+        for _ in range(2):
+            warnings.warn("No artists with labels found to put in legend.\n  Note that ...", UserWarning,
+                          stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == "ema faults: warning: No artists with labels found to put in legend.\n", err

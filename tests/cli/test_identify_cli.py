@@ -240,9 +240,7 @@ def test_example_records_are_what_the_guide_fits(tmp_path, capsys):
     rec = tmp_path / "rec"
     code, out, err = _run(["identify", "--example-records", str(rec), "--json"], capsys)
     assert code == 0, err
-    from ema_casadi.cli.identify import EXAMPLE_FILES
-
-    assert sorted(p.name for p in rec.iterdir()) == sorted(EXAMPLE_FILES)
+    assert sorted(p.name for p in rec.iterdir()) == sorted(idn.GUIDE_FILES)
     code, out, err = _run(["identify", "--track", *[str(rec / f"rig_{h:04d}h.csv") for h in (0, 500, 1000, 1500)],
                            "--free", "F_seal", "--limit", "F_seal=300N", "--json", "--no-progress"], capsys)
     assert code == 0, err

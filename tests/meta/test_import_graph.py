@@ -40,7 +40,7 @@ PKG = "ema_casadi"
 ROOT = Path(ema_casadi.__file__).parent
 
 ANALYSES = ("simulation", "linearisation", "frequency", "export", "sinestream", "limitcycle", "aircraft", "mission",
-            "tuning", "sweeps", "identification", "faults", "design")
+            "tuning", "sweeps", "identification", "faults", "design", "optimal")
 #: Layer of each top-level module or package, bottom (0) to top.
 LAYERS = [("_util",), ("signals",), ("model",), ("plots",), ANALYSES, ("demo",), ("cli",)]
 RANK = {name: rank for rank, names in enumerate(LAYERS) for name in names}

@@ -24,7 +24,7 @@ from ema_casadi.model.components import INPUT_ROLES, OUTPUT_ROLES, SIGNAL_KEYS
 
 ROOT = Path(ema.__file__).parent
 ANALYSES = ("simulation", "linearisation", "frequency", "export", "sinestream", "limitcycle", "aircraft", "mission",
-            "tuning", "sweeps", "identification", "faults", "design")
+            "tuning", "sweeps", "identification", "faults", "design", "optimal")
 #: Models whose signal names are looked for (together every part of the registry).
 VARIANT_SETS = ({}, {"faults": "on", "monitors": "on", "thermal": "lumped", "sensor": "real", "airframe": "transport"},
                 {"motor": "dc", "screw": "rigid", "supply": "line", "airframe": "b747", "friction": "lugre"})

@@ -207,6 +207,11 @@ def export_fmu_cs(model: Model, path, *, dt_internal: float | None = None, fmi_v
     dt_internal = default_dt(model) if dt_internal is None else dt_internal
     if not (isinstance(dt_internal, (int, float)) and 0 < dt_internal < 1):
         raise ExportError(f"dt_internal must be a step in seconds between 0 and 1, got {dt_internal!r}")
+    from ...simulation import rk4_step_limit
+
+    above = rk4_step_limit(model).message(float(dt_internal), "dt")
+    if above is not None:  # at rest without load: the least any run of the FMU needs
+        raise ExportError(above)
     if fmi_version not in FMI_VERSIONS:
         raise ExportError(f"fmi_version '{fmi_version}' unknown; choose 2.0 or 3.0")
     path = check_target(path, "file")

@@ -32,6 +32,7 @@ from ._part import (
     OUTPUT_KINDS,
     OUTPUT_ROLES,
     POLICIES,
+    RATING_SENSES,
     SIGNAL_KEYS,
     AssemblyError,
     Bound,
@@ -46,6 +47,7 @@ from ._part import (
     Node,
     Output,
     Part,
+    Rating,
     Seed,
     State,
     der,
@@ -63,15 +65,18 @@ from ._registry import (
     served_by,
     validate_variants,
 )
+from .monitors import TAU_LATCH, TAU_RESET
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
     "sensor", "supply", "thermal",
     "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS",
-    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit",
+    "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit", "Rating", "RATING_SENSES",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
     "PART_CLASSES", "served_by",
+    # the monitors' timer reset and latch time constants (s): what a statistic's detection obeys
+    "TAU_RESET", "TAU_LATCH",
 ]

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-__all__ = ["POLICIES", "Limit", "Freeze", "Seed", "Gain", "Node", "node_outflow", "Fault"]
+__all__ = ["POLICIES", "Limit", "Rating", "RATING_SENSES", "Freeze", "Seed", "Gain", "Node", "node_outflow", "Fault"]
 
 
 #: Small-signal policies of the linearisation: policy -> allowed values, first the
@@ -66,6 +66,52 @@ class Limit:
     scale: float = 1.0
     holds_load: bool = False
     digits: int = 4
+
+
+#: How a :class:`Rating` limits its signals: ``norm`` (the 2-norm of the signals, a
+#: current or voltage vector), ``max`` (the one signal at most the limit), ``min`` (at least).
+RATING_SENSES = ("norm", "max", "min")
+
+
+@dataclass(frozen=True)
+class Rating:
+    """An operating limit a part declares: what the actuator may do in operation (the
+    current limit, the voltage circle, the stroke, the rated rod speed), as opposed to a
+    :class:`Bound` (beyond which a run is garbage). Optimal control takes the ratings as
+    its constraints and checks its replay against them
+    (:meth:`~ema_casadi.model.assembly.Model.operating_limits`).
+
+    Attributes
+    ----------
+    name : str
+        Short name (``current``, ``voltage``, ``stroke``, ``rod_speed``, ...).
+    what : str
+        For messages ("current limit").
+    signals : tuple of str
+        The limited states or outputs of the model (SI).
+    limit : callable
+        ``limit(P) -> float``: the limit (SI) from the numeric parameters.
+    why : str
+        The limit in messages ("I_max").
+    unit : str
+        SI unit of the signals and the limit.
+    sense : str
+        One of :data:`RATING_SENSES`: ``norm`` (``sqrt(sum s^2) <= limit``, written
+        ``sum s^2 <= limit^2``, smooth at 0), ``max`` (``s <= limit``) or ``min`` (``s >= limit``).
+    role : str
+        What the limit is for an optimiser: ``rating`` (the actuator's own limit) or
+        ``strategy`` (how its drive is run, e.g. no field weakening; an optimiser may be
+        told to lift it).
+    """
+
+    name: str
+    what: str
+    signals: tuple
+    limit: Callable
+    why: str
+    unit: str
+    sense: str = "norm"
+    role: str = "rating"
 
 
 @dataclass(frozen=True)

@@ -36,10 +36,11 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
-from ._contract import POLICIES, Fault, Freeze, Gain, Limit, Node, Seed, node_outflow
+from ._contract import POLICIES, RATING_SENSES, Fault, Freeze, Gain, Limit, Node, Rating, Seed, node_outflow
 
 __all__ = [
-    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Freeze", "Gain", "Seed", "Fault", "Part", "Bus",
+    "State", "Input", "Output", "Loop", "Hold", "Bound", "Limit", "Rating", "RATING_SENSES", "Freeze",
+    "Gain", "Seed", "Fault", "Part", "Bus",
     "AssemblyError", "der", "POLICIES", "Node", "node_outflow",
     "OUTPUT_KINDS", "INPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS", "MARGIN", "HEAT_NODES", "heat_signal",
 ]
@@ -47,8 +48,10 @@ __all__ = [
 #: Output kinds: ``signal`` (a physical signal, linearised by default), ``loss``
 #: (power dissipated, W), ``power`` (power through a port, W), ``energy`` (J), ``flag``
 #: (a mode indicator), ``aux`` (an internal quantity exposed for analyses) and ``alarm``
-#: (an ECU monitor's latch: 0 healthy, rising to 1 when it latches; detected at 1/2).
-OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm")
+#: (an ECU monitor's latch: 0 healthy, rising to 1 when it latches; detected at 1/2),
+#: ``statistic`` (what a monitor compares with its threshold: the condition holds at
+#: statistic >= threshold, the parameter ``Output.threshold`` names).
+OUTPUT_KINDS = ("signal", "loss", "power", "energy", "flag", "aux", "alarm", "statistic")
 
 #: Roles of model inputs, what analyses ask the model for: the rod command, the external load
 #: on the rod, the screw efficiency, the ambient temperature, the pitch-attitude command, the gust.
@@ -155,7 +158,9 @@ class State:
         What analyses may ask the model for: ``rod_position``, ``rod_velocity``,
         ``shaft_angle``, ``shaft_speed``, ``contact_velocity`` (the velocity at the
         friction contact), ``current``, ``controller_integral``, ``play`` (a memory
-        element without dynamics of its own), ``temperature`` (a thermal node, degC).
+        element without dynamics of its own), ``temperature`` (a thermal node, degC),
+        ``hysteresis`` (a rate-independent memory whose rate switches with the sign of a
+        speed and saturates at its band's edges: the screw's self-locking memory).
     x0 : float
         Initial value (SI; temperatures in degC).
     scale : callable
@@ -263,6 +268,9 @@ class Output:
         Its physical envelope (None: only checked to be finite).
     roles : tuple of str
         What analyses may ask the model for (:data:`OUTPUT_ROLES`: ``rod_position``, ...).
+    threshold, confirm, alarm : str, optional
+        A ``statistic`` output: the parameter of its threshold (same unit), of its
+        confirmation time (s), and the ``alarm`` output of its latch.
     """
 
     name: str
@@ -271,6 +279,9 @@ class Output:
     kind: str = "signal"
     bound: Bound | None = None
     roles: tuple = ()
+    threshold: str | None = None
+    confirm: str | None = None
+    alarm: str | None = None
 
 
 @dataclass(frozen=True)
@@ -374,6 +385,12 @@ class Part:
     freeze: ClassVar[tuple] = ()
     #: Saturations a trim must keep inactive (:class:`Limit`).
     trim_limits: ClassVar[tuple] = ()
+    #: Operating limits (:class:`Rating`): the constraints of an optimal move.
+    ratings: ClassVar[tuple] = ()
+    #: Variant key -> value of the smooth counterpart an optimiser uses in this part's
+    #: place (hybrid friction -> smooth, the switched bridge -> averaged): see
+    #: :meth:`~ema_casadi.model.assembly.Model.smooth`.
+    smooth: ClassVar[dict] = {}
     #: Gains a tuner may move (:class:`Gain`), outer loop first.
     gains: ClassVar[tuple] = ()
     #: Named operating conditions (the airframe's flight conditions): name -> flat

@@ -6,7 +6,7 @@ import math
 
 import casadi as ca
 
-from ._part import MARGIN, Bound, Input, Output, Part, Seed, State, der
+from ._part import MARGIN, Bound, Input, Output, Part, Rating, Seed, State, der
 from .motor import no_load_speed, shaft
 
 __all__ = [
@@ -297,7 +297,13 @@ def _outputs(rod_speed: Bound) -> tuple:
     )
 
 
-_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max", "P_blend")
+_PARAMS = ("p", "J_m", "J_s", "M", "b_m", "c_v", "stroke", "v_max", "P_blend", "v_rod_max")
+
+
+def _ratings(rod: str) -> tuple:
+    """The stroke on the rod's mechanical position ``rod`` and the rated rod speed."""
+    return (Rating("stroke", "stroke", (rod,), lambda P: P.stroke, "stroke", "m"),
+            Rating("rod_speed", "rated rod speed", ("v_rod",), lambda P: P.v_rod_max, "v_rod_max", "m/s"))
 
 
 class Elastic(Part):
@@ -316,6 +322,7 @@ class Elastic(Part):
     outputs = _outputs(_RINGING_ROD) + (Output("P_contact", "W", "contact-damping loss", kind="loss"),)
     params = _PARAMS + ("C", "c_c", "B")
     small_signal = _SMALL_SIGNAL
+    ratings = _ratings("x_rod")
     #: ``screw_lock``: ``blend`` (default) is the memoryless blend over ``P_blend`` alone;
     #: ``memory`` carries the self-locking memory z_lock (:func:`lock_rate`, parameter
     #: ``x_lock``): a held screw keeps its force. Opt-in for long holds (jams, held loads):
@@ -336,9 +343,10 @@ class Elastic(Part):
         if self.memory:
             self.states = type(self).states + (
                 State("z_lock", "1", "screw-nut self-locking memory: -1 back-driven edge, +1 driving edge",
-                      scale=lambda P: 1.0),)
+                      roles=("hysteresis",), scale=lambda P: 1.0),)
             self.params = type(self).params + ("x_lock",)
             self.small_signal = _SMALL_SIGNAL_LOCK
+            self.smooth = {"screw_lock": "blend"}  # the memory is stiff at speed
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS
@@ -396,6 +404,8 @@ class Rigid(Part):
     outputs = _outputs(_ROD_SPEED)
     params = _PARAMS + ("B",)
     small_signal = _SMALL_SIGNAL
+    # the rod moves with the nut (x_in); its position signal x_rod is after the play
+    ratings = _ratings("x_in")
     stored = ("E_kin",)
     loads = ("f_ext",)
     limits = _LIMITS

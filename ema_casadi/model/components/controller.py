@@ -437,6 +437,7 @@ class PositionP(Loops):
     )
     options = {**Loops.options, "limit_shape": LIMIT_SHAPES}
     integral = False
+    smooth = {"limit_shape": "smooth"}  # the clip's corners
 
     def signals(self):
         aw = self.anti_windup

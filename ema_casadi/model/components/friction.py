@@ -203,6 +203,7 @@ class Hybrid(Part):
     outputs = _OUT
     heat = Smooth.heat
     params = _PARAMS + ("eps", "r_start")
+    smooth = {"friction": "smooth"}
     # the stick band closed too: the hybrid model then linearises exactly like the smooth one
     small_signal = {"friction": {
         "off": {"F_seal": 0.0, "C_bear": 0.0, "eps": 0.0},

@@ -278,6 +278,7 @@ class Pwm(Part):
     """
 
     family, value = "inverter", "pwm"
+    smooth = {"inverter": "ideal"}
     doc = "switched 2-level bridge, SVPWM at f_sw, exact switching instants"
     requires = {"motor": ("pmsm",)}
     outputs = (

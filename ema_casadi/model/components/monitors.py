@@ -23,6 +23,14 @@ The conditions (thresholds and confirmation times from the ``[monitor]`` table):
 - ``oc`` (over-current): ``|i_dq,s| > k_oc I_max``;
 - ``ot`` (over-temperature): ``T_w > T_ot`` (with the thermal network; never without).
 
+Each monitor also outputs its statistic (kind ``statistic``, ``stat_<monitor>``): the
+quantity its condition compares with its threshold, in the threshold's unit, so that
+the condition holds at ``stat >= threshold`` - ``|x_ref - x_s|`` (m, against
+``e_track``); ``|i_q_s| / I_max`` while ``|omega_s| < w_jam``, else 0 (against
+``k_jam_i``); ``|x_in_s - x_s| - B/2 - |F_est|/C`` (m, against ``e_cross``);
+``|i_dq,s| / I_max`` (against ``k_oc``); ``T_w`` (degC, against ``T_ot``; 0 without
+the thermal network). Their largest healthy values are the monitors' margins.
+
 A latched monitor with its reaction flag ``react_k = 1`` switches the bridge off (the
 open-bridge winding voltages, as the free-run fault), so fault accommodation runs in
 the same model.
@@ -36,7 +44,7 @@ import casadi as ca
 
 from ._part import Output, Part, State, der
 
-__all__ = ["On", "MONITORS", "TAU_RESET", "TAU_LATCH"]
+__all__ = ["On", "MONITORS", "THRESHOLDS", "TAU_RESET", "TAU_LATCH"]
 
 #: Decay time of a confirmation timer when its condition clears (s).
 TAU_RESET = 1e-3
@@ -51,6 +59,27 @@ MONITORS = {
     "oc": ("t_oc", "react_oc", "over-current"),
     "ot": ("t_ot", "react_ot", "winding over-temperature"),
 }
+
+
+#: Monitor -> (threshold parameter, statistic unit).
+THRESHOLDS = {"track": ("e_track", "m"), "jam": ("k_jam_i", "1"), "cross": ("e_cross", "m"), "oc": ("k_oc", "1"),
+              "ot": ("T_ot", "degC")}
+
+
+def _statistics(b):
+    """Each monitor's statistic, in its threshold's unit (module docstring)."""
+    P = b.P
+    k = 2 * math.pi / P.p
+    i_dq = ca.sqrt(b["i_d_s"] ** 2 + b["i_q_s"] ** 2 + 1e-30)
+    F_est = 1.5 * P.pp * P.psi * b["i_q_s"] * k
+    stat = {
+        "track": ca.fabs(b["x_ref"] - b["x_s"]),
+        "jam": ca.if_else(ca.fabs(b["omega_s"]) < P.w_jam, ca.fabs(b["i_q_s"]) / P.I_max, 0),
+        "cross": ca.fabs(b["x_in_s"] - b["x_s"]) - P.B / 2 - ca.fabs(F_est) / P.C,
+        "oc": i_dq / P.I_max,
+        "ot": b["T_w"] if "T_w" in b else ca.SX(0),
+    }
+    return tuple(stat[name] for name in MONITORS)
 
 
 def _conditions(b):
@@ -83,6 +112,9 @@ class On(Part):
     outputs = (
         *(Output(f"latch_{n}", "1", f"latched monitor: {doc}", kind="alarm") for n, (_, _, doc) in MONITORS.items()),
         Output("bridge_off", "1", "the monitors' reaction: 1 switches the bridge off", kind="flag"),
+        *(Output(f"stat_{n}", THRESHOLDS[n][1], f"monitor {n}'s statistic: holds at >= {THRESHOLDS[n][0]}",
+                 kind="statistic", threshold=THRESHOLDS[n][0], confirm=t, alarm=f"latch_{n}")
+          for n, (t, _, _) in MONITORS.items()),
     )
     params = ("e_track", "t_track", "k_jam_i", "w_jam", "t_jam", "e_cross", "t_cross", "k_oc", "t_oc", "T_ot", "t_ot",
               "react_track", "react_jam", "react_cross", "react_oc", "react_ot", "K_x", "v_max", "I_max", "B", "C",
@@ -114,6 +146,7 @@ class On(Part):
             keys: monitors,
             **{f"latch_{n}": (lambda b, n=n: b[f"L_{n}"]) for n in MONITORS},
             "bridge_off": bridge_off,
+            tuple(f"stat_{n}" for n in MONITORS): _statistics,
         }
 
     def modify(self):

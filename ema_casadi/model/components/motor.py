@@ -14,9 +14,11 @@ is 0 and the equations are those without iron loss.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 
-from ._part import MARGIN, Bound, Fault, Input, Output, Part, State, der
+from ._part import MARGIN, Bound, Fault, Input, Output, Part, Rating, State, der
 from .controller import CURRENT_LOOP, FocCurrent, PiCurrent
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm",
@@ -240,6 +242,17 @@ def _iron(opt):
 
 
 _PMSM_KEYS = (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag")
+#: Operating limits (:class:`~ema_casadi.model.components.Rating`): the current vector within
+#: I_max, the voltage vector within the linear-SVPWM circle k_v V_dc/sqrt(3).
+_RATINGS = (
+    Rating("current", "current limit", ("i_d", "i_q"), lambda P: P.I_max, "I_max", "A"),
+    Rating("voltage", "voltage circle", ("v_d", "v_q"), lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)",
+           "V"),
+)
+#: The FOC commands i_d = 0: a negative i_d (field weakening) would raise the top speed
+#: beyond the voltage circle's psi-limited one; the drive as commissioned does not use it.
+_NO_FIELD_WEAKENING = Rating("field_weakening", "no field weakening (the FOC commands i_d = 0)", ("i_d",),
+                             lambda P: 0.0, "i_d >= 0", "A", sense="min", role="strategy")
 
 
 class Pmsm(Part):
@@ -259,6 +272,7 @@ class Pmsm(Part):
     brings = (FocCurrent,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_d", "L_q", "k_h", "k_e")
+    ratings = (*_RATINGS, _NO_FIELD_WEAKENING)
     options = {**_IRON, "winding_short": ("off", "on")}
     heat = _HEAT
     states = (
@@ -321,6 +335,7 @@ class Dc(Part):
     brings = (PiCurrent,)
     outputs = _COMMON_OUT
     params = ("pp", "psi", "L_q", "k_h", "k_e")
+    ratings = _RATINGS
     options = _IRON
     heat = _HEAT
     states = (State("i", "A", "winding current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),)

@@ -101,6 +101,7 @@ class Real(Part):
     """LVDT, resolver and phase-current sensors with their errors (module docstring)."""
 
     family, value = "sensor", "real"
+    smooth = {"sensor": "ideal"}  # quantisation steps and noise
     doc = "LVDT (gain, bias, noise, quantisation, lag), resolver (bits, noise, speed estimate), current sensors"
     states = (
         State("x_f", "m", "LVDT output before its ADC (first-order lag of x_rod)", scale=lambda P: P.stroke,

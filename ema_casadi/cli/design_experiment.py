@@ -1,0 +1,170 @@
+"""Design a rig test that pins named parameters down (optimal experiment design).
+
+The command and load profile of --duration seconds whose 95 % intervals of the --free
+parameters are smallest (D: the confidence ellipsoid's volume, A: the sum of the
+relative variances, E: the largest; --weights NAME=W,... weights them, 0 leaves one
+out), within +-stroke, the rig's load capability and the limits the parts declare
+(motor current, speed command, voltage), from the Fisher information of the exact
+forward sensitivities identify fits with. The test is a sequence of 1 s segments
+(multisines of 1-50 Hz and constant-speed slews at five load levels); IPOPT chooses
+their shares (a convex problem), --prior FITTED.toml averages the information over
+draws from an earlier fit's intervals. --out DIR writes design.csv (time, x_cmd,
+f_ext: what the rig plays; ema simulate plays it as design.csv:x_cmd), the standard
+test's records, summary.json, comparison.md and design.png. --verify N simulates
+the designed test N times with the noise, fits each with identify and reports the
+realised intervals and their coverage against the predicted ones.
+Example: ema design-experiment --free F_seal,c_v,J_m,psi --duration 10s --stroke 10mm --max-load 15kN --out test
+"""
+
+from __future__ import annotations
+
+import sys
+
+from . import UserError, add_progress, check_output_dir, load, progress_of
+from ._flags import NoEffect
+
+COMMAND = "design-experiment"
+ORDER = 14
+HELP = "design a rig test: the command and load profile that makes the parameters' intervals smallest"
+
+#: The default free parameters (the seven of the recovery case).
+FREE = "F_seal,C_bear,c_v,B,C,J_m,psi"
+
+
+def add_arguments(p):
+    p.add_argument("--free", default=FREE, metavar="NAME[,NAME...]",
+                   help=f"parameters to pin down (flat names); default {FREE}")
+    p.add_argument("--duration", default="10s", metavar="T", help="test length, whole seconds (10s, 8); default 10 s")
+    p.add_argument("--criterion", default="D", metavar="D|A|E",
+                   help="D (ellipsoid volume), A (sum of variances), E (largest variance); default D")
+    p.add_argument("--weights", default=None, metavar="NAME=W[,NAME=W...]",
+                   help="weights of the parameters in the criterion (default 1 each; 0 leaves one out)")
+    p.add_argument("--stroke", default="10mm", metavar="X", help="the rod stays within +-X; default 10 mm")
+    p.add_argument("--max-load", default="15kN", metavar="F",
+                   help="load capability of the rig (0: none); default 15 kN")
+    p.add_argument("--sigma", action="append", default=[], metavar="CHANNEL=VALUE",
+                   help="sensor noise of a channel, repeatable (0.3um, 0.05A); default a typical rig's")
+    p.add_argument("--channels", default=None, metavar="NAME[,NAME...]",
+                   help="measured channels (states or outputs); default the rod position and the motor current")
+    p.add_argument("--prior", default=None, metavar="FITTED.toml",
+                   help="average over draws from an earlier fit's 95 %% intervals (the file ema identify --out wrote)")
+    p.add_argument("--draws", type=int, default=None, metavar="N",
+                   help="parameter draws the information is averaged over; default 1, 4 with --prior")
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of the draws and of --verify; default 0")
+    p.add_argument("--verify", type=int, default=0, metavar="N",
+                   help="simulate the designed test N times with the noise and fit each (identify)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="folder for design.csv, the standard test, summary.json, comparison.md, design.png")
+    add_progress(p)
+
+
+#: Where a flag has no effect (every other flag acts in every combination): --seed seeds
+#: the prior's draws and --verify's noise, so without either it would change nothing.
+NO_EFFECT = {
+    **{f: () for f in ("--free", "--duration", "--criterion", "--weights", "--stroke", "--max-load", "--sigma",
+                       "--channels", "--prior", "--draws", "--verify", "--out")},
+    "--seed": (NoEffect(("--seed", "3"), "without --draws above 1, --prior or --verify (it seeds the prior's draws "
+                        "and the simulated noise)",
+                        lambda a: not a.verify and a.prior is None and (a.draws or 1) <= 1),),
+}
+
+
+def _quantity(text: str, kind: str, flag: str) -> float:
+    from ..signals import SI_UNIT, SignalError, parse_quantity
+
+    try:
+        return parse_quantity(str(text), kind, SI_UNIT[kind])
+    except (SignalError, ValueError):
+        raise UserError(f"{flag} {text}: expected a {kind} (a number in SI or with a unit)") from None
+
+
+def _weights(text):
+    if text is None:
+        return None
+    out = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise UserError(f"--weights {item}: expected NAME=W, W a number") from None
+        if not sep or not key.strip():
+            raise UserError(f"--weights {item}: expected NAME=W")
+    return out
+
+
+def _sigma(items, model) -> dict:
+    from ..signals import KIND_OF_UNIT, SignalError, parse_quantity
+
+    units = model.units
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key or not value.strip():
+            raise UserError(f"--sigma expects CHANNEL=VALUE, got '{item}'")
+        if key not in units:
+            from .._util._checks import nearest
+
+            raise UserError(f"--sigma {key}: not a model signal{nearest(key, units)}")
+        kind = KIND_OF_UNIT.get(units[key])
+        try:
+            out[key] = parse_quantity(value, kind, units[key]) if kind else float(value)
+        except (SignalError, ValueError):
+            raise UserError(f"--sigma {key}={value}: expected a number (SI) or a quantity in a {kind} unit") from None
+    return out
+
+
+def run(args) -> dict:
+    from ..design import DesignError, design_experiment, output_names
+
+    if args.verify < 0:
+        raise UserError(f"--verify must be at least 0, got {args.verify}")
+    if args.draws is not None and args.draws < 1:
+        raise UserError(f"--draws must be at least 1, got {args.draws}")
+    out = check_output_dir(args.out, output_names(), "--out")
+    duration = _quantity(args.duration, "time", "--duration")
+    stroke = _quantity(args.stroke, "length", "--stroke")
+    max_load = _quantity(args.max_load, "force", "--max-load")
+    params, model = load(args)
+    kw = {"criterion": args.criterion.strip().upper(),
+          "weights": _weights(args.weights), "stroke": stroke, "max_load": max_load,
+          "sigma": _sigma(args.sigma, model), "channels": args.channels, "prior": args.prior, "draws": args.draws,
+          "seed": args.seed, "variants": None, "progress": progress_of(args)}
+    try:
+        res = design_experiment(params, args.free, duration, **kw)
+    except DesignError as exc:
+        raise UserError(str(exc)) from None
+    doc = res.to_json()
+    if args.verify:
+        doc["verification"] = res.verify(args.verify, seed=args.seed, progress=progress_of(args))
+    doc["written"] = [str(res.write(out))] if out is not None else []
+    doc["table"] = res.table()
+    return doc
+
+
+def report(result: dict) -> None:
+    """The comparison table, the segments, the limits used, the verification."""
+    w = sys.stdout.write
+    c = result["comparison"]
+    w(f"{result['criterion']}-optimal {result['duration']:g} s test, {len(result['segments'])} kinds of segment "
+      f"(IPOPT: {result['info']['ipopt']['status']}, {result['info']['admissible']} of "
+      f"{result['info']['candidates']} candidates within the limits)\n")
+    for s in result["segments"]:
+        if s["count"]:
+            w(f"  {s['count']} x {s['segment']}\n")
+    w(result["table"] + "\n")
+    lc = c["largest_correlation"]
+    w(f"largest correlation: designed {lc['designed']['pair'][0]}-{lc['designed']['pair'][1]} "
+      f"{lc['designed']['corr']:+.3f}, standard {lc['standard']['pair'][0]}-{lc['standard']['pair'][1]} "
+      f"{lc['standard']['corr']:+.3f}\n")
+    w("limits used (fraction): " + ", ".join(f"{k} {v:.3g}" for k, v in result["limits_used"].items()) + "\n")
+    v = result.get("verification")
+    if v:
+        w(f"verify: {v['converged']} of {v['n']} fits converged, coverage of the truth {100 * v['coverage']:.3g} %, "
+          f"limits {'respected' if v['limits_respected'] else 'LEFT'}\n")
+        for n, r in v["width_ratio"].items():
+            w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
+              f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
+    for p in result.get("written", []):
+        w(f"wrote {p}\n")

@@ -1,0 +1,20 @@
+"""Optimal control of the actuator itself (docs: optimal-control).
+
+:func:`optimal_move` solves a minimum-time, minimum-energy (from the DC link) or
+minimum-heat (in the winding) move of the rod by direct multiple shooting on the model's
+smooth variant (:meth:`~ema_casadi.model.assembly.Model.smooth`), with the model's
+operating limits (:meth:`~ema_casadi.model.assembly.Model.operating_limits`) as the
+constraints, and replays the resulting command profile in the full model beside the
+ECU's own step. Two levels of control: ``through="drive"``, the motor voltages (the
+drive's capability: the physical bound of the commissioned drive), and
+``through="ecu"``, the rod command with the cascade in the loop (a command profile for
+the real ECU).
+"""
+
+from ._api import optimal_move, replay_window, settling_time
+from ._errors import Infeasible, OptimalError
+from ._problem import INTERVALS, LEVELS, OBJECTIVES, Problem, check_request, initial_guess, rk4_substeps, solve
+from ._result import STAIR, OptimalMove
+
+__all__ = ["optimal_move", "OptimalMove", "OptimalError", "Infeasible", "OBJECTIVES", "LEVELS", "INTERVALS", "STAIR",
+           "Problem", "check_request", "solve", "rk4_substeps", "initial_guess", "replay_window", "settling_time"]

@@ -1,0 +1,402 @@
+"""The optimal-control problem of one move, by direct multiple shooting (module docs:
+:mod:`ema_casadi.optimal`)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from .._util._checks import integer, number
+from ..linearisation import operating_point
+from ..model.assembly import Model
+from ..signals import Signal
+from ..simulation import interval_function, simulate, step_response_metrics
+from ._errors import Infeasible, OptimalError
+
+__all__ = ["OBJECTIVES", "LEVELS", "INTERVALS", "Problem", "solve", "rk4_substeps", "initial_guess", "check_request"]
+
+#: What a move minimises: its duration, the energy drawn from the DC link, the heat in the winding.
+OBJECTIVES = ("time", "energy", "heat")
+#: The control: ``drive`` (the innermost loop's held outputs, the motor voltages: the
+#: drive's capability) or ``ecu`` (the rod command through the cascade).
+LEVELS = ("drive", "ecu")
+#: Shooting intervals of a move (default).
+INTERVALS = 40
+#: RK4 substeps are kept at this fraction of RK4's stability limit |h lambda| = 2.78.
+STABILITY_FRACTION = 0.5
+#: A limit counts as binding where the optimum sits within this fraction of it.
+BINDING = 1e-3
+#: Node spacing: the share of a cosine (Chebyshev) grid in the shooting grid of a
+#: minimum-time move, whose current and voltage transients sit at its two ends (the
+#: rest is uniform); energy and heat moves use a uniform grid.
+CLUSTER = 0.8
+#: States an optimal move ends at rest in: their rates are zero at the last node.
+_REST_ROLES = ("shaft_speed", "rod_velocity", "contact_velocity")
+
+
+def rk4_substeps(model: Model, x: np.ndarray, u: np.ndarray, p: np.ndarray, dt: float, held_h=None) -> int:
+    """RK4 substeps for an interval ``dt`` (s) from the Jacobian's largest eigenvalue at
+    the state ``x``: h |lambda| <= STABILITY_FRACTION x 2.78.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x, u, p : ndarray
+        State, inputs and parameters (SI) where the Jacobian is taken.
+    dt : float
+        The interval (s).
+    held_h : ndarray, optional
+        Held controller outputs: the Jacobian of ``f_held`` (default: of ``f``).
+    """
+    xs = ca.SX.sym("x", model.nx)
+    f = model.f_held(xs, u, p, held_h)[0] if held_h is not None else model.f(xs, u, p)[0]
+    A = np.array(ca.Function("A", [xs], [ca.jacobian(f, xs)])(x))
+    lam = np.abs(np.linalg.eigvals(A)).max()
+    return max(1, math.ceil(dt * lam / (STABILITY_FRACTION * 2.78)))
+
+
+class Problem:
+    """One move's optimal-control problem on the smooth variant of a model (what a peer
+    tool is given to solve the same problem: ``model``, ``p``, :meth:`start_state`,
+    :meth:`fractions`, :meth:`build`).
+
+    Parameters
+    ----------
+    model : Model
+        The actuator; the problem is built on its smooth variant (attribute ``model``)
+        with the backlash closed (attribute ``p``, the parameter vector).
+    move, load, start : float
+        The move (m), the constant load (N), the start position (m).
+    objective : str
+        One of :data:`OBJECTIVES`.
+    duration : float or None
+        The fixed duration (s) of an energy or heat move.
+    through : str
+        One of :data:`LEVELS`.
+    intervals : int
+        Shooting intervals.
+    field_weakening : bool
+        Lift the drive-strategy ratings.
+    """
+
+    def __init__(self, model: Model, move: float, load: float, objective: str, duration: float | None,
+                 start: float, through: str, intervals: int, field_weakening: bool):
+        self.full, self.move, self.load, self.objective = model, move, load, objective
+        self.duration, self.start, self.through, self.N = duration, start, through, intervals
+        self.field_weakening = field_weakening
+        smooth = model.smooth()
+        self.model = smooth
+        # the backlash closed (the model's small-signal policy): a dead zone has no derivative in its gap
+        self.p = smooth.p(**smooth.small_signal(backlash="off"))
+        self.cmd = smooth.input_with("command")
+        self.load_input = smooth.input_with("load")
+        self.ratings = [r for r in smooth.ratings if field_weakening is False or r.role != "strategy"]
+        self.ratings = [r for r in self.ratings if all(s in smooth.states or s in smooth.outputs for s in r.signals)]
+        self.limits = {r.name: float(r.limit(smooth.pdict(self.p))) for r in self.ratings}
+        stroke = next(r for r in self.ratings if r.name == "stroke")
+        self.rod = stroke.signals[0]  # the rod's mechanical position: the signal the stroke limits
+        self.target = start + move
+        if through == "drive":
+            inner = list(smooth.loops)[-1]
+            self.controls = [i for i, h in enumerate(smooth.holds) if h.loop == inner]
+        else:
+            self.controls = [smooth.inputs.index(self.cmd)]
+
+    def fractions(self) -> np.ndarray:
+        """The nodes as fractions of the move's duration (0 ... 1)."""
+        k = np.arange(self.N + 1) / self.N
+        beta = CLUSTER if self.objective == "time" else 0.0
+        return (1 - beta) * k + beta * (1 - np.cos(np.pi * k)) / 2
+
+    # -- the signals ----------------------------------------------------------------
+    def _signal(self, name, x, y):
+        """A state's or output's row of x or y."""
+        if name in self.model.states:
+            return x[self.model.index(name), :]
+        return y[self.model.yindex(name), :]
+
+    # -- the start, the guess --------------------------------------------------------
+    def start_state(self) -> np.ndarray:
+        op = operating_point(self.model, p=self.p, inputs={self.cmd: self.start, self.load_input: self.load})
+        return np.asarray(op.x, float)
+
+    def _ecu_step(self, t_end: float, x0: np.ndarray):
+        """The ECU's own step response on the smooth model (the guess) as a SimResult."""
+        return simulate(self.model, t_end, p=self.p, x0=x0, dt_out=t_end / 400,
+                        inputs={self.cmd: Signal.step(self.target, 0.0) if self.move else self.target,
+                                self.load_input: self.load})
+
+    # -- the NLP -----------------------------------------------------------------------
+    def _inputs(self, C):
+        """(U, H): the model inputs and held outputs of every interval (columns) for the
+        controls C (rows: the controls, columns: the intervals)."""
+        n = C.shape[1]
+        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        U = ca.repmat(ca.MX(u0), 1, n)
+        H = ca.MX.zeros(len(self.model.holds), n)
+        for j, i in enumerate(self.controls):
+            if self.through == "drive":
+                H[i, :] = C[j, :]
+            else:
+                U[i, :] = C[j, :]
+        return U, H
+
+    def _rates(self, X, C):
+        """(xdot, y) at the columns of X with the controls of the columns of C."""
+        U, H = self._inputs(C)
+        n = X.shape[1]
+        P = ca.repmat(ca.MX(self.p), 1, n)
+        if self.through == "drive":
+            return self.model.f_held.map(n)(X, U, P, H)
+        return self.model.f.map(n)(X, U, P)
+
+    def build(self, x0: np.ndarray, guess) -> tuple:
+        """The NLP in CasADi's Opti: (opti, Xs, Cs, T, scale, c_scale), the scaled states
+        (nx x N+1) and controls (nc x N), the duration and the scales.
+
+        Parameters
+        ----------
+        x0 : ndarray
+            The start state (:meth:`start_state`).
+        guess : dict
+            The initial guess (``T``, ``X``, ``C``, ``cost_scale``), from :func:`initial_guess`.
+        """
+        m, N = self.model, self.N
+        opti = ca.Opti()
+        scale = np.maximum(m.full_scale(self.p), 1e-6)
+        Xs = opti.variable(m.nx, N + 1)
+        X = ca.diag(scale) @ Xs
+        c_scale = self._control_scale()
+        Cs = opti.variable(len(self.controls), N)
+        C = ca.diag(c_scale) @ Cs
+        if self.objective == "time":
+            T = opti.variable()
+            opti.subject_to(opti.bounded(0.05 * guess["T"], T, 20 * guess["T"]))
+            opti.set_initial(T, guess["T"])
+        else:
+            T = self.duration
+        w = np.diff(self.fractions())
+        dts = T * ca.DM(w).T
+        F = self._interval(x0, guess).map(N)
+        U, H = self._inputs(C)
+        P = ca.repmat(ca.MX(self.p), 1, N)
+        DT = dts
+        X_next = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
+        opti.subject_to(Xs[:, 0] == x0 / scale)
+        # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
+        rest_on = m.rest_states(self.p)
+        free = [i for i, n in enumerate(m.states) if n not in rest_on]
+        opti.subject_to(ca.vec(Xs[free, 1:] - ca.diag(1 / scale[free]) @ X_next[free, :]) == 0)
+        # the limits at both ends of every interval, with its control
+        _, Y0 = self._rates(X[:, :-1], C)
+        _, Y1 = self._rates(X[:, 1:], C)
+        for n, sig in rest_on.items():
+            i = m.index(n)
+            opti.subject_to(ca.vec(X[i, 1:] - self._signal(sig, X[:, 1:], Y1)) / scale[i] == 0)
+        for Xn, Yn in ((X[:, :-1], Y0), (X[:, 1:], Y1)):
+            self._constrain(opti, Xn, Yn)
+        power = self._power_outputs()
+        cost = 0
+        for n in power:
+            cost = cost + 0.5 * ca.sum2(dts * (self._signal(n, X[:, :-1], Y0) + self._signal(n, X[:, 1:], Y1)))
+        # the end: at the target, at rest, every rate but the temperatures' zero
+        xdot, y = self._rates(X[:, N], C[:, N - 1])
+        opti.subject_to(self._signal(self.rod, X[:, N], y) == self.target)
+        held = self.through == "drive"
+        rates, rest = [], []
+        for i, n in enumerate(m.states):
+            roles = m.state_info[n].roles
+            if "temperature" in roles or (held and "controller_integral" in roles) or n in rest_on:
+                continue
+            rates.append(xdot[i] / (scale[i] / guess["T"]))
+            if set(roles) & set(_REST_ROLES):
+                rest.append(Xs[i, N])
+        opti.subject_to(ca.vertcat(*rates, *rest) == 0)
+        opti.minimize(T / guess["T"] if self.objective == "time" else cost / guess["cost_scale"])
+        opti.set_initial(Xs, guess["X"] / scale[:, None])
+        opti.set_initial(Cs, guess["C"] / c_scale[:, None])
+        return opti, Xs, Cs, T, scale, c_scale
+
+    def _control_scale(self) -> np.ndarray:
+        if self.through == "drive":
+            return np.full(len(self.controls), self.limits.get("voltage", 1.0))
+        return np.array([self.limits["stroke"]])
+
+    def _power_outputs(self) -> tuple:
+        if self.objective == "energy":
+            return (self.model.output_with("electrical_power"),)
+        if self.objective == "heat":
+            return self.model.heat_outputs("winding")
+        return ()
+
+    def _constrain(self, opti, X, Y):
+        """Every rating at the columns of X (states) and Y (outputs)."""
+        for r in self.ratings:
+            sig = [self._signal(n, X, Y) for n in r.signals]
+            lim = self.limits[r.name]
+            if r.sense == "norm":
+                opti.subject_to(ca.vec(sum(v**2 for v in sig) / lim**2) <= 1)
+            elif r.sense == "max":
+                opti.subject_to(ca.vec(sig[0]) <= lim)
+            else:
+                opti.subject_to(ca.vec(sig[0]) >= lim)
+
+    def _interval(self, x0, guess):
+        held = self.through == "drive"
+        h0 = np.zeros(len(self.model.holds)) if held else None
+        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        dt_max = (guess["T"] if self.objective == "time" else self.duration) * np.diff(self.fractions()).max()
+        n = max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
+        self.substeps = n
+        return interval_function(self.model, held=held, substeps=n)
+
+
+def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
+    """Initial guess from the ECU's own step response: its 2 % settling time (or the
+    given duration) and its states and controls resampled on the shooting grid.
+
+    Parameters
+    ----------
+    prob : Problem
+        The problem.
+    x0 : ndarray
+        The start state.
+    """
+    m = prob.model
+    t_try = max(prob.duration or 0.0, 0.05)
+    for _ in range(6):
+        res = prob._ecu_step(t_try, x0)
+        y = (res[m.output_with("rod_position")] - prob.start) / prob.move if prob.move else None
+        settle = step_response_metrics(res.t, y)["settling_time_s"] if prob.move else 0.0
+        if math.isfinite(settle) and (prob.duration is None or settle <= t_try):
+            break
+        t_try *= 2
+    T = prob.duration if prob.duration is not None else max(settle, 1e-3)
+    tk = T * prob.fractions()
+    X = np.array([np.interp(tk, res.t, res[n]) for n in m.states])
+    if prob.through == "drive":
+        holds = [m.holds[i].name for i in prob.controls]
+        C = np.array([np.interp(tk[:-1], res.t, res[n]) if n in res.outputs else np.zeros(prob.N) for n in holds])
+    else:
+        C = np.full((1, prob.N), prob.target)
+    ref = 1.0
+    power = prob._power_outputs()
+    if power:
+        ref = max(abs(float(np.trapezoid(sum(res[n] for n in power), res.t))), 1e-6)
+    return {"T": T, "X": X, "C": C, "cost_scale": ref, "ecu": res, "ecu_settle": settle}
+
+
+def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
+    """Solve the problem; returns the raw solution (grid, states, controls, outputs, IPOPT's
+    statistics). Raises :class:`Infeasible` naming the limit that binds where IPOPT stops.
+
+    Parameters
+    ----------
+    prob : Problem
+        The problem.
+    max_iter : int
+        IPOPT's iteration limit.
+    tol : float
+        IPOPT's convergence tolerance.
+    """
+    t0 = time.perf_counter()
+    x0 = prob.start_state()
+    guess = initial_guess(prob, x0)
+    opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
+    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": True},
+                {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "adaptive"})
+    t_setup = time.perf_counter() - t0
+    try:
+        sol = opti.solve()
+        stats, ok = sol.stats(), True
+        val = sol.value
+    except RuntimeError:
+        stats, ok = opti.stats(), False
+        val = opti.debug.value
+    X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
+    C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
+    Tv = float(val(T)) if prob.objective == "time" else float(T)
+    out = {"T": Tv, "X": X, "C": C, "t": Tv * prob.fractions(), "status": stats["return_status"],
+           "iterations": int(stats["iter_count"]), "solve_time_s": time.perf_counter() - t0 - t_setup,
+           "setup_time_s": t_setup, "guess": guess, "x0": x0, "substeps": prob.substeps}
+    out["Y"] = _outputs(prob, X, C)
+    out["margins"] = _margins(prob, X, out["Y"])
+    if not ok:
+        worst = min(out["margins"].items(), key=lambda kv: kv[1])
+        r = next(r for r in prob.ratings if r.name == worst[0])
+        raise Infeasible(f"no move found: IPOPT stopped with {stats['return_status']} after "
+                         f"{stats['iter_count']} iterations; the binding limit is the {r.what} ({r.why} = "
+                         f"{prob.limits[r.name]:.4g} {r.unit})", out)
+    return out
+
+
+def _outputs(prob: Problem, X, C) -> np.ndarray:
+    """Outputs at the nodes (node k with the control of interval k, the last with the last)."""
+    Cn = np.hstack([C, C[:, -1:]])
+    _, Y = prob._rates(ca.DM(X), ca.DM(Cn))
+    return np.asarray(ca.evalf(Y))
+
+
+def _margins(prob: Problem, X, Y) -> dict:
+    """Per rating, the smallest margin along the nodes: 1 - value/limit (0: on the limit)."""
+    out = {}
+    for r in prob.ratings:
+        s = np.array([X[prob.model.index(n)] if n in prob.model.states else Y[prob.model.yindex(n)]
+                      for n in r.signals])
+        lim = prob.limits[r.name]
+        if r.sense == "norm":
+            out[r.name] = float(1 - np.sqrt((s**2).sum(0)).max() / lim)
+        elif r.sense == "max":
+            out[r.name] = float(1 - s[0].max() / lim) if lim else float(-s[0].max())
+        else:
+            out[r.name] = float(s[0].min() - lim)
+    return out
+
+
+def check_request(model: Model, move, load, objective, duration, start, through, intervals) -> tuple:
+    """Every argument checked before any work (:class:`OptimalError`, one line naming it).
+
+    Parameters
+    ----------
+    model, move, load, objective, duration, start, through, intervals
+        As :func:`~ema_casadi.optimal.optimal_move` takes them.
+    """
+    if not isinstance(model, Model):
+        raise OptimalError(f"model: expected a Model (from build_model), got {type(model).__name__}")
+    move = number(move, "move", OptimalError)
+    load = number(load, "load", OptimalError)
+    start = number(start, "start", OptimalError)
+    if objective not in OBJECTIVES:
+        raise OptimalError(f"objective '{objective}' unknown; choose one of {', '.join(OBJECTIVES)}")
+    if through not in LEVELS:
+        raise OptimalError(f"through '{through}' unknown; choose one of {', '.join(LEVELS)}")
+    intervals = integer(intervals, "intervals", OptimalError, minimum=4)
+    if objective == "time":
+        if duration is not None:
+            raise OptimalError("duration: a minimum-time move has no given duration (objective energy or heat)")
+    else:
+        if duration is None:
+            raise OptimalError(f"duration: an objective '{objective}' move needs its duration (s)")
+        duration = number(duration, "duration", OptimalError)
+        if not duration > 0:
+            raise OptimalError(f"duration {duration:g} s: must be positive")
+    if move == 0:
+        raise OptimalError("move: 0 m is no move")
+    limits = model.operating_limits()
+    stroke = limits.get("stroke")
+    if stroke is not None and not (abs(start) <= stroke and abs(start + move) <= stroke):
+        raise OptimalError(f"move {move * 1e3:g} mm from {start * 1e3:g} mm ends at {(start + move) * 1e3:g} mm, "
+                           f"beyond the stroke +-{stroke * 1e3:g} mm")
+    held = model.envelope_limits().get("held_load")
+    if held is not None and abs(load) > held:
+        raise OptimalError(f"load {load / 1e3:g} kN: above the {held / 1e3:.4g} kN the screw holds at the "
+                           "current limit")
+    speed = limits.get("rod_speed")
+    if duration is not None and speed and duration < abs(move) / speed:
+        raise OptimalError(f"duration {duration:g} s: below the minimum time of {abs(move) * 1e3:g} mm even at "
+                           f"the rated rod speed {speed * 1e3:g} mm/s ({abs(move) / speed:.4g} s)")
+    return move, load, objective, duration, start, through, intervals

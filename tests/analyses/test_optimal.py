@@ -1,0 +1,81 @@
+"""Optimal moves (ema_casadi.optimal): the minimum-time move against the bang-bang bound
+computed from the parameters, the limits in the optimum and in its replay, the refusals."""
+
+import math
+
+import pytest
+
+import ema_casadi as ema
+from ema_casadi.optimal import OptimalError, optimal_move
+
+FRICTIONLESS = {"F_seal": 0.0, "C_bear": 0.0, "c_v": 0.0, "b_m": 0.0}
+
+
+@pytest.fixture(scope="module")
+def params():
+    return ema.load_parameters("models/cesa_ema.toml")
+
+
+@pytest.fixture(scope="module")
+def rigid_move(params):
+    model = ema.build_model(params.replace(**FRICTIONLESS), {"screw": "rigid"})
+    return model, optimal_move(model, 0.01)
+
+
+def bang_bang(P, d):
+    """Minimum time of a move d (m) at no load, rigid and frictionless: accelerate at the
+    current limit, cruise at the voltage circle's top speed (i_d = 0, i_q = 0 at cruise:
+    |v| = omega_e psi), brake at the current limit. Returns (a m/s^2, v_top m/s, T s)."""
+    lead = P.p / (2 * math.pi)
+    J_eq = P.J_m + P.J_s + P.M * lead**2  # inertia reflected to the shaft (kg m^2)
+    K_t = 1.5 * P.pp * P.psi
+    a = K_t * P.I_max / J_eq * lead
+    v_top = P.k_v * P.V_dc / math.sqrt(3) / (P.pp * P.psi) * lead
+    T = d / v_top + v_top / a if d > v_top**2 / a else 2 * math.sqrt(d / a)
+    return a, v_top, T
+
+
+def test_minimum_time_meets_the_bang_bang_bound(rigid_move):
+    model, r = rigid_move
+    a, v_top, T = bang_bang(model.pdict(), 0.01)
+    assert a == pytest.approx(20.44, rel=1e-3) and v_top == pytest.approx(0.09821, rel=1e-3)
+    assert r.ipopt["status"] == "Solve_Succeeded"
+    # measured 0.10771 s against 0.10663 s (+1.0 %: the current's rise and reversal through L, the
+    # R i and omega L i drops that share the voltage circle while accelerating, 40 intervals); the issue's 2 %
+    assert T <= r.duration <= 1.02 * T, (r.duration, T)
+    assert {"current", "voltage"} <= set(r.binding)
+    # it cruises at the voltage circle's top speed (measured +3.1e-4 at mid-move, the approach still ringing); on the
+    # way up the speed overshoots it (to 0.12 m/s: the current lags through L, the back-EMF regenerates)
+    v_rod = r.outputs[model.output_with("rod_velocity")]
+    assert v_rod[len(v_rod) // 2] == pytest.approx(v_top, rel=1e-3)
+
+
+def test_the_replay_through_the_ecu_keeps_the_limits(rigid_move):
+    model, r = rigid_move
+    check = r.replay_check["ratings"]
+    assert check["current"]["ratio"] <= 1.01  # I_max within 1 % (the issue's acceptance)
+    assert check["voltage"]["within"] and check["stroke"]["within"]
+    # the ECU's rate limit keeps its replay slower than the drive's bound
+    assert r.replay_check["settling_time_s"] > r.duration
+
+
+def test_bad_requests_are_refused_before_any_work(params):
+    model = ema.build_model(params)
+    with pytest.raises(OptimalError, match="beyond the stroke"):
+        optimal_move(model, 0.1)
+    with pytest.raises(OptimalError, match="above the .* kN the screw holds"):
+        optimal_move(model, 0.01, load=80e3)
+    with pytest.raises(OptimalError, match="objective 'speed' unknown"):
+        optimal_move(model, 0.01, objective="speed")
+    with pytest.raises(OptimalError, match="below the minimum time .* at the rated rod speed"):
+        optimal_move(model, 0.01, objective="energy", duration=0.01)
+    with pytest.raises(OptimalError, match="needs its duration"):
+        optimal_move(model, 0.01, objective="energy")
+
+
+def test_the_figure_and_the_command_profile(rigid_move, tmp_path):
+    model, r = rigid_move
+    fig = r.plot()
+    assert len(fig.axes) == 4  # position, speed, current, voltage (no thermal network)
+    t, x = r.command_profile
+    assert t[0] == 0 and x[0] == pytest.approx(0.0, abs=1e-12) and x[-1] == pytest.approx(0.01, rel=1e-9)
