@@ -192,8 +192,9 @@ MAX_FUNCTION_LINES = 80
 LONG_MODULES = {
     "ema_casadi/model/params.py": (560, "the typed parameters: the groups, their fields' rules, reading a file "
                                         "and checking one value by the same rules"),
-    "ema_casadi/model/components/_part.py": (560, "the part contract: what every part declares (states, inputs, "
-                                                  "outputs with their roles, loops, holds, bounds) and the Part and "
+    "ema_casadi/model/components/_part.py": (580, "the part contract: what every part declares (states, inputs, "
+                                                  "outputs with their roles, loops, holds, bounds, ratings, the parts "
+                                                  "it brings) and the Part and "
                                                   "Bus they meet through"),
     "ema_casadi/linearisation/_trim.py": (540, "the operating point: the request (by name or role, checked "
                                                "against the envelope), the Newton trim and the point it returns"),
