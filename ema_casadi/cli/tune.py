@@ -87,7 +87,7 @@ def add_arguments(p):
                         "I_max); 0 switches the bound off; default 0.5")
     p.add_argument("--start-scale", type=float, default=1.0, metavar="FACTOR",
                    help="start from FACTOR times the file's gains (T_i_w kept); default 1")
-    p.add_argument("--hessian", choices=("exact", "limited-memory"), default="exact",
+    p.add_argument("--hessian", choices=("exact", "limited-memory"), default="limited-memory",
                    help="IPOPT Hessian: exact (AD, default) or limited-memory (L-BFGS)")
     p.add_argument("--max-iter", type=int, default=200, help="IPOPT iteration limit; default 200")
     p.add_argument("--sim-step", default="1mm", metavar="LENGTH",

@@ -162,7 +162,7 @@ Verification
 (:func:`ema_casadi.frequency.margins`) of every loop transfer (crossovers searched in
 0.01 Hz - 100 kHz; PM is the smallest angular distance of L to -1, GM counted in both
 directions), the sensitivity peak, the closed-loop eigenvalues and -3 dB bandwidth and
-a python-control step response; :func:`step_metrics` simulates a nonlinear step on the
+a linear step response (exact discretisation); :func:`step_metrics` simulates a nonlinear step on the
 full model. A tune succeeds only when IPOPT converged with no slack left and this check
 passes (or, from a verified-feasible start, when the safety net's gains pass it and
 are no worse than the start).

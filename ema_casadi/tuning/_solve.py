@@ -172,7 +172,7 @@ def tune(
     start: dict | None = None,
     freqs: ArrayLike | None = None,
     max_iter: int = 200,
-    hessian: str = "exact",
+    hessian: str = "limited-memory",
     verify_step: float = 1e-3,
     model: Model | None = None,
 ) -> TuneResult:
