@@ -11,7 +11,10 @@ measured (0.3 um, 0.05 A noise, given to the fit), made by
   0.1 W) and fixed-step RK4 at 2 us (250 steps per sample) instead of the adaptive
   RODAS4 at rtol 1e-10 (RK4 is first-order accurate across the rate limit's clip and
   the input table's kinks: at 25 us the rod position is off by 28 noise levels, at 5 us
-  by 8, at 2 us 0.7 together with the wider switch).
+  by 8, at 2 us 0.7 together with the wider switch). 2 us is above RK4's stability
+  limit on the rod held under the slews' load (1.6 us at +8 kN, 1.1 us at -15 kN:
+  ``ema.simulate`` warns): there the held rod's speed chatters, bounded by the friction
+  law, which is part of the witness's difference.
 
 Details tried and found too large for "small" on these records (a single realisation,
 the systematic misfit of the worst channel): LuGre friction with the same sliding

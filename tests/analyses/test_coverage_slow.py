@@ -1,7 +1,10 @@
 """Coverage of the headline (robust) 95 % intervals over 50 noise realisations
 (studies/coverage.py): with the model right, and under a small model error (a witness
 with a twice wider efficiency switch, simulated by RK4 at 2 us). Slow: 100 fits of
-five parameters on four records of 0.6-1 s (about 10 s each on one core).
+five parameters on four records of 0.6-1 s (about 10 s each on one core; the witness
+half measured 434 s on the loaded 2-core machine). The witness's RK4 step is above the
+stability limit of the rod held under load (a StepLimitWarning, expected: its chatter
+is part of the model error).
 
 Tolerances: with 50 realisations a true 95 % coverage gives 43 or more hits with
 probability 0.99 (binomial), so a share below 0.86 is a real shortfall."""
