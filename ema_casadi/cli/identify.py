@@ -15,7 +15,7 @@ A fit that does not converge ends with exit status 3 and writes nothing. The
 verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
 whiteness, records' consistency); adequate within model error (a test fails but
 every channel's systematic misfit is at most --model-error noise levels and no
-record's estimates move by more than 3x that in robust sd: status 0, the misfit
+record's estimates move by more than 5x that in sandwich sd: status 0, the misfit
 named); inadequate: exit status 3 with the fitted file written as
 FILE.inadequate.toml, or status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level
@@ -35,6 +35,7 @@ from pathlib import Path
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
 from ._flags import NoEffect, no_effect
+from ._identify_text import fit_text
 
 COMMAND = "identify"
 ORDER = 12
@@ -444,57 +445,4 @@ def report(result: dict) -> None:
 
         w(report_text(result))
         return
-    truth = result.get("example", {}).get("truth", {})
-    if truth:
-        w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
-    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
-      f"{'(textbook)':>25}  identifiable\n")
-    for n, d in result["parameters"].items():
-        if d.get("estimate") is None:
-            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
-            continue
-        lo, hi = d["interval"]
-        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
-        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
-        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
-          f"{ok}\n")
-        if d.get("note"):
-            w(f"{'':<10}   note: {d['note']}\n")
-    for c in result["channels"]:
-        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
-          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
-    test = result.get("consistency")
-    if test:
-        w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "
-          f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
-    for rec in (result.get("initial_state") or {}).get("records", []):
-        w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
-    rob = result.get("robust") or {}
-    if rob.get("scale_factor", 1.0) > 1.0:
-        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
-          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
-    me = result.get("model_error") or {}
-    for m in me.get("misfits", [])[:6]:
-        w(f"  systematic: {m['text']}\n")
-    if result.get("verdict") == "adequate within model error":
-        w(f"adequate within model error: systematic misfit at most {me['largest_sigma']:.2f} sigma (tolerated "
-          f"{me['threshold_sigma']:g}), records' shifts at most {me['largest_shift_sd']:.2g} robust sd (tolerated "
-          f"{me['threshold_shift_sd']:g}); robust intervals; failed tests: " + "; ".join(result["misfit"][:2]) + "\n")
-    elif result.get("adequate", True):
-        tests = "chi-square, whiteness" + (", consistency" if test else "")
-        w(f"adequate: the residuals are explained by the noise ({tests})\n")
-    else:
-        for reason in result["misfit"]:
-            w(f"INADEQUATE: {reason}\n")
-    for row in result.get("comparison", []):
-        verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
-        state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
-        w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
-    for name, prof in result.get("profiles", {}).items():
-        w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
-    for v in result.get("validation", []):
-        w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
-          f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
-    w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
-    for p in result.get("written", []):
-        w(f"wrote {p}\n")
+    w(fit_text(result))

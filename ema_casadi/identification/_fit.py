@@ -104,7 +104,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         statistical tests fail (chi-square, whiteness, consistency) is *adequate within
         model error* (robust intervals, the misfit named) when every record's and
         channel's systematic misfit is at most this and no record's estimates shift
-        by more than 3 x this robust standard deviations against the others'; else
+        by more than 5 x this sandwich standard deviations against the others'; else
         inadequate.
     progress : bool
         One line of progress on stderr.

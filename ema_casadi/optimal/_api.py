@@ -81,7 +81,7 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         _check_duration(prob)
     sol = solve(prob)
     m = prob.model
-    cost = sol["T"] if objective == "time" else _cost(prob, sol)
+    cost = sol["cost"]
     controls = {(m.holds[i].name if through == "drive" else m.inputs[i]): sol["C"][j]
                 for j, i in enumerate(prob.controls)}
     res = OptimalMove(
@@ -112,13 +112,6 @@ def _check_duration(prob: Problem) -> None:
         return
     if prob.duration < T_min:
         raise OptimalError(f"duration {prob.duration:g} s: below the minimum time of this move, {T_min:.5g} s")
-
-
-def _cost(prob: Problem, sol) -> float:
-    names = prob._power_outputs()
-    Y = sol["Y"]
-    p = sum(Y[prob.model.yindex(n)] for n in names)
-    return float(np.trapezoid(p, sol["t"]))
 
 
 def replay_window(res: OptimalMove, settle: float) -> float:
