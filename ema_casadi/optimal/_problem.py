@@ -83,10 +83,12 @@ class Problem:
         Shooting intervals.
     field_weakening : bool
         Lift the drive-strategy ratings.
+    inputs : dict, optional
+        Other constant inputs by name or role (``ambient_temperature``: degC).
     """
 
     def __init__(self, model: Model, move: float, load: float, objective: str, duration: float | None,
-                 start: float, through: str, intervals: int, field_weakening: bool):
+                 start: float, through: str, intervals: int, field_weakening: bool, inputs: dict | None = None):
         self.full, self.move, self.load, self.objective = model, move, load, objective
         self.duration, self.start, self.through, self.N = duration, start, through, intervals
         self.field_weakening = field_weakening
@@ -96,6 +98,7 @@ class Problem:
         self.p = smooth.p(**smooth.small_signal(backlash="off"))
         self.cmd = smooth.input_with("command")
         self.load_input = smooth.input_with("load")
+        self.extra = {smooth.input_name(k): float(v) for k, v in (inputs or {}).items()}
         self.ratings = [r for r in smooth.ratings if field_weakening is False or r.role != "strategy"]
         self.ratings = [r for r in self.ratings if all(s in smooth.states or s in smooth.outputs for s in r.signals)]
         self.limits = {r.name: float(r.limit(smooth.pdict(self.p))) for r in self.ratings}
@@ -123,21 +126,22 @@ class Problem:
 
     # -- the start, the guess --------------------------------------------------------
     def start_state(self) -> np.ndarray:
-        op = operating_point(self.model, p=self.p, inputs={self.cmd: self.start, self.load_input: self.load})
+        op = operating_point(self.model, p=self.p,
+                             inputs={self.cmd: self.start, self.load_input: self.load, **self.extra})
         return np.asarray(op.x, float)
 
     def _ecu_step(self, t_end: float, x0: np.ndarray):
         """The ECU's own step response on the smooth model (the guess) as a SimResult."""
         return simulate(self.model, t_end, p=self.p, x0=x0, dt_out=t_end / 400,
                         inputs={self.cmd: Signal.step(self.target, 0.0) if self.move else self.target,
-                                self.load_input: self.load})
+                                self.load_input: self.load, **self.extra})
 
     # -- the NLP -----------------------------------------------------------------------
     def _inputs(self, C):
         """(U, H): the model inputs and held outputs of every interval (columns) for the
         controls C (rows: the controls, columns: the intervals)."""
         n = C.shape[1]
-        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        u0 = self._u0()
         U = ca.repmat(ca.MX(u0), 1, n)
         H = ca.MX.zeros(len(self.model.holds), n)
         for j, i in enumerate(self.controls):
@@ -146,6 +150,9 @@ class Problem:
             else:
                 U[i, :] = C[j, :]
         return U, H
+
+    def _u0(self) -> np.ndarray:
+        return self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target, **self.extra})
 
     def _rates(self, X, C):
         """(xdot, y) at the columns of X with the controls of the columns of C."""
@@ -249,7 +256,7 @@ class Problem:
     def _interval(self, x0, guess):
         held = self.through == "drive"
         h0 = np.zeros(len(self.model.holds)) if held else None
-        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        u0 = self._u0()
         dt_max = (guess["T"] if self.objective == "time" else self.duration) * np.diff(self.fractions()).max()
         n = max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
         self.substeps = n
