@@ -7,9 +7,13 @@ drive's capability; --through ecu the rod command with the cascade in the loop: 
 command profile for the real ECU. The command profile is replayed in the full model
 beside the ECU's own step of the same size; --out DIR writes command.csv (readable by
 ema simulate --x-cmd DIR/command.csv:x_cmd), optimum.csv, replay.csv and move.png.
+--envelope instead tabulates the top rod speed against load, the largest load held and
+the minimum move time over distance, at soak temperatures (--temperatures, degC, with a
+thermal network: --variant thermal=lumped); --out DIR writes envelope.csv.
 Exit status 3 (one line naming the binding limit) when no move within the limits exists.
 Example: ema optimal --move 10mm --json
-Example: ema optimal --move 10mm --objective energy --duration 0.3 --through ecu --out opt
+Example: ema optimal --move 10mm --objective energy --duration 0.3 --out opt
+Example: ema optimal --envelope --variant thermal=lumped --json
 """
 
 from __future__ import annotations
@@ -26,11 +30,23 @@ HELP = "minimum-time, -energy or -heat moves within the drive's limits; command 
 #: The files --out DIR holds.
 MOVE_FILES = ("command.csv", "optimum.csv", "replay.csv", "move.png")
 
+_ENV = NoEffect((), "with --envelope (it runs its own moves: --distances, --loads)", lambda a: a.envelope)
+_MOVE = NoEffect((), "without --envelope (it sets the envelope's grid)", lambda a: not a.envelope)
+
+
+def _env(flag, *value):
+    return (NoEffect(("--envelope", flag, *value), _ENV.why, _ENV.when),)
+
+
 NO_EFFECT = {
-    "--move": (), "--load": (), "--objective": (),
+    "--move": _env("--move", "5mm"), "--load": _env("--load", "5kN"), "--objective": _env("--objective", "energy"),
     "--duration": (NoEffect(("--duration", "0.3"), "with --objective time (the duration is what it minimises)",
-                            lambda a: a.objective == "time"),),
-    "--from": (), "--through": (), "--intervals": (), "--field-weakening": (), "--zoh": (), "--out": (),
+                            lambda a: a.objective == "time" and not a.envelope),) + _env("--duration", "0.3"),
+    "--from": _env("--from", "5mm"), "--through": _env("--through", "ecu"), "--intervals": (),
+    "--field-weakening": _env("--field-weakening"), "--zoh": _env("--zoh"), "--out": (), "--envelope": (),
+    "--loads": (NoEffect(("--loads", "0,10kN"), _MOVE.why, _MOVE.when),),
+    "--distances": (NoEffect(("--distances", "1mm,10mm"), _MOVE.why, _MOVE.when),),
+    "--temperatures": (NoEffect(("--temperatures", "20,120"), _MOVE.why, _MOVE.when),),
 }
 
 
@@ -51,7 +67,16 @@ def add_arguments(p):
     p.add_argument("--field-weakening", action="store_true",
                    help="allow field weakening (lift the FOC's i_d >= 0): above the commissioned drive's bound")
     p.add_argument("--zoh", action="store_true", help="replay with the sampled ECU (RK4)")
-    p.add_argument("--out", default=None, metavar="DIR", help=f"write {', '.join(MOVE_FILES)}")
+    p.add_argument("--out", default=None, metavar="DIR", help=f"write {', '.join(MOVE_FILES)} (--envelope: "
+                                                             "envelope.csv)")
+    p.add_argument("--envelope", action="store_true",
+                   help="the performance envelope: top rod speed against load, largest load held, minimum move "
+                        "time over distance")
+    p.add_argument("--loads", default=None, help="envelope loads opposing the move (list, bare numbers N); "
+                                                 "default 10 from 0 to 0.9 x the load the screw holds")
+    p.add_argument("--distances", default=None, help="envelope distances (list, bare numbers mm); default 1,2,5,10,20")
+    p.add_argument("--temperatures", default=None, help="envelope soak temperatures (list, degC; a thermal network); "
+                                                        "default 20 and 20 K below the lowest rated thermal node")
 
 
 def _quantity(text: str, kind: str, bare: str, flag: str, stroke: float) -> float:
@@ -88,6 +113,8 @@ def _request(args, params):
 
 
 def run(args) -> dict:
+    if args.envelope:
+        return run_envelope(args)
     from ..optimal import Infeasible, OptimalError, check_request, optimal_move
 
     t0 = time.perf_counter()
@@ -117,6 +144,49 @@ def run(args) -> dict:
             "written": written, "wall_time_s": time.perf_counter() - t0}
 
 
+def _list(text, kind, bare, flag, stroke):
+    if text is None:
+        return None
+    return [_quantity(t, kind, bare, flag, stroke) for t in text.split(",")]
+
+
+def run_envelope(args) -> dict:
+    """``--envelope``: the table (and envelope.csv)."""
+    import numpy as np
+
+    from ..optimal import OptimalError, performance_envelope
+
+    t0 = time.perf_counter()
+    params, model = load(args)
+    stroke = params.actuator.stroke
+    loads = _list(args.loads, "force", "N", "--loads", stroke)
+    distances = _list(args.distances, "length", "mm", "--distances", stroke)
+    temps = None
+    if args.temperatures is not None:
+        try:
+            temps = [float(t) for t in args.temperatures.split(",")]
+        except ValueError:
+            raise UserError(f"--temperatures {args.temperatures}: expected degC numbers, e.g. 20,120") from None
+    out = Path(args.out) if args.out else None
+    top = new_output_folder(out, ("envelope.csv",)) if out else None
+    try:
+        env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30)
+    except OptimalError as exc:
+        raise UserError(str(exc)) from None
+    written = []
+    if out is not None:
+        with output_folder(out, top) as folder:
+            from .._util._files import write_text
+
+            head = ["load_N"] + [f"v_top_m_s_at_{T if T is not None else 'ref'}" for T in env.temperatures]
+            rows = np.column_stack([env.loads, *(env.top_speed[T] for T in env.temperatures)])
+            write_text(folder / "envelope.csv", ",".join(head) + "\n" + "".join(
+                ",".join(f"{v:.10g}" for v in row) + "\n" for row in rows))
+            written.append(str(out / "envelope.csv"))
+    return {"model": args.model, "variants": model.variants, **env.as_dict(), "written": written,
+            "wall_time_s": time.perf_counter() - t0}
+
+
 def write_move(res, folder: Path, shown: Path) -> list:
     """The command profile, the optimum's nodes, the replay and the figure into ``folder``
     (named as in ``shown``)."""
@@ -139,6 +209,14 @@ def write_move(res, folder: Path, shown: Path) -> list:
 
 def report(r: dict) -> None:
     if r.get("failure"):
+        return
+    if "top_speed_m_s" in r:
+        print(f"performance envelope ({r['wall_time_s']:.1f} s)")
+        for T, v in r["top_speed_m_s"].items():
+            print(f"  at {T} degC: largest load held {r['largest_force_N'][T] / 1e3:.4g} kN; top speed "
+                  + ", ".join(f"{s * 1e3:.4g} mm/s @ {F / 1e3:.3g} kN" for F, s in zip(r["loads_N"], v, strict=True)))
+            print("    minimum time " + ", ".join(f"{t:.4g} s @ {d * 1e3:g} mm"
+                                               for d, t in zip(r["distances_m"], r["min_time_s"][T], strict=True)))
         return
     unit = "s" if r["objective"] == "time" else "J"
     print(f"optimal move ({r['objective']}, through {r['through']}): {r['move'] * 1e3:g} mm from "

@@ -42,3 +42,14 @@ def test_minimum_time_move_writes_a_command_simulate_reads(capsys, tmp_path):
     status = main(["simulate", str(REFERENCE), "--x-cmd", f"{out / 'command.csv'}:x_cmd", "--t-end", "0.2", "--json"])
     sim = json.loads(capsys.readouterr().out)
     assert status == 0 and abs(sim["final"]["x_rod"] - 0.01) < 2e-4, sim.get("final")
+
+
+def test_envelope_table(capsys, tmp_path):
+    out = tmp_path / "env"
+    status, text, err = _run(capsys, "--envelope", "--loads", "0,20kN", "--distances", "2mm", "--intervals", "16",
+                             "--json", "--out", out)
+    assert status == 0, err
+    r = json.loads(text)
+    v0, v20 = r["top_speed_m_s"]["None"]
+    assert 0.085 < v20 < v0 < 0.1  # the voltage circle's top speed (98 mm/s), 89.5 mm/s against 20 kN and friction
+    assert (out / "envelope.csv").read_text().startswith("load_N,v_top_m_s_at_ref\n")
