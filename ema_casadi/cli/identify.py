@@ -294,7 +294,7 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     if args.profile and kw.get("estimate_x0") is not False:
         raise UserError("--profile with --estimate-x0: the profile re-fits start at rest; use the Wald intervals")
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
-    res = identify_api(params, recs, free, **kw)
+    res = identify_api(params, recs, free, **kw, model=model)
     doc = res.to_dict()
     if args.profile:
         doc["profiles"] = {n: profile(res, n) for n in args.profile}
@@ -393,7 +393,7 @@ def identify_api(params, recs, free, **kw):
     """The API call the command makes (one place to see it)."""
     from ..identification import identify
 
-    return identify(params, recs, free, **kw)
+    return identify(params, recs, free, **kw)  # the command's model: built once, passed down
 
 
 def _track(args, params, model, records, free, kw) -> dict:
@@ -406,7 +406,7 @@ def _track(args, params, model, records, free, kw) -> dict:
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
     kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
-    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
+    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:
         doc["written"] = [str(tr.write_report(report))]

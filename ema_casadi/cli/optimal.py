@@ -76,7 +76,7 @@ def add_arguments(p):
                                                  "default 10 from 0 to 0.9 x the load the screw holds")
     p.add_argument("--distances", default=None, help="envelope distances (list, bare numbers mm); default 1,2,5,10,20")
     p.add_argument("--temperatures", default=None, help="envelope soak temperatures (list, degC; a thermal network); "
-                                                        "default 20 and the winding's rating less 60 K")
+                                                        "default 20 and 20 K below the lowest rated thermal node")
 
 
 def _quantity(text: str, kind: str, bare: str, flag: str, stroke: float) -> float:

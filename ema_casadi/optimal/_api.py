@@ -90,7 +90,8 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         outputs=dict(zip(m.outputs, sol["Y"], strict=True)), controls=controls, limits=prob.limits,
         margins=sol["margins"], binding=[k for k, v in sol["margins"].items() if v < BINDING],
         ipopt={"status": sol["status"], "iterations": sol["iterations"], "solve_time_s": sol["solve_time_s"],
-               "setup_time_s": sol["setup_time_s"], "intervals": intervals, "substeps": sol["substeps"]},
+               "setup_time_s": sol["setup_time_s"], "intervals": intervals, "substeps": sol["substeps"],
+               "solver_warnings": sol["warnings"]},
         variants=dict(m.variants), rod=prob.rod, command=prob.cmd, _units=m.units,
         rating_signals={r.name: r.signals for r in prob.ratings},
     )

@@ -11,7 +11,7 @@ import casadi as ca
 import numpy as np
 
 from ..model.assembly import Model
-from ._errors import OptimalError
+from ._errors import Infeasible, OptimalError
 from ._problem import Problem, solve
 
 __all__ = ["performance_envelope", "Envelope"]
@@ -134,7 +134,7 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         Move distances (m) for the minimum time; default 1, 2, 5, 10, 20 mm.
     temperatures : array_like, optional
         Soak temperatures (degC), for a model with an ambient-temperature input (a thermal
-        network); default 20 and the winding's rating less 60 K there, else the parameter set.
+        network); default 20 and 20 K below the lowest rated node there, else the parameter set.
     intervals : int
         Shooting intervals of each minimum-time move.
     """
@@ -144,8 +144,10 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
     distances = np.array([1e-3, 2e-3, 5e-3, 10e-3, 20e-3]) if distances is None else np.asarray(distances, float)
     ambient = model.inputs_with("ambient_temperature")
     if temperatures is None:
-        rated = model.operating_limits().get("winding_temperature")
-        temperatures = [20.0, rated - 60.0] if ambient and rated else [None]
+        # 20 degC and 20 K below the lowest rated node (every node soaks at the ambient)
+        rated = [v for r, v in zip(model.ratings, model.operating_limits().values(), strict=True)
+                 if any(n in model.states and "temperature" in model.state_info[n].roles for n in r.signals)]
+        temperatures = [20.0, min(rated) - 20.0] if ambient and rated else [None]
     temperatures = list(temperatures)
     if any(t is not None for t in temperatures) and not ambient:
         raise OptimalError("temperatures: the model has no ambient-temperature input (choose a thermal network)")
@@ -168,7 +170,12 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         largest[T], _ = _steady(prob, 0.0)
         times = []
         for d in distances:
-            times.append(solve(Problem(model, float(d), 0.0, "time", None, 0.0, "drive", intervals, False, extra))["T"])
+            try:
+                times.append(solve(Problem(model, float(d), 0.0, "time", None, 0.0, "drive", intervals, False,
+                                           extra))["T"])
+            except Infeasible as exc:
+                times.append(np.nan)
+                status[(T, float(d))] = str(exc)
         tmin[T] = np.array(times)
     return Envelope(temperatures=temperatures, loads=loads, top_speed=top, largest_force=largest, distances=distances,
                     min_time=tmin, wall_time_s=time.perf_counter() - t0, status=status)

@@ -13,7 +13,7 @@ from .._util._checks import integer, number
 from ..linearisation import operating_point
 from ..model.assembly import Model
 from ..signals import Signal
-from ..simulation import interval_function, simulate, step_response_metrics
+from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
 from ._errors import Infeasible, OptimalError
 
 __all__ = ["OBJECTIVES", "LEVELS", "INTERVALS", "Problem", "solve", "rk4_substeps", "initial_guess", "check_request"]
@@ -323,20 +323,24 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
         ipopt["hessian_approximation"] = "limited-memory"
     opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, ipopt)
     t_setup = time.perf_counter() - t0
-    try:
-        sol = opti.solve()
-        stats, ok = sol.stats(), True
-        val = sol.value
-    except RuntimeError:
-        stats, ok = opti.stats(), False
-        val = opti.debug.value
+    # CasADi's warnings of NaN trial points in IPOPT's line search (the solver steps back) kept
+    # off stderr: counted in the result instead
+    with captured_stderr() as messages:
+        try:
+            sol = opti.solve()
+            stats, ok = sol.stats(), True
+            val = sol.value
+        except RuntimeError:
+            stats, ok = opti.stats(), False
+            val = opti.debug.value
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
     cost = Tv if prob.objective == "time" else float(val(prob.cost))
     out = {"T": Tv, "X": X, "C": C, "t": Tv * prob.fractions(), "status": stats["return_status"],
            "iterations": int(stats["iter_count"]), "solve_time_s": time.perf_counter() - t0 - t_setup,
-           "setup_time_s": t_setup, "cost": cost, "guess": guess, "x0": x0, "substeps": prob.substeps}
+           "setup_time_s": t_setup, "cost": cost,
+           "warnings": messages.getvalue().count("WARNING"), "guess": guess, "x0": x0, "substeps": prob.substeps}
     out["Y"] = _outputs(prob, X, C)
     out["margins"] = _margins(prob, X, out["Y"])
     if not ok:
