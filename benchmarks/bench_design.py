@@ -97,6 +97,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--save-candidates", default=None, metavar="FILE.npz",
+                    help="the admissible candidates' information, for the optimiser alone on other BLAS kernels")
     a = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     import ema_casadi as ema
@@ -111,6 +113,8 @@ def main(argv=None) -> int:
     res = ema.design_experiment(params)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     comp = res.comparison()
+    if a.save_candidates:
+        np.savez(a.save_candidates, M=np.array([m for _, m in res.candidates]), slots=int(res.test.duration))
     out = {"load_average": load, "design_wall_s": wall, "design_cpu_s": cpu, "target_s": TARGET_S,
            "candidates_s": res.info["time_candidates"], "ipopt_s": res.info["time_optimiser"],
            "ipopt": res.info["ipopt"], "candidates": res.info["candidates"], "admissible": res.info["admissible"],

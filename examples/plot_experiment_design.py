@@ -12,9 +12,9 @@ narrower in geometric mean, and inertia and flux linkage no longer correlated be
 0.9.
 """
 
-import matplotlib.pyplot as plt
 
 import ema_casadi as ema
+from ema_casadi.plots import write_figures
 
 params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.toml)
 res = ema.design_experiment(params, duration=10.0, stroke=0.01, max_load=15e3)
@@ -25,4 +25,5 @@ print(f"corr(J_m, psi): designed {res.correlation('J_m', 'psi'):+.3f}, "
 # %%
 # The designed command and load, the standard test's, and the predicted interval widths
 res.plot()
-plt.show()
+
+write_figures()  # run as a script, from any folder: the figures as <script name>.png in the working folder

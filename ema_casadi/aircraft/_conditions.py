@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 from ..linearisation import LinearizationError
-from ..model.components import REGISTRY
+from ..model.components import PART_CLASSES
 
 __all__ = ["CONDITIONS", "condition_overrides"]
 
 #: Condition name -> flat parameter values (SI), as the airframe parts declare them
 #: (their ``conditions``: trim airspeed and altitude, configuration, flight-control gains).
-CONDITIONS = {name: dict(values) for family in REGISTRY.values() for cls in family.values()
-              for name, values in cls.conditions.items()}
+CONDITIONS = {name: dict(values) for cls in PART_CLASSES for name, values in cls.conditions.items()}
 
 
 def condition_overrides(condition: str) -> dict:

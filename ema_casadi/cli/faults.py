@@ -178,7 +178,8 @@ def report(r: dict) -> None:
                 else None
             if ref is not None:
                 print(f"  {latch.removeprefix('latch_'):6s} at {m['threshold_param']} = {m['reference']:.4g}: "
-                      f"{ref['false_alarms_per_hour']:.3g} false alarms per flight hour, expected "
+                      f"{ref['false_alarms_per_hour']:.3g} false alarms per flight hour (the data alone: at most "
+                      f"{ref['data_bound_per_hour']:.3g}), expected "
                       f"{ref['expected_in_runs']:.3g} in the runs, observed {ref['observed_in_runs']}")
     for w in r.get("written", []):
         print(f"wrote {w}")

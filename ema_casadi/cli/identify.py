@@ -15,7 +15,7 @@ A fit that does not converge ends with exit status 3 and writes nothing. The
 verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
 whiteness, records' consistency); adequate within model error (a test fails but
 every channel's systematic misfit is at most --model-error noise levels and no
-record's estimates move by more than 3x that in robust sd: status 0, the misfit
+record's estimates move by more than 5x that in sandwich sd: status 0, the misfit
 named); inadequate: exit status 3 with the fitted file written as
 FILE.inadequate.toml, or status 0 and a warning with --allow-misfit.
 --track fits each record alone in the order of its time stamp (--stamp: a file-level
@@ -35,6 +35,7 @@ from pathlib import Path
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
 from ._flags import NoEffect, no_effect
+from ._identify_text import fit_text
 
 COMMAND = "identify"
 ORDER = 12
@@ -157,63 +158,58 @@ _TRACK = NoEffect((), "with --track (each record is fitted alone, in order)", la
 _COMPARE = NoEffect((), "with --compare (the combinations are ranked; profile or validate the best one's fit)",
                     lambda a: bool(a.compare))
 _COMPARE_FIT = NoEffect((), "with --compare (each combination is one fit from the file's values with the defaults: "
-                        "one start, no bounds, the unidentifiable held)",
-                        lambda a: bool(a.compare))
+                        "one start, no bounds, the unidentifiable held)", lambda a: bool(a.compare))
 _EXAMPLE = NoEffect((), "without records (the built-in example is one plain fit; write its records with "
                     "--example-records DIR and fit those)", _example_run)
+#: The command lines of the examples: a fit of one record, a trend, a comparison.
+_FIT, _TRENDS = ("a.csv", "--free", "F_seal"), ("a.csv", "b.csv", "--free", "F_seal", "--track")
+_CMP = (*_FIT, "--compare", "anti_windup=backcalc,clamping")
+
+
+def _on(rule, *example, why=None) -> NoEffect:
+    """``rule``'s condition (and reason, unless ``why``) with its example command line."""
+    return NoEffect(example, why or rule.why, rule.when)
+
+
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {
-    "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (),
-    "--example-records": (),
-    "--track": (NoEffect(("--track",), _EXAMPLE.why, _EXAMPLE.when),),
-    "--model-error": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--model-error", "2"), "with --track "
-                               "(a trend's fits are judged one by one; give it without --track)", _TRACK.when),
-                      NoEffect(("--model-error", "2"), _EXAMPLE.why, _EXAMPLE.when)),
-    "--compare": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--compare", "anti_windup=backcalc,clamping"),
-                           _TRACK.why, _TRACK.when),
-                  NoEffect(("--compare", "anti_windup=backcalc,clamping"), _EXAMPLE.why, _EXAMPLE.when)),
-    "--estimate-x0": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--estimate-x0"), "with --track (a trend's "
-                               "records start at rest; fit them one by one instead)", _TRACK.when),
-                      NoEffect(("--estimate-x0",), _EXAMPLE.why, _EXAMPLE.when)),
-    "--max-fits": (NoEffect(("a.csv", "--free", "F_seal", "--track", "--max-fits", "3"), _TRACK.why, _TRACK.when),
-                   NoEffect(("a.csv", "--free", "F_seal", "--max-fits", "3"), "without --compare (it caps the "
-                            "combinations compared)", lambda a: not a.compare)),
-    **{flag: (NoEffect(("a.csv", "--free", "F_seal", "--track", flag, "c.csv"), _TRACK.why, _TRACK.when),
-              NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", flag, "c.csv"),
-                       _COMPARE.why, _COMPARE.when))
+    "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
+    "--track": (_on(_EXAMPLE, "--track"),),
+    "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
+                          "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),
+    "--compare": (_on(_TRACK, *_CMP, "--track"), _on(_EXAMPLE, "--compare", "anti_windup=backcalc,clamping")),
+    "--estimate-x0": (_on(_TRACK, *_TRENDS, "--estimate-x0", why="with --track (a trend's records start at rest; "
+                          "fit them one by one instead)"), _on(_EXAMPLE, "--estimate-x0")),
+    "--max-fits": (_on(_TRACK, *_TRENDS, "--max-fits", "3"),
+                   NoEffect((*_FIT, "--max-fits", "3"), "without --compare (it caps the combinations compared)",
+                            lambda a: not a.compare)),
+    **{flag: (_on(_TRACK, *_TRENDS, flag, "c.csv"), _on(_COMPARE, *_CMP, flag, "c.csv"))
        for flag in ("--profile", "--validate")},
-    "--limit": (NoEffect(("a.csv", "--free", "F_seal", "--limit", "F_seal=300N"), "without --track (the limit is what "
-                         "a health trend runs to)", lambda a: not a.track),),
-    "--stamp": (NoEffect(("a.csv", "--free", "F_seal", "--stamp", "hours"), "without --track (it orders the records "
-                         "of a health trend)", lambda a: not a.track),),
-    "--out": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--out", "f.toml"), "with --track (a trend "
-                       "has one fit per record; use --report DIR)", _TRACK.when),),
-    "--starts": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--starts", "3"), "with --track (each "
-                          "record is fitted once, from the file's values)", _TRACK.when),
-                 NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--starts", "3"),
-                          _COMPARE_FIT.why, _COMPARE_FIT.when)),
-    "--jobs": (NoEffect(("a.csv", "b.csv", "--free", "F_seal", "--track", "--jobs", "2"), "with --track (each record "
-                        "is fitted once, in turn)", _TRACK.when),
-               NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--jobs", "2"),
-                        _COMPARE_FIT.why, _COMPARE_FIT.when),
-               NoEffect(("a.csv", "--free", "F_seal", "--jobs", "2"), "with one start (the workers run the --starts "
-                        "fits in parallel)", lambda a: a.starts == 1)),
-    "--bounds": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping", "--bounds",
-                           "F_seal=1:500"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
-    "--keep-unidentifiable": (NoEffect(("a.csv", "--free", "F_seal", "--compare", "anti_windup=backcalc,clamping",
-                                        "--keep-unidentifiable"), _COMPARE_FIT.why, _COMPARE_FIT.when),),
+    "--limit": (NoEffect((*_FIT, "--limit", "F_seal=300N"), "without --track (the limit is what a health trend runs "
+                         "to)", lambda a: not a.track),),
+    "--stamp": (NoEffect((*_FIT, "--stamp", "hours"), "without --track (it orders the records of a health trend)",
+                         lambda a: not a.track),),
+    "--out": (_on(_TRACK, *_TRENDS, "--out", "f.toml", why="with --track (a trend has one fit per record; use "
+                  "--report DIR)"),),
+    "--starts": (_on(_TRACK, *_TRENDS, "--starts", "3", why="with --track (each record is fitted once, from the "
+                     "file's values)"), _on(_COMPARE_FIT, *_CMP, "--starts", "3")),
+    "--jobs": (_on(_TRACK, *_TRENDS, "--jobs", "2", why="with --track (each record is fitted once, in turn)"),
+               _on(_COMPARE_FIT, *_CMP, "--jobs", "2"),
+               NoEffect((*_FIT, "--jobs", "2"), "with one start (the workers run the --starts fits in parallel)",
+                        lambda a: a.starts == 1)),
+    "--bounds": (_on(_COMPARE_FIT, *_CMP, "--bounds", "F_seal=1:500"),),
+    "--keep-unidentifiable": (_on(_COMPARE_FIT, *_CMP, "--keep-unidentifiable"),),
 }
 #: A value of each flag for the examples of the --example-records rule (flags without one take none).
 _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2"}
-for _flag in NO_EFFECT:  # --example-records writes the records and stops: every other flag is idle
-    if _flag != "--example-records":
-        _value = [_SAMPLE[_flag]] if _flag in _SAMPLE else []
-        NO_EFFECT[_flag] = (NoEffect(("--example-records", "rec", _flag, *_value),
-                                     "with --example-records (it writes the records and stops; fit them after)",
-                                     lambda a: a.example_records is not None), *NO_EFFECT[_flag])
+_WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
+                   lambda a: a.example_records is not None)
+for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
+    NO_EFFECT[_flag] = (_on(_WRITES, "--example-records", "rec", _flag, *_SAMPLE.get(_flag, "").split()),
+                        *NO_EFFECT[_flag])
 
 
 def run(args) -> dict:
@@ -259,6 +255,7 @@ def _write_examples(args) -> dict:
     """--example-records DIR: the guide's records (identification.guide_records) from the
     packaged set or MODEL.toml, into a new folder written whole or not at all."""
     from ..identification import GUIDE_FILES, TREND_TRUTH, guide_records
+    from ..simulation import SimulationError
     from ._flags import new_output_folder, output_folder
 
     records, out = _split(args), Path(args.example_records)
@@ -267,8 +264,13 @@ def _write_examples(args) -> dict:
     if out.exists():
         raise UserError(f"--example-records {out}: exists; name a new folder")
     top = new_output_folder(out, GUIDE_FILES, "--example-records")
+    params = load(args)[0]
     with output_folder(out, top) as folder:
-        paths, truth = guide_records(load(args)[0], folder)
+        try:
+            paths, truth = guide_records(params, folder)
+        except SimulationError as exc:  # a variant the variable-step RODAS4 cannot run
+            raise UserError(f"--example-records with --variant {', '.join('='.join(v) for v in args.variant)}: "
+                            f"{exc}") from None
     return {"model": args.model, "truth": truth, "trend_truth": {"F_seal": TREND_TRUTH},
             "written": [str(out / p.name) for p in paths]}
 
@@ -292,7 +294,7 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     if args.profile and kw.get("estimate_x0") is not False:
         raise UserError("--profile with --estimate-x0: the profile re-fits start at rest; use the Wald intervals")
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
-    res = identify_api(params, recs, free, **kw)
+    res = identify_api(params, recs, free, **kw, model=model)
     doc = res.to_dict()
     if args.profile:
         doc["profiles"] = {n: profile(res, n) for n in args.profile}
@@ -391,7 +393,7 @@ def identify_api(params, recs, free, **kw):
     """The API call the command makes (one place to see it)."""
     from ..identification import identify
 
-    return identify(params, recs, free, **kw)
+    return identify(params, recs, free, **kw)  # the command's model: built once, passed down
 
 
 def _track(args, params, model, records, free, kw) -> dict:
@@ -404,7 +406,7 @@ def _track(args, params, model, records, free, kw) -> dict:
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
     kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
-    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw)
+    tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:
         doc["written"] = [str(tr.write_report(report))]
@@ -443,57 +445,4 @@ def report(result: dict) -> None:
 
         w(report_text(result))
         return
-    truth = result.get("example", {}).get("truth", {})
-    if truth:
-        w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
-    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
-      f"{'(textbook)':>25}  identifiable\n")
-    for n, d in result["parameters"].items():
-        if d.get("estimate") is None:
-            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
-            continue
-        lo, hi = d["interval"]
-        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
-        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
-        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
-          f"{ok}\n")
-        if d.get("note"):
-            w(f"{'':<10}   note: {d['note']}\n")
-    for c in result["channels"]:
-        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
-          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
-    test = result.get("consistency")
-    if test:
-        w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "
-          f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
-    for rec in (result.get("initial_state") or {}).get("records", []):
-        w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
-    rob = result.get("robust") or {}
-    if rob.get("scale_factor", 1.0) > 1.0:
-        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
-          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
-    me = result.get("model_error") or {}
-    for m in me.get("misfits", [])[:6]:
-        w(f"  systematic: {m['text']}\n")
-    if result.get("verdict") == "adequate within model error":
-        w(f"adequate within model error: systematic misfit at most {me['largest_sigma']:.2f} sigma (tolerated "
-          f"{me['threshold_sigma']:g}), records' shifts at most {me['largest_shift_sd']:.2g} robust sd (tolerated "
-          f"{me['threshold_shift_sd']:g}); robust intervals; failed tests: " + "; ".join(result["misfit"][:2]) + "\n")
-    elif result.get("adequate", True):
-        tests = "chi-square, whiteness" + (", consistency" if test else "")
-        w(f"adequate: the residuals are explained by the noise ({tests})\n")
-    else:
-        for reason in result["misfit"]:
-            w(f"INADEQUATE: {reason}\n")
-    for row in result.get("comparison", []):
-        verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
-        state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
-        w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
-    for name, prof in result.get("profiles", {}).items():
-        w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
-    for v in result.get("validation", []):
-        w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
-          f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
-    w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
-    for p in result.get("written", []):
-        w(f"wrote {p}\n")
+    w(fit_text(result))

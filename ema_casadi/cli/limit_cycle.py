@@ -51,6 +51,7 @@ NO_EFFECT = {
     "--continue": (NoEffect(("--continue", "B=0:0.1"), _SHOOTING.why, _SHOOTING.when),),
     "--csv": (NoEffect(("--csv", "o.csv"), _SHOOTING.why, _SHOOTING.when),),
     "--no-df": (NoEffect(("--no-df",), _SHOOTING.why, _SHOOTING.when),),
+    "--zoh": (NoEffect(("--zoh",), _SHOOTING.why, _SHOOTING.when),),
     **{flag: (NoEffect(("--method", "shooting", "--no-df", flag, *value), _GRID.why, _GRID.when),)
        for flag, value in (("--amplitudes", ("1um,5um",)), ("--freqs", ("2,4",)), ("--periods", ("8",)),
                            ("--no-refine", ()))},
@@ -98,6 +99,8 @@ def add_arguments(p):
                         "when outside")
     p.add_argument("--csv", default=None, metavar="FILE.csv", help="shooting: the orbit over one period (CSV)")
     p.add_argument("--no-df", action="store_true", help="shooting: no describing function beside the orbit")
+    p.add_argument("--zoh", action="store_true",
+                   help="shooting: the ECU sampled at its rates (the finite-difference fallback on the RK4 rollout)")
 
 
 def _axes(args):
@@ -190,7 +193,8 @@ def _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont):
            "method": "shooting", "predicted": cycles, "written": []}
     stage(args, "limit-cycle", 0.3, "periodic orbit by shooting")
     try:
-        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred, inputs=held)
+        orb = periodic_orbit(model, args.loop, p=p, condition=args.condition, prediction=pred, inputs=held,
+                             zoh=args.zoh)
         out["orbit"] = orb.as_dict()
         if cont is not None:
             stage(args, "limit-cycle", 0.5, f"continuation over {cont[0]}")

@@ -321,6 +321,8 @@ def _run(req, progress: bool, t_wall: float):
             "time_candidates": t_cand, "time_optimiser": t_opt, "wall_time": time.perf_counter() - t_wall,
             "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage},
             "rod_speed_peak": {"designed": _peak_speed(model, infos), "standard": _peak_speed(model, std_infos)}}
-    return DesignResult(params=params, model=model, free=fr, test=test, standard=standard, M=M, M_standard=M_std,
-                        predicted=intervals(M, fr, fr.theta0), standard_predicted=intervals(M_std, fr, fr.theta0),
-                        usage=usage, segments=table, thetas=thetas, info=info, runs=infos[0].runs)
+    res = DesignResult(params=params, model=model, free=fr, test=test, standard=standard, M=M, M_standard=M_std,
+                       predicted=intervals(M, fr, fr.theta0), standard_predicted=intervals(M_std, fr, fr.theta0),
+                       usage=usage, segments=table, thetas=thetas, info=info, runs=infos[0].runs)
+    res.candidates = list(zip(segs, Ms, strict=True))
+    return res

@@ -115,9 +115,10 @@ def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1) -> dict:
 
 
 def efficient_rounding(w, N: int, tiny: float = 1e-4) -> np.ndarray:
-    """Whole numbers ``n_i`` summing to ``N`` from shares ``w`` (efficient rounding,
-    Pukelsheim and Rieder 1992: the rounded design's loss is the least possible for
-    any criterion); shares below ``tiny`` drop out.
+    """Whole counts summing to N from the shares w, by efficient rounding.
+
+    Pukelsheim and Rieder 1992: the rounded design's loss is the least possible for any
+    criterion; shares below ``tiny`` drop out.
 
     Parameters
     ----------

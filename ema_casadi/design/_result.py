@@ -52,6 +52,9 @@ class DesignResult:
         self.usage, self.segments, self.thetas, self.info, self.runs = usage, segments, thetas, info, runs
         #: The verification (:meth:`verify`), once run.
         self.verification = None
+        #: The admissible candidates the optimiser chose from: (Segment, information per
+        #: segment averaged over the draws) pairs.
+        self.candidates = []
 
     def __repr__(self) -> str:
         c = self.comparison()

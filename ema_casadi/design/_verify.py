@@ -100,4 +100,5 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
             "truth": truth, "predicted_width": pred, "realised_width": real, "realised_width_textbook": real_tb,
             "width_ratio": {m: real[m] / pred[m] for m in names}, "scatter_width": scatter,
             "coverage": float(np.mean(covered)) if covered else float("nan"), "limits_used": usage,
+            "fits": [{"estimate": f.get("estimate"), "failed": f.get("failed")} for f in fits],
             "limits_respected": bool(admissible(usage)), "seed": seed}

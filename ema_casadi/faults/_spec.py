@@ -148,16 +148,16 @@ def fault_variants(params: Parameters, given: dict | None = None, chosen: dict |
     chosen : dict, optional
         Variant choices of the fault file's ``[scenario]`` (``sensor``, ``airframe``).
     """
-    from ..model.components import REGISTRY, validate_variants
+    from ..model.components import REGISTRY, served_by, validate_variants
 
     v = validate_variants({**params.variants, **(given or {}), **(chosen or {}), "faults": "on", "monitors": "on"})
     for key, values in REGISTRY.items():
-        cls = values[v[key]]
-        for opt, allowed in cls.options.items():
-            for value in allowed[1:]:
-                if cls({**{o: v[o] for o in cls.options}, opt: value}).faults and not cls(
-                        {o: v[o] for o in cls.options}).faults:
-                    v[opt] = value
+        for cls in served_by(values[v[key]]):  # an option whose form of the part brings faults is turned on
+            for opt, allowed in cls.options.items():
+                base = {o: v[o] for o in cls.options}
+                for value in allowed[1:]:
+                    if cls.form({**base, opt: value}).faults and not cls.form(base).faults:
+                        v[opt] = value
     return v
 
 

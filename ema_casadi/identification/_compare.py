@@ -140,7 +140,9 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     records : sequence of str or Path
         The records.
     free : sequence of str
-        The free parameters (the same for every combination).
+        The free parameters (the same for every combination; one that a combination's
+        parts do not use, such as the clamping band ``w_aw`` with back-calculation, is
+        left out of that combination's fit and named in its row's ``not_used``).
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
@@ -149,10 +151,17 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     max_fits : int
         Most combinations (refused above).
     """
+    from ..model.assembly import build_model
+
     rows, results = [], []
+    free = [s.strip() for s in free.split(",") if s.strip()] if isinstance(free, str) else list(free)
     for combo in combinations(options, variants, max_fits):
+        model = build_model(params, combo)
+        # a parameter of a structure the combination leaves out (w_aw without clamping): not fitted there
+        unused = [n for n in free if n in model.param_names and n not in model.used_params]
+        mine = [n for n in free if n not in unused]
         try:
-            res = identify(params, records, free, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
+            res = identify(params, records, mine, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
                            progress=progress, estimate_x0=estimate_x0,
                            **({} if model_error is None else {"model_error": model_error}))
         except FitFailed as exc:
@@ -160,6 +169,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
             results.append(None)
             continue
         rows.append({"variants": combo, "adequate": res.adequacy["adequate"], "reasons": res.adequacy["reasons"],
+                     **({"not_used": unused} if unused else {}),
                      "verdict": res.adequacy.get("verdict"), "exact": bool(res.adequacy.get("exact")),
                      "bic": bic(res), "cost": res.info["cost"], "estimate": res.estimate})
         results.append(res)

@@ -58,7 +58,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
-             progress: bool = False) -> IdentResult:
+             progress: bool = False, model: Model | None = None) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -104,10 +104,14 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         statistical tests fail (chi-square, whiteness, consistency) is *adequate within
         model error* (robust intervals, the misfit named) when every record's and
         channel's systematic misfit is at most this and no record's estimates shift
-        by more than 3 x this robust standard deviations against the others'; else
+        by more than 5 x this sandwich standard deviations against the others'; else
         inadequate.
     progress : bool
         One line of progress on stderr.
+    model : Model, optional
+        The model of ``params`` and ``variants``, built once by the caller (the command
+        line, :func:`~ema_casadi.identification.track`) and passed down; default built
+        here. A worker process of ``jobs`` builds its own.
 
     Returns
     -------
@@ -128,7 +132,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     max_evaluations = integer(max_evaluations, "max_evaluations", IdentificationError, minimum=2)
     if isinstance(free, str):
         free = [s.strip() for s in free.split(",") if s.strip()]
-    model = build_model(params, variants)
+    model = given_model(model, params, variants)
     recs = [r if isinstance(r, Record) else read_record(r, model) for r in _as_list(records)]
     if not recs:
         raise IdentificationError("records: give at least one record")
@@ -202,6 +206,31 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
         raise FitFailed(f"none of the {starts} starts converged ({results[0][1]})")
     _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
     return fit, out
+
+
+def given_model(model, params: Parameters, variants: dict | None) -> Model:
+    """The model of ``params`` and ``variants``: the one the caller built (checked to be
+    that model), or built here.
+
+    Parameters
+    ----------
+    model : Model or None
+        The caller's model.
+    params : Parameters
+        The parameter set.
+    variants : dict or None
+        Variant overrides.
+    """
+    if model is None:
+        return build_model(params, variants)
+    from ..model.components import validate_variants
+
+    instance(model, Model, "model", IdentificationError, " (from build_model)")
+    same = np.array_equal(model.params.vector(), params.vector(), equal_nan=True)  # the model keeps a copy
+    if not same or dict(model.variants) != validate_variants({**params.variants, **(variants or {})}):
+        raise IdentificationError("model: not the model of these parameters and variants "
+                                  "(build_model(params, variants))")
+    return model
 
 
 def _start_in_worker(args) -> dict | str:

@@ -150,6 +150,76 @@ def comparison_figure(comparison):
     return fig
 
 
+def misfit_figure(result):
+    """Where the misfit is: per channel (a row each) the residual's running mean (in
+    noise levels) against time for every record, the samples of each segment (hold,
+    reversal, saturation) shaded where its systematic part is largest, and the
+    tolerated model error as dashed lines.
+
+    Parameters
+    ----------
+    result : IdentResult
+        The fit (its :attr:`misfits`).
+    """
+    import matplotlib.pyplot as plt
+
+    found = result.misfits
+    chans = sorted({m["channel"] for m in found})
+    fig, axes = plt.subplots(max(1, len(chans)), 1, figsize=(8, 2.2 * max(1, len(chans)) + 0.6), squeeze=False)
+    tol = (result.adequacy.get("model_error") or {}).get("threshold_sigma")
+    for ax, c in zip(axes[:, 0], chans, strict=False):
+        for k, m in enumerate(m for m in found if m["channel"] == c):
+            line, = ax.plot(m["t"], m["mean"] / m["noise"], lw=0.8, color=f"C{k}",
+                            label=f"{Path(m['record']).name}: {m['systematic_sigma']:.2f} σ, {m['mostly']}")
+            if m["systematic_sigma"] > 0.05:
+                ax.axvspan(*m["span"], color=line.get_color(), alpha=0.12)
+        if tol:
+            for s in (-tol, tol):
+                ax.axhline(s, color="k", lw=0.6, ls="--")
+        ax.axhline(0, color="k", lw=0.4)
+        ax.set_ylabel(f"{c}: mean resid. / σ", fontsize=8)
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.legend(fontsize=7, loc="best")
+    fig.suptitle(f"systematic misfit (running mean over {1e3 * found[0]['window_s']:.0f} ms; shaded: where most of "
+                 f"it sits)" if found else "systematic misfit", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def records_figure(result):
+    """Each record's own estimates side by side: per parameter (a panel each) the
+    record's estimate alone (the consistency test's re-fit) against the joint estimate
+    and its robust 95 % interval, relative to the joint estimate.
+
+    Parameters
+    ----------
+    result : IdentResult
+        A fit of several records (with the consistency test).
+    """
+    import matplotlib.pyplot as plt
+
+    recs = (result.adequacy.get("consistency") or {}).get("records", [])
+    names = list(result.names)
+    fig, axes = plt.subplots(1, len(names), figsize=(2.0 * len(names) + 1, 3.2), squeeze=False)
+    for ax, n in zip(axes[0], names, strict=True):
+        est = result.estimate[n]
+        lo, hi = result.interval[n]
+        ax.axhspan(100 * (lo / est - 1), 100 * (hi / est - 1), color="C0", alpha=0.15, label="joint, robust 95 %")
+        ax.axhline(0, color="C0", lw=1)
+        for k, r in enumerate(recs):
+            v = r.get("estimate_alone", {}).get(n)
+            if v is not None:
+                ax.plot([k], [100 * (v / est - 1)], "o", color=f"C{k + 1}", label=Path(r["record"]).stem)
+        ax.set_title(n, fontsize=9)
+        ax.set_xticks([])
+        ax.tick_params(labelsize=7)
+    axes[0, 0].set_ylabel("record alone vs joint (%)", fontsize=8)
+    axes[0, -1].legend(fontsize=7, loc="best")
+    fig.suptitle("each record's own estimates", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def figures(result, truth: dict | None = None) -> dict:
     """Every figure of the report by name.
 
@@ -164,6 +234,10 @@ def figures(result, truth: dict | None = None) -> dict:
     if len(result.names) > 1:
         out["correlation"] = correlation_figure(result)
     out["intervals"] = intervals_figure(result, truth)
+    if result.misfits:
+        out["misfit"] = misfit_figure(result)
+    if (result.adequacy.get("consistency") or {}).get("records"):
+        out["records"] = records_figure(result)
     return out
 
 
@@ -177,8 +251,9 @@ def report_names(n_records: int, n_free: int) -> list[str]:
     n_free : int
         Free parameters (a correlation figure from two on).
     """
-    names = [f"fit_{k}.png" for k in range(n_records)] + ["intervals.png", "summary.json", "summary.md"]
-    return names + (["correlation.png"] if n_free > 1 else [])
+    names = [f"fit_{k}.png" for k in range(n_records)] + ["intervals.png", "summary.json", "summary.md",
+                                                          "misfit.png"]
+    return names + (["correlation.png"] if n_free > 1 else []) + (["records.png"] if n_records > 1 else [])
 
 
 def write_report(result, folder, extra: dict | None = None) -> Path:

@@ -126,9 +126,11 @@ def _robust_doc(rob, records) -> dict:
     if rob is None:
         return {"kind": "textbook"}
     recs = [{"record": rec.path, "bandwidth_samples": r["bandwidth"], "directions": r["directions"],
-             "shift_sd": r["shift_sd"]} for rec, r in zip(records, rob["records"], strict=True)]
+             "shift_sd": r["shift_sd"], "shift_robust_sd": r.get("shift_robust_sd", r["shift_sd"])}
+            for rec, r in zip(records, rob["records"], strict=True)]
     return {"kind": "robust (Newey-West sandwich per record, x records' scale factor)",
             "scale_factor": rob["scale_factor"], "records_chi2": rob["chi2"], "records_dof": rob["dof"],
+            "records_p": rob.get("p"),
             "records": recs}
 
 

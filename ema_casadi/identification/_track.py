@@ -12,9 +12,8 @@ import numpy as np
 
 from .._util._files import atomic_dir
 from .._util._notebook import Summarised
-from ..model.assembly import build_model
 from ._data import plain
-from ._fit import identify
+from ._fit import given_model, identify
 from ._records import IdentificationError, read_record
 from ._result import Z95
 
@@ -148,7 +147,8 @@ def trend(t, est, std, limit: float | None = None) -> dict:
 
 def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | None = None,
           sigma: dict | None = None, bounds: dict | None = None, variants: dict | None = None,
-          max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False) -> TrackResult:
+          max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False,
+          model=None) -> TrackResult:
     """Fit each record alone and trend the estimates against the records' time stamp.
 
     Parameters
@@ -164,8 +164,9 @@ def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | 
         The time-stamp field or column.
     limits : dict, optional
         Parameter -> limit (SI): the crossing is predicted.
-    sigma, bounds, variants, max_evaluations, hold_unidentifiable, progress
-        As for :func:`~ema_casadi.identification.identify`, for every fit.
+    sigma, bounds, variants, max_evaluations, hold_unidentifiable, progress, model
+        As for :func:`~ema_casadi.identification.identify`, for every fit (the model
+        built once, by the caller or here, and passed to each).
     """
     fit = {"sigma": sigma, "bounds": bounds, "variants": variants, "max_evaluations": max_evaluations,
            "hold_unidentifiable": hold_unidentifiable, "progress": progress}
@@ -175,14 +176,14 @@ def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | 
             from .._util._checks import nearest
 
             raise IdentificationError(f"--limit {n}: not a free parameter{nearest(n, free)}")
-    model = build_model(params, variants)
+    model = given_model(model, params, variants)
     recs = [read_record(r, model, extra=(stamp,)) for r in records]
     if len(recs) < 2:
         raise IdentificationError("--track needs at least two records (one per time stamp)")
     order = sorted(range(len(recs)), key=lambda k: recs[k].stamp(stamp))
     rows = []
     for k in order:
-        res = identify(params, [recs[k]], free, **fit)
+        res = identify(params, [recs[k]], free, **fit, model=model)
         doc = res.to_dict()
         rows.append({"record": recs[k].path, "stamp": recs[k].stamp(stamp), "parameters": {
             n: {"estimate": res.estimate[n], "std": res.std[n], "interval": list(res.interval[n]),

@@ -49,6 +49,10 @@ MIN_START = 1e-9
 #: finite-difference fallback: its Newton wanders before it converges, measured on the
 #: aircraft loop: 4e-5, 2e-3, 6e-4, 2e-4, 2e-5, 1e-5, 1e-5, 2e-5, 4e-7).
 STALL = 3
+#: Largest Newton step in any state (of its full scale): a longer one is shortened (the
+#: finite-difference fallback's first step on the aircraft loop otherwise threw the play
+#: state to 190 x its full scale).
+STEP_MAX = 0.05
 #: Periodicity residual reached by the finite-difference fallback (of full scale): its
 #: fixed-step rollout is not smooth in the start state where the friction sticks and
 #: slips (measured on the aircraft loop: over 25 Newton steps the residual wanders between
@@ -227,6 +231,8 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
         except np.linalg.LinAlgError as exc:
             raise OrbitNotFound(f"no periodic orbit near the start: singular shooting matrix at Newton step {it}") \
                 from exc
+        big = float(np.max(np.abs(dz[:nx])))
+        dz = dz * (STEP_MAX / big) if big > STEP_MAX else dz  # damped where the linear model is far off
         x, T = x + dz[:nx] * D, T * math.exp(float(np.clip(dz[nx], -0.5, 0.5)))
     raise OrbitNotFound(f"no periodic orbit near the start: periodicity residual {residuals[-1]:.2g} after "
                         f"{iterations} Newton steps (need < {tol:g})")

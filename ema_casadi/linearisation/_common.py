@@ -6,13 +6,13 @@ import casadi as ca
 import numpy as np
 
 from ..model.assembly import Model
-from ..model.components import POLICIES, REGISTRY
+from ..model.components import PART_CLASSES, POLICIES
 
 #: Loop name -> (closure flag, injection input, fed-back measurement), outer to inner:
 #: every loop a registered part declares (a model has its own in ``model.loops``).
 LOOPS = {
     lp.name: (lp.flag, lp.injection, lp.measured)
-    for values in REGISTRY.values() for cls in values.values() for lp in cls.loops
+    for cls in PART_CLASSES for lp in cls.loops
 }
 #: Small-signal policies (the parts declare what each value sets)
 FRICTION_POLICIES = POLICIES["friction"]

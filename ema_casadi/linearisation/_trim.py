@@ -73,9 +73,9 @@ class OperatingPoint(Summarised):
     eta: float | None = None
 
     def _facts(self) -> dict:
-        return {"x_cmd": f"{self.x_cmd * 1e3:.4g} mm", "f_ext": f"{self.f_ext / 1e3:.4g} kN",
-                "v_rod": f"{self.v_rod * 1e3:.4g} mm/s", "policy": ", ".join(f"{k} {v}" for k, v in self.policy.items()
-                                                                           if isinstance(v, str)) or None,
+        shown = (f"{self.x_cmd * 1e3:.4g} mm", f"{self.f_ext / 1e3:.4g} kN", f"{self.v_rod * 1e3:.4g} mm/s")
+        return {**dict(zip(REQUEST_KEYS, shown, strict=True)),
+                "policy": ", ".join(f"{k} {v}" for k, v in self.policy.items() if isinstance(v, str)) or None,
                 "states": len(self.states), "residual": f"{self.residual:.2g}"}
 
     def state(self, name: str) -> float:

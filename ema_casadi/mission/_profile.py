@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
-from ..model.components import REGISTRY, SIGNAL_KEYS, VariantError, parts_for, validate_variants
+from ..model.components import PART_CLASSES, SIGNAL_KEYS, VariantError, parts_for, validate_variants
 from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
 
@@ -21,8 +21,7 @@ __all__ = ["MissionError", "Segment", "Mission", "load_mission", "parse_mission"
 
 #: Temperature state -> its thermal node, as the registered parts declare them
 #: (:class:`~ema_casadi.model.components.Node`: heat capacity and rated temperature).
-NODES = {s.name: s.node for values in REGISTRY.values() for cls in values.values() for s in cls.states
-         if s.node is not None}
+NODES = {s.name: s.node for cls in PART_CLASSES for s in cls.states if s.node is not None}
 
 
 def node_limits(params: Parameters) -> dict[str, float]:

@@ -28,8 +28,6 @@ from .._util._files import write_text
 from .._util._notebook import Summarised
 from ._param_units import absent as _absent
 from ._param_units import raw_value
-from ._params_airframe import Airframe
-from ._params_faults import FAULT_GROUPS, FaultTables
 from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked"]
@@ -54,6 +52,7 @@ WHOLE = "whole number"  # 0, 1, 2, ... (a seed, a count of bits)
 NONPOS = "non-positive"  # <= 0
 FLAG = "switch"  # 0 or 1 (false or true)
 TEMP = "temperature"  # degC, above absolute zero
+REAL = "real"  # any finite number (a signed coefficient)
 
 #: Length of a table parameter in the flat vector (2..TABLE_MAX points, padded: :func:`_pad`).
 TABLE_MAX = 6
@@ -203,6 +202,130 @@ class Load:
     """The load on the rod besides f_ext, used by ``load = "aero_spring"``."""
 
     k_aero: float = _p("N/m", NONNEG, "surface hinge-moment stiffness referred to the rod (N/m)", default=1.0e5)
+
+
+# The optional tables --------------------------------------------------------------
+def _opt(unit: str, check: str, doc: str, default: float):
+    """A field of an optional table: its default a dataclass default too (the table may be absent)."""
+    return field(default=default, metadata={"unit": unit, "check": check, "doc": doc, "default": default})
+
+
+# [sensor], [fault], [monitor]: read by the real sensors (sensor = "real"), the
+# fault-injection part (faults = "on") and the ECU monitors (monitors = "on"); the
+# defaults are the reference values of the guide (estimates for a CESA-class actuator).
+@dataclass(frozen=True)
+class Sensor:
+    """Rod position sensor (LVDT), motor angle sensor (resolver), phase-current sensors."""
+
+    k_g_x: float = _opt("1", REAL, "LVDT gain error: x_s = (1 + k_g_x) x + ... (-)", 0.0)
+    b_x: float = _opt("m", REAL, "LVDT bias (m)", 0.0)
+    sigma_x: float = _opt("m", NONNEG, "LVDT white noise, standard deviation per position-loop sample (m)", 3e-7)
+    q_x: float = _opt("m", NONNEG, "LVDT quantisation step (m); 0: none", 5e-7)
+    tau_x: float = _opt("s", POS, "LVDT first-order lag (s); 1/(2 pi 1 kHz)", 1.0 / (2 * math.pi * 1000.0))
+    N_theta: float = _opt("1", WHOLE, "resolver resolution, bits per mechanical revolution; 0: unquantised", 16.0)
+    sigma_theta: float = _opt("rad", NONNEG, "resolver angle noise, standard deviation per speed-loop sample (rad)",
+                            2e-4)
+    k_g_i: float = _opt("1", REAL, "phase-current sensor gain error (-)", 0.0)
+    b_i: float = _opt("A", REAL, "phase-current sensor offset, phase a (A)", 0.0)
+    sigma_i: float = _opt("A", NONNEG, "phase-current noise, standard deviation per current-loop sample (A)", 0.05)
+    q_i: float = _opt("A", NONNEG, "phase-current quantisation step (A): 12 bit over +-2 I_max", 4 * 24.0 / 4096)
+    noise_seed: float = _opt("1", WHOLE, "seed of the sensor-noise sequences (a whole number)", 0.0)
+
+
+@dataclass(frozen=True)
+class FaultModel:
+    """Models of the injected faults (the schedule itself is a fault file)."""
+
+    k_jam: float = _opt("N/m", POS, "jam: stiffness of the lock at the onset position (N/m)", 2e8)
+    d_jam: float = _opt("N*s/m", NONNEG, "jam: damping of the lock (N s/m)", 2e4)
+    R_open: float = _opt("Ohm", POS, "bridge off: resistance the open windings see below the diode clamp (Ohm)",
+                       100.0)
+    tau_hold: float = _opt("s", POS, "time constant of the onset memories (jam anchor, stuck sensor) (s)", 1e-3)
+    R_f: float = _opt("Ohm", POS, "winding short: resistance of the short across the shorted turns (Ohm)", 0.05)
+    L_f: float = _opt("H", POS, "winding short: leakage inductance of the shorted loop per unit shorted fraction (H)",
+                    5e-4)
+
+
+@dataclass(frozen=True)
+class Monitor:
+    """ECU monitors: thresholds, confirmation times, reactions."""
+
+    e_track: float = _opt("m", POS, "tracking monitor: |x_model - x_s| threshold (m)", 1.0e-3)
+    t_track: float = _opt("s", POS, "tracking monitor: confirmation time (s)", 0.05)
+    k_jam_i: float = _opt("1", POS, "jam monitor: |i_q| >= k_jam_i I_max (-)", 0.95)
+    w_jam: float = _opt("rad/s", POS, "jam monitor: |omega_s| below this speed (rad/s)", 5.0)
+    t_jam: float = _opt("s", POS, "jam monitor: confirmation time (s)", 0.02)
+    e_cross: float = _opt("m", POS, "rod-motor cross-check: margin over B/2 + F/C (m)", 1.0e-4)
+    t_cross: float = _opt("s", POS, "rod-motor cross-check: confirmation time (s)", 0.01)
+    k_oc: float = _opt("1", POS, "over-current monitor: |i_dq| > k_oc I_max (-)", 1.25)
+    t_oc: float = _opt("s", POS, "over-current monitor: confirmation time (s)", 0.005)
+    T_ot: float = _opt("degC", TEMP, "over-temperature monitor: winding threshold (degC)", 170.0)
+    t_ot: float = _opt("s", POS, "over-temperature monitor: confirmation time (s)", 1.0)
+    react_track: float = _opt("1", FLAG, "1: a latched tracking monitor switches the bridge off", 0.0)
+    react_jam: float = _opt("1", FLAG, "1: a latched jam monitor switches the bridge off", 0.0)
+    react_cross: float = _opt("1", FLAG, "1: a latched cross-check switches the bridge off", 0.0)
+    react_oc: float = _opt("1", FLAG, "1: a latched over-current monitor switches the bridge off", 0.0)
+    react_ot: float = _opt("1", FLAG, "1: a latched over-temperature monitor switches the bridge off", 0.0)
+
+
+#: The sensor, fault and monitor tables by name (entries of :data:`GROUPS`).
+FAULT_GROUPS = {"sensor": Sensor, "fault": FaultModel, "monitor": Monitor}
+
+
+@dataclass(frozen=True, kw_only=True)
+class FaultTables:
+    """The sensor, fault and monitor groups as fields of :class:`Parameters` (keyword-only,
+    defaulted: a parameter file without the tables loads unchanged)."""
+
+    sensor: Sensor = field(default_factory=Sensor)
+    fault: FaultModel = field(default_factory=FaultModel)
+    monitor: Monitor = field(default_factory=Monitor)
+
+
+# [airframe] (docs: physics): read by the airframe parts (airframe = "transport" | "b747"):
+# the Stevens & Lewis medium transport (Aircraft Control and Simulation, 2nd ed., §3.6,
+# converted from US units with ft = 0.3048 m, slug = 14.5939 kg, lbf = 4.44822 N,
+# coefficients per rad), the elevator surface and horn (§3), the pitch flight-control law
+# (§4) and the flight condition trimmed for. Every key has its default.
+@dataclass(frozen=True)
+class Airframe:
+    """Aircraft, surface and flight-control law (used by ``airframe != "none"``)."""
+
+    S_w: float = _opt("m^2", "positive", "wing area (2170 ft^2)", 201.5995968)
+    c_w: float = _opt("m", "positive", "mean aerodynamic chord (17.5 ft)", 5.334)
+    m_ac: float = _opt("kg", "positive", "aircraft mass (5000 slug)", 72969.51468603182)
+    I_yy: float = _opt("kg*m^2", "positive", "pitch inertia (4.1e6 slug ft^2)", 5558853.588158742)
+    T_stat: float = _opt("N", "positive", "static thrust (6e4 lbf)", 266893.29691563)
+    dT_dV: float = _opt("N*s/m", "non-positive", "thrust lapse with airspeed (-38 lbf/(ft/s))", -554.5683116138417)
+    z_E: float = _opt("m", REAL, "thrust moment arm (2 ft)", 0.6096)
+    C_L_a: float = _opt("1/rad", "positive", "lift slope (0.085 /deg)", 4.870141258611998)
+    C_m_a: float = _opt("1/rad", REAL, "pitch stiffness (-0.022 /deg)", -1.260507149287811)
+    C_m_de: float = _opt("1/rad", REAL, "elevator power (-0.016 /deg)", -0.9167324722093172)
+    C_m_q: float = _opt("1/rad", REAL, "pitch damping", -16.0)
+    C_m_ad: float = _opt("1/rad", REAL, "alpha-dot damping", -6.0)
+    C_L_ad: float = _opt("1/rad", REAL, "alpha-dot lift", 0.0)
+    C_D_cls: float = _opt("1", "non-negative", "induced-drag factor", 0.042)
+    x_cg: float = _opt("1", "fraction", "centre of gravity, fraction of the chord", 0.25)
+    C_L0: float = _opt("1", REAL, "lift at zero alpha (clean 0.20, landing 1.0)", 0.20)
+    C_D0: float = _opt("1", "non-negative", "zero-lift drag (clean 0.016, landing 0.08)", 0.016)
+    C_m0: float = _opt("1", REAL, "pitch moment at zero alpha (clean 0.05, landing -0.20)", 0.05)
+    dC_D: float = _opt("1", "non-negative", "gear drag increment (landing 0.02)", 0.0)
+    dC_m: float = _opt("1", REAL, "gear pitch-moment increment (landing -0.05)", 0.0)
+    g_0: float = _opt("m/s^2", "positive", "gravity (32.17 ft/s^2)", 9.805416)
+    r_horn: float = _opt("m", "positive", "elevator horn length r", 0.15)
+    a_pin: float = _opt("m", "positive", "hinge to actuator pin distance a (rod perpendicular to the horn at neutral)",
+                      1.0)
+    S_c_e: float = _opt("m^3", "positive", "elevator area x chord S_e c_e", 3.5)
+    C_h0: float = _opt("1", REAL, "hinge moment at zero alpha and deflection", 0.0)
+    C_h_a: float = _opt("1/rad", REAL, "hinge-moment slope with alpha", -0.3)
+    C_h_d: float = _opt("1/rad", REAL, "hinge-moment slope with deflection", -0.5)
+    J_e: float = _opt("kg*m^2", "non-negative", "surface inertia about the hinge", 15.0)
+    K_q: float = _opt("s", "non-negative", "pitch-rate gain of the flight-control law", 1.0)
+    K_th: float = _opt("1", "non-negative", "pitch-attitude gain", 2.0)
+    K_ith: float = _opt("1/s", "non-negative", "pitch-attitude integral gain", 0.5)
+    f_s_a: float = _opt("Hz", "positive", "flight-control computer rate (sampled law)", 80.0)
+    V_0: float = _opt("m/s", "positive", "trim airspeed (500 ft/s)", 152.4)
+    h_0: float = _opt("m", "non-negative", "trim altitude", 0.0)
 
 
 GROUPS: dict[str, type] = {

@@ -8,13 +8,16 @@ constraints, and replays the resulting command profile in the full model beside 
 ECU's own step. Two levels of control: ``through="drive"``, the motor voltages (the
 drive's capability: the physical bound of the commissioned drive), and
 ``through="ecu"``, the rod command with the cascade in the loop (a command profile for
-the real ECU).
+the real ECU). :func:`performance_envelope` tabulates the top rod speed against load,
+the largest force held and the minimum move time over distance, at soak temperatures.
 """
 
 from ._api import optimal_move, replay_window, settling_time
+from ._envelope import Envelope, performance_envelope
 from ._errors import Infeasible, OptimalError
 from ._problem import INTERVALS, LEVELS, OBJECTIVES, Problem, check_request, initial_guess, rk4_substeps, solve
 from ._result import STAIR, OptimalMove
 
-__all__ = ["optimal_move", "OptimalMove", "OptimalError", "Infeasible", "OBJECTIVES", "LEVELS", "INTERVALS", "STAIR",
-           "Problem", "check_request", "solve", "rk4_substeps", "initial_guess", "replay_window", "settling_time"]
+__all__ = ["optimal_move", "performance_envelope", "Envelope", "OptimalMove", "OptimalError", "Infeasible",
+           "OBJECTIVES", "LEVELS", "INTERVALS", "STAIR", "Problem", "check_request", "solve", "rk4_substeps",
+           "initial_guess", "replay_window", "settling_time"]

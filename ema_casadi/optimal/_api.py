@@ -81,7 +81,7 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         _check_duration(prob)
     sol = solve(prob)
     m = prob.model
-    cost = sol["T"] if objective == "time" else _cost(prob, sol)
+    cost = sol["cost"]
     controls = {(m.holds[i].name if through == "drive" else m.inputs[i]): sol["C"][j]
                 for j, i in enumerate(prob.controls)}
     res = OptimalMove(
@@ -90,7 +90,8 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         outputs=dict(zip(m.outputs, sol["Y"], strict=True)), controls=controls, limits=prob.limits,
         margins=sol["margins"], binding=[k for k, v in sol["margins"].items() if v < BINDING],
         ipopt={"status": sol["status"], "iterations": sol["iterations"], "solve_time_s": sol["solve_time_s"],
-               "setup_time_s": sol["setup_time_s"], "intervals": intervals, "substeps": sol["substeps"]},
+               "setup_time_s": sol["setup_time_s"], "intervals": intervals, "substeps": sol["substeps"],
+               "solver_warnings": sol["warnings"]},
         variants=dict(m.variants), rod=prob.rod, command=prob.cmd, _units=m.units,
         rating_signals={r.name: r.signals for r in prob.ratings},
     )
@@ -112,13 +113,6 @@ def _check_duration(prob: Problem) -> None:
         return
     if prob.duration < T_min:
         raise OptimalError(f"duration {prob.duration:g} s: below the minimum time of this move, {T_min:.5g} s")
-
-
-def _cost(prob: Problem, sol) -> float:
-    names = prob._power_outputs()
-    Y = sol["Y"]
-    p = sum(Y[prob.model.yindex(n)] for n in names)
-    return float(np.trapezoid(p, sol["t"]))
 
 
 def replay_window(res: OptimalMove, settle: float) -> float:

@@ -13,7 +13,7 @@ from .._util._checks import integer, number
 from ..linearisation import operating_point
 from ..model.assembly import Model
 from ..signals import Signal
-from ..simulation import interval_function, simulate, step_response_metrics
+from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
 from ._errors import Infeasible, OptimalError
 
 __all__ = ["OBJECTIVES", "LEVELS", "INTERVALS", "Problem", "solve", "rk4_substeps", "initial_guess", "check_request"]
@@ -27,6 +27,8 @@ LEVELS = ("drive", "ecu")
 INTERVALS = 40
 #: RK4 substeps are kept at this fraction of RK4's stability limit |h lambda| = 2.78.
 STABILITY_FRACTION = 0.5
+#: Substeps in all (intervals x substeps) up to which the NLP is expanded to SX with its exact Hessian.
+EXPAND_LIMIT = 400
 #: A limit counts as binding where the optimum sits within this fraction of it.
 BINDING = 1e-3
 #: Node spacing: the share of a cosine (Chebyshev) grid in the shooting grid of a
@@ -81,10 +83,12 @@ class Problem:
         Shooting intervals.
     field_weakening : bool
         Lift the drive-strategy ratings.
+    inputs : dict, optional
+        Other constant inputs by name or role (``ambient_temperature``: degC).
     """
 
     def __init__(self, model: Model, move: float, load: float, objective: str, duration: float | None,
-                 start: float, through: str, intervals: int, field_weakening: bool):
+                 start: float, through: str, intervals: int, field_weakening: bool, inputs: dict | None = None):
         self.full, self.move, self.load, self.objective = model, move, load, objective
         self.duration, self.start, self.through, self.N = duration, start, through, intervals
         self.field_weakening = field_weakening
@@ -94,6 +98,7 @@ class Problem:
         self.p = smooth.p(**smooth.small_signal(backlash="off"))
         self.cmd = smooth.input_with("command")
         self.load_input = smooth.input_with("load")
+        self.extra = {smooth.input_name(k): float(v) for k, v in (inputs or {}).items()}
         self.ratings = [r for r in smooth.ratings if field_weakening is False or r.role != "strategy"]
         self.ratings = [r for r in self.ratings if all(s in smooth.states or s in smooth.outputs for s in r.signals)]
         self.limits = {r.name: float(r.limit(smooth.pdict(self.p))) for r in self.ratings}
@@ -121,21 +126,22 @@ class Problem:
 
     # -- the start, the guess --------------------------------------------------------
     def start_state(self) -> np.ndarray:
-        op = operating_point(self.model, p=self.p, inputs={self.cmd: self.start, self.load_input: self.load})
+        op = operating_point(self.model, p=self.p,
+                             inputs={self.cmd: self.start, self.load_input: self.load, **self.extra})
         return np.asarray(op.x, float)
 
     def _ecu_step(self, t_end: float, x0: np.ndarray):
         """The ECU's own step response on the smooth model (the guess) as a SimResult."""
         return simulate(self.model, t_end, p=self.p, x0=x0, dt_out=t_end / 400,
                         inputs={self.cmd: Signal.step(self.target, 0.0) if self.move else self.target,
-                                self.load_input: self.load})
+                                self.load_input: self.load, **self.extra})
 
     # -- the NLP -----------------------------------------------------------------------
     def _inputs(self, C):
         """(U, H): the model inputs and held outputs of every interval (columns) for the
         controls C (rows: the controls, columns: the intervals)."""
         n = C.shape[1]
-        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        u0 = self._u0()
         U = ca.repmat(ca.MX(u0), 1, n)
         H = ca.MX.zeros(len(self.model.holds), n)
         for j, i in enumerate(self.controls):
@@ -144,6 +150,9 @@ class Problem:
             else:
                 U[i, :] = C[j, :]
         return U, H
+
+    def _u0(self) -> np.ndarray:
+        return self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target, **self.extra})
 
     def _rates(self, X, C):
         """(xdot, y) at the columns of X with the controls of the columns of C."""
@@ -185,7 +194,9 @@ class Problem:
         U, H = self._inputs(C)
         P = ca.repmat(ca.MX(self.p), 1, N)
         DT = dts
-        X_next = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
+        out = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
+        power = self._power_outputs()
+        X_next, cost = (out[0], ca.sum2(out[1])) if power else (out, 0)
         opti.subject_to(Xs[:, 0] == x0 / scale)
         # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
         rest_on = m.rest_states(self.p)
@@ -199,10 +210,6 @@ class Problem:
             opti.subject_to(ca.vec(X[i, 1:] - self._signal(sig, X[:, 1:], Y1)) / scale[i] == 0)
         for Xn, Yn in ((X[:, :-1], Y0), (X[:, 1:], Y1)):
             self._constrain(opti, Xn, Yn)
-        power = self._power_outputs()
-        cost = 0
-        for n in power:
-            cost = cost + 0.5 * ca.sum2(dts * (self._signal(n, X[:, :-1], Y0) + self._signal(n, X[:, 1:], Y1)))
         # the end: at the target, at rest, every rate but the temperatures' zero
         xdot, y = self._rates(X[:, N], C[:, N - 1])
         opti.subject_to(self._signal(self.rod, X[:, N], y) == self.target)
@@ -219,6 +226,7 @@ class Problem:
         opti.minimize(T / guess["T"] if self.objective == "time" else cost / guess["cost_scale"])
         opti.set_initial(Xs, guess["X"] / scale[:, None])
         opti.set_initial(Cs, guess["C"] / c_scale[:, None])
+        self.cost = cost
         return opti, Xs, Cs, T, scale, c_scale
 
     def _control_scale(self) -> np.ndarray:
@@ -248,11 +256,11 @@ class Problem:
     def _interval(self, x0, guess):
         held = self.through == "drive"
         h0 = np.zeros(len(self.model.holds)) if held else None
-        u0 = self.model.u(self.p, **{self.load_input: self.load, self.cmd: self.target})
+        u0 = self._u0()
         dt_max = (guess["T"] if self.objective == "time" else self.duration) * np.diff(self.fractions()).max()
         n = max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
         self.substeps = n
-        return interval_function(self.model, held=held, substeps=n)
+        return interval_function(self.model, held=held, substeps=n, quadrature=self._power_outputs())
 
 
 def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
@@ -307,22 +315,32 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     x0 = prob.start_state()
     guess = initial_guess(prob, x0)
     opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
-    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": True},
-                {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "adaptive"})
+    # a small problem expanded to SX with its exact Hessian; a long chain of substeps kept
+    # as calls (MX) with a quasi-Newton Hessian (the exact one of thousands of substeps is slow)
+    small = prob.N * prob.substeps <= EXPAND_LIMIT
+    ipopt = {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "adaptive"}
+    if not small:
+        ipopt["hessian_approximation"] = "limited-memory"
+    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, ipopt)
     t_setup = time.perf_counter() - t0
-    try:
-        sol = opti.solve()
-        stats, ok = sol.stats(), True
-        val = sol.value
-    except RuntimeError:
-        stats, ok = opti.stats(), False
-        val = opti.debug.value
+    # CasADi's warnings of NaN trial points in IPOPT's line search (the solver steps back) kept
+    # off stderr: counted in the result instead
+    with captured_stderr() as messages:
+        try:
+            sol = opti.solve()
+            stats, ok = sol.stats(), True
+            val = sol.value
+        except RuntimeError:
+            stats, ok = opti.stats(), False
+            val = opti.debug.value
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
+    cost = Tv if prob.objective == "time" else float(val(prob.cost))
     out = {"T": Tv, "X": X, "C": C, "t": Tv * prob.fractions(), "status": stats["return_status"],
            "iterations": int(stats["iter_count"]), "solve_time_s": time.perf_counter() - t0 - t_setup,
-           "setup_time_s": t_setup, "guess": guess, "x0": x0, "substeps": prob.substeps}
+           "setup_time_s": t_setup, "cost": cost,
+           "warnings": messages.getvalue().count("WARNING"), "guess": guess, "x0": x0, "substeps": prob.substeps}
     out["Y"] = _outputs(prob, X, C)
     out["margins"] = _margins(prob, X, out["Y"])
     if not ok:

@@ -45,7 +45,8 @@ class OptimalMove:
     binding : list of str
         The ratings the optimum sits on (margin below 1e-3).
     ipopt : dict
-        ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``.
+        ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``,
+        ``solver_warnings`` (CasADi's warnings during the solve, kept off stderr: NaN trial points).
     variants : dict
         The smooth variants the problem was solved on.
     rod, command : str

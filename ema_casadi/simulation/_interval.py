@@ -25,7 +25,7 @@ from ._result import SimulationError
 __all__ = ["interval_function"]
 
 
-def interval_function(model: Model, *, held: bool = False, substeps: int = 10) -> ca.Function:
+def interval_function(model: Model, *, held: bool = False, substeps: int = 10, quadrature: tuple = ()) -> ca.Function:
     """One shooting interval of ``model`` as a CasADi Function with exact derivatives.
 
     Parameters
@@ -40,12 +40,16 @@ def interval_function(model: Model, *, held: bool = False, substeps: int = 10) -
         Classical RK4 steps per interval, each ``dt / substeps`` long: keep it within
         RK4's stability limit of the configuration (the simulation's fixed-step
         default, 1e-5 s, on the reference model).
+    quadrature : tuple of str
+        Outputs whose sum is integrated over the interval by the same RK4 substeps (an
+        energy from a power, J from W): the Function then has a second output ``q``.
 
     Returns
     -------
     casadi.Function
-        ``F(x, u, p, dt) -> x_next`` (``F(x, u, p, h, dt)`` when ``held``); x, u, p in
-        ``model.states``, ``model.inputs``, ``model.param_names`` order (SI), dt in s.
+        ``F(x, u, p, dt) -> x_next`` (``F(x, u, p, h, dt)`` when ``held``; ``-> (x_next, q)``
+        with a quadrature); x, u, p in ``model.states``, ``model.inputs``,
+        ``model.param_names`` order (SI), dt in s.
     """
     if not isinstance(model, Model):
         raise SimulationError(f"model: expected a Model (from build_model), got {type(model).__name__}")
@@ -53,7 +57,11 @@ def interval_function(model: Model, *, held: bool = False, substeps: int = 10) -
         raise SimulationError("model: a hybrid part (stick-slip friction) has a discrete map the interval Function "
                               "cannot carry; choose friction = smooth")
     substeps = integer(substeps, "substeps", SimulationError, minimum=1)
-    key = ("interval_function", held, substeps)
+    quadrature = tuple(quadrature)
+    unknown = [n for n in quadrature if n not in model.outputs]
+    if unknown:
+        raise SimulationError(f"quadrature: {unknown} are not outputs of the model")
+    key = ("interval_function", held, substeps, quadrature)
     if key in model.cache:
         return model.cache[key]
     x = ca.SX.sym("x", model.nx)
@@ -62,23 +70,34 @@ def interval_function(model: Model, *, held: bool = False, substeps: int = 10) -
     dt = ca.SX.sym("dt")
     h = ca.SX.sym("h", len(model.holds))
 
+    rows = [model.yindex(n) for n in quadrature]
+
     def rate(xs):
-        return model.f_held(xs, u, p, h)[0] if held else model.f(xs, u, p)[0]
+        xdot, y = model.f_held(xs, u, p, h) if held else model.f(xs, u, p)
+        return xdot, sum(y[i] for i in rows) if rows else 0
 
     k = dt / substeps
-    step_x = x
-    k1 = rate(step_x)
-    k2 = rate(step_x + k / 2 * k1)
-    k3 = rate(step_x + k / 2 * k2)
-    k4 = rate(step_x + k * k3)
-    x1 = step_x + k / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    k1, q1 = rate(x)
+    k2, q2 = rate(x + k / 2 * k1)
+    k3, q3 = rate(x + k / 2 * k2)
+    k4, q4 = rate(x + k * k3)
+    x1 = x + k / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    dq = k / 6 * (q1 + 2 * q2 + 2 * q3 + q4)
     args = [x, u, p, h, dt] if held else [x, u, p, dt]
     names = ["x", "u", "p", "h", "dt"] if held else ["x", "u", "p", "dt"]
-    step = ca.Function("rk4_substep", args, [x1])
+    step = ca.Function("rk4_substep", args, [x1, dq] if rows else [x1])
     xs = [ca.MX.sym(n, a.shape[0]) for n, a in zip(names, args, strict=True)]
-    x_next = xs[0]
+    x_next, q = xs[0], 0
     for _ in range(substeps):
-        x_next = step(x_next, *xs[1:])
+        if rows:
+            x_next, dq_i = step(x_next, *xs[1:])
+            q = q + dq_i
+        else:
+            x_next = step(x_next, *xs[1:])
+    if rows:
+        F = ca.Function("F", xs, [x_next, q], names, ["x_next", "q"])
+        model.cache[key] = F
+        return F
     F = ca.Function("F", xs, [x_next], names, ["x_next"])
     model.cache[key] = F
     return F

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._util._checks import nearest
 from ..model.assembly import Model
-from ..model.components import REGISTRY
+from ..model.components import PART_CLASSES, REGISTRY, served_by
 from ..model.params import Parameters
 
 
@@ -19,14 +19,13 @@ def _declared_gains() -> dict:
     new to the list goes right after the one before it in its part (outer loop first)."""
     order: list = []
     info: dict = {}
-    for values in REGISTRY.values():
-        for cls in values.values():
-            prev = None
-            for g in cls.gains:
-                if g.name not in info:
-                    info[g.name] = g
-                    order.insert(order.index(prev) + 1 if prev else len(order), g.name)
-                prev = g.name
+    for cls in PART_CLASSES:  # the registry's parts, those they bring (the current controllers), their forms
+        prev = None
+        for g in cls.gains:
+            if g.name not in info:
+                info[g.name] = g
+                order.insert(order.index(prev) + 1 if prev else len(order), g.name)
+            prev = g.name
     return {n: info[n] for n in order}
 
 
@@ -39,7 +38,7 @@ GAINS = tuple(GAIN_INFO)
 def _where(gain: str) -> str:
     """The variants whose parts declare a gain ("controller=PI")."""
     return " or ".join(f"{k}={v}" for k, values in REGISTRY.items() for v, cls in values.items()
-                       if any(g.name == gain for g in cls.gains))
+                       if any(g.name == gain for c in served_by(cls) for g in c.gains))
 OBJECTIVES = ("bandwidth", "tracking")
 
 

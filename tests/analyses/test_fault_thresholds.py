@@ -107,6 +107,8 @@ def test_margins_are_the_healthy_maxima_against_the_thresholds(study, params):
     ref = next(r for r in st.monitors["latch_track"]["rows"] if r["scale"] == 1.0)
     assert ref["expected_in_runs"] < 1e-3 and ref["observed_in_runs"] == 0
     assert math.isfinite(ref["false_alarms_per_hour"])
+    # observed 0: the data alone bound the rate by the Poisson 95 % bound -ln 0.05 over N T
+    assert ref["data_bound_per_hour"] == pytest.approx(-math.log(0.05) / (st.runs * st.run_duration) * 3600, rel=1e-9)
 
 
 SMALL_TOML = """

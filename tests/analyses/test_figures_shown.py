@@ -50,19 +50,13 @@ def showing(tmp_path, monkeypatch):
     plt.switch_backend(before)
 
 
-def test_plt_show_shows_the_returned_figure(run, showing):
+def test_plt_show_shows_the_returned_figure(run, showing, tmp_path):
     fig = run.plot()
     plt.show()
     assert showing == [fig]
-    fr = ema.sine_stream(ema.load_parameters(), [1e-3], [2.0, 4.0], jobs=1)
-    fig2 = fr.plot()
-    plt.show()
-    assert showing[-1] is fig2  # every result's plot(), not only the simulation's
-
-
-def test_a_written_figure_is_released(run, tmp_path):
+    plt.close(fig)
     assert run.plot(path=tmp_path / "r.png") == tmp_path / "r.png"
-    assert plt.get_fignums() == []
+    assert plt.get_fignums() == []  # a figure written is released
 
 
 class _Display:
@@ -74,15 +68,16 @@ class _Display:
 
 
 def test_a_notebook_displays_each_figure_once(run, monkeypatch):
-    shown = _Display()
-    ipython = types.ModuleType("IPython")
-    ipython.get_ipython = lambda: None  # no shell: pyplot's interactive mode installs no hook
-    monkeypatch.setitem(sys.modules, "IPython", ipython)
-    monkeypatch.setitem(sys.modules, "IPython.display", shown.module)
     fig = run.plot()
-    with plt.ion():  # a notebook: the inline backend shows pyplot's figures at the cell's end
+    shown = _Display()  # the display hook's module, only where the hook calls it
+    monkeypatch.setitem(sys.modules, "IPython", types.ModuleType("IPython"))
+    monkeypatch.setitem(sys.modules, "IPython.display", shown.module)
+    matplotlib.interactive(True)  # a notebook: the inline backend shows pyplot's figures at the cell's end
+    try:
         fig._ipython_display_()  # a bare res.plot() as the cell's value: left to the backend
-        assert shown.published == [] and fig.number in plt.get_fignums()
+    finally:
+        matplotlib.interactive(False)
+    assert shown.published == [] and fig.number in plt.get_fignums()
     plt.close(fig)  # the inline backend closes them after the cell; shown again later as a value:
     fig._ipython_display_()
     (data,) = shown.published

@@ -276,7 +276,11 @@ def test_a_fit_that_does_not_converge_fails(params, example):
 
 def test_the_plots_are_figures(example_fit):
     figs = example_fit.plot()
-    assert {"fit_0", "fit_1", "correlation", "intervals"} <= set(figs)
+    assert {"fit_0", "fit_1", "correlation", "intervals", "misfit", "records"} <= set(figs)
+    # the misfit figure: a panel per channel, a running-mean line per record; the records' figure: a panel
+    # per parameter with each record's own estimate
+    assert len(figs["misfit"].axes) == 2 and all(len(ax.lines) >= 2 for ax in figs["misfit"].axes)
+    assert len(figs["records"].axes) == len(example_fit.names)
     import matplotlib.pyplot as plt
 
     for f in figs.values():

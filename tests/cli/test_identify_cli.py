@@ -88,8 +88,8 @@ def test_a_fit_writes_the_file_and_the_report(tmp_path, capsys, record):
     est = doc["parameters"]["F_seal"]
     assert abs(est["estimate"] - 210.0) <= 3 * est["std"] and est["identifiable"]
     assert doc["sigma"] == {"x_rod": 3e-7, "i_q": 0.05} and doc["sigma_estimated"] == []
-    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["fit_0.png", "intervals.png", "summary.json",
-                                                                   "summary.md"]
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["fit_0.png", "intervals.png", "misfit.png",
+                                                                   "summary.json", "summary.md"]
     assert "F_seal = { value = " + repr(est["estimate"]) in (tmp_path / "fit.toml").read_text()
 
 

@@ -25,7 +25,7 @@ import pytest
 from numpydoc.docscrape import NumpyDocString
 
 import ema_casadi
-from ema_casadi.model.components import INPUT_KINDS, OPTIONS, OUTPUT_KINDS, REGISTRY
+from ema_casadi.model.components import INPUT_KINDS, OPTIONS, OUTPUT_KINDS, PART_CLASSES, REGISTRY
 from ema_casadi.model.params import Parameters
 
 
@@ -194,7 +194,9 @@ def test_every_parameter_is_documented(qualname, obj):
 
 
 # -- 3. part declarations -----------------------------------------------------------
-PARTS = [pytest.param(cls, id=f"{key}={value}") for key, values in REGISTRY.items() for value, cls in values.items()]
+#: every part class a model is assembled from (brought parts and option forms too), by the choice that assembles it
+PARTS = [pytest.param(cls, id=f"{cls.__name__}:" + ",".join(f"{k}={v}" for k, v in choice.items()))
+         for cls, choice in PART_CLASSES.items()]
 
 
 @pytest.mark.parametrize("cls", PARTS)
@@ -206,7 +208,7 @@ def test_part_outputs_declare_unit_meaning_and_kind(cls):
 
 @pytest.mark.parametrize("cls", PARTS)
 def test_part_states_declare_unit_doc_and_scale(cls, params):
-    P = ema_casadi.build_model(params, {cls.family: cls.value}).pdict()
+    P = ema_casadi.build_model(params, PART_CLASSES[cls]).pdict()
     for s in cls.states:
         assert s.unit.strip() and s.doc.strip(), f"{cls.__name__}: state {s.name}"
         assert callable(s.scale), f"{cls.__name__}: state {s.name}"
@@ -258,5 +260,5 @@ def test_every_option_is_read_by_a_part():
 def test_every_option_value_is_accepted(model_cache, cls, opt, value):
     assert value in OPTIONS[opt]
     model = model_cache(**{cls.family: cls.value, opt: value})
-    (part,) = [p for p in model.parts if type(p) is cls]
+    (part,) = [p for p in model.parts if isinstance(p, cls)]  # or the form an option selects (ShortedPmsm)
     assert model.variants[opt] == value and part.opt[opt] == value

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 import ema_casadi
-from ema_casadi.model.components import REGISTRY, VARIANTS
+from ema_casadi.model.components import PART_CLASSES, REGISTRY, VARIANTS
 
 PACKAGE = Path(ema_casadi.__file__).resolve().parent
 
@@ -57,13 +57,12 @@ def _outside_model(base=PACKAGE):
 def _signal_names() -> set:
     """Every state, input, output and provided signal any part declares."""
     names = set()
-    for values in REGISTRY.values():
-        for cls in values.values():
-            names.update(s.name for s in cls.states)
-            names.update(i.name for i in cls.inputs)
-            names.update(o.name for o in cls.outputs)
-            for key in cls().signals():
-                names.update(key if isinstance(key, tuple) else (key,))
+    for cls in PART_CLASSES:  # the registry's, the parts they bring, their option forms
+        names.update(s.name for s in cls.states)
+        names.update(i.name for i in cls.inputs)
+        names.update(o.name for o in cls.outputs)
+        for key in cls().signals():
+            names.update(key if isinstance(key, tuple) else (key,))
     return names
 
 
@@ -73,7 +72,7 @@ def part_parameters() -> set:
     from ema_casadi.model.params import GROUPS
 
     wide = {f.name for g in MODEL_WIDE_GROUPS for f in GROUPS[g].__dataclass_fields__.values()}
-    declared = {n for values in REGISTRY.values() for cls in values.values() for n in cls.params}
+    declared = {n for cls in PART_CLASSES for n in cls.params}
     return declared - _signal_names() - wide
 
 
@@ -188,7 +187,7 @@ def test_no_analysis_names_a_part_parameter():
 def test_the_registry_refuses_an_option_declared_twice_with_other_values():
     """Two parts may share one option declaration; a second, different one (or an option
     named like a variant key) is refused instead of silently merged."""
-    from ema_casadi.model.components import OPTIONS, REGISTRY, AssemblyError, Part
+    from ema_casadi.model.components import OPTIONS, AssemblyError, Part
     from ema_casadi.model.components._registry import merge_options
 
     def part(family, value, options):

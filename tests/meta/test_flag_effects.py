@@ -4,8 +4,9 @@ traceback) - generated from the argparse parsers and the ``NO_EFFECT`` table eac
 command declares beside its arguments (:class:`ema_casadi.cli._flags.NoEffect`), so a
 new flag without a declaration fails here, as does a declared combination that runs.
 
-Parse-level and cheap: a combination the dispatcher refuses costs the parse; the few
-that need the model (the solver ``auto`` picks, the loops a model has) build it once.
+Parse-level and cheap: a combination the dispatcher refuses is checked on the parse (and
+one per command end to end); the few that need the model (the solver ``auto`` picks, the
+loops a model has) run through ``main`` and build it.
 """
 
 from __future__ import annotations
@@ -65,21 +66,57 @@ def test_every_flag_is_read(command):
     assert not unread, f"ema {command}: flags never read: {unread}"
 
 
-@pytest.mark.parametrize(("command", "flag", "k", "rule"), CASES, ids=[f"{c}{f}-{k}" for c, f, k, _ in CASES])
-def test_a_flag_without_effect_is_refused(command, flag, k, rule, tmp_path, monkeypatch, capsys):
-    """The declared combination: exit status 2, one line naming the flag, nothing written
-    (the outputs would land in the working folder), no traceback."""
-    assert flag in rule.example, f"the example of ema {command} {flag} does not give {flag}"
-    if rule.when is not None:  # the predicate the dispatcher checks holds on the example itself
-        args = SUBS[command].parse_args(list(rule.example))
-        assert rule.when(args), f"ema {command} {' '.join(rule.example)}: its rule does not hold on it"
+def _refusal(command, example):
+    """What the dispatcher says of a command line before any work: the UserError's
+    text, or None (parse, the flags given, the NO_EFFECT table)."""
+    from ema_casadi.cli import UserError
+    from ema_casadi.cli._flags import refuse_no_effect
+
+    args = SUBS[command].parse_args(list(example))
+    args._given = given_flags(SUBS[command], list(example))
+    try:
+        refuse_no_effect(args, {**COMMON, **MODS[command].NO_EFFECT})
+    except UserError as exc:
+        return str(exc)
+    return None
+
+
+def _refused_by_main(command, example, flag, tmp_path, monkeypatch, capsys):
+    """The whole command line through ``main``: exit status 2, one line naming the flag,
+    nothing written (the outputs would land in the working folder), no traceback."""
     monkeypatch.chdir(tmp_path)
-    status = main([command, *rule.example, "--json"])
+    status = main([command, *example, "--json"])
     cap = capsys.readouterr()
     lines = cap.err.strip().splitlines()
     assert status == 2 and len(lines) == 1 and "Traceback" not in cap.err, cap.err
     assert lines[0].startswith(f"ema {command}: error: {flag}"), lines[0]
     assert cap.out == "" and not any(tmp_path.iterdir()), (cap.out, list(tmp_path.iterdir()))
+
+
+@pytest.mark.parametrize(("command", "flag", "k", "rule"), CASES, ids=[f"{c}{f}-{k}" for c, f, k, _ in CASES])
+def test_a_flag_without_effect_is_refused(command, flag, k, rule, tmp_path, monkeypatch, capsys):
+    """The declared combination is refused naming the flag: by the dispatcher before any
+    work where the rule is parse-level (checked here on the parse, a millisecond), by the
+    command once the model is built where it needs the model (run through ``main``)."""
+    assert flag in rule.example, f"the example of ema {command} {flag} does not give {flag}"
+    if rule.when is None:
+        _refused_by_main(command, rule.example, flag, tmp_path, monkeypatch, capsys)
+        return
+    args = SUBS[command].parse_args(list(rule.example))
+    assert rule.when(args), f"ema {command} {' '.join(rule.example)}: its rule does not hold on it"
+    text = _refusal(command, rule.example)
+    assert text is not None and text.startswith(f"{flag} has no effect") and "\n" not in text, text
+
+
+#: One parse-level refusal per command, end to end (the dispatcher's line, status, outputs).
+END_TO_END = {c: next((f, r) for f, rules in MODS[c].NO_EFFECT.items() for r in rules if r.when is not None)
+              for c in COMMANDS if any(r.when is not None for rules in MODS[c].NO_EFFECT.values() for r in rules)}
+
+
+@pytest.mark.parametrize("command", list(END_TO_END))
+def test_the_dispatcher_refuses_in_one_line_before_any_work(command, tmp_path, monkeypatch, capsys):
+    flag, rule = END_TO_END[command]
+    _refused_by_main(command, rule.example, flag, tmp_path, monkeypatch, capsys)
 
 
 def test_given_flags_are_what_the_line_names():

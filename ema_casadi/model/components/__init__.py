@@ -1,6 +1,7 @@
 """Components: one module per family, each variant a *part* (docs: physics).
 
-controller (ECU outer loops), sensor (what the ECU reads), motor (with its current controller),
+controller (the ECU's loops: the outer loops and the current controllers the motors bring), sensor
+(what the ECU reads), motor (windings and torque),
 inverter (power electronics), ballscrew (drive-train mechanics), friction, endstop,
 thermal, supply, faults (fault injection), monitors (the ECU's fault detection). A part declares its
 states, inputs, outputs, parameters and loops next to its equations
@@ -53,7 +54,17 @@ from ._part import (
     heat_signal,
     node_outflow,
 )
-from ._registry import DEFAULT_VARIANTS, OPTIONS, REGISTRY, VARIANTS, VariantError, parts_for, validate_variants
+from ._registry import (
+    DEFAULT_VARIANTS,
+    OPTIONS,
+    PART_CLASSES,
+    REGISTRY,
+    VARIANTS,
+    VariantError,
+    parts_for,
+    served_by,
+    validate_variants,
+)
 from .monitors import TAU_LATCH, TAU_RESET
 
 __all__ = [
@@ -65,6 +76,7 @@ __all__ = [
     "Part", "State", "der",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
+    "PART_CLASSES", "served_by",
     # the monitors' timer reset and latch time constants (s): what a statistic's detection obeys
     "TAU_RESET", "TAU_LATCH",
 ]

@@ -398,6 +398,21 @@ class Part:
     conditions: ClassVar[dict] = {}
     #: The faults this part can inject (:class:`Fault`), each through one of its inputs.
     faults: ClassVar[tuple] = ()
+    #: Parts this part brings into the model, assembled just before it with their own
+    #: declarations and options (the motor's current controller, a controller-family part).
+    brings: ClassVar[tuple] = ()
+
+    @classmethod
+    def form(cls, options: dict) -> type:
+        """The class that serves these option values: the part itself, or a subclass whose
+        class-level declarations the option extends (the PMSM with a shorted winding).
+
+        Parameters
+        ----------
+        options : dict
+            The values of the options the part reads.
+        """
+        return cls
 
     def __init__(self, options: dict | None = None):
         self.opt = dict(options or {})

@@ -7,6 +7,8 @@ smooth friction's ``friction_shape``) are declared by the parts themselves.
 
 from __future__ import annotations
 
+import itertools
+
 from ..._util._checks import nearest as _nearest
 from ..params import ParameterError
 from . import (
@@ -26,7 +28,8 @@ from . import (
 )
 from ._part import AssemblyError, Part
 
-__all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for"]
+__all__ = ["REGISTRY", "VARIANTS", "DEFAULT_VARIANTS", "OPTIONS", "VariantError", "validate_variants", "parts_for",
+           "PART_CLASSES", "served_by"]
 
 
 class VariantError(ParameterError):
@@ -57,6 +60,18 @@ REGISTRY: dict[str, dict[str, type]] = {
 }
 
 
+def served_by(cls: type) -> tuple[type, ...]:
+    """The part classes a registry entry stands for, in assembly order: the parts it
+    brings (:attr:`~ema_casadi.model.components.Part.brings`), then itself.
+
+    Parameters
+    ----------
+    cls : type
+        A part class of :data:`REGISTRY`.
+    """
+    return (*cls.brings, cls)
+
+
 def merge_options(registry: dict) -> dict[str, tuple]:
     """Option key -> allowed values (first the default), from the parts that read them.
     Two parts may read one option only with the same values (one declaration shared,
@@ -70,7 +85,7 @@ def merge_options(registry: dict) -> dict[str, tuple]:
     """
     out, where = {}, {}
     for values in registry.values():
-        for cls in values.values():
+        for cls in (c for entry in values.values() for c in served_by(entry)):
             for name, allowed in cls.options.items():
                 here = f"{cls.family} = {getattr(cls, 'value', '?')}"
                 if name in registry:
@@ -89,6 +104,23 @@ OPTIONS: dict[str, tuple] = merge_options(REGISTRY)
 #: Allowed values per key (variant keys, then options), first the default.
 VARIANTS: dict[str, tuple[str, ...]] = {k: tuple(v) for k, v in REGISTRY.items()} | OPTIONS
 DEFAULT_VARIANTS = {k: v[0] for k, v in VARIANTS.items()}
+
+
+def _part_classes() -> dict[type, dict]:
+    out = {}
+    for key, values in REGISTRY.items():
+        for value, entry in values.items():
+            for cls in served_by(entry):
+                for combo in itertools.product(*cls.options.values()):
+                    opts = dict(zip(cls.options, combo, strict=True))
+                    out.setdefault(cls.form(opts), {key: value, **opts})
+    return out
+
+
+#: Every part class a model can be assembled from (the registry's, the parts they bring,
+#: the forms their options select: :meth:`~ema_casadi.model.components.Part.form`) -> the
+#: variant choices (key and options) that assemble it.
+PART_CLASSES: dict[type, dict] = _part_classes()
 
 
 def validate_variants(variants: dict | None, where: str = "variant") -> dict[str, str]:
@@ -134,7 +166,8 @@ def parts_for(variants: dict) -> tuple[list[Part], list[str]]:
     """
     parts, read = [], set()
     for key, values in REGISTRY.items():
-        cls = values[variants[key]]
-        parts.append(cls({k: variants[k] for k in cls.options}))
-        read.update(cls.options)
+        for cls in served_by(values[variants[key]]):
+            opts = {k: variants[k] for k in cls.options}
+            parts.append(cls.form(opts)(opts))
+            read.update(cls.options)
     return parts, sorted(k for k in OPTIONS if k not in read)

@@ -323,6 +323,11 @@ class Elastic(Part):
     params = _PARAMS + ("C", "c_c", "B")
     small_signal = _SMALL_SIGNAL
     ratings = _ratings("x_rod")
+    # an optimiser's counterpart: the rigid screw. The screw mode (1.42 kHz on the reference
+    # set) lies far above what a move excites, and with the friction on the rod (5e5 1/s at
+    # rest) it makes explicit shooting steps of ~5 us; the rigid screw carries the friction on
+    # the shaft inertia (565 1/s)
+    smooth = {"screw": "rigid"}
     #: ``screw_lock``: ``blend`` (default) is the memoryless blend over ``P_blend`` alone;
     #: ``memory`` carries the self-locking memory z_lock (:func:`lock_rate`, parameter
     #: ``x_lock``): a held screw keeps its force. Opt-in for long holds (jams, held loads):
@@ -346,7 +351,7 @@ class Elastic(Part):
                       roles=("hysteresis",), scale=lambda P: 1.0),)
             self.params = type(self).params + ("x_lock",)
             self.small_signal = _SMALL_SIGNAL_LOCK
-            self.smooth = {"screw_lock": "blend"}  # the memory is stiff at speed
+            self.smooth = {**type(self).smooth, "screw_lock": "blend"}  # the memory is stiff at speed
     stored = ("E_kin", "E_spring")
     loads = ("f_ext",)
     limits = _LIMITS

@@ -1,8 +1,9 @@
 """Electronic control unit: cascade position -> velocity -> current (docs: physics).
 
 Each loop is a PI (or P) law with an output limit and an anti-windup law, chosen by
-the option ``anti_windup`` (declared by the controller part for the position and speed
-loops and by the motor parts for the current loop; see ``docs/guide/ecu-structure.md``):
+the option ``anti_windup``, declared once (:class:`Loops`, the base of the outer-loop parts
+and of the current controllers the motor parts bring; see ``docs/guide/ecu-structure.md``)
+and read in one place (:func:`integral_rate`):
 
 ``backcalc`` (default)
     Back-calculation: the integrator state ``z`` (kept in output units) is driven back
@@ -48,10 +49,10 @@ import casadi as ca
 from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
 
 __all__ = [
-    "clamp", "soft_clip", "limit", "clamping_rate", "clamping_band", "pi_law", "position_law", "velocity_law",
-    "current_law_simple", "current_law_foc",
-    "PositionP", "PositionPI", "POSITION_LOOP", "VELOCITY_LOOP", "ANTI_WINDUP", "LIMIT_SHAPES",
-    "AW_OPTION", "SWITCH_PARAMS",
+    "clamp", "soft_clip", "limit", "clamping_rate", "clamping_band", "integral_rate", "pi_law", "position_law",
+    "velocity_law", "current_law_simple", "current_law_foc", "Loops",
+    "PositionP", "PositionPI", "FocCurrent", "PiCurrent", "POSITION_LOOP", "VELOCITY_LOOP", "CURRENT_LOOP",
+    "ANTI_WINDUP", "LIMIT_SHAPES", "SWITCH_PARAMS",
 ]
 
 SQRT3 = 3**0.5
@@ -66,8 +67,6 @@ LIMIT_SHAPES = ("clip", "smooth")
 #: voltage limit of the reference set), the back-calculation rate ``k_bc`` (-, in K_i/K_p)
 #: and the smooth limit's knee ``w_knee`` (-).
 SWITCH_PARAMS = ("w_aw", "k_bc", "w_knee")
-#: The option as the parts declare it.
-AW_OPTION = {"anti_windup": ANTI_WINDUP}
 
 
 def clamp(u, lo, hi):
@@ -178,6 +177,36 @@ def clamping_band(u, u_sat, u_lim, w_aw):
     return excess, ca.fmax(ca.fabs(w_aw), 1e-6) * u_lim
 
 
+def integral_rate(e, u, u_sat, K_p, K_i, band, P, anti_windup="backcalc"):
+    """The integrator rate of a PI whose output ``u`` the limit cuts to ``u_sat``, by its
+    anti-windup law (output units/s): back-calculation, z' = K_i e + k_bc (K_i/K_p)(u_sat - u),
+    or clamping, :func:`clamping_rate` over ``band``. The one place that reads the option
+    ``anti_windup``.
+
+    Parameters
+    ----------
+    e : SX
+        Control error (input unit).
+    u, u_sat : SX
+        The output before and after the limit (output unit).
+    K_p, K_i : SX
+        Proportional (output unit per input unit) and integral gain (the same per second).
+    band : tuple of SX
+        (excess, width) of the clamping law (output unit): :func:`clamping_band` of a
+        scalar limit, the voltage circle's for the FOC.
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``k_bc``).
+    anti_windup : {"backcalc", "clamping"}
+        The law.
+    """
+    if anti_windup == "backcalc":
+        return K_i * e + (P.k_bc * (K_i / K_p)) * (u_sat - u)
+    if anti_windup == "clamping":
+        excess, width = band
+        return clamping_rate(e, excess, K_i, width)
+    raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
+
+
 def pi_law(e, z, K_p, K_i, u_lim, P, u_ff=0, anti_windup="backcalc", shape="clip"):
     """PI with symmetric limit +-u_lim, feed-forward and anti-windup.
 
@@ -200,21 +229,14 @@ def pi_law(e, z, K_p, K_i, u_lim, P, u_ff=0, anti_windup="backcalc", shape="clip
     u_ff : SX or float
         Feed-forward added before the limit (output unit).
     anti_windup : {"backcalc", "clamping"}
-        Back-calculation, z' = K_i e + k_bc (K_i/K_p)(u_sat - u), or clamping,
-        :func:`clamping_rate` with the band w_aw u_lim.
+        The anti-windup law (:func:`integral_rate`; the clamping band :func:`clamping_band`
+        of w_aw u_lim).
     shape : {"clip", "smooth"}
         The form of the limit (:func:`limit`, knee ``w_knee``).
     """
     u = K_p * e + z + u_ff
     u_sat = limit(u, u_lim, shape, P.w_knee if shape == "smooth" else None)
-    if anti_windup == "backcalc":
-        z_dot = K_i * e + (P.k_bc * (K_i / K_p)) * (u_sat - u)
-    elif anti_windup == "clamping":
-        excess, width = clamping_band(u, u_sat, u_lim, P.w_aw)
-        z_dot = clamping_rate(e, excess, K_i, width)
-    else:
-        raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
-    return u_sat, u, z_dot
+    return u_sat, u, integral_rate(e, u, u_sat, K_p, K_i, clamping_band(u, u_sat, u_lim, P.w_aw), P, anti_windup)
 
 
 def position_law(x_cmd, x_fb, z_x, P, integral: bool, anti_windup="backcalc", shape="clip"):
@@ -347,24 +369,29 @@ def current_law_foc(i_q_cmd, i_d_fb, i_q_fb, i_d, i_q, omega, z_d, z_q, P, v_dc=
     mag = ca.sqrt(v_d_u**2 + v_q_u**2 + 1e-12)
     scale = ca.fmin(1, v_lim / mag)
     v_d, v_q = scale * v_d_u, scale * v_q_u
-    if anti_windup == "clamping":  # the signed band on the circle: excess over the radius (1 + min(w_aw, 0)) v_lim
-        start = v_lim * (1 + ca.fmin(P.w_aw, 0))
-        inner = ca.fmin(1, start / mag)
-        w = ca.fmax(ca.fabs(P.w_aw), 1e-6) * v_lim
-        return (v_d, v_q, clamping_rate(e_d, v_d_u - inner * v_d_u, P.K_i_i, w),
-                clamping_rate(e_q, v_q_u - inner * v_q_u, P.K_i_i, w))
-    if anti_windup != "backcalc":
-        raise ValueError(f"anti-windup '{anti_windup}' not one of {ANTI_WINDUP}")
-    w_bc = P.k_bc * (P.K_i_i / P.K_p_i)
-    z_d_dot = P.K_i_i * e_d + w_bc * (v_d - v_d_u)
-    z_q_dot = P.K_i_i * e_q + w_bc * (v_q - v_q_u)
-    return v_d, v_q, z_d_dot, z_q_dot
+    # the clamping band on the circle: the excess over the radius (1 + min(w_aw, 0)) v_lim, per axis
+    inner = ca.fmin(1, v_lim * (1 + ca.fmin(P.w_aw, 0)) / mag)
+    w = ca.fmax(ca.fabs(P.w_aw), 1e-6) * v_lim
+    return (v_d, v_q, integral_rate(e_d, v_d_u, v_d, P.K_p_i, P.K_i_i, (v_d_u - inner * v_d_u, w), P, anti_windup),
+            integral_rate(e_q, v_q_u, v_q, P.K_p_i, P.K_i_i, (v_q_u - inner * v_q_u, w), P, anti_windup))
 
 
 # ---- parts --------------------------------------------------------------------------
 # the loops feed back the sensed signals (the sensor parts provide them)
 POSITION_LOOP = Loop("position", flag="loop_x", injection="d_x", measured="x_s", rate="f_s_x")
 VELOCITY_LOOP = Loop("velocity", flag="loop_w", injection="d_w", measured="omega_s", rate="f_s_w")
+CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q_s", rate="f_s_i")
+
+
+class Loops(Part):
+    """The base of the ECU's loop parts: the option ``anti_windup``, declared here once."""
+
+    options = {"anti_windup": ANTI_WINDUP}
+
+    @property
+    def anti_windup(self) -> str:
+        """The anti-windup law the part's PI loops use (:data:`ANTI_WINDUP`)."""
+        return self.opt.get("anti_windup", ANTI_WINDUP[0])
 
 
 def _omega_max(P):
@@ -385,7 +412,7 @@ _K_I_X = Gain("K_i_x", "position", zero_scale=lambda ref: ref["K_x"] ** 2 / 4)
 _SPEED_GAINS = (Gain("K_p_w", "velocity"), Gain("T_i_w", "velocity", kind="time"))
 
 
-class PositionP(Part):
+class PositionP(Loops):
     """ECU outer loops: P position loop (rate-limited) and PI speed loop (docs: physics)."""
 
     family, value = "controller", "P"
@@ -408,12 +435,12 @@ class PositionP(Part):
         State("z_w", "A", "speed-loop integral part", roles=("controller_integral",),
               scale=lambda P: P.I_max, loop="velocity"),
     )
-    options = {**AW_OPTION, "limit_shape": LIMIT_SHAPES}
+    options = {**Loops.options, "limit_shape": LIMIT_SHAPES}
     integral = False
     smooth = {"limit_shape": "smooth"}  # the clip's corners
 
     def signals(self):
-        aw = self.opt.get("anti_windup", ANTI_WINDUP[0])
+        aw = self.anti_windup
         shape = self.opt.get("limit_shape", LIMIT_SHAPES[0])
 
         def position(b):
@@ -442,3 +469,72 @@ class PositionPI(PositionP):
         *PositionP.states,
     )
     integral = True
+
+
+# ---- the current controllers: brought by the motor parts (Part.brings) ------------------
+def _volts(P):
+    return P.V_dc
+
+
+#: The voltage limit of the current controller (the linear-SVPWM circle), which a trim
+#: keeps inactive; lifted through k_v, not V_dc (V_dc also sets the switching losses,
+#: which heat the inverter node of a thermal network).
+_VOLTAGE = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
+                  lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
+_CURRENT_GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+_CURRENT_PARAMS = ("pp", "psi", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "w_aw", "k_bc")
+_D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
+
+
+class FocCurrent(Loops):
+    """The PMSM's field-oriented current controller (:func:`current_law_foc`): PI on the
+    d and q currents from the current sensors, decoupling, the linear-SVPWM voltage
+    circle; its references held between current-loop samples. Brought by the PMSM part."""
+
+    family, value = "controller", "foc"
+    doc = "FOC current loop: dq PI with decoupling, voltage circle"
+    inputs = (_D_I,)
+    params = ("L_d", "L_q", *_CURRENT_PARAMS)
+    trim_limits = _VOLTAGE
+    gains = _CURRENT_GAINS
+    loops = (CURRENT_LOOP,)
+    holds = (Hold("v_d_ref", "V", "current"), Hold("v_q_ref", "V", "current"))
+    states = (
+        State("z_d", "V", "d-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+        State("z_q", "V", "q-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+    )
+
+    def signals(self):
+        def current_law(b):
+            # feedback from the current sensors; the decoupling terms from the same readings
+            i_d, i_q = b["i_d_s"], b["i_q_s"]
+            return current_law_foc(b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega_s"], b["z_d"],
+                                   b["z_q"], b.P, b["v_dc"], self.anti_windup)
+
+        return {("v_d_ref", "v_q_ref", der("z_d"), der("z_q")): current_law}
+
+
+class PiCurrent(Loops):
+    """The dc motor's current PI (:func:`current_law_simple`) with back-EMF feed-forward;
+    its reference (as v_q = v/1.5, v_d = 0) held between current-loop samples. Brought
+    by the dc motor part."""
+
+    family, value = "controller", "pi"
+    doc = "current PI of the dc equivalent, back-EMF feed-forward"
+    inputs = (_D_I,)
+    params = _CURRENT_PARAMS
+    trim_limits = _VOLTAGE
+    gains = _CURRENT_GAINS
+    loops = (CURRENT_LOOP,)
+    holds = FocCurrent.holds
+    states = (
+        State("z_i", "V", "current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
+    )
+
+    def signals(self):
+        def current_law(b):
+            v, z_dot = current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega_s"], b["z_i"], b.P,
+                                          b["v_dc"], self.anti_windup)
+            return 0, v / 1.5, z_dot
+
+        return {("v_d_ref", "v_q_ref", der("z_i")): current_law}

@@ -18,11 +18,11 @@ import math
 
 import casadi as ca
 
-from . import controller
-from ._part import MARGIN, Bound, Fault, Gain, Hold, Input, Limit, Loop, Output, Part, Rating, State, der
+from ._part import MARGIN, Bound, Fault, Input, Output, Part, Rating, State, der
+from .controller import CURRENT_LOOP, FocCurrent, PiCurrent
 
-__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm", "Dc",
-           "CURRENT_LOOP", "CURRENT_BOUND"]
+__all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm",
+           "ShortedPmsm", "Dc", "CURRENT_LOOP", "CURRENT_BOUND"]
 
 #: Speed (rad/s, ~1 rpm) over which the hysteresis drag, k_h pp psi^2/(2 pi) sign(omega),
 #: is smoothed at standstill (sign -> omega/sqrt(omega^2 + OMEGA_FE^2)). RK4 at 1e-4 s
@@ -208,8 +208,8 @@ def no_load_speed(P):
     return P.V_dc / (1.5 * P.pp * P.psi)
 
 
-# ---- parts: each motor brings its own current controller (FOC or simple PI) ----------
-CURRENT_LOOP = Loop("current", flag="loop_i", injection="d_i", measured="i_q_s", rate="f_s_i")
+# ---- parts: the windings and the shaft torque; each motor brings its current controller
+# (controller.FocCurrent, controller.PiCurrent: assembled just before it)
 #: Envelope of the winding currents: the speed loop commands at most I_max; a few
 #: times that only flows when the back-EMF runs away from the voltage limit.
 CURRENT_BOUND = Bound(lambda E: MARGIN * E.I_max, f"{MARGIN:g} x I_max")
@@ -223,13 +223,7 @@ _COMMON_OUT = (
     Output("P_fe", "W", "iron loss, a drag torque on the shaft (0 unless iron_loss = on)", kind="loss"),
 )
 _HEAT = {"P_cu": "winding", "P_fe": "housing"}
-_OPTIONS = {"iron_loss": ("off", "on"), **controller.AW_OPTION}
-_SHORT = {"winding_short": ("off", "on")}
-_D_I = Input("d_i", "A", "current", "injection at the q-current feedback (loop break)", injection=True)
-
-
-def _volts(P):
-    return P.V_dc
+_IRON = {"iron_loss": ("off", "on")}
 
 
 def _amps(P):
@@ -247,12 +241,7 @@ def _iron(opt):
     return {("T_fe", "P_fe"): iron, "T_m": lambda b: b["T_em"] - b["T_fe"]}
 
 
-#: The voltage limit of the current controller (the linear-SVPWM circle), which a trim
-#: keeps inactive; lifted through k_v, not V_dc (V_dc also sets the switching losses,
-#: which heat the inverter node of a thermal network).
-_LIMITS = (Limit("voltage", "voltage limit", "|v_dq|", lambda y, P: math.hypot(y["v_d"], y["v_q"]),
-                 lambda P: P.k_v * P.V_dc / math.sqrt(3), "k_v V_dc/sqrt(3)", lift=("k_v",), unit="V"),)
-_GAINS = (Gain("K_p_i", "current"), Gain("K_i_i", "current"))
+_PMSM_KEYS = (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag")
 #: Operating limits (:class:`~ema_casadi.model.components.Rating`): the current vector within
 #: I_max, the voltage vector within the linear-SVPWM circle k_v V_dc/sqrt(3).
 _RATINGS = (
@@ -267,11 +256,10 @@ _NO_FIELD_WEAKENING = Rating("field_weakening", "no field weakening (the FOC com
 
 
 class Pmsm(Part):
-    """3-phase PMSM in the rotor dq frame with FOC current control (docs: physics).
+    """3-phase PMSM in the rotor dq frame (docs: physics), with its FOC current
+    controller (:class:`~ema_casadi.model.components.controller.FocCurrent`, brought).
 
-    With the option ``winding_short = "on"`` it also carries the turn-to-turn short
-    (:func:`winding_short`): the state ``i_f``, the fault input ``mu_short`` and the
-    loss ``P_short`` into the winding node.
+    With the option ``winding_short = "on"`` the part is :class:`ShortedPmsm`.
 
     Parameters
     ----------
@@ -281,99 +269,83 @@ class Pmsm(Part):
 
     family, value = "motor", "pmsm"
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
-    inputs = (_D_I,)
+    brings = (FocCurrent,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "L_d", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e",
-              "w_aw", "k_bc")
-    trim_limits = _LIMITS
+    params = ("pp", "psi", "L_d", "L_q", "k_h", "k_e")
     ratings = (*_RATINGS, _NO_FIELD_WEAKENING)
-    gains = _GAINS
-    options = _OPTIONS | _SHORT
+    options = {**_IRON, "winding_short": ("off", "on")}
     heat = _HEAT
-    loops = (CURRENT_LOOP,)
-    holds = (Hold("v_d_ref", "V", "current"), Hold("v_q_ref", "V", "current"))
     states = (
-        State("z_d", "V", "d-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
-        State("z_q", "V", "q-current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
         State("i_d", "A", "d-axis current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
         State("i_q", "A", "q-axis current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
     )
     stored = ("E_mag",)
 
-    def __init__(self, options: dict | None = None):
-        super().__init__(options)
-        if self.opt.get("winding_short", "off") == "on":  # the turn-to-turn short (winding_short)
-            self.states = type(self).states + (State("i_f", "A", "current in the shorted turns' short", scale=_amps),)
-            self.inputs = type(self).inputs + (
-                Input("mu_short", "1", "dimensionless", "fault: shorted fraction of phase a's turns (0 healthy)"),)
-            self.outputs = type(self).outputs + (
-                Output("P_short", "W", "extra copper loss of the turn-to-turn short", kind="loss"),)
-            self.params = type(self).params + ("R_f", "L_f")
-            self.heat = {**type(self).heat, "P_short": "winding"}
-            self.faults = (Fault("short", "mu_short", "1", MU_MIN, 0.5,
-                                 "a fraction of phase a's turns shorted through R_f (winding_short = on)"),)
+    @classmethod
+    def form(cls, options: dict) -> type:
+        """:class:`ShortedPmsm` with ``winding_short = "on"``, else the healthy PMSM.
+
+        Parameters
+        ----------
+        options : dict
+            The values of the options the part reads.
+        """
+        return ShortedPmsm if options.get("winding_short", "off") == "on" else cls
 
     def signals(self):
-        def current_law(b):
-            # feedback from the current sensors; the decoupling terms from the same readings
-            i_d, i_q = b["i_d_s"], b["i_q_s"]
-            return controller.current_law_foc(
-                b["i_cmd"], i_d, b.feedback(CURRENT_LOOP), i_d, i_q, b["omega_s"], b["z_d"], b["z_q"], b.P,
-                b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]),
-            )
-
         def plant(b):
             return pmsm(b["i_d"], b["i_q"], b["v_d"], b["v_q"], b["omega"], b.P, b["R_w"], b["psi_m"])
 
+        return {_PMSM_KEYS: plant, **_iron(self.opt)}
+
+
+class ShortedPmsm(Pmsm):
+    """The PMSM with the turn-to-turn short of phase a (:func:`winding_short`; option
+    ``winding_short = "on"``): the state ``i_f``, the fault input ``mu_short`` and the
+    loss ``P_short`` into the winding node."""
+
+    states = Pmsm.states + (State("i_f", "A", "current in the shorted turns' short", scale=_amps),)
+    inputs = (Input("mu_short", "1", "dimensionless", "fault: shorted fraction of phase a's turns (0 healthy)"),)
+    outputs = Pmsm.outputs + (Output("P_short", "W", "extra copper loss of the turn-to-turn short", kind="loss"),)
+    params = Pmsm.params + ("R_f", "L_f")
+    heat = {**Pmsm.heat, "P_short": "winding"}
+    faults = (Fault("short", "mu_short", "1", MU_MIN, 0.5,
+                    "a fraction of phase a's turns shorted through R_f (winding_short = on)"),)
+
+    def signals(self):
+        plant = super().signals()
+
         def shorted(b):
-            di_d, di_q, T, P_elec, P_cu, E_mag = plant(b)
+            di_d, di_q, T, P_elec, P_cu, E_mag = plant[_PMSM_KEYS](b)
             P = b.P
             di_f, di_d, di_q, dT, P_short = winding_short(
                 b["mu_short"], b["i_f"], b["i_d"], b["i_q"], di_d, di_q, P.pp * b.state("shaft_angle"),
                 P.pp * b["omega"], b["R_w"], b["psi_m"], P)
             return di_d, di_q, T + dT, P_elec, P_cu, E_mag, di_f, P_short
 
-        keys = (der("i_d"), der("i_q"), "T_em", "P_elec", "P_cu", "E_mag")
-        short = self.opt.get("winding_short", "off") == "on"
-        return {
-            ("v_d_ref", "v_q_ref", der("z_d"), der("z_q")): current_law,
-            (keys + (der("i_f"), "P_short")) if short else keys: shorted if short else plant,
-            **_iron(self.opt),
-        }
+        return {(*_PMSM_KEYS, der("i_f"), "P_short"): shorted, **_iron(self.opt)}
 
 
 class Dc(Part):
-    """1-phase dc-equivalent motor with a simple current PI (docs: physics)."""
+    """1-phase dc-equivalent motor (docs: physics), with its current PI
+    (:class:`~ema_casadi.model.components.controller.PiCurrent`, brought)."""
 
     family, value = "motor", "dc"
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
-    inputs = (_D_I,)
+    brings = (PiCurrent,)
     outputs = _COMMON_OUT
-    params = ("pp", "psi", "L_q", "K_p_i", "K_i_i", "k_v", "V_dc", "loop_i", "f_s_i", "k_h", "k_e", "w_aw", "k_bc")
-    trim_limits = _LIMITS
+    params = ("pp", "psi", "L_q", "k_h", "k_e")
     ratings = _RATINGS
-    gains = _GAINS
-    options = _OPTIONS
+    options = _IRON
     heat = _HEAT
-    loops = (CURRENT_LOOP,)
-    holds = Pmsm.holds
-    states = (
-        State("z_i", "V", "current integral part", roles=("controller_integral",), scale=_volts, loop="current"),
-        State("i", "A", "winding current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),
-    )
+    states = (State("i", "A", "winding current", roles=("current",), scale=_amps, bound=CURRENT_BOUND),)
     stored = ("E_mag",)
 
     def signals(self):
-        def current_law(b):
-            v, z_dot = controller.current_law_simple(b["i_cmd"], b.feedback(CURRENT_LOOP), b["omega_s"], b["z_i"], b.P,
-                                                     b["v_dc"], self.opt.get("anti_windup", controller.ANTI_WINDUP[0]))
-            return 0, v / 1.5, z_dot
-
         def plant(b):
             return dc(b["i"], 1.5 * b["v_q"], b["omega"], b.P, b["R_w"], b["psi_m"])
 
         return {
-            ("v_d_ref", "v_q_ref", der("z_i")): current_law,
             (der("i"), "T_em", "P_elec", "P_cu", "E_mag"): plant,
             **_iron(self.opt),
             "i_d": lambda b: 0,

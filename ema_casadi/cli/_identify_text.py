@@ -1,0 +1,72 @@
+"""The text report of one identification fit (``ema identify`` without --json)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def fit_text(result: dict) -> str:
+    """The parameter table, the channels' residuals, the verdict and what was written.
+
+    Parameters
+    ----------
+    result : dict
+        The fit's document (``IdentResult.to_dict`` and what the command added).
+    """
+    parts = []
+    w = parts.append
+    truth = result.get("example", {}).get("truth", {})
+    if truth:
+        w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
+    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
+      f"{'(textbook)':>25}  identifiable\n")
+    for n, d in result["parameters"].items():
+        if d.get("estimate") is None:
+            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
+            continue
+        lo, hi = d["interval"]
+        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
+        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
+        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
+          f"{ok}\n")
+        if d.get("note"):
+            w(f"{'':<10}   note: {d['note']}\n")
+    for c in result["channels"]:
+        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
+          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+    test = result.get("consistency")
+    if test:
+        w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "
+          f"{test['statistic']:.4g} (expected {test['expected']:.3g}, p = {test['p']:.2g})\n")
+    for rec in (result.get("initial_state") or {}).get("records", []):
+        w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
+    rob = result.get("robust") or {}
+    if rob.get("scale_factor", 1.0) > 1.0:
+        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
+          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
+    me = result.get("model_error") or {}
+    for m in me.get("misfits", [])[:6]:
+        w(f"  systematic: {m['text']}\n")
+    if result.get("verdict") == "adequate within model error":
+        w(f"adequate within model error: systematic misfit at most {me['largest_sigma']:.2f} sigma (tolerated "
+          f"{me['threshold_sigma']:g}), records' shifts at most {me['largest_shift_sd']:.2g} robust sd (tolerated "
+          f"{me['threshold_shift_sd']:g}); robust intervals; failed tests: " + "; ".join(result["misfit"][:2]) + "\n")
+    elif result.get("adequate", True):
+        tests = "chi-square, whiteness" + (", consistency" if test else "")
+        w(f"adequate: the residuals are explained by the noise ({tests})\n")
+    else:
+        for reason in result["misfit"]:
+            w(f"INADEQUATE: {reason}\n")
+    for row in result.get("comparison", []):
+        verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
+        state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
+        w(f"compared {row['variants']}: BIC {row['bic']:.6g}, {state}\n")
+    for name, prof in result.get("profiles", {}).items():
+        w(f"profile {name}: 95 % interval {prof['interval'][0]:.5g} .. {prof['interval'][1]:.5g}\n")
+    for v in result.get("validation", []):
+        w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
+          f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
+    w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
+    for p in result.get("written", []):
+        w(f"wrote {p}\n")
+    return "".join(parts)

@@ -1,0 +1,181 @@
+"""The performance envelope: the top rod speed against each load and the largest force
+held, by steady-state NLPs on the drive level; the minimum move time over distance by
+minimum-time moves; at given soak temperatures (the ambient input of a thermal network)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..model.assembly import Model
+from ._errors import Infeasible, OptimalError
+from ._problem import Problem, solve
+
+__all__ = ["performance_envelope", "Envelope"]
+
+
+@dataclass
+class Envelope:
+    """The performance envelope (:func:`performance_envelope`).
+
+    Attributes
+    ----------
+    temperatures : list
+        Soak temperatures (degC; None: the parameter set's resistance and flux).
+    loads : ndarray
+        Loads opposing the move (N).
+    top_speed : dict
+        Temperature -> top rod speed (m/s) against each load (nan where not held).
+    largest_force : dict
+        Temperature -> the largest load held at standstill (N).
+    distances : ndarray
+        Move distances (m).
+    min_time : dict
+        Temperature -> the minimum move time (s) at no load over the distances.
+    wall_time_s : float
+        The whole computation (s).
+    status : dict
+        (temperature, load) -> IPOPT's status of that steady state.
+    """
+
+    temperatures: list
+    loads: np.ndarray
+    top_speed: dict
+    largest_force: dict
+    distances: np.ndarray
+    min_time: dict
+    wall_time_s: float = 0.0
+    status: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """The envelope as JSON can hold it."""
+        key = [str(t) for t in self.temperatures]
+        return {"temperatures": self.temperatures, "loads_N": self.loads, "distances_m": self.distances,
+                "top_speed_m_s": dict(zip(key, self.top_speed.values(), strict=True)),
+                "largest_force_N": dict(zip(key, self.largest_force.values(), strict=True)),
+                "min_time_s": dict(zip(key, self.min_time.values(), strict=True)), "wall_time_s": self.wall_time_s}
+
+
+def _steady(prob: Problem, speed: float | None):
+    """Steady state on the drive level at the given rod speed (None: maximise it), or at
+    standstill maximising the load (speed 0 with ``prob.load`` None). Returns the optimum."""
+    m = prob.model
+    opti = ca.Opti()
+    scale = np.maximum(m.full_scale(prob.p), 1e-6)
+    xs = opti.variable(m.nx)
+    x = ca.diag(scale) @ xs
+    c_scale = prob._control_scale()
+    cs = opti.variable(len(prob.controls))
+    c = ca.diag(c_scale) @ cs
+    free_load = prob.load is None
+    F = opti.variable() if free_load else prob.load
+    u0 = ca.MX(m.u(prob.p, **{prob.cmd: 0.0, prob.load_input: 0.0, **prob.extra}))
+    u0[m.inputs.index(prob.load_input)] = F
+    h = ca.MX.zeros(len(m.holds))
+    for j, i in enumerate(prob.controls):
+        h[i] = c[j]
+    xdot, y = m.f_held(x, u0, prob.p, h)
+    travel = m.travel(prob.p)
+    rest = m.rest_states(prob.p)
+    v = prob._signal(m.output_with("rod_velocity"), x, y)
+    for i, n in enumerate(m.states):
+        roles = m.state_info[n].roles
+        if n in travel or n in rest:
+            opti.subject_to(xs[i] == 0)  # at the centre (the rate is the speed)
+        elif "temperature" in roles:
+            opti.subject_to(x[i] == prob.extra_temperature)
+        elif "controller_integral" not in roles:
+            opti.subject_to(xdot[i] / scale[i] == 0)
+    for r in prob.ratings:
+        if r.name == "stroke" or any(n in m.states and "temperature" in m.state_info[n].roles for n in r.signals):
+            continue
+        s = [prob._signal(n, x, y) for n in r.signals]
+        lim = prob.limits[r.name]
+        if r.sense == "norm":
+            opti.subject_to(sum(q**2 for q in s) / lim**2 <= 1)
+        elif r.sense == "max":
+            opti.subject_to(s[0] <= lim)
+        else:
+            opti.subject_to(s[0] >= lim)
+    v_ref = prob.limits.get("rod_speed", 0.1)
+    if free_load:
+        opti.subject_to(v == 0)
+        opti.minimize(F / 1e4)  # the largest load pushing the rod in, held: F < 0 is held out
+        opti.set_initial(F, -1e3)
+    else:
+        opti.subject_to(v >= 0)
+        opti.minimize(-v / v_ref)
+        opti.set_initial(xs, np.where(np.isin(np.arange(m.nx), [m.index(n) for n in m.states_with("shaft_speed")]),
+                                      0.5, 0.0))
+    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": True},
+                {"print_level": 0, "max_iter": 300, "tol": 1e-9})
+    try:
+        sol = opti.solve()
+    except RuntimeError:
+        return np.nan, opti.stats()["return_status"]
+    return float(sol.value(-F if free_load else v)), sol.stats()["return_status"]
+
+
+def performance_envelope(model: Model, loads=None, distances=None, temperatures=None,
+                         intervals: int = 30) -> Envelope:
+    """The performance envelope of the drive within its operating limits.
+
+    Parameters
+    ----------
+    model : Model
+        The actuator.
+    loads : array_like, optional
+        Loads opposing the move (N, >= 0); default 10 from 0 to 0.9 x the load the screw
+        holds (the model's ``held_load``).
+    distances : array_like, optional
+        Move distances (m) for the minimum time; default 1, 2, 5, 10, 20 mm.
+    temperatures : array_like, optional
+        Soak temperatures (degC), for a model with an ambient-temperature input (a thermal
+        network); default 20 and 20 K below the lowest rated node there, else the parameter set.
+    intervals : int
+        Shooting intervals of each minimum-time move.
+    """
+    t0 = time.perf_counter()
+    held = model.envelope_limits().get("held_load", np.inf)
+    loads = np.linspace(0.0, 0.9 * held, 10) if loads is None else np.asarray(loads, float)
+    distances = np.array([1e-3, 2e-3, 5e-3, 10e-3, 20e-3]) if distances is None else np.asarray(distances, float)
+    ambient = model.inputs_with("ambient_temperature")
+    if temperatures is None:
+        # 20 degC and 20 K below the lowest rated node (every node soaks at the ambient)
+        rated = [v for r, v in zip(model.ratings, model.operating_limits().values(), strict=True)
+                 if any(n in model.states and "temperature" in model.state_info[n].roles for n in r.signals)]
+        temperatures = [20.0, min(rated) - 20.0] if ambient and rated else [None]
+    temperatures = list(temperatures)
+    if any(t is not None for t in temperatures) and not ambient:
+        raise OptimalError("temperatures: the model has no ambient-temperature input (choose a thermal network)")
+    if np.any(loads < 0) or np.any(np.abs(loads) > held):
+        raise OptimalError(f"loads: between 0 and the {held / 1e3:.4g} kN the screw holds")
+    top, largest, tmin, status = {}, {}, {}, {}
+    for T in temperatures:
+        extra = {} if T is None else {ambient[0]: T}
+        speeds = []
+        for F in loads:
+            # the load opposes the outward move: it pushes the rod in (+)
+            prob = Problem(model, 1e-3, float(F), "time", None, 0.0, "drive", 4, False, extra)
+            prob.extra_temperature = T
+            v, st = _steady(prob, None)
+            speeds.append(v)
+            status[(T, float(F))] = st
+        top[T] = np.array(speeds)
+        prob = Problem(model, 1e-3, 0.0, "time", None, 0.0, "drive", 4, False, extra)
+        prob.load, prob.extra_temperature = None, T
+        largest[T], _ = _steady(prob, 0.0)
+        times = []
+        for d in distances:
+            try:
+                times.append(solve(Problem(model, float(d), 0.0, "time", None, 0.0, "drive", intervals, False,
+                                           extra))["T"])
+            except Infeasible as exc:
+                times.append(np.nan)
+                status[(T, float(d))] = str(exc)
+        tmin[T] = np.array(times)
+    return Envelope(temperatures=temperatures, loads=loads, top_speed=top, largest_force=largest, distances=distances,
+                    min_time=tmin, wall_time_s=time.perf_counter() - t0, status=status)

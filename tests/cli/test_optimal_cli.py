@@ -1,0 +1,55 @@
+"""`ema optimal`: the minimum-time move on the reference model end to end (files, --json,
+the command profile read back by `ema simulate`), and its refusals (exit 2, one line,
+nothing written)."""
+
+import json
+
+import pytest
+
+from conftest import REFERENCE
+from ema_casadi.cli import main
+
+
+def _run(capsys, *args):
+    status = main(["optimal", str(REFERENCE), *map(str, args)])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--move", "100mm"), "beyond the stroke"),
+    (("--load", "80kN"), "the screw holds"),
+    (("--objective", "speed"), "--objective speed: unknown"),
+    (("--objective", "energy", "--duration", "0.01"), "below the minimum time"),
+    (("--through", "cascade"), "--through cascade: unknown"),
+])
+def test_bad_requests_exit_2_with_one_line(capsys, tmp_path, args, words):
+    out = tmp_path / "out"
+    status, _, err = _run(capsys, *args, "--out", out)
+    assert status == 2 and words in err and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.slow  # 53 s on the loaded 2-core machine: the solve, the replay and the ECU step on the elastic model
+def test_minimum_time_move_writes_a_command_simulate_reads(capsys, tmp_path):
+    out = tmp_path / "opt"
+    status, text, err = _run(capsys, "--move", "10mm", "--json", "--out", out)
+    assert status == 0, err
+    r = json.loads(text)
+    assert r["ipopt"]["status"] == "Solve_Succeeded" and {"current", "voltage"} <= set(r["binding"])
+    assert sorted(p.name for p in out.iterdir()) == ["command.csv", "move.png", "optimum.csv", "replay.csv"]
+    assert r["replay"]["ratings"]["current"]["ratio"] <= 1.01  # I_max within 1 % in the full model
+    status = main(["simulate", str(REFERENCE), "--x-cmd", f"{out / 'command.csv'}:x_cmd", "--t-end", "0.2", "--json"])
+    sim = json.loads(capsys.readouterr().out)
+    assert status == 0 and abs(sim["final"]["x_rod"] - 0.01) < 2e-4, sim.get("final")
+
+
+def test_envelope_table(capsys, tmp_path):
+    out = tmp_path / "env"
+    status, text, err = _run(capsys, "--envelope", "--loads", "0,20kN", "--distances", "2mm", "--intervals", "16",
+                             "--json", "--out", out)
+    assert status == 0, err
+    r = json.loads(text)
+    v0, v20 = r["top_speed_m_s"]["None"]
+    assert 0.085 < v20 < v0 < 0.1  # the voltage circle's top speed (98 mm/s), 89.5 mm/s against 20 kN and friction
+    assert (out / "envelope.csv").read_text().startswith("load_N,v_top_m_s_at_ref\n")
