@@ -57,8 +57,10 @@ _PRIOR = re.compile(r"^#\s+([A-Za-z_]\w*):\s*(\S+)\s*->\s*(\S+)\s*\(95 %:\s*(\S+
 
 
 def read_prior(path) -> dict:
-    """The 95 % intervals of a fitted parameter file (the header ``ema identify`` writes:
-    ``# NAME: start -> estimate (95 %: LO .. HI)``): name -> (estimate, lo, hi), SI.
+    """The 95 % intervals of a fitted parameter file: name -> (estimate, lo, hi), SI.
+
+    The file's header is the one ``ema identify`` writes, a line
+    ``# NAME: start -> estimate (95 %: LO .. HI)`` per free parameter.
 
     Parameters
     ----------

@@ -116,7 +116,7 @@ def test_every_metric_equals_the_single_analysis(params, tmp_path, capsys):
     lumped = {"thermal": "lumped", "friction": "hybrid"}
     metrics = {"step": {}, "hunting": {"from": 0.1}, "margins": {}, "bandwidth": {},
                "sine_stream": {"amplitude": 1e-3, "freqs": [5.0]}, "peak_temperature": {}, "energy": {},
-               "peak": {"signals": ["i_q", "x_rod"]}}
+               "peak": {"signals": ["i_q", "x_rod"]}, "maximum": {"signals": ["i_q", "x_rod"]}}
     assert set(metrics) == set(METRICS)
     scenario = {**SCENARIO, "dt_out": 1e-4}  # the energy integrates the kept samples: every step
     spec = parse_sweep({"variants": lumped, "parameters": {k: {"values": [v]} for k, v in values.items()},
@@ -152,6 +152,7 @@ def test_every_metric_equals_the_single_analysis(params, tmp_path, capsys):
     stored = res["E_stored"][-1] - res["E_stored"][0]
     assert abs(row["energy_in_J"] - row["energy_loss_J"] - stored) < 2e-2 * row["energy_in_J"]
     assert row["peak_i_q"] == np.abs(res["i_q"]).max() and row["peak_x_rod"] == np.abs(x).max()
+    assert row["max_i_q"] == res["i_q"].max() and row["max_x_rod"] == x.max()
 
 
 def test_the_table_written_reads_back_and_resume_takes_it(params, tmp_path):
