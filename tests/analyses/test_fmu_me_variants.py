@@ -217,10 +217,11 @@ def export(name, folder, model_cache):
 
 
 #: In the slow suite (``-m slow``): the plain step of a variant that a harder case of the
-#: same model runs in the default suite too (the stop, the jam, the latched monitor, the
+#: same model runs in the default suite too (the stop, the jam, the
 #: table breakpoint), and the variants whose switches are the reference's, changed
 #: smoothly (the friction shape, the iron loss).
-SLOW = ("endstop=elastic", "faults=on", "monitors=on", "thermal=lumped", "friction_shape=fermi", "iron_loss=on")
+SLOW = ("endstop=elastic", "faults=on", "monitors=on", "thermal=lumped", "friction_shape=fermi", "iron_loss=on",
+        "faults=on,monitors=on:jam-latched")  # 28 s: the latched jam; faults=on:jam stays fast
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in CASES])
@@ -238,6 +239,7 @@ def test_model_exchange_variant_matches_cvodes(name, tmp_path, model_cache):
         assert lo < res[out][-1] < hi, (out, res[out][-1])
 
 
+@pytest.mark.slow  # 15 s: FMPy through every quantum; the variant cases cover the sensor part fast
 def test_quantised_sensors_locate_every_quantum(tmp_path, model_cache):
     """sensor=real with its quantisers, the first 3 ms of the step (to 13 ms): every
     change of the resolver's reading is one quantum 2 pi / 2^N_theta, located as an event

@@ -40,6 +40,7 @@ def _check_calibrated(tests):
     assert T.min() >= -1e-6  # a re-fit alone never fits its record worse
 
 
+@pytest.mark.slow  # 38 s on 2 loaded workers: 20 fits; the single-realisation checks above stay fast
 def test_no_false_alarm_over_20_realisations(tmp_path):
     _check_calibrated(_realisations(tmp_path, 20, SIGMA))
 

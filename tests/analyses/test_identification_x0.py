@@ -59,6 +59,7 @@ def test_mid_motion_record_fits_only_with_estimated_start(cut_record):
     assert abs(rec["x0"]["v_rod"] - v_fd) < 4 * np.hypot(SIGMA["x_rod"] * np.sqrt(2) / (2 * dt), rec["std"]["v_rod"])
 
 
+@pytest.mark.slow  # 18 s: the CLI round of the estimated start; the API test beside it stays fast
 def test_cli_estimate_x0(cut_record, tmp_path):
     import json
     import subprocess

@@ -39,6 +39,7 @@ def _ema(*args):
                           text=True)
 
 
+@pytest.mark.slow  # 21 s: the whole reference table through the CLI (test_run_faults_api_... is the fast one)
 def test_faults_writes_table_summary_figure(tmp_path):
     out = tmp_path / "out"
     proc = _ema(REFERENCE, _write(tmp_path, SMALL), "--out", out, "--json", "--healthy-runs", "3", "--jobs", "1")
