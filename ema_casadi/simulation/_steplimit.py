@@ -136,8 +136,7 @@ class StepLimit:
         """
         if dt <= self.dt_max * (1 + 1e-9):
             return None
-        over = [(h, pt, lam, st) for pt, h, lam, st in self.points if dt > h]
-        h, pt, lam, st = min(over)
+        pt, lam, st = self.point, self.eigenvalue, self.state  # the limit's own point (ties: its first)
         return (f"{label} {dt:g} s is above RK4's stability limit {self.dt_max:.3g} s on this model (mode "
                 f"{_complex(lam)} 1/s of {st}, {pt}: it grows x{rk4_growth(dt * lam):.3g} per step until a "
                 f"nonlinearity bounds it, a chatter of {st}); use a step of at most {self.dt_max:.3g} s")
@@ -245,7 +244,11 @@ def rk4_step_limit(model: Model, *, p=None, load: float = 0.0, zoh: bool = False
     points = [_fastest(model, np.array(J(x0, u0, pv)), scale, "at rest, no load")]
     if load > 0:
         points += _held(model, J, pv, load, scale)
-    pt, h, lam, st = min(points, key=lambda q: q[1])
+    # the smallest limit; points within 1e-6 of it are ties (+-load are mirror images, and
+    # which of the two comes out lower moves with the BLAS kernel in the last bits):
+    # the first of them in the order above names the point
+    h = min(q[1] for q in points)
+    pt, _, lam, st = next(q for q in points if q[1] <= h * (1 + 1e-6))
     out = StepLimit(dt_max=h, eigenvalue=lam, state=st, point=pt, points=tuple(points))
     model.cache[key] = out
     return out
