@@ -66,12 +66,20 @@ THRESHOLDS = {"track": ("e_track", "m"), "jam": ("k_jam_i", "1"), "cross": ("e_c
               "ot": ("T_ot", "degC")}
 
 
-def _statistics(b):
-    """Each monitor's statistic, in its threshold's unit (module docstring)."""
+def _estimates(b):
+    """The sampled current magnitude |i_dq| (A) and the screw force estimated from the
+    sampled i_q (N), which the over-current and cross-check monitors judge."""
     P = b.P
     k = 2 * math.pi / P.p
     i_dq = ca.sqrt(b["i_d_s"] ** 2 + b["i_q_s"] ** 2 + 1e-30)
     F_est = 1.5 * P.pp * P.psi * b["i_q_s"] * k
+    return i_dq, F_est
+
+
+def _statistics(b):
+    """Each monitor's statistic, in its threshold's unit (module docstring)."""
+    P = b.P
+    i_dq, F_est = _estimates(b)
     stat = {
         "track": ca.fabs(b["x_ref"] - b["x_s"]),
         "jam": ca.if_else(ca.fabs(b["omega_s"]) < P.w_jam, ca.fabs(b["i_q_s"]) / P.I_max, 0),
@@ -84,9 +92,7 @@ def _statistics(b):
 
 def _conditions(b):
     P = b.P
-    k = 2 * math.pi / P.p
-    i_dq = ca.sqrt(b["i_d_s"] ** 2 + b["i_q_s"] ** 2 + 1e-30)
-    F_est = 1.5 * P.pp * P.psi * b["i_q_s"] * k
+    i_dq, F_est = _estimates(b)
     cond = {
         "track": ca.fabs(b["x_ref"] - b["x_s"]) > P.e_track,
         "jam": ca.logic_and(ca.fabs(b["i_q_s"]) >= P.k_jam_i * P.I_max, ca.fabs(b["omega_s"]) < P.w_jam),
