@@ -50,7 +50,7 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     """
     fr, info = result.free, result.info
     names = fr.names
-    truth = dict(zip(names, fr.theta0.tolist(), strict=True))
+    truth = dict(zip(names, np.asarray(result.thetas[0]).tolist(), strict=True))
     rec = result.test.records[0]
     tables = {k: Signal.table(rec["t"], v) for k, v in rec["inputs"].items()}
     cmd, load = result.model.input_with("command"), result.model.input_with("load")
@@ -59,7 +59,8 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     pv = result.params.vector(**truth)
     sim = simulate(result.model, float(rec["t"][-1]), inputs=tables, solver="rosenbrock", dt_out=1.0 / info["rate"],
                    p=pv, rtol=1e-10, atol=1e-13)
-    usage = limit_usage(result.model, {c: sim[c] for c in sim.columns()[1:]}, pv, info["stroke"], info["max_load"])
+    usage = limit_usage(result.model, {c: sim[c] for c in sim.columns()[1:]}, pv, info["stroke"], info["max_load"],
+                        info["max_speed"])
     rng = np.random.default_rng(seed)
     starts = [{k: v * float(np.exp(rng.normal(0.0, START_SPREAD))) for k, v in truth.items()} for _ in range(n)]
     done = [0]
