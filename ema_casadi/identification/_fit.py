@@ -25,14 +25,9 @@ from ._robust import record_blocks, robust_covariance
 SIGMA_TOL = 0.02
 #: Re-estimation rounds of the noise levels at most.
 SIGMA_ROUNDS = 6
-#: Evaluations replay the step sequences chosen at one point (the cost is then a smooth
-#: function, so the small steps near the optimum compare like with like); an accepted
-#: point farther than this (in log-parameters) from it chooses them anew there and is
-#: evaluated again, so that the trials after it compare with the cost on their own steps.
-#: (Trials choosing their own steps compared a cost on new steps with one on old: on a
-#: record that determines the parameters to 1e-5, the discretisation's change of the
-#: cost outweighed any decrease a short step makes, and the fit stopped, "converged",
-#: far from the optimum.)
+#: Evaluations within this distance (in log-parameters) of the point where the step
+#: sequences were chosen replay them (the cost is then a smooth function, so the small
+#: steps near the optimum compare like with like); farther ones choose them anew.
 REGRID = 0.05
 #: The states estimated by ``estimate_x0=True``: the mechanism's positions and speeds,
 #: what a record cut from the middle of a motion starts away from, and the integral
@@ -328,8 +323,8 @@ class _Fit:
         key = z.tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        if self.z_grid is None:
-            self.pred.refresh()  # the step sequences chosen here
+        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > self.regrid:
+            self.pred.refresh()  # far from where the step sequences were chosen: choose them here
             self.z_grid = z.copy()
         self.evaluations += 1
         n = len(self.pred.free.names)
@@ -349,16 +344,6 @@ class _Fit:
         """Weighted residuals and Jacobian at ``z`` (None, None where the run failed)."""
         raw = self._raw(z)
         return (None, None) if raw is None else self.weighted(raw[1], raw[2], sig)
-
-    def _moved(self, z, sig):
-        """At an accepted point ``z``: farther than :data:`REGRID` from where the step
-        sequences were chosen, they are chosen anew here and ``z`` evaluated on them
-        (weighted residuals and Jacobian); else None."""
-        z = np.asarray(z, float)
-        if self.z_grid is not None and np.max(np.abs(z - self.z_grid)) <= self.regrid:
-            return None
-        self._cache, self.z_grid = None, None
-        return self._eval(z, sig)
 
     # -- the fit ---------------------------------------------------------------------
     def run(self, z0) -> dict:
@@ -387,8 +372,7 @@ class _Fit:
             if budget < 2:
                 raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
             tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
-            sol = levenberg_marquardt(lambda zz, sig=sig: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol,
-                                      moved=lambda zz, sig=sig: self._moved(zz, sig))
+            sol = levenberg_marquardt(lambda zz, sig=sig: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
             if not sol["converged"]:
                 raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
             z = sol["z"]

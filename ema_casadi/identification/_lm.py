@@ -26,7 +26,7 @@ STEP_TOL = 1e-6
 STEP0 = 1.0
 
 
-def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: float = COST_TOL, moved=None) -> dict:
+def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: float = COST_TOL) -> dict:
     """Minimise 1/2 |r(z)|^2 within the box [lo, hi].
 
     Parameters
@@ -41,11 +41,6 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
         Calls of ``evaluate`` allowed (the start's included).
     cost_tol : float
         The stopping rule (module docstring).
-    moved : callable, optional
-        ``moved(z) -> (r, J)`` or None, called at each accepted point: the residuals
-        there anew where the cost function changed (a predictor that chose its step
-        sequences afresh there), so that the next trials compare with the cost of the
-        same function; None where it did not change.
 
     Returns
     -------
@@ -85,11 +80,6 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
             lam *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
             if rho > 0.5:
                 bound = min(2 * bound, 1e3)
-            fresh = moved(z) if moved is not None else None
-            if fresh is not None and fresh[0] is not None:
-                n_eval += 1
-                r, J = fresh
-                cost = 0.5 * float(r @ r)
         else:
             if gn_pred < 10 * cost_tol:  # what is left is below the model's own resolution of the cost
                 return {"z": z, "r": r, "J": J, "cost": cost, "converged": True, "evaluations": n_eval,

@@ -188,3 +188,4 @@ def test_a_robust_design_averages_the_information_over_the_prior_and_is_reproduc
     assert a.info["prior_sd"]["F_seal"] == pytest.approx(math.log(2.25) / 3.919927969, rel=1e-6)
     nominal = design_experiment(params, ["F_seal", "psi"], 2.0, library=lib, rate=1000.0, max_load=8e3)
     assert not np.allclose(a.M, nominal.M, rtol=1e-3)
+
