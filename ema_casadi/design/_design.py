@@ -136,8 +136,9 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
                       library=None, variants: dict | None = None, seed: int = 0, progress: bool = False):
     """Design the rig test (command and load profile) whose 95 % intervals of the ``free``
     parameters are smallest by a criterion, within the test's stroke, the load capability
-    and the limits the parts declare (motor current, speed command, voltage), from the
-    Fisher information of exact forward sensitivities (the ones ``identify`` fits with).
+    and the limits the parts declare (the current and voltage ratings, the rated rod
+    speed, temperatures), from the Fisher information of exact forward sensitivities
+    (the ones ``identify`` fits with).
 
     Parameters
     ----------
