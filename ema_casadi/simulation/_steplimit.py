@@ -162,6 +162,8 @@ class StepLimit:
             Fraction of the limit to stay under.
         cap : float, optional
             A largest step (s) on top of the limit.
+        lengths : iterable of float
+            Lengths the step should also divide where one of the steps does (s).
         """
         h = margin * self.dt_max if cap is None else min(cap, margin * self.dt_max)
         periods = sorted(float(T) for T in periods)
