@@ -246,6 +246,8 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     except ParameterError as exc:
         raise FaultError(f"{src} [scenario]: {exc}") from None
     sc = _scenario(scenario, params, src, _aircraft(v))
+    if "mission" not in scenario and "segment" not in scenario:  # a segment is checked as its mission's
+        _check_envelope(f"{src} [scenario]", sc, params, v)
     if "dt" not in scenario and "signals" in sc:  # the default inside RK4's stability limit (DEFAULT_DT)
         from ..model.assembly import build_model
         from ..simulation import inside_limit
@@ -254,8 +256,6 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
         lengths = (sc["duration"], scenario.get("dt_out", 1e-4))
         sc["dt"] = inside_limit(model, sc["signals"], sc["duration"], True, DEFAULT_DT, lengths)
         sc["dt_out"] = _positive(f"{src} [scenario] dt_out", scenario.get("dt_out"), _whole(1e-4, sc["dt"]))
-    if "mission" not in scenario and "segment" not in scenario:  # a segment is checked as its mission's
-        _check_envelope(f"{src} [scenario]", sc, params, v)
     faults = data.get("fault", [])
     if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
         raise FaultError(f"{src} [[fault]]: expected an array of tables")

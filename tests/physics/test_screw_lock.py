@@ -35,7 +35,7 @@ def test_jammed_screw_keeps_its_force_for_30_s(params):
     assert t[i_stop] < 0.2
     held = F[i_stop:]
     # the force from the stop to 30 s: constant within 0.1 % (the acceptance bound;
-    # measured 2e-5, the last settling of the stop sample)
+    # measured 2.6e-7, the last settling of the stop sample)
     assert np.ptp(held) / held.mean() < 1e-3
     # inside the band the current limit can hold: K_t I_max / ((p/2pi) g), g between
     # eta_inv (61.7 kN) and 1/eta (48.9 kN) on the reference set
@@ -43,8 +43,11 @@ def test_jammed_screw_keeps_its_force_for_30_s(params):
     T = 1.5 * m.pp * m.psi * m.I_max
     lead = params.screw.p / (2 * math.pi)
     assert T * params.screw.eta / lead <= held.min() and held.max() <= T / (lead * params.screw.eta_inv)
-    # the torque factor stays where the stop left it (|dg| < 1e-9 over 30 s)
-    assert np.ptp(r["g_screw"][i_stop:]) < 1e-9
+    # the torque factor stays where the stop left it: within 1e-6 from the stop sample
+    # (2.4e-7 measured, the last creep at |omega| < 1e-6 rad/s) and, from 0.2 s to 30 s,
+    # unchanged (0 measured; 1e-12 for round-off)
+    g = r["g_screw"]
+    assert np.ptp(g[i_stop:]) < 1e-6 and np.ptp(g[t >= 0.2]) < 1e-12
     # the force at the stop: the back-driven swing from the overshoot's peak about the
     # back-driven equilibrium F_b = T/(lead eta_inv) ends near 2 F_b - F_peak (an
     # undamped half swing; the contact damping makes it stop short of that): between
