@@ -166,9 +166,9 @@ def report(result: dict) -> None:
     w("limits used (fraction): " + ", ".join(f"{k} {v:.3g}" for k, v in result["limits_used"].items()) + "\n")
     v = result.get("verification")
     if v:
-        w(f"verify: {v['converged']} of {v['n']} fits converged, {v['adequate']} adequate; coverage of the truth "
-          f"{100 * v['coverage']:.3g} % of their {v['intervals_checked']} intervals "
-          f"({100 * v['coverage_every_fit']:.3g} % over every converged fit), "
+        w(f"verify: {v['converged']} of {v['n']} fits converged ({v['restarted']} refitted from more starts), "
+          f"{v['adequate']} adequate; coverage of the truth {100 * v['coverage']:.3g} % of their "
+          f"{v['intervals_checked']} intervals ({100 * v['coverage_adequate']:.3g} % over the adequate fits), "
           f"limits {'respected' if v['limits_respected'] else 'LEFT'}\n")
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "

@@ -45,9 +45,11 @@ def verified(design):
 def test_verify_20_realises_the_predicted_intervals_within_the_limits(design, verified):
     v = verified
     assert v["converged"] == 20, v["failed"]
-    # measured: 18 of 20 adequate; the other two end in a local minimum of the cost from
-    # their 5 % starts (cost 1.8 and 2.3 x the noise's), which identify calls inadequate
-    assert v["adequate"] >= 17, v["fits"]
+    # measured: 18 of 20 adequate from their 5 % starts; the other two end in a local
+    # minimum of the cost (1.8 and 2.3 x the noise's), which identify calls inadequate, and
+    # refitted from 3 more starts both reach the noise's cost (20 116, 19 944 of 40 000
+    # residuals: 2 x 0.5 x chi2) and are adequate: 20 of 20
+    assert v["restarted"] <= 4 and v["adequate"] >= 19, v["fits"]
     ratios = np.array(list(v["width_ratio"].values()))
     # measured: 0.94-1.01 (robust intervals; textbook 0.999-1.004); the acceptance: 20 %
     assert np.all(np.abs(ratios - 1) <= 0.2), v["width_ratio"]
@@ -59,10 +61,11 @@ def test_verify_20_realises_the_predicted_intervals_within_the_limits(design, ve
 
 
 def test_verify_20_covers_the_truth(verified):
-    """The adequate fits' 95 % intervals hold the truth in 90-99 % of the cases. With 18
-    fits x 7 parameters = 126 intervals of true level 95 %, misses are binomial (mean
-    6.3, sd 2.4) if independent: below 90 % (13 or more) has probability 0.7 %, above
-    99 % (at most 1) 1.3 %; the correlation of the parameters within a fit (|corr| up
-    to 0.85) widens that somewhat. Measured: 92.9 % (117 of 126; textbook 92.9 %)."""
-    assert verified["intervals_checked"] >= 119, verified["intervals_checked"]
+    """Every converged fit's 95 % intervals (after the restarts) hold the truth in 90-99 %
+    of the cases. With 20 fits x 7 parameters = 140 intervals of true level 95 %, misses
+    are binomial (mean 7, sd 2.6) if independent: below 90 % (15 or more) has probability
+    0.4 %, above 99 % (at most 1) 0.6 %; the correlation of the parameters within a fit
+    (|corr| up to 0.85) widens that somewhat. Measured: 93.6 % (131 of 140; textbook
+    92.9 %; per parameter 85-100 %, C lowest)."""
+    assert verified["intervals_checked"] >= 133, verified["intervals_checked"]
     assert 0.90 <= verified["coverage"] <= 0.99, (verified["coverage"], verified["coverage_per_parameter"])
