@@ -283,7 +283,8 @@ def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
         if math.isfinite(settle) and (prob.duration is None or settle <= t_try):
             break
         t_try *= 2
-    T = prob.duration if prob.duration is not None else max(settle, 1e-3)
+    # the ECU's step that never reaches the band (a load it cannot move against): its whole window
+    T = prob.duration if prob.duration is not None else max(settle if math.isfinite(settle) else t_try, 1e-3)
     tk = T * prob.fractions()
     X = np.array([np.interp(tk, res.t, res[n]) for n in m.states])
     if prob.through == "drive":
