@@ -34,6 +34,10 @@ _ENV = NoEffect((), "with --envelope (it runs its own moves: --distances, --load
 _MOVE = NoEffect((), "without --envelope (it sets the envelope's grid)", lambda a: not a.envelope)
 
 
+_ECU = NoEffect((), "with --through ecu (a shaped two-parameter command through the commissioned cascade)",
+               lambda a: a.through == "ecu" and not a.envelope)
+
+
 def _env(flag, *value):
     return (NoEffect(("--envelope", flag, *value), _ENV.why, _ENV.when),)
 
@@ -42,8 +46,11 @@ NO_EFFECT = {
     "--move": _env("--move", "5mm"), "--load": _env("--load", "5kN"), "--objective": _env("--objective", "energy"),
     "--duration": (NoEffect(("--duration", "0.3"), "with --objective time (the duration is what it minimises)",
                             lambda a: a.objective == "time" and not a.envelope),) + _env("--duration", "0.3"),
-    "--from": _env("--from", "5mm"), "--through": _env("--through", "ecu"), "--intervals": (),
-    "--field-weakening": _env("--field-weakening"), "--zoh": _env("--zoh"), "--out": (), "--envelope": (),
+    "--from": _env("--from", "5mm"), "--through": _env("--through", "ecu"),
+    "--intervals": (NoEffect(("--through", "ecu", "--intervals", "20"), _ECU.why, _ECU.when),),
+    "--field-weakening": _env("--field-weakening") + (NoEffect(("--through", "ecu", "--field-weakening"), _ECU.why,
+                                                               _ECU.when),),
+    "--zoh": _env("--zoh"), "--out": (), "--envelope": (),
     "--loads": (NoEffect(("--loads", "0,10kN"), _MOVE.why, _MOVE.when),),
     "--distances": (NoEffect(("--distances", "1mm,10mm"), _MOVE.why, _MOVE.when),),
     "--temperatures": (NoEffect(("--temperatures", "20,120"), _MOVE.why, _MOVE.when),),
@@ -222,9 +229,13 @@ def report(r: dict) -> None:
     print(f"optimal move ({r['objective']}, through {r['through']}): {r['move'] * 1e3:g} mm from "
           f"{r['start'] * 1e3:g} mm under {r['load'] / 1e3:g} kN in {r['duration']:.5g} s, cost {r['cost']:.5g} {unit}")
     ip = r["ipopt"]
-    print(f"  IPOPT {ip['status']} in {ip['iterations']} iterations, {ip['solve_time_s']:.2f} s "
-          f"({ip['intervals']} intervals x {ip['substeps']} RK4 substeps); "
-          f"binding: {', '.join(r['binding']) or 'none'}")
+    if r["through"] == "ecu":
+        print(f"  {ip['solver']}: {ip['status']} after {ip['iterations']} runs, {ip['solve_time_s']:.2f} s; "
+              f"overshoot {ip['overshoot']:.3g} x the move, back to the target at {ip['t_return']:.5g} s")
+    else:
+        print(f"  IPOPT {ip['status']} in {ip['iterations']} iterations, {ip['solve_time_s']:.2f} s "
+              f"({ip['intervals']} intervals x {ip['substeps']} RK4 substeps); "
+              f"binding: {', '.join(r['binding']) or 'none'}")
     print(f"  ECU's own step: 2 % band after {r['ecu_step_settling_time_s']:.5g} s")
     rep = r.get("replay") or {}
     if "failed" in rep:
@@ -235,6 +246,6 @@ def report(r: dict) -> None:
               f"{rep['window_s']:.4g} s")
         for k, c in rep["ratings"].items():
             print(f"    {k:22s} peak {c['peak']:.5g} {c['unit']:5s} limit {c['limit']:.5g}  "
-                  f"{'ok' if c['within'] else 'EXCEEDED'}")
+                  f"{'ok' if c['within'] else 'EXCEEDED'} (ECU step {c['ecu_step_peak']:.5g})")
     for w in r["written"]:
         print(f"wrote {w}")

@@ -248,6 +248,14 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     sc = _scenario(scenario, params, src, _aircraft(v))
     if "mission" not in scenario and "segment" not in scenario:  # a segment is checked as its mission's
         _check_envelope(f"{src} [scenario]", sc, params, v)
+    if "dt" not in scenario and "signals" in sc:  # the default inside RK4's stability limit (DEFAULT_DT)
+        from ..model.assembly import build_model
+        from ..simulation import inside_limit
+
+        model = build_model(params, v)
+        lengths = (sc["duration"], scenario.get("dt_out", 1e-4))
+        sc["dt"] = inside_limit(model, sc["signals"], sc["duration"], True, DEFAULT_DT, lengths)
+        sc["dt_out"] = _positive(f"{src} [scenario] dt_out", scenario.get("dt_out"), _whole(1e-4, sc["dt"]))
     faults = data.get("fault", [])
     if not isinstance(faults, list) or not all(isinstance(f, dict) for f in faults):
         raise FaultError(f"{src} [[fault]]: expected an array of tables")
@@ -360,10 +368,11 @@ def _monitor(table, params: Parameters, src: str) -> Parameters:
         raise FaultError(f"{src} [monitor]: {exc}") from None
 
 
-#: The RK4 step of a scenario without ``dt`` (s): divides the reference ECU's sample
-#: periods (62.5, 125, 500 us); inside RK4's stability limit with hybrid friction (0.26
-#: ms on the reference set), above it with the smooth law held under load (a warning
-#: with the limit, :func:`~ema_casadi.simulation.rk4_step_limit`).
+#: The largest RK4 step of a scenario without ``dt`` (s): the largest step under 0.8 x
+#: RK4's stability limit on the model at the scenario's largest load that divides the
+#: ECU's sample periods, at most this (:func:`~ema_casadi.simulation.inside_limit`):
+#: 12.5 us with hybrid friction (0.26 ms limit), 1.95 us with the smooth law held under
+#: 5 kN (2.46 us).
 DEFAULT_DT = 1.25e-5
 
 

@@ -192,7 +192,7 @@ class _Branch:
         self.set_lam(lam)
         try:
             for _ in range(3):
-                x = self.flow.run(x, T)[0]
+                x = self.flow.run(x, T, sens=False)[0]
             x, T, M, xT, _, _ = _newton(self.flow, x, T, self.tol, 12)
             u = self.pack(x, T, lam)
             _, J, M, xT = self.system(u, self.section(x), x)

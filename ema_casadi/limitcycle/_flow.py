@@ -15,7 +15,8 @@ from ..model.assembly import Model
 from ..signals import constant
 from ..simulation import forward_sensitivities, simulate
 
-__all__ = ["OrbitNotFound", "Flow", "input_value", "RTOL", "ATOL", "EVENT_GRID", "WINDOWS", "MAX_EVENTS", "SAMPLES"]
+__all__ = ["OrbitNotFound", "Flow", "input_value", "RTOL", "ATOL", "EVENT_GRID", "WINDOWS", "MAX_EVENTS", "SAMPLES",
+           "FD_STEP"]
 
 #: Integrator tolerances of the shooting runs (relative; absolute, in full-scale units).
 RTOL = 1e-10
@@ -29,6 +30,10 @@ WINDOWS = 16
 MAX_EVENTS = 100
 #: Samples of the orbit's time series over one period.
 SAMPLES = 400
+#: Step of the finite-difference fallback's central differences (of each state's full
+#: scale). Measured on the aircraft loop at RK4's default step: 1e-4 also converges but
+#: loses the sampled ECU's trivial multiplier (4e-4 instead of 0.93); 1e-5 wanders.
+FD_STEP = 1e-6
 
 class OrbitNotFound(RuntimeError):
     """Newton did not converge to a periodic orbit from the start given (a named failure)."""
@@ -126,14 +131,15 @@ class Flow:
 
     def _z_samples(self, X) -> np.ndarray:
         """The indicators at the columns of X (inputs and parameters substituted: ten times
-        faster than mapping the general function)."""
-        key = (X.shape[1], self.pv.tobytes(), self.u.tobytes())
-        if getattr(self, "_zkey", None) != key:
-            if getattr(self, "_zbase", None) is None or self._zbase[0] != key[1:]:
-                Xs = ca.SX.sym("x", self.model.nx)
-                self._zbase = (key[1:], ca.Function("zx", [Xs], [self._sw.z(Xs, self.u, self.pv)]))
-            self._zmap, self._zkey = self._zbase[1].map(X.shape[1]), key
-        return np.asarray(self._zmap(X), float)
+        faster than mapping the general function; one map kept per number of columns)."""
+        key = (self.pv.tobytes(), self.u.tobytes())
+        if getattr(self, "_zbase", None) is None or self._zbase[0] != key:
+            Xs = ca.SX.sym("x", self.model.nx)
+            self._zbase = (key, ca.Function("zx", [Xs], [self._sw.z(Xs, self.u, self.pv)]), {})
+        maps = self._zbase[2]
+        if X.shape[1] not in maps:
+            maps[X.shape[1]] = self._zbase[1].map(X.shape[1])
+        return np.asarray(maps[X.shape[1]](X), float)
 
     def _fheld(self, x, m):
         return np.asarray(self._sw.f(x, self.u, self.pv, m)[0], float).ravel()
@@ -167,9 +173,11 @@ class Flow:
         dte = -(g[k] @ Se + zw @ W) / den if den else np.zeros(W.shape[1])
         return m_new, Se + np.outer(fm - fp, dte)
 
-    def run(self, x0, T, k_param: int | str | None = None):
+    def run(self, x0, T, k_param: int | str | None = None, sens: bool = True):
         """x(T), M = dx(T)/dx0 and (with k_param) dx(T)/dp_k (k_param a parameter's index)
-        or dx(T)/du (k_param a held input's name): the held model integrated
+        or dx(T)/du (k_param a held input's name); with ``sens=False`` x(T) alone (M and
+        the derivative None: the same steps and events, one zero direction instead of
+        nx, several times cheaper). The held model integrated
         between events, window by window (:data:`WINDOWS` per period, the indicators
         checked at :data:`EVENT_GRID` samples per period), each event located to
         round-off along the held flow, a saltation matrix applied at it (a switch that
@@ -177,15 +185,16 @@ class Flow:
         self.runs += 1
         nx, npar = self.model.nx, len(self.pv)
         if self.method == "rk4":
-            return self._run_fd(x0, T, k_param)
+            return self._run_fd(x0, T, k_param) if sens else (self.end(x0, T), None, None)
         sw, held = self._events()
-        sens = forward_sensitivities
-        nd = nx + (k_param is not None)
+        derivs, fs = sens, forward_sensitivities
+        nd = (nx + (k_param is not None)) if derivs else 1
         W = np.zeros((npar + held.nz + self.model.nu, nd))
-        if k_param is not None:
+        if k_param is not None and derivs:
             W[self._direction(k_param, npar, held.nz), nx] = 1.0
         S = np.zeros((nx, nd))
-        S[:, :nx] = np.eye(nx)
+        if derivs:
+            S[:, :nx] = np.eye(nx)
         x = np.asarray(x0, float).copy()
         m = self.modes(x)
         t, n_events = 0.0, 0
@@ -201,7 +210,7 @@ class Flow:
             n = max(8, int(math.ceil(EVENT_GRID * span / T)))
             grid = np.linspace(0.0, span, n + 1)
             pm = np.concatenate([self.pv, m, np.zeros(self.model.nu)])
-            X, SX, _ = sens(held, self.sig, grid, pm, x, W, S, RTOL, ATOL)
+            X, SX, _ = fs(held, self.sig, grid, pm, x, W, S, RTOL, ATOL)
             Z = self._z_samples(X)
             flip = (m[:, None] != 0) & (np.sign(Z) == -m[:, None])
             flip[:, 0] = False  # at an event's own state the flipped indicator is still ~0
@@ -210,6 +219,8 @@ class Flow:
                 x, S = X[:, -1], SX[-1].T
                 t += span
                 if span == left:
+                    if not derivs:
+                        return x, None, None
                     return x, S[:, :nx], (S[:, nx] if k_param is not None else None)
                 continue
             j = int(hit[0])
@@ -227,7 +238,7 @@ class Flow:
                 if tau <= 1e-9 * T:  # too short a step for the driver: first order (error ~ tau^2)
                     return xa + tau * self._fheld(xa, m), Sa + tau * self._jheld(xa, m) @ Sa
                 Ww, Ss = (W, Sa) if ns else (W[:, :1] * 0, Sa[:, :1] * 0)
-                Xe, SXe, _ = sens(held, self.sig, np.array([0.0, tau]), pm, xa, Ww, Ss, RTOL, ATOL)
+                Xe, SXe, _ = fs(held, self.sig, np.array([0.0, tau]), pm, xa, Ww, Ss, RTOL, ATOL)
                 return Xe[:, -1], SXe[-1].T
 
             for _ in range(8):  # Newton on z_k(x(tau)) = 0 along the held flow (the state alone)
@@ -262,8 +273,8 @@ class Flow:
         xT = self.end(x0, T)
         nx = self.model.nx
         M = np.empty((nx, nx))
-        for j in range(nx):  # central differences of the rollout, 1e-6 of full scale
-            h = 1e-6 * scale[j]
+        for j in range(nx):  # central differences of the rollout, FD_STEP of full scale
+            h = FD_STEP * scale[j]
             e = np.zeros(nx)
             e[j] = h
             M[:, j] = (self.end(x0 + e, T) - self.end(x0 - e, T)) / (2 * h)

@@ -58,6 +58,8 @@ STEP_MAX = 0.05
 #: slips (measured on the aircraft loop: over 25 Newton steps the residual wanders between
 #: 1e-6 and 2e-5, below 1e-6 only by chance).
 FD_TOL = 1e-5
+#: Most halvings of a finite-difference Newton step (each tried by one rollout).
+BACKTRACK = 3
 
 
 @dataclass(repr=False)
@@ -233,9 +235,28 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
                 from exc
         big = float(np.max(np.abs(dz[:nx])))
         dz = dz * (STEP_MAX / big) if big > STEP_MAX else dz  # damped where the linear model is far off
-        x, T = x + dz[:nx] * D, T * math.exp(float(np.clip(dz[nx], -0.5, 0.5)))
+        x, T = _backtracked(flow, x, T, dz, D, res) if flow.method == "rk4" else _stepped(x, T, dz, D)
     raise OrbitNotFound(f"no periodic orbit near the start: periodicity residual {residuals[-1]:.2g} after "
                         f"{iterations} Newton steps (need < {tol:g})")
+
+
+def _stepped(x, T, dz, D, s=1.0):
+    return x + s * dz[:len(x)] * D, T * math.exp(float(np.clip(s * dz[len(x)], -0.5, 0.5)))
+
+
+def _backtracked(flow: Flow, x, T, dz, D, res):
+    """The finite-difference fallback's Newton step, halved (at most :data:`BACKTRACK`
+    times) until the residual at its end, from one rollout, is below ``res``; where none
+    is, the trial with the smallest residual (the rollout is not smooth in its start: a
+    full step can land on the far side of a stick or slip)."""
+    best = None
+    for k in range(BACKTRACK + 1):
+        xn, Tn = _stepped(x, T, dz, D, 0.5**k)
+        rn = float(np.max(np.abs((flow.run(xn, Tn, sens=False)[0] - xn) / D)))
+        best = (rn, xn, Tn) if best is None or rn < best[0] else best
+        if rn < res:
+            break
+    return best[1], best[2]
 
 
 def _start_from_simulation(model, s, t_warm, signal, dt, inputs, zoh=False):

@@ -393,6 +393,9 @@ def check_request(model: Model, move, load, objective, duration, start, through,
     if through not in LEVELS:
         raise OptimalError(f"through '{through}' unknown; choose one of {', '.join(LEVELS)}")
     intervals = integer(intervals, "intervals", OptimalError, minimum=4)
+    if through == "ecu" and objective != "time":
+        raise OptimalError(f"through ecu: command shaping minimises the time to the 2 % band (objective time), "
+                           f"not '{objective}'")
     if objective == "time":
         if duration is not None:
             raise OptimalError("duration: a minimum-time move has no given duration (objective energy or heat)")

@@ -45,7 +45,7 @@ class OptimalMove:
     binding : list of str
         The ratings the optimum sits on (margin below 1e-3).
     ipopt : dict
-        ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``,
+        ``solver``, ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``,
         ``solver_warnings`` (CasADi's warnings during the solve, kept off stderr: NaN trial points).
     variants : dict
         The smooth variants the problem was solved on.
@@ -59,7 +59,10 @@ class OptimalMove:
     replay : SimResult or None
         The command profile replayed in the full model (:meth:`replayed`).
     replay_check : dict
-        Per rating, its peak in the replay and whether it held (``within``).
+        Per rating, its peak in the replay, whether it held (``within``) and the ECU step's
+        peak beside it (``ecu_step_peak``).
+    profile : tuple or None
+        A shaped command's own table rows (t, x_cmd) (``through = "ecu"``), else None.
     """
 
     objective: str
@@ -81,6 +84,7 @@ class OptimalMove:
     rod: str
     command: str
     rating_signals: dict = field(default_factory=dict)
+    profile: tuple | None = None
     ecu_step: dict = field(default_factory=dict)
     replay: object = None
     replay_check: dict = field(default_factory=dict)
@@ -88,7 +92,8 @@ class OptimalMove:
     def __repr__(self):
         return (f"OptimalMove({self.objective}, through {self.through}: {self.move * 1e3:g} mm under "
                 f"{self.load / 1e3:g} kN in {self.duration:.5g} s, cost {self.cost:.5g}, "
-                f"binding {', '.join(self.binding) or 'none'}, IPOPT {self.ipopt['status']})")
+                f"binding {', '.join(self.binding) or 'none'}, {self.ipopt.get('solver', 'IPOPT')} "
+                f"{self.ipopt['status']})")
 
     @property
     def command_profile(self) -> tuple[np.ndarray, np.ndarray]:
@@ -96,6 +101,8 @@ class OptimalMove:
         optimal command's steps (``through = "ecu"``: the start at t = 0, each
         interval's value from ``STAIR`` after its start to its end) or the optimal rod
         trajectory (``through = "drive"``)."""
+        if self.profile is not None:  # a shaped command's own table rows
+            return tuple(np.asarray(v, float).copy() for v in self.profile)
         if self.through == "ecu":
             # at the start at t = 0 (where a replay trims), then each interval's value from STAIR after its start
             v = next(iter(self.controls.values()))

@@ -40,6 +40,7 @@ import math
 import numbers
 import re
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -198,8 +199,13 @@ class _Term:
         """Values on a NumPy time grid."""
         t = np.asarray(t, dtype=float)
         if self.kind == "table":
-            return np.interp(t, *self.table)
+            return np.interp(t, *self._arrays)
         return self._formula(t, np.sin, lambda c: np.where(c, 1.0, 0.0))
+
+    @cached_property
+    def _arrays(self):
+        """The table as arrays, made once (not a field: equality and hash keep to the table)."""
+        return tuple(np.asarray(c, float) for c in self.table)
 
     def sym(self, t):
         """CasADi expression of the symbol t (the same formula)."""
@@ -435,7 +441,7 @@ class Signal:
             raise SignalError("Signal.table: a table needs at least two rows with strictly increasing t")
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
             raise SignalError("Signal.table: non-finite value in the table")
-        return Signal((_Term("table", table=(tuple(map(float, t)), tuple(map(float, v)))),), "table")
+        return Signal((_Term("table", table=(tuple(t.tolist()), tuple(v.tolist()))),), "table")
 
 
 def check_signal(sig: Signal, what: str, error: type, t_end: float, *, limit: float | None = None, unit: str = "",

@@ -72,9 +72,13 @@ from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, 
 from ._rk4 import STEPS_PER_CALL, outputs_at, rk4_step_function, sampling_split
 from ._sensitivity import REPLAY_LIMIT, forward_sensitivities, sensitivity_library
 from ._steplimit import (
+    DT_DEFAULT,
+    DT_MARGIN,
     RK4_REAL_REACH,
     StepLimit,
     StepLimitWarning,
+    default_step,
+    inside_limit,
     peak_load,
     rk4_growth,
     rk4_reach,
@@ -94,5 +98,6 @@ __all__ = [
     "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
     # RK4's stability limit and the ECU's sample instants
     "rk4_step_limit", "StepLimit", "StepLimitWarning", "rk4_reach", "rk4_growth", "RK4_REAL_REACH", "step_check",
+    "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN",
     "sampling_split", "sample_periods", "peak_load",
 ]

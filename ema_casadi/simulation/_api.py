@@ -44,7 +44,7 @@ from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 from ._rosenbrock import _simulate_rosenbrock, library
-from ._steplimit import fixed_step, step_check
+from ._steplimit import default_step, fixed_step, step_check
 
 if TYPE_CHECKING:
     from ..signals import Signal
@@ -75,7 +75,7 @@ def simulate(
     eta: Signal | float | str | None = None,
     *,
     inputs: dict | None = None,
-    dt: float = 1e-5, solver: str = "auto",
+    dt: float | None = None, solver: str = "auto",
     params: Parameters | None = None, p: np.ndarray | None = None,
     x0: np.ndarray | None = None, from_trim: bool = False, zoh: bool = False,
     decimate: int | None = None, dt_out: float | None = None,
@@ -105,8 +105,8 @@ def simulate(
     **signals : Signal, float or str
         Any other model input by name (``model.inputs``, e.g. ``d_x``), strings in its
         quantity's unit; undriven inputs take their declared default.
-    dt : float
-        RK4 step (s).
+    dt : float, optional
+        RK4 step (s); default 1e-5 s, or inside RK4's stability limit (:func:`~ema_casadi.simulation.default_step`).
     solver : {"auto", "rk4", "cvodes", "rosenbrock"}
         ``auto`` (default): ``rosenbrock`` (compiled RODAS4; ``cvodes`` without a C
         compiler) at :data:`AUTO_RTOL`, :data:`AUTO_ATOL` on a continuous model, ``rk4``
@@ -141,6 +141,9 @@ def simulate(
     (solver, why), requested, (rtol, atol) = choose_solver(model, solver, zoh), solver, tolerances(solver, rtol, atol)
     if from_trim and x0 is not None:
         raise SimulationError("give x0 or from_trim, not both")
+    if dt is None:  # inside RK4's stability limit (simulation/_steplimit.py)
+        dt = default_step(model, t_end, lambda: (_given(model, x_cmd, f_ext, eta, inputs, signals), _values(
+            model, params, p, x0)[0]), zoh or bool(model.switched), dt_out, solver == "rk4" or bool(model.switched))
     if model.switched:  # a PWM bridge: the carrier-synchronous stepper (module _pwm)
         given = _given(model, x_cmd, f_ext, eta, inputs, signals)
         res = _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decimate, jit, progress, from_trim)

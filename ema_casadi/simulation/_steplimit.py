@@ -37,7 +37,13 @@ import numpy as np
 from ..model.assembly import Model
 
 __all__ = ["StepLimit", "StepLimitWarning", "rk4_step_limit", "rk4_reach", "rk4_growth", "RK4_REAL_REACH",
-           "step_check", "peak_load", "sample_periods"]
+           "step_check", "peak_load", "sample_periods", "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN"]
+
+#: :func:`~ema_casadi.simulation.simulate`'s RK4 step without ``dt`` where it is inside
+#: :data:`DT_MARGIN` x RK4's stability limit (s): hybrid friction (0.26 ms limit).
+DT_DEFAULT = 1e-5
+#: A default step's largest fraction of the stability limit.
+DT_MARGIN = 0.8
 
 
 def _R(z):
@@ -141,10 +147,12 @@ class StepLimit:
                 f"{_complex(lam)} 1/s of {st}, {pt}: it grows x{rk4_growth(dt * lam):.3g} per step until a "
                 f"nonlinearity bounds it, a chatter of {st}); use a step of at most {self.dt_max:.3g} s")
 
-    def inside(self, periods=(), margin: float = 0.8, cap: float | None = None) -> float:
+    def inside(self, periods=(), margin: float = 0.8, cap: float | None = None, lengths=()) -> float:
         """The largest step at most ``margin`` x :attr:`dt_max` (and ``cap``) that divides
         every period in ``periods`` (s; the ECU's sample periods): a round step (1,
-        1.25, 2, 2.5 or 5 x 10^k s) or the fastest period over a whole number of steps.
+        1.25, 2, 2.5 or 5 x 10^k s) or the fastest period over a whole number of steps;
+        of those, one that also divides every length in ``lengths`` (s: a run's end and
+        sample spacing) where one does.
 
         Parameters
         ----------
@@ -154,6 +162,8 @@ class StepLimit:
             Fraction of the limit to stay under.
         cap : float, optional
             A largest step (s) on top of the limit.
+        lengths : iterable of float
+            Lengths the step should also divide where one of the steps does (s).
         """
         h = margin * self.dt_max if cap is None else min(cap, margin * self.dt_max)
         periods = sorted(float(T) for T in periods)
@@ -161,7 +171,8 @@ class StepLimit:
         if periods:  # the fastest period over a whole number of steps
             dt = periods[0] / math.ceil(periods[0] / h - 1e-12)
             fits += [dt] if all(_whole(T / dt) for T in periods) else []
-        return max(fits) if fits else h
+        whole = [dt for dt in fits if all(_whole(L / dt) for L in lengths)]
+        return max(whole or fits) if fits else h
 
 
 def _round_steps(h: float) -> list:
@@ -353,3 +364,72 @@ def sample_periods(model: Model, pv=None) -> dict:
     """
     pv = model.p() if pv is None else pv
     return {name: 1.0 / float(pv[model.param_names.index(loop.rate)]) for name, loop in model.loops.items()}
+
+
+def default_step(model: Model, t_end, inputs, zoh: bool, dt_out=None, fixed: bool = True) -> float:
+    """The RK4 step of a run without ``dt``: :data:`DT_DEFAULT` where it is inside
+    :data:`DT_MARGIN` x RK4's stability limit at the run's parameters and largest load
+    (:func:`rk4_step_limit`), else the largest step inside it that divides the ECU's
+    sample periods with ``zoh`` (and ``t_end`` and ``dt_out`` where one does,
+    :meth:`StepLimit.inside`). Not ``fixed`` (a variable-step solver runs), or a
+    ``t_end`` that is not a positive number: DT_DEFAULT (the run's checks refuse it).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    t_end : float
+        The run's end (s).
+    inputs : callable
+        ``() -> (given, pv)``: input name -> the value given (the undriven inputs take
+        their defaults), and the parameter vector.
+    zoh : bool
+        The sampled ECU (a switched model's is always sampled).
+    dt_out : float, optional
+        The run's sample spacing (s).
+    fixed : bool
+        RK4 runs.
+    """
+    from ._inputs import input_signals
+
+    if not fixed or isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not 0 < t_end < math.inf:
+        return DT_DEFAULT
+    given, pv = inputs()
+    sig = input_signals(model, given, pv)  # without the noise sequences (peak_load reads the load)
+    limit = rk4_step_limit(model, p=pv, load=peak_load(model, sig, float(t_end)), zoh=zoh)
+    if DT_DEFAULT <= DT_MARGIN * limit.dt_max:
+        return DT_DEFAULT
+    lengths = (float(t_end),) + ((float(dt_out),) if isinstance(dt_out, (int, float)) and dt_out > 0 else ())
+    return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, DT_DEFAULT, lengths)
+
+
+def inside_limit(model: Model, signals: dict, t_end: float, zoh: bool, cap: float, lengths=(), pv=None) -> float:
+    """The largest step under :data:`DT_MARGIN` x RK4's stability limit on ``model`` at
+    its parameters and the largest load of ``signals`` (:func:`rk4_step_limit`), at
+    most ``cap``, dividing the ECU's sample periods with ``zoh`` (and ``lengths`` where
+    one does; :meth:`StepLimit.inside`): the default step of a fault table or a sweep.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    signals : dict
+        Input name or role -> Signal or value of the run (a role the model lacks: left out).
+    t_end : float
+        The run's end (s).
+    zoh : bool
+        The sampled ECU.
+    cap : float
+        The largest step (s).
+    lengths : iterable of float
+        Lengths the step should divide (s: the run's end, its sample spacing).
+    pv : ndarray, optional
+        The parameter vector (default the model's).
+    """
+    from ._inputs import input_signals
+
+    pv = model.p() if pv is None else pv
+    given = {model.input_name(k): v for k, v in signals.items() if k in model.inputs or model.inputs_with(k)}
+    sig = input_signals(model, given, pv)
+    limit = rk4_step_limit(model, p=pv, load=peak_load(model, sig, t_end), zoh=zoh)
+    return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, cap, tuple(lengths))

@@ -208,6 +208,8 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
     from ..simulation import check_run
 
     models = [build_model(spec.params, dict(v)) for v in sorted({r.variant for r in spec.runs})]
+    if spec.scenario.get("dt") is None:  # not in the file
+        spec.scenario["dt"] = default_dt(models, spec.scenario)
     out = {}
     for name, given in metrics.items():
         if name not in METRICS:
@@ -225,6 +227,25 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
                       zoh=bool(sc.get("zoh")), labels=labels, error=error)
             _check_step(m, sc, labels["dt"], error)
     return out
+
+
+#: The largest RK4 step of a sweep whose file gives no ``dt`` (s): the hybrid friction's.
+SWEEP_DT = 1e-4
+
+
+def default_dt(models, sc) -> float:
+    """The RK4 step of a scenario without ``dt``: the largest step under 0.8 x RK4's
+    stability limit on each model where rk4 runs (at the nominal parameters and the
+    scenario's largest load), at most :data:`SWEEP_DT`, dividing the ECU's sample
+    periods with ``zoh`` (and the duration and ``dt_out`` where one does;
+    :meth:`~ema_casadi.simulation.StepLimit.inside`). SWEEP_DT where no model runs rk4."""
+    from ..simulation import choose_solver, inside_limit
+
+    zoh = bool(sc.get("zoh"))
+    lengths = (sc["duration"],) + ((sc["dt_out"],) if sc.get("dt_out") else ())
+    steps = [inside_limit(m, sc["signals"], sc["duration"], zoh, SWEEP_DT, lengths) for m in models
+             if choose_solver(m, sc["solver"], zoh)[0] == "rk4"]
+    return min(steps, default=SWEEP_DT)
 
 
 def _check_step(model, sc, label, error) -> None:

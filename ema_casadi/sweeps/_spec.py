@@ -467,7 +467,7 @@ def _shown(values: dict) -> str:
 
 def _settings(table: dict, where: str) -> dict:
     """The scenario's run settings (duration, steps, tolerances, solver, zoh), checked."""
-    out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": 1e-4}
+    out = {"duration": 1.0, "solver": table.get("solver", "auto"), "dt": None}  # None: _metrics.default_dt
     for key in ("duration", "dt", "dt_out", "rtol", "atol", "event_tol"):
         if key in table:
             out[key] = _num(where, table, key)

@@ -22,6 +22,7 @@ def _run(capsys, *args):
     (("--objective", "speed"), "--objective speed: unknown"),
     (("--objective", "energy", "--duration", "0.01"), "below the minimum time"),
     (("--through", "cascade"), "--through cascade: unknown"),
+    (("--through", "ecu", "--objective", "energy", "--duration", "0.3"), "command shaping minimises the time"),
 ])
 def test_bad_requests_exit_2_with_one_line(capsys, tmp_path, args, words):
     out = tmp_path / "out"
@@ -42,6 +43,30 @@ def test_minimum_time_move_writes_a_command_simulate_reads(capsys, tmp_path):
     status = main(["simulate", str(REFERENCE), "--x-cmd", f"{out / 'command.csv'}:x_cmd", "--t-end", "0.2", "--json"])
     sim = json.loads(capsys.readouterr().out)
     assert status == 0 and abs(sim["final"]["x_rod"] - 0.01) < 2e-4, sim.get("final")
+
+
+def test_shaped_command_through_the_ecu_read_back_by_simulate(capsys, tmp_path):
+    # the shaped command written as command.csv and run by `ema simulate --x-cmd FILE.csv:x_cmd` in the full
+    # model: its 2 % settling time from the run's own CSV sooner than the ECU's step (measured 0.1228 s, 0.1307 s)
+    import numpy as np
+
+    from ema_casadi.simulation import step_response_metrics
+
+    out = tmp_path / "opt"
+    status, text, err = _run(capsys, "--move", "10mm", "--through", "ecu", "--json", "--out", out)
+    assert status == 0, err
+    r = json.loads(text)
+    step = r["ecu_step_settling_time_s"]
+    run = tmp_path / "run.csv"
+    status = main(["simulate", str(REFERENCE), "--x-cmd", f"{out / 'command.csv'}:x_cmd", "--t-end", "0.2",
+                   "--out", str(run)])
+    capsys.readouterr()
+    assert status == 0
+    head = run.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(run, delimiter=",", skiprows=2)
+    t, x = data[:, 0], data[:, head.index("x_rod")]
+    settle = step_response_metrics(t, x / 0.01)["settling_time_s"]
+    assert settle < 0.98 * step and settle == pytest.approx(r["replay"]["settling_time_s"], abs=2e-4), (settle, step)
 
 
 def test_envelope_table(capsys, tmp_path):

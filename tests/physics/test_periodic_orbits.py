@@ -211,16 +211,15 @@ def test_sampled_ecu_orbit_by_the_fallback_vs_long_simulation(hunting):
 def test_aircraft_backlash_orbit_vs_long_simulation(params):
     # studies/aircraft_backlash.py at B = 0.3 mm: 747, rigid screw, hybrid friction. Hybrid
     # friction switches (stick-slip): the monodromy matrix is taken by central differences
-    # of the fixed-step RK4 rollout (1e-4 s), the stated fallback. Measured: orbit 1.7541 Hz,
-    # x_cmd first harmonic 16.68 um; the 300 s run 1.75 Hz, 16.7 um; trivial multiplier
-    # 0.993 (the fallback's accuracy), periodicity residual 7e-8. The describing function
-    # (1.51 Hz at this B, tests/physics/test_limit_cycles.py) is 14 % low, reported beside it
+    # of the fixed-step RK4 rollout at its default step (6.25e-5 s, inside RK4's stability
+    # limit), the stated fallback, each Newton step halved until the residual falls.
+    # Measured: orbit 1.7541 Hz, x_cmd first harmonic 16.68 um in 10 Newton steps,
+    # residual 1.5e-6; the 300 s run (1e-4 s) 1.75 Hz, 16.7 um; trivial multiplier 0.9933
+    # (the fallback's accuracy), the next |mu| 0.981. The describing function (1.51 Hz at
+    # this B, tests/physics/test_limit_cycles.py) is 14 % low, reported beside it
     model = ema.build_model(params, {"airframe": "b747", "friction": "hybrid", "screw": "rigid"})
     p = model.p(B=3e-4)
-    # at the study's RK4 step, 1e-4 s (the default, inside RK4's stability limit, 6.25e-5 s, does not converge
-    # from this start: the fallback's Newton wanders at residual 1e-2 over 25 steps, measured)
-    orb = periodic_orbit(model, "aircraft", p=p, t_warm=100.0, dt=1e-4,
-                         prediction={"amplitude": 14.9e-6, "freq_hz": 1.51})
+    orb = periodic_orbit(model, "aircraft", p=p, t_warm=100.0, prediction={"amplitude": 14.9e-6, "freq_hz": 1.51})
     assert orb.info["method"] == "rk4"
     res = setup(model, "aircraft", p)["confirm"](300.0, 1e-4)
     sim = cycle_of(res.t, res["x_cmd"], 150.0)
