@@ -120,6 +120,7 @@ def main(argv=None) -> int:
            "ipopt": res.info["ipopt"], "candidates": res.info["candidates"], "admissible": res.info["admissible"],
            "geometric_mean_ratio": comp["geometric_mean_ratio"], "corr_J_m_psi": res.correlation("J_m", "psi"),
            "corr_J_m_psi_standard": res.correlation("J_m", "psi", standard=True), "limits_used": res.usage,
+           "standard_limits_used": res.info["standard_usage"], "cpu_count": os.cpu_count(),
            "widths": comp["parameters"]}
     if not a.quick:
         fr, sig = res.free, res.info["sigma"]
@@ -151,6 +152,8 @@ def main(argv=None) -> int:
               f"{out['ipopt']['iterations']} iterations)")
         print(f"widths {comp['geometric_mean_ratio']:.3g}x narrower (geometric mean) than chirp+steps+slews; "
               f"corr(J_m, psi) {out['corr_J_m_psi']:+.3f} (standard {out['corr_J_m_psi_standard']:+.3f})")
+        print("limits used (fraction): designed " + ", ".join(f"{k} {v:.3g}" for k, v in res.usage.items())
+              + "; standard " + ", ".join(f"{k} {v:.3g}" for k, v in res.info["standard_usage"].items()))
         for name, d in out.get("fisher", {}).items():
             e = max(abs(v) for v in d["width_error"].values())
             print(f"  FIM {name}: {d['time_s']:.2f} s, largest width error {100 * e:.3g} %")

@@ -4,7 +4,7 @@ The command and load profile of --duration seconds whose 95 % intervals of the -
 parameters are smallest (D: the confidence ellipsoid's volume, A: the sum of the
 relative variances, E: the largest; --weights NAME=W,... weights them, 0 leaves one
 out), within +-stroke, the rig's load capability and the limits the parts declare
-(motor current, speed command, voltage), from the Fisher information of the exact
+(motor current, rod speed (--max-speed), voltage, temperatures), from the Fisher information of the exact
 forward sensitivities identify fits with. The test is a sequence of 1 s segments
 (multisines of 1-50 Hz and constant-speed slews at five load levels); IPOPT chooses
 their shares (a convex problem), --prior FITTED.toml averages the information over
@@ -42,6 +42,9 @@ def add_arguments(p):
     p.add_argument("--stroke", default="10mm", metavar="X", help="the rod stays within +-X; default 10 mm")
     p.add_argument("--max-load", default="15kN", metavar="F",
                    help="load capability of the rig (0: none); default 15 kN")
+    p.add_argument("--max-speed", default=None, metavar="V",
+                   help="bound on the rod speed, the speed loop's overshoot included; default and at most the "
+                        "rated rod speed the model declares")
     p.add_argument("--sigma", action="append", default=[], metavar="CHANNEL=VALUE",
                    help="sensor noise of a channel, repeatable (0.3um, 0.05A); default a typical rig's")
     p.add_argument("--channels", default=None, metavar="NAME[,NAME...]",
@@ -61,8 +64,8 @@ def add_arguments(p):
 #: Where a flag has no effect (every other flag acts in every combination): --seed seeds
 #: the prior's draws and --verify's noise, so without either it would change nothing.
 NO_EFFECT = {
-    **{f: () for f in ("--free", "--duration", "--criterion", "--weights", "--stroke", "--max-load", "--sigma",
-                       "--channels", "--prior", "--draws", "--verify", "--out")},
+    **{f: () for f in ("--free", "--duration", "--criterion", "--weights", "--stroke", "--max-load", "--max-speed",
+                       "--sigma", "--channels", "--prior", "--draws", "--verify", "--out")},
     "--seed": (NoEffect(("--seed", "3"), "without --draws above 1, --prior or --verify (it seeds the prior's draws "
                         "and the simulated noise)",
                         lambda a: not a.verify and a.prior is None and (a.draws or 1) <= 1),),
@@ -111,7 +114,8 @@ def _sigma(items, model) -> dict:
         try:
             out[key] = parse_quantity(value, kind, units[key]) if kind else float(value)
         except (SignalError, ValueError):
-            raise UserError(f"--sigma {key}={value}: expected a number (SI) or a quantity in a {kind} unit") from None
+            what = f"a number (SI) or a quantity in a {kind} unit" if kind else f"a number in {units[key]} (SI)"
+            raise UserError(f"--sigma {key}={value}: expected {what}") from None
     return out
 
 
@@ -126,9 +130,10 @@ def run(args) -> dict:
     duration = _quantity(args.duration, "time", "--duration")
     stroke = _quantity(args.stroke, "length", "--stroke")
     max_load = _quantity(args.max_load, "force", "--max-load")
+    max_speed = None if args.max_speed is None else _quantity(args.max_speed, "rate", "--max-speed")
     params, model = load(args)
     kw = {"criterion": args.criterion.strip().upper(),
-          "weights": _weights(args.weights), "stroke": stroke, "max_load": max_load,
+          "weights": _weights(args.weights), "stroke": stroke, "max_load": max_load, "max_speed": max_speed,
           "sigma": _sigma(args.sigma, model), "channels": args.channels, "prior": args.prior, "draws": args.draws,
           "seed": args.seed, "variants": None, "progress": progress_of(args)}
     try:
@@ -161,7 +166,9 @@ def report(result: dict) -> None:
     w("limits used (fraction): " + ", ".join(f"{k} {v:.3g}" for k, v in result["limits_used"].items()) + "\n")
     v = result.get("verification")
     if v:
-        w(f"verify: {v['converged']} of {v['n']} fits converged, coverage of the truth {100 * v['coverage']:.3g} %, "
+        w(f"verify: {v['converged']} of {v['n']} fits converged, {v['adequate']} adequate; coverage of the truth "
+          f"{100 * v['coverage']:.3g} % of their {v['intervals_checked']} intervals "
+          f"({100 * v['coverage_every_fit']:.3g} % over every converged fit), "
           f"limits {'respected' if v['limits_respected'] else 'LEFT'}\n")
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "

@@ -15,6 +15,7 @@ from ._design import DEFAULT_FREE, SPREAD, DesignError, DesignFailed, design_exp
 from ._excitation import (
            RAMP,
            STANDARD_PARTS,
+           STANDARD_SPEED,
            TAPER,
            Segment,
            Test,
@@ -24,14 +25,26 @@ from ._excitation import (
            standard_test,
 )
 from ._fisher import PHYSICAL, Information, information, intervals, limit_usage
-from ._library import AMPLITUDES, BANDS, LIMIT_TOLERANCE, LOAD_LEVELS, SLEWS, STROKE_MARGIN, admissible, candidates
+from ._library import (
+           AIM,
+           AMPLITUDES,
+           BANDS,
+           LIMIT_TOLERANCE,
+           LOAD_LEVELS,
+           SLEWS,
+           STROKE_MARGIN,
+           admissible,
+           at_limits,
+           candidates,
+)
 from ._optimise import CRITERIA, criterion, efficient_rounding, optimal_weights
 from ._result import DesignResult
 from ._verify import START_SPREAD
 
 __all__ = ["design_experiment", "DesignResult", "DesignError", "DesignFailed", "read_prior", "DEFAULT_FREE", "SPREAD",
-           "Segment", "Test", "STANDARD_PARTS", "output_names", "realise", "segment_command", "standard_test",
-           "RAMP", "TAPER",
+           "Segment", "Test", "STANDARD_PARTS", "STANDARD_SPEED", "output_names", "realise", "segment_command",
+           "standard_test", "RAMP", "TAPER",
            "Information", "information", "intervals", "limit_usage", "PHYSICAL",
-           "candidates", "admissible", "BANDS", "SLEWS", "LOAD_LEVELS", "AMPLITUDES", "STROKE_MARGIN",
-           "LIMIT_TOLERANCE", "CRITERIA", "criterion", "optimal_weights", "efficient_rounding", "START_SPREAD"]
+           "candidates", "admissible", "at_limits", "AIM", "BANDS", "SLEWS", "LOAD_LEVELS", "AMPLITUDES",
+           "STROKE_MARGIN", "LIMIT_TOLERANCE", "CRITERIA", "criterion", "optimal_weights", "efficient_rounding",
+           "START_SPREAD"]

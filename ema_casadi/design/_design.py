@@ -18,7 +18,7 @@ from ..model.params import Parameters
 from ..simulation import RunFailed, progress_bar
 from ._excitation import realise, standard_test
 from ._fisher import information, intervals
-from ._library import admissible, candidates, evaluate
+from ._library import admissible, at_limits, candidates, evaluate
 from ._optimise import CRITERIA, efficient_rounding, optimal_weights
 from ._optimise import criterion as criterion_value
 
@@ -86,21 +86,26 @@ def read_prior(path) -> dict:
 
 
 def _thetas(fr, prior: dict | None, draws: int, spread: float, seed: int) -> tuple[list, np.ndarray]:
-    """The prior's draws (the first the centre) and the standard deviations of the
-    optimiser coordinates they were drawn with."""
+    """The prior's draws (the first the centre: the prior's estimates where it gives
+    them, else the file's values) and the standard deviations of the optimiser
+    coordinates they were drawn with (a prior's parameter from its 95 % interval, one it
+    does not give at 0, every parameter at ``spread`` without a prior)."""
     sd = np.full(len(fr.names), spread)
+    centre = fr.theta0.copy()
     if prior is not None:
         for k, n in enumerate(fr.names):
             if n in prior:
                 est, lo, hi = prior[n]
+                centre[k] = est
                 sd[k] = (math.log(hi / lo) if fr.log[k] and lo > 0 else (hi - lo) / abs(est or 1.0)) / (2 * 1.959964)
             else:
                 sd[k] = 0.0
     rng = np.random.default_rng(seed)
     z_lo, z_hi = fr.z_bounds()
-    thetas = [fr.theta0.copy()]
+    zc = fr.z(centre)
+    thetas = [centre]
     for _ in range(1, draws):
-        z = np.clip(rng.normal(0.0, sd), z_lo + 1e-9, z_hi - 1e-9)
+        z = np.clip(zc + rng.normal(0.0, sd), z_lo + 1e-9, z_hi - 1e-9)
         thetas.append(fr.theta(z))
     return thetas, sd
 
@@ -126,13 +131,14 @@ def _sigma(model, channels, sigma) -> dict:
 
 def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "D",
                       weights: dict | None = None, stroke: float = 0.01, max_load: float = 15e3,
-                      sigma: dict | None = None, channels=None, prior=None, draws: int | None = None,
-                      spread: float = SPREAD, segment: float = 1.0, rate: float = 2000.0,
+                      max_speed: float | None = None, sigma: dict | None = None, channels=None, prior=None,
+                      draws: int | None = None, spread: float = SPREAD, segment: float = 1.0, rate: float = 2000.0,
                       library=None, variants: dict | None = None, seed: int = 0, progress: bool = False):
     """Design the rig test (command and load profile) whose 95 % intervals of the ``free``
     parameters are smallest by a criterion, within the test's stroke, the load capability
-    and the limits the parts declare (motor current, speed command, voltage), from the
-    Fisher information of exact forward sensitivities (the ones ``identify`` fits with).
+    and the limits the parts declare (the current and voltage ratings, the rated rod
+    speed, temperatures), from the Fisher information of exact forward sensitivities
+    (the ones ``identify`` fits with).
 
     Parameters
     ----------
@@ -152,6 +158,11 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         The test's stroke (m): the rod stays within +-stroke (with a 5 % margin).
     max_load : float
         Load capability of the rig (N): load levels within +-max_load (0: no load).
+    max_speed : float, optional
+        The rod's speed bound (m/s) on the predicted trajectory, the speed loop's
+        overshoot included; default the rated rod speed the model declares (its
+        operating limit), at most that (a lower one: the rig's, or the ECU's rate limit
+        to keep the rod below it).
     sigma : dict, optional
         Channel -> sensor noise (SI); default a typical rig's (0.3 um, 0.05 A, ...).
     channels : sequence of str, optional
@@ -185,21 +196,13 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         the limits used.
     """
     t_wall = time.perf_counter()
-    req = _request(params, free, duration, criterion, weights, stroke, max_load, sigma, channels, prior, draws, spread,
-                   segment, rate, library, variants, seed)
+    req = _request(params, free, duration, criterion, weights, stroke, max_load, max_speed, sigma, channels, prior,
+                   draws, spread, segment, rate, library, variants, seed)
     return _run(req, progress, t_wall)
 
 
-def _peak_speed(model, infos) -> float:
-    """The rod's largest predicted speed over the draws as a fraction of the rate limit
-    (the ECU clips the speed command there; the rod may overshoot it briefly)."""
-    v = model.output_with("rod_velocity")
-    limit = model.limit_values().get("rod_speed", math.inf)
-    return float(max(np.max(np.abs(r["y"][v])) for i in infos for r in i.runs) / limit)
-
-
-def _request(params, free, duration, criterion, weights, stroke, max_load, sigma, channels, prior, draws, spread,
-             segment, rate, library, variants, seed) -> SimpleNamespace:
+def _request(params, free, duration, criterion, weights, stroke, max_load, max_speed, sigma, channels, prior, draws,
+             spread, segment, rate, library, variants, seed) -> SimpleNamespace:
     """Every argument checked (DesignError naming the first mistake), before any run."""
     if not isinstance(params, Parameters):
         raise DesignError("params: a Parameters object (from load_parameters)")
@@ -232,6 +235,12 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, sigma
     if max_load >= 0.95 * held:
         raise DesignError(f"--max-load {max_load / 1e3:g} kN: the current limit holds at most {held / 1e3:.3g} kN; "
                           f"no excitation keeps the motor current within it at that load")
+    rated = model.operating_limits().get("rod_speed", model.limit_values().get("rod_speed", math.inf))
+    if max_speed is None:
+        max_speed = rated
+    max_speed = number(max_speed, "--max-speed", DesignError, positive=True)
+    if max_speed > rated:
+        raise DesignError(f"--max-speed {max_speed * 1e3:g} mm/s: above the rated rod speed ({rated * 1e3:g} mm/s)")
     pw = np.ones(len(fr.names))
     for n, w in dict(weights or {}).items():
         if n not in fr.names:
@@ -270,6 +279,7 @@ def _run(req, progress: bool, t_wall: float):
 
     params, model, fr, sig, names = req.params, req.model, req.fr, req.sig, req.names
     segment, rate, stroke, max_load, n_seg = req.segment, req.rate, req.stroke, req.max_load, req.n_seg
+    lim = {"stroke": stroke, "max_load": max_load, "max_speed": req.max_speed}
     criterion, pw, duration, variants, library = req.criterion, req.pw, req.duration, req.variants, req.library
     prior, draws, spread, seed = req.prior, req.draws, req.spread, req.seed
     thetas, prior_sd = _thetas(fr, prior, draws, spread, seed)
@@ -280,12 +290,18 @@ def _run(req, progress: bool, t_wall: float):
     # the candidates: information per segment, limits along their predictions
     cands = candidates(segment, stroke, max_load) if library is None else list(library)
     t0 = time.perf_counter()
-    ev = evaluate(model, cands, segment, rate, fr, sig, thetas, stroke, max_load, names,
-                  lambda f: bar(0.8 * f, "candidates"))
+    ev = evaluate(model, cands, segment, rate, fr, sig, thetas, lim, names,
+                  lambda f: bar(0.6 * f, "candidates"))
+    extra = at_limits(cands, ev)  # the shapes whose largest amplitude leaves a limit, at the limits
+    if extra:
+        ev += evaluate(model, extra, segment, rate, fr, sig, thetas, lim, names,
+                       lambda f: bar(0.6 + 0.2 * f, "candidates at the limits"))
+        cands += extra
     t_cand = time.perf_counter() - t0
     ok = [k for k, e in enumerate(ev) if e is not None and admissible(e[1])]
     if not ok:
-        raise DesignFailed("no candidate segment keeps the limits (stroke, current, voltage) on its prediction")
+        raise DesignFailed("no candidate segment keeps the limits (stroke, current, rod speed, voltage) on its "
+                           "prediction")
     segs = [cands[k] for k in ok]
     Ms = np.array([ev[k][0] for k in ok])
     t0 = time.perf_counter()
@@ -298,10 +314,10 @@ def _run(req, progress: bool, t_wall: float):
                    key=lambda k: (segs[k].load, segs[k].kind, segs[k].band, segs[k].amplitude))
     test = realise([segs[k] for k in order], segment, rate, *names)
     bar(0.85, "the designed test")
-    infos = [information(model, test, fr, sig, th, stroke=stroke, max_load=max_load) for th in thetas]
-    standard = standard_test(duration, stroke, max_load, rate, *names)
+    infos = [information(model, test, fr, sig, th, **lim) for th in thetas]
+    standard = standard_test(duration, stroke, max_load, rate, *names, max_speed=req.max_speed)
     bar(0.95, "the standard test")
-    std_infos = [information(model, standard, fr, sig, th, stroke=stroke, max_load=max_load) for th in thetas]
+    std_infos = [information(model, standard, fr, sig, th, **lim) for th in thetas]
     usage = {n: max(i.usage[n] for i in infos) for n in infos[0].usage}
     if not admissible(usage):
         worst = max(usage, key=lambda n: usage[n] / (0.95 if n == "stroke" else 1.0))
@@ -319,12 +335,12 @@ def _run(req, progress: bool, t_wall: float):
             "candidates": len(cands), "admissible": len(ok), "draws": len(thetas),
             "prior_sd": dict(zip(fr.names, prior_sd.tolist(), strict=True)),
             "additive_criterion": opt["value"], "segment": segment, "rate": rate, "duration": duration,
-            "stroke": stroke, "max_load": max_load, "sigma": sig, "variant_overrides": dict(variants or {}),
+            "stroke": stroke, "max_load": max_load, "max_speed": req.max_speed, "sigma": sig,
+            "variant_overrides": dict(variants or {}),
             "time_candidates": t_cand, "time_optimiser": t_opt, "wall_time": time.perf_counter() - t_wall,
-            "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage},
-            "rod_speed_peak": {"designed": _peak_speed(model, infos), "standard": _peak_speed(model, std_infos)}}
+            "standard_usage": {n: max(i.usage[n] for i in std_infos) for n in std_infos[0].usage}}
     res = DesignResult(params=params, model=model, free=fr, test=test, standard=standard, M=M, M_standard=M_std,
-                       predicted=intervals(M, fr, fr.theta0), standard_predicted=intervals(M_std, fr, fr.theta0),
+                       predicted=intervals(M, fr, thetas[0]), standard_predicted=intervals(M_std, fr, thetas[0]),
                        usage=usage, segments=table, thetas=thetas, info=info, runs=infos[0].runs)
     res.candidates = list(zip(segs, Ms, strict=True))
     return res

@@ -97,7 +97,7 @@ def _records(model, test, channels) -> list:
 
 
 def information(model, test, free, sigma: dict, theta=None, threads: int | None = None, stroke: float | None = None,
-                max_load: float | None = None) -> Information:
+                max_load: float | None = None, max_speed: float | None = None) -> Information:
     """The Fisher information of ``test`` about ``free`` at ``theta``, and how close its
     predicted trajectory comes to the model's declared limits.
 
@@ -117,6 +117,8 @@ def information(model, test, free, sigma: dict, theta=None, threads: int | None 
         Records run at once.
     stroke, max_load : float, optional
         The test's stroke (m) and load capability (N), checked with the declared limits.
+    max_speed : float, optional
+        The rod speed bound (m/s); default the declared one.
     """
     theta = free.theta0 if theta is None else np.asarray(theta, float)
     recs = _records(model, test, list(sigma))
@@ -134,53 +136,75 @@ def information(model, test, free, sigma: dict, theta=None, threads: int | None 
         sig = input_signals(model, rec.signals(), pv)
         U = input_matrix(model, sig, rec.t)
         Y = outputs_at(model, pr["X"], U, pv)
-        y = {name: Y[k] for k, name in enumerate(model.outputs)}
+        y = {name: np.asarray(pr["X"])[k] for k, name in enumerate(model.states)}
+        y.update({name: Y[k] for k, name in enumerate(model.outputs)})
         y.update({name: U[k] for k, name in enumerate(model.inputs)})
         runs.append({"t": rec.t, "y": y})
-        for name, v in limit_usage(model, y, pv, stroke, max_load).items():
+        for name, v in limit_usage(model, y, pv, stroke, max_load, max_speed).items():
             usage[name] = max(usage.get(name, 0.0), v)
     return Information(M, free, theta, usage, runs)
 
 
-#: The declared limits checked on the physical signal they protect (the signal with this
-#: role) rather than on the controller's command they clip: the current limit on the
-#: motor current, the rate limit on the rod speed. A test may run the ECU into its
-#: limiters (a step test does); the motor current and the rod speed must stay within them.
-PHYSICAL = {"current": "motor_current"}
+#: The ECU's limits checked on the physical signal they protect (the signal with this
+#: role) rather than on the controller's command they clip, where no rating bounds that
+#: signal: the current limit on the motor current, the rate limit on the rod speed. A
+#: test may run the ECU into its limiters (a step test does); the motor current and the
+#: rod speed must stay within their bounds (the loops' overshoot counts).
+PHYSICAL = {"current": "motor_current", "rod_speed": "rod_velocity"}
 
 
-def limit_usage(model, y: dict, pv, stroke: float | None = None, max_load: float | None = None) -> dict:
+def _peak(model, lim, y: dict, P) -> np.ndarray:
+    """|value| of a trim limit along a trajectory (on its physical signal, :data:`PHYSICAL`)."""
+    role = PHYSICAL.get(lim.name)
+    if role is not None and model.outputs_with(role):
+        return np.abs(np.asarray(y[model.output_with(role)], float))
+    try:
+        return np.abs(np.asarray(lim.value(y, P), float))
+    except TypeError:  # a limit written for one sample (math functions): sample by sample
+        n = len(next(iter(y.values())))
+        return np.array([lim.value({k: a[i] for k, a in y.items()}, P) for i in range(n)])
+
+
+def limit_usage(model, y: dict, pv, stroke: float | None = None, max_load: float | None = None,
+                max_speed: float | None = None) -> dict:
     """The largest value over a trajectory of each limit as a fraction of it: the parts'
-    declared limits (``model.trim_limits``: the current limit on the motor current, the
-    rate limit on the rod speed (:data:`PHYSICAL`), the voltage limit on the applied
-    voltage) and, where given, the test's stroke (rod position) and load capability.
+    ratings (``model.ratings`` of role ``rating`` whose signals the trajectory holds, the
+    operating limits ``ema optimal`` keeps too: the current and voltage vectors, the
+    actuator's stroke, the rated rod speed, the thermal nodes' temperatures with a
+    thermal network); the ECU's limits (``model.trim_limits``) that no rating of the
+    same name bounds, on the physical signal they protect (:data:`PHYSICAL`); and, where
+    given, the test's stroke (rod position) and load capability.
 
     Parameters
     ----------
     model : Model
         The model.
     y : dict
-        Output and input name -> values along the trajectory (SI).
+        State, output and input name -> values along the trajectory (SI).
     pv : array_like
         Parameter vector (SI).
     stroke, max_load : float, optional
         The test's stroke (m) and load capability (N).
+    max_speed : float, optional
+        The rod speed bound (m/s) in place of the declared one.
     """
     P = model.pdict(pv)
     out = {}
+
+    def use(name, value):
+        out[name] = max(out.get(name, 0.0), float(value))
+
+    rated = [r for r in model.ratings if r.role == "rating" and r.sense != "min" and all(n in y for n in r.signals)]
+    for r in rated:
+        s = np.array([np.asarray(y[n], float) for n in r.signals])
+        peak = np.max(np.sqrt((s**2).sum(0))) if r.sense == "norm" else np.max(s[0])
+        use(r.name, peak / (max_speed if r.name == "rod_speed" and max_speed else r.limit(P)))
     for lim in model.trim_limits:
-        role = PHYSICAL.get(lim.name)
-        if role is not None and model.outputs_with(role):
-            v = np.abs(np.asarray(y[model.output_with(role)], float))
-        else:
-            try:
-                v = np.abs(np.asarray(lim.value(y, P), float))
-            except TypeError:  # a limit written for one sample (math functions): sample by sample
-                n = len(next(iter(y.values())))
-                v = np.array([lim.value({k: a[i] for k, a in y.items()}, P) for i in range(n)])
-        out[lim.name] = float(np.max(v) / lim.limit(P))
+        if lim.name not in {r.name for r in rated}:
+            use(lim.name, np.max(_peak(model, lim, y, P)) / (max_speed if lim.name == "rod_speed" and max_speed
+                                                             else lim.limit(P)))
     if stroke is not None:
-        out["stroke"] = float(np.max(np.abs(y[model.output_with("rod_position")])) / stroke)
+        use("stroke", np.max(np.abs(y[model.output_with("rod_position")])) / stroke)
     if max_load:
         out["load"] = float(np.max(np.abs(y[model.input_with("load")])) / max_load)
     return out

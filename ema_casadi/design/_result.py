@@ -116,7 +116,7 @@ class DesignResult:
         lines = [f"| parameter | value | designed 95 % width | {self.standard.name} | ratio |", "|---|---|---|---|---|"]
         for k, n in enumerate(self.free.names):
             p = c["parameters"][n]
-            lines.append(f"| {n} | {self.free.theta0[k]:.4g} | {100 * p['designed']:.3g} % | "
+            lines.append(f"| {n} | {self.thetas[0][k]:.4g} | {100 * p['designed']:.3g} % | "
                          f"{100 * p['standard']:.3g} % | {p['ratio']:.3g} |")
         g = c["geometric_mean_width"]
         lines.append(f"| geometric mean | | {100 * g['designed']:.3g} % | {100 * g['standard']:.3g} % | "
@@ -129,7 +129,7 @@ class DesignResult:
         names = self.free.names
         out = {"free": list(names), "duration": self.test.duration, "criterion": self.info["criterion"],
                "segments": self.segments, "comparison": c,
-               "predicted": {n: {"value": float(self.free.theta0[k]),
+               "predicted": {n: {"value": float(self.thetas[0][k]),
                                  "interval": [float(v) for v in self.predicted["interval"][k]],
                                  "width": float(self.predicted["width"][k])} for k, n in enumerate(names)},
                "correlation": np.asarray(self.predicted["corr"]).round(6).tolist(),

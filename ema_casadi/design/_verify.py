@@ -7,8 +7,13 @@ with seeded Gaussian noise of the design's levels on its channels; the fit start
 (log-normal, seeded) away from the truth, the noise levels given, nothing held. Every
 simulated test plays the same table on the same truth (the noise is the sensors'), so
 they share one true trajectory: it is checked against every limit of the design.
-Realised widths: the mean over the fits of the headline (robust) intervals identify
-reports, and of its textbook ones; the coverage counts the headline intervals.
+Realised widths and coverage are those of the fits ``identify`` calls adequate, the
+intervals it vouches for (an inadequate fit's intervals "are not trustworthy": on the
+designed test of the acceptance case, 2 of 20 fits from a start 5 % away end in a
+local minimum of the cost, the friction parameters tens of standard deviations from
+the truth, at 1.8-2.3 times the noise's cost, and identify says so): the mean over them of the headline (robust)
+intervals and of the textbook ones; the coverage of the headline intervals (per
+parameter too, the textbook ones beside, and over every converged fit, adequate or not).
 """
 
 from __future__ import annotations
@@ -50,7 +55,7 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     """
     fr, info = result.free, result.info
     names = fr.names
-    truth = dict(zip(names, fr.theta0.tolist(), strict=True))
+    truth = dict(zip(names, np.asarray(result.thetas[0]).tolist(), strict=True))
     rec = result.test.records[0]
     tables = {k: Signal.table(rec["t"], v) for k, v in rec["inputs"].items()}
     cmd, load = result.model.input_with("command"), result.model.input_with("load")
@@ -59,7 +64,8 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     pv = result.params.vector(**truth)
     sim = simulate(result.model, float(rec["t"][-1]), inputs=tables, solver="rosenbrock", dt_out=1.0 / info["rate"],
                    p=pv, rtol=1e-10, atol=1e-13)
-    usage = limit_usage(result.model, {c: sim[c] for c in sim.columns()[1:]}, pv, info["stroke"], info["max_load"])
+    usage = limit_usage(result.model, {c: sim[c] for c in sim.columns()[1:]}, pv, info["stroke"], info["max_load"],
+                        info["max_speed"])
     rng = np.random.default_rng(seed)
     starts = [{k: v * float(np.exp(rng.normal(0.0, START_SPREAD))) for k, v in truth.items()} for _ in range(n)]
     done = [0]
@@ -75,7 +81,9 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
             out = {"failed": exc.reason}
         else:
             out = {"estimate": dict(res.estimate), "interval": {m: list(v) for m, v in res.interval.items()},
-                   "interval_textbook": {m: list(v) for m, v in res.interval_textbook.items()}}
+                   "interval_textbook": {m: list(v) for m, v in res.interval_textbook.items()},
+                   "cost": float(res.info["cost"]), "adequate": bool(res.adequacy["adequate"]),
+                   "message": res.info["optimizer_message"], "prediction_rtol": res.info.get("prediction_rtol")}
         done[0] += 1
         progress_bar(done[0] / n, progress, "verify", f"fit {done[0]} of {n}")
         return out
@@ -85,7 +93,8 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
         if n > 1:
             with ThreadPoolExecutor(max(1, min(jobs or cores(), n - 1)), thread_name_prefix="ema-verify") as pool:
                 fits += list(pool.map(lambda k: one(k, folder), range(1, n)))
-    good = [f for f in fits if "failed" not in f]
+    converged = [f for f in fits if "failed" not in f]
+    good = [f for f in converged if f["adequate"]]
     pred = {m: float(result.predicted["width"][k]) for k, m in enumerate(names)}
 
     def width(kind):
@@ -95,10 +104,20 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     real, real_tb = width("interval"), width("interval_textbook")
     logs = {m: np.log([f["estimate"][m] / truth[m] for f in good]) for m in names}
     scatter = {m: float(2 * 1.959964 * np.std(logs[m], ddof=1)) if len(good) > 2 else float("nan") for m in names}
-    covered = [bool(f["interval"][m][0] <= truth[m] <= f["interval"][m][1]) for f in good for m in names]
-    return {"n": n, "converged": len(good), "failed": [f["failed"] for f in fits if "failed" in f],
+    def inside(f, m, kind="interval"):
+        return bool(f[kind][m][0] <= truth[m] <= f[kind][m][1])
+
+    covered = [inside(f, m) for f in good for m in names]
+    per = {m: float(np.mean([inside(f, m) for f in good])) if good else float("nan") for m in names}
+    textbook = [inside(f, m, "interval_textbook") for f in good for m in names]
+    every = [inside(f, m) for f in converged for m in names]
+    return {"n": n, "converged": len(converged), "failed": [f["failed"] for f in fits if "failed" in f],
+            "adequate": len(good), "coverage_per_parameter": per, "intervals_checked": len(covered),
+            "coverage_textbook": float(np.mean(textbook)) if textbook else float("nan"),
+            "coverage_every_fit": float(np.mean(every)) if every else float("nan"),
             "truth": truth, "predicted_width": pred, "realised_width": real, "realised_width_textbook": real_tb,
             "width_ratio": {m: real[m] / pred[m] for m in names}, "scatter_width": scatter,
             "coverage": float(np.mean(covered)) if covered else float("nan"), "limits_used": usage,
-            "fits": [{"estimate": f.get("estimate"), "failed": f.get("failed")} for f in fits],
+            "fits": [{k: f.get(k) for k in ("estimate", "failed", "cost", "adequate", "message", "prediction_rtol")}
+                     for f in fits],
             "limits_respected": bool(admissible(usage)), "seed": seed}

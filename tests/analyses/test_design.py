@@ -119,8 +119,73 @@ def test_the_design_is_written_in_the_toolkits_layout(small, tmp_path):
     ({"stroke": 0.2}, "travel"),
     ({"weights": {"psi_x": 1.0}}, "psi_x"),
     ({"sigma": {"omega": 0.1}}, "not a measured channel"),
+    ({"max_speed": 0.5}, "rated rod speed"),
 ])
 def test_bad_requests_are_refused_before_any_work(params, kwargs, match):
     kw = {"free": ["F_seal", "psi"], "duration": 2.0, **kwargs}
     with pytest.raises(DesignError, match=match):
         design_experiment(params, kw.pop("free"), kw.pop("duration"), **kw)
+
+
+def test_the_rod_speed_is_bounded_on_the_rods_own_speed(small):
+    """The rod speed's use is the predicted rod velocity's peak over the bound (the
+    declared rated rod speed by default, ``max_speed`` in its place), not the ECU's
+    clipped speed command."""
+    model, y = small.model, small.runs[0]["y"]
+    from ema_casadi.design import limit_usage
+
+    peak = float(np.max(np.abs(y[model.output_with("rod_velocity")])))
+    limit = model.operating_limits()["rod_speed"]
+    assert small.info["max_speed"] == limit
+    assert small.usage["rod_speed"] == pytest.approx(peak / limit, rel=1e-12)
+    half = limit_usage(model, y, model.p(), max_speed=limit / 2)
+    assert half["rod_speed"] == pytest.approx(2 * peak / limit, rel=1e-12)
+
+
+def test_the_standard_test_commands_within_the_speed_bound():
+    """Its steps are ramps at STANDARD_SPEED of the bound and the chirp's peak rate is
+    below it (a step the rate limiter slews lets the speed loop overshoot the limit)."""
+    from ema_casadi.design import STANDARD_SPEED, standard_test
+
+    v = 0.08
+    st = standard_test(10.0, 0.01, 15e3, 2000.0, "x_cmd", "f_ext", max_speed=v)
+    for rec in st.records:
+        rate = np.max(np.abs(np.diff(rec["inputs"]["x_cmd"]) * 2000.0))
+        # a ramp's sampled slope is its speed to round-off; the chirp's is below v
+        assert rate <= STANDARD_SPEED * v * (1 + 1e-9), (rec["name"], rate)
+    assert max(np.max(np.abs(r["inputs"]["x_cmd"])) for r in st.records) == pytest.approx(0.005, rel=1e-9)
+
+
+def test_a_shape_that_leaves_a_limit_gets_a_candidate_at_the_limits():
+    """The largest admissible amplitude scaled until the first use (proportional to the
+    amplitude) reaches AIM of its bound; never beyond the inadmissible amplitude above."""
+    from ema_casadi.design import AIM, LIMIT_TOLERANCE, STROKE_MARGIN, at_limits
+
+    segs = [Segment("multisine", (1.0, 4.0), 0.0, a) for a in (1e-3, 3e-3, 9e-3)]
+    use = [{"stroke": 0.1, "rod_speed": 0.25, "load": 0.0}, {"stroke": 0.3, "rod_speed": 0.75, "load": 0.0},
+           {"stroke": 0.9, "rod_speed": 1.2, "load": 0.0}]
+    new = at_limits(segs, [(None, u) for u in use])
+    # from 3 mm: the rod speed reaches AIM x 1.005 at 3 mm x AIM x 1.005 / 0.75 (the stroke later)
+    assert len(new) == 1 and new[0].amplitude == pytest.approx(3e-3 * AIM * LIMIT_TOLERANCE / 0.75, rel=1e-12)
+    assert new[0].amplitude < 3e-3 * AIM * STROKE_MARGIN / 0.3
+    # every point admissible, or none: nothing to add
+    assert at_limits(segs[:2], [(None, u) for u in use[:2]]) == []
+    assert at_limits(segs[2:], [(None, u) for u in use[2:]]) == []
+
+
+def test_a_robust_design_averages_the_information_over_the_prior_and_is_reproducible(params):
+    """A prior (name -> estimate and 95 % interval, as a fitted file gives them): the
+    design's information is the mean over the draws, not the nominal's; the same seed
+    gives the same draws and the same design."""
+    lib = [Segment("multisine", (1.0, 8.0), 0.0, 2e-3), Segment("slews", (2, 0.2), 8e3, 4e-3)]
+    prior = {"F_seal": (150.0, 100.0, 225.0), "psi": (0.3, 0.27, 0.333)}
+    kw = {"library": lib, "rate": 1000.0, "max_load": 8e3, "prior": prior, "draws": 3, "seed": 4}
+    a = design_experiment(params, ["F_seal", "psi"], 2.0, **kw)
+    b = design_experiment(params, ["F_seal", "psi"], 2.0, **kw)
+    assert len(a.thetas) == 3 and np.array_equal(np.array(a.thetas), np.array(b.thetas))
+    assert np.array_equal(a.M, b.M) and a.segments == b.segments
+    # the draws' spread is the prior's: log(hi/lo)/(2 x 1.96)
+    assert a.info["prior_sd"]["F_seal"] == pytest.approx(math.log(2.25) / 3.919927969, rel=1e-6)
+    nominal = design_experiment(params, ["F_seal", "psi"], 2.0, library=lib, rate=1000.0, max_load=8e3)
+    assert not np.allclose(a.M, nominal.M, rtol=1e-3)
+

@@ -31,6 +31,9 @@ def _run(argv, capsys):
     (["--weights", "psi"], ["--weights psi", "NAME=W"]),
     (["--sigma", "omega=0.1"], ["--sigma omega", "not a measured channel"]),
     (["--sigma", "x_rd=1um"], ["--sigma x_rd", "did you mean 'x_rod'"]),
+    (["--sigma", "v_d=abc"], ["--sigma v_d=abc", "expected a number in V (SI)"]),
+    (["--max-speed", "500mm/s"], ["--max-speed 500 mm/s", "above the rated rod speed"]),
+    (["--max-speed", "fast"], ["--max-speed fast", "expected a rate"]),
     (["--channels", "x_rood"], ["--channels x_rood", "did you mean 'x_rod'"]),
     (["--verify", "-1"], ["--verify"]),
     (["--draws", "0"], ["--draws"]),
@@ -43,6 +46,7 @@ def test_mistakes_exit_2_with_one_line_and_nothing_written(tmp_path, capsys, fla
     assert code == 2, err
     assert err.count("\n") == 1 and err.startswith("ema design-experiment: error:"), err
     assert all(w in err for w in words), err
+    assert "None" not in err, err
     assert list(tmp_path.iterdir()) == []
 
 
