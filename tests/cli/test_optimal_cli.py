@@ -49,7 +49,7 @@ def test_a_load_the_drive_cannot_move_against_is_infeasible_exit_3(capsys, tmp_p
     assert not out.exists()
 
 
-@pytest.mark.slow  # 53 s on the loaded 2-core machine: the solve, the replay and the ECU step on the elastic model
+# the solve, the replay and the ECU step on the elastic model: 5 s (it took 53 s with IPOPT's adaptive barrier)
 def test_minimum_time_move_writes_a_command_simulate_reads(capsys, tmp_path):
     out = tmp_path / "opt"
     status, text, err = _run(capsys, "--move", "10mm", "--json", "--out", out)
