@@ -325,18 +325,22 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     ipopt = {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "monotone", "mu_init": 1e-2}
     if not small:
         ipopt["hessian_approximation"] = "limited-memory"
-    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, ipopt)
     t_setup = time.perf_counter() - t0
     # CasADi's warnings of NaN trial points in IPOPT's line search (the solver steps back) kept
     # off stderr: counted in the result instead
     with captured_stderr() as messages:
-        try:
-            sol = opti.solve()
-            stats, ok = sol.stats(), True
-            val = sol.value
-        except RuntimeError:
-            stats, ok = opti.stats(), False
-            val = opti.debug.value
+        # where the monotone barrier stops short (20 mm soaked at 20 degC with the thermal network: a local
+        # infeasibility), the adaptive one from the same guess
+        for strategy in (ipopt, {**ipopt, "mu_strategy": "adaptive", "mu_init": 0.1}):
+            opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, strategy)
+            try:
+                sol = opti.solve()
+                stats, ok = sol.stats(), True
+                val = sol.value
+                break
+            except RuntimeError:
+                stats, ok = opti.stats(), False
+                val = opti.debug.value
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
