@@ -198,7 +198,8 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
             prob = Problem(model, 1e-3, float(F), "time", None, 0.0, "drive", 4, False, extra)
             prob.extra_temperature = T
             v, st = _steady(prob, None)
-            speeds.append(v)
+            # the smooth lock's creep against a load the motor cannot drive is no speed
+            speeds.append(0.0 if v < CREEP * prob.limits.get("rod_speed", 1.0) else v)
             status[(T, float(F))] = st
         top[T] = np.array(speeds)
         prob = Problem(model, 1e-3, 0.0, "time", None, 0.0, "drive", 4, False, extra)
