@@ -34,7 +34,7 @@ from ema_casadi.optimal import Problem, initial_guess, solve
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "cesa_ema.toml"
 FRICTIONLESS = {"F_seal": 0.0, "C_bear": 0.0, "c_v": 0.0, "b_m": 0.0}
-IPOPT = {"print_level": 0, "max_iter": 500, "tol": 1e-8, "mu_strategy": "adaptive"}
+IPOPT = {"print_level": 0, "max_iter": 500, "tol": 1e-8, "mu_strategy": "monotone", "mu_init": 1e-2}
 
 
 def problem():

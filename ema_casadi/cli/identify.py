@@ -49,6 +49,9 @@ def add_arguments(p):
     p.add_argument("--free", default=None, metavar="NAME[,NAME...]", help="parameters to fit (flat names)")
     p.add_argument("--bounds", action="append", default=[], metavar="NAME=LO:HI",
                    help="bounds of a free parameter (SI), repeatable; LO > 0 for a positive (log-scaled) one")
+    p.add_argument("--structural", action="append", default=[], metavar="NAME=LO:HI",
+                   help="a constant held at its value whose plausible range (SI) widens the robust intervals by "
+                        "the estimates' shift over it (type B), repeatable; e.g. P_blend=0.05:0.2")
     p.add_argument("--sigma", action="append", default=[], metavar="CHANNEL=VALUE",
                    help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
                         "default: the record's field sigma_CHANNEL, else estimated from the residuals")
@@ -103,18 +106,18 @@ def _pairs(items, flag) -> dict:
     return out
 
 
-def _bounds(items) -> dict:
+def _bounds(items, flag="--bounds") -> dict:
     out = {}
-    for name, text in _pairs(items, "--bounds").items():
+    for name, text in _pairs(items, flag).items():
         lo, sep, hi = text.partition(":")
         try:
             a, b = float(lo), float(hi)
         except ValueError:
-            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)") from None
+            raise UserError(f"{flag} {name}={text}: expected LO:HI, two numbers (SI)") from None
         if not sep or math.isnan(a) or math.isnan(b):
-            raise UserError(f"--bounds {name}={text}: expected LO:HI, two numbers (SI)")
+            raise UserError(f"{flag} {name}={text}: expected LO:HI, two numbers (SI)")
         if not a < b:
-            raise UserError(f"--bounds {name}={text}: LO must be below HI")
+            raise UserError(f"{flag} {name}={text}: LO must be below HI")
         out[name] = (a, b)
     return out
 
@@ -198,13 +201,16 @@ NO_EFFECT = {
                NoEffect((*_FIT, "--jobs", "2"), "with one start (the workers run the --starts fits in parallel)",
                         lambda a: a.starts == 1)),
     "--bounds": (_on(_COMPARE_FIT, *_CMP, "--bounds", "F_seal=1:500"),),
+    "--structural": tuple(_on(rule, *ex, "--structural", "P_blend=0.05:0.2") for rule, ex in
+                          ((_TRACK, _TRENDS), (_EXAMPLE, ()), (_COMPARE_FIT, _CMP))),
     "--keep-unidentifiable": (_on(_COMPARE_FIT, *_CMP, "--keep-unidentifiable"),),
 }
 #: A value of each flag for the examples of the --example-records rule (flags without one take none).
 _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
-           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2"}
+           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2",
+           "--structural": "P_blend=0.05:0.2"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
@@ -241,7 +247,8 @@ def run(args) -> dict:
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
-              **({} if args.model_error is None else {"model_error": args.model_error})}
+              **({} if args.model_error is None else {"model_error": args.model_error}),
+              **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
         if args.track:
             return _track(args, params, model, records, free, kw)
         if args.compare:
@@ -330,7 +337,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error"):  # the linear fit: none
+    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error", "--structural"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names

@@ -20,6 +20,7 @@ from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, uncertainty
 from ._robust import record_blocks, robust_covariance
+from ._structural import add_structural, check_structural, structural_covariance
 
 #: Relative change of the estimated noise levels below which their re-estimation stops.
 SIGMA_TOL = 0.02
@@ -58,7 +59,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
-             progress: bool = False, model: Model | None = None) -> IdentResult:
+             structural: dict | None = None, progress: bool = False, model: Model | None = None) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -106,6 +107,10 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         channel's systematic misfit is at most this and no record's estimates shift
         by more than 5 x this sandwich standard deviations against the others'; else
         inadequate.
+    structural : dict, optional
+        Name -> (lo, hi) (SI): constants of the structure held at their values whose
+        plausible range adds a type-B component to the headline covariance, the
+        estimates' linearised shift over the range (:mod:`._structural`).
     progress : bool
         One line of progress on stderr.
     model : Model, optional
@@ -141,9 +146,10 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
     model_error = number(model_error, "model_error", IdentificationError, positive=True)
+    structural = check_structural(model, structural, fr.names)
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
     fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency, model_error)
+    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency, model_error, structural)
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
@@ -398,20 +404,23 @@ def _rms(arrays) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
-def robust_of(fit: _Fit, out: dict) -> dict:
-    """The robust covariance (:mod:`._robust`) of the fit at its optimum ``out``."""
+def robust_of(fit: _Fit, out: dict, structural: dict | None = None) -> dict:
+    """The robust covariance (:mod:`._robust`) of the fit at its optimum ``out``, with the
+    type-B term of the ``structural`` constants (:mod:`._structural`) where declared."""
     _, e, _ = fit._raw(out["z_full"])
-    return robust_covariance(out["J"], out["r"], record_blocks(e))
+    rob = robust_covariance(out["J"], out["r"], record_blocks(e))
+    return add_structural(rob, structural_covariance(fit, out, structural or {}))
 
 
 def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool,
-            consistency_test: bool = True, model_error: float = _misfit.MODEL_ERROR) -> IdentResult:
+            consistency_test: bool = True, model_error: float = _misfit.MODEL_ERROR,
+            structural: dict | None = None) -> IdentResult:
     """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
     their start values and the others fitted again; the result."""
     fr = fit.pred.free
     start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
     estimated = bool(out["estimated"])
-    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out))
+    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural))
     held = {}
     wide = [n for n, w in zip(fr.names, unc["wide"], strict=True) if w]
     evaluations = fit.pred.evaluations
@@ -431,7 +440,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
         z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])
         out = {**fit2.run(z0), "estimated": out["estimated"]}
         fit, fr = fit2, pred.free
-        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out))
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural))
         evaluations += pred.evaluations
     theta = fr.theta(out["z"])
     preds, e, _ = fit._raw(out["z_full"])

@@ -77,7 +77,11 @@ def uncertainty(free, z, J, r, estimated: bool, robust: dict | None = None) -> d
     offdiag = np.abs(corr - np.eye(n))
     partner = [int(np.argmax(offdiag[k])) if n > 1 else -1 for k in range(n)]
     correlated = [bool(n > 1 and offdiag[k, partner[k]] > CORRELATED) for k in range(n)]
-    wide = [bool(not np.isfinite(rel[k]) or rel[k] > WIDE) for k in range(n)]
+    rel_id = rel
+    if robust is not None and "cov_structural" in robust:  # identifiable: by what the records determine
+        std_id = np.where(singular, np.inf, np.sqrt(np.maximum(np.diag(cov_z - robust["cov_structural"]), 0.0)))
+        rel_id = _intervals(free, theta, std_id)[2]
+    wide = [bool(not np.isfinite(rel_id[k]) or rel_id[k] > WIDE) for k in range(n)]
     weak = []
     for i in range(len(sv)):
         h = Z95 * np.sqrt(s2) / sv[i] if sv[i] > 0 else np.inf
@@ -131,7 +135,8 @@ def _robust_doc(rob, records) -> dict:
     return {"kind": "robust (Newey-West sandwich per record, x records' scale factor)",
             "scale_factor": rob["scale_factor"], "records_chi2": rob["chi2"], "records_dof": rob["dof"],
             "records_p": rob.get("p"),
-            "records": recs}
+            "records": recs, **({"structural": rob["structural"], "structural_relative_sd": rob["structural_sd"]}
+                                if "structural" in rob else {})}
 
 
 def channel_stats(records, preds, errors, sigma) -> list[dict]:
@@ -398,6 +403,10 @@ class IdentResult(Summarised):
             lines.append(f"| {n} | {h['start']:.5g} | (held) | - | - | **no**: {self.identifiable[n]} |")
         for m in (self.adequacy.get("model_error") or {}).get("misfits", []):
             lines.append(f"\nModel error: {m['text']}")
+        if "structural" in self.robust:
+            sd = ", ".join(f"{k} {100 * v:.2g} %" for k, v in self.robust["structural_relative_sd"].items())
+            rng = ", ".join(f"{k} {c['range'][0]:g}..{c['range'][1]:g}" for k, c in self.robust["structural"].items())
+            lines.append(f"\nStructural (type B, in the robust intervals; ranges {rng}): sd {sd}")
         lines += ["", "| record | channel | samples | RMS residual | sigma | RMS/sigma | lag-1 autocorr. |",
                   "|---|---|---|---|---|---|---|"]
         for c in self.channels:

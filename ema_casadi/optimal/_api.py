@@ -9,6 +9,7 @@ import numpy as np
 from ..model.assembly import Model
 from ..signals import Signal
 from ..simulation import RunFailed, simulate, step_response_metrics
+from ._envelope import check_capacity
 from ._errors import Infeasible
 from ._problem import BINDING, INTERVALS, Problem, _margins, check_request, solve
 from ._result import STAIR, OptimalMove
@@ -82,6 +83,8 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
     move, load, objective, duration, start, through, intervals = check_request(
         model, move, load, objective, duration, start, through, intervals)
     prob = Problem(model, move, load, objective, duration, start, through, intervals, bool(field_weakening))
+    if load * move > 0:  # the load opposes the move: can the drive move against it at all?
+        check_capacity(prob)
     if duration is not None:
         _check_duration(prob)
     if through == "ecu":

@@ -1,8 +1,11 @@
 """Coverage of the headline (robust) 95 % intervals over 50 noise realisations
-(studies/coverage.py): with the model right, and under a small model error (a witness
-with a twice wider efficiency switch, simulated by RK4 at 2 us). Slow: 100 fits of
-five parameters on four records of 0.6-1 s (about 10 s each on one core; the witness
-half measured 434 s on the loaded 2-core machine). The witness's RK4 step is above the
+(studies/coverage.py; the table in docs/guide/model-error.md): with the model right,
+and under two small model errors, each alone: a witness with a twice wider efficiency
+switch (``blend``: P_blend 0.2 W for 0.1 W), fitted plainly and with the switch's
+width declared as a structural constant (``--structural P_blend=0.05:0.2``, the
+type-B term), and a witness simulated by fixed-step RK4 at 2 us (``rk4``). Slow: 200
+fits of five parameters on four records of 0.6-1 s (about 2 s of CPU each; about 7-14 s
+of wall time each on the loaded 2-core machine). The RK4 witness's step is above the
 stability limit of the rod held under load (a StepLimitWarning, expected: its chatter
 is part of the model error).
 
@@ -23,6 +26,7 @@ import coverage as study  # noqa: E402
 pytestmark = pytest.mark.slow
 
 LOW = 0.86  # 43 of 50 (module docstring)
+BLEND_RANGE = {"P_blend": (0.05, 0.2)}
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +35,18 @@ def right(params):
 
 
 @pytest.fixture(scope="module")
-def witness(params):
-    return study.coverage(params, model="witness", n=50, progress=False)
+def blend(params):
+    return study.coverage(params, model="blend", n=50, progress=False)
+
+
+@pytest.fixture(scope="module")
+def blend_typeb(params):
+    return study.coverage(params, model="blend", n=50, structural=BLEND_RANGE, progress=False)
+
+
+@pytest.fixture(scope="module")
+def rk4(params):
+    return study.coverage(params, model="rk4", n=50, progress=False)
 
 
 def test_no_loss_when_the_model_is_right(right):
@@ -47,21 +61,34 @@ def test_no_loss_when_the_model_is_right(right):
     assert right["exit0"] >= 0.95 and right["failed"] == 0, right
 
 
-def test_a_small_model_error_ends_with_exit_0_and_wider_intervals(witness):
-    """The witness's systematic misfit is below the noise (0.7 noise levels at most):
-    95 % of the fits or more end with exit 0 (measured 50 of 50, adequate within model
-    error), and the robust intervals are wider than the textbook ones (measured
-    2.8-4.2x; allowed > 1.5x), which miss the truth (textbook coverage 0-84 %)."""
-    assert witness["exit0"] >= 0.95 and witness["failed"] == 0, witness
+@pytest.mark.parametrize("witness", ["blend", "blend_typeb", "rk4"])
+def test_a_small_model_error_ends_with_exit_0_and_wider_intervals(witness, request):
+    """Each witness's systematic misfit is below the noise (0.68 noise levels at most,
+    the wider switch; 0.25 RK4): 95 % of the fits or more end with exit 0 (measured 50
+    of 50, adequate within model error), and the robust intervals are wider than the
+    textbook ones (measured 2.1-4.2x; allowed > 1.5x), which miss the truth (textbook
+    coverage 0-98 %)."""
+    doc = request.getfixturevalue(witness)
+    assert doc["exit0"] >= 0.95 and doc["failed"] == 0, doc
     for k in study.TRUTH:
-        assert witness["width_ratio"][k] > 1.5, (k, witness["width_ratio"])
-        assert witness["coverage"][k] >= witness["coverage_textbook"][k], k
+        assert doc["width_ratio"][k] > 1.5, (k, doc["width_ratio"])
+        assert doc["coverage"][k] >= doc["coverage_textbook"][k], k
 
 
 @pytest.mark.parametrize("name", list(study.TRUTH))
-def test_robust_coverage_under_a_small_model_error(witness, name):
+def test_robust_coverage_under_a_wider_efficiency_switch(blend, blend_typeb, name):
+    """The wider switch alone: covered in 86 % or more (measured F_seal 92 %, the others
+    100 %); with its width declared (type B) F_seal's interval widens (measured 3.2x to
+    4.2x the textbook one) and covers too (measured 100 %)."""
+    assert blend["coverage"][name] >= LOW, blend["coverage"]
+    assert blend_typeb["coverage"][name] >= LOW, blend_typeb["coverage"]
+    assert blend_typeb["width_ratio"][name] >= blend["width_ratio"][name] * (1 - 1e-9), name
+
+
+@pytest.mark.parametrize("name", list(study.TRUTH))
+def test_robust_coverage_under_a_coarse_rk4_step(rk4, name):
     if name == "F_seal":
-        pytest.xfail("F_seal: the witness's wider efficiency switch biases it by -1.3 % in every record alike; "
-                     "neither the sandwich nor the records' scale factor can see a bias the records share "
-                     "(measured coverage 18 %; docs/guide/model-error.md)")
-    assert witness["coverage"][name] >= LOW, witness["coverage"]
+        pytest.xfail("F_seal: the RK4 witness's chatter of the held rod under load biases it by -0.5 % in the "
+                     "loaded records; the records' scale factor (about 2) widens it 2.3x the textbook interval, "
+                     "not enough (measured coverage 64 %; docs/guide/model-error.md)")
+    assert rk4["coverage"][name] >= LOW, rk4["coverage"]

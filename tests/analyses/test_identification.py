@@ -121,7 +121,9 @@ def test_a_strong_correlation_is_a_note_not_a_verdict(example_fit):
 def test_a_parameter_the_records_cannot_see_is_held(params, tmp_path):
     """C_bear (bearing friction per axial load) from unloaded steps, k_stop (end-stop
     stiffness) when the rod never reaches a stop: reported not identifiable and held at
-    the start value; the others still recovered within 3 sigma."""
+    the start value; the others still recovered within 3 sigma. The flat profile of
+    C_bear is flagged by its marginal (robust) interval, wider than +-50 %: the verdict
+    has no profile step of its own (``--profile`` refits the others at each point)."""
     truth = {"F_seal": 210.0, "J_m": 1.5e-3}
     rec = idn.synthetic_record(params, tmp_path / "u.csv", t_end=0.6, x_cmd="step:1mm@0.05+step:-2mm@0.3",
                                truth={**truth, "C_bear": 4.5e-5}, seed=3)

@@ -101,7 +101,7 @@ def test_the_figure_and_the_command_profile(rigid_move, tmp_path):
     assert t[0] == 0 and x[0] == pytest.approx(0.0, abs=1e-12) and x[-1] == pytest.approx(0.01, rel=1e-9)
 
 
-@pytest.mark.slow  # 35 s solve on the loaded 2-core machine
+# 3 s with the monotone barrier (35 s with the adaptive one on the loaded machine)
 def test_energy_optimal_move_draws_less_than_the_ecu_step(params):
     # 10 mm in 0.3 s on the reference actuator's rigid counterpart (smooth friction): the energy from
     # the DC link (int P_dc, the runs' own energy accounting) of the replay through the ECU against the

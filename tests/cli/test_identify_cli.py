@@ -246,3 +246,26 @@ def test_example_records_are_what_the_guide_fits(tmp_path, capsys):
     assert code == 0, err
     lo, hi = json.loads(out)["trend"]["F_seal"]["crossing_interval"]
     assert lo <= 3000.0 <= hi
+
+
+def test_a_structural_range_widens_the_intervals(tmp_path, capsys, record):
+    """--structural P_blend=0.05:0.2: the JSON names the range and each parameter's
+    type-B sd, and F_seal's interval is wider than without it (the estimate the same);
+    a malformed or impossible range is refused in one line (exit 2) before any fit."""
+    base = ["identify", REF, str(record), "--free", "F_seal", "--json", "--no-progress"]
+    code, out, err = _run(base, capsys)
+    plain = json.loads(out)
+    code2, out2, err2 = _run([*base, "--structural", "P_blend=0.05:0.2"], capsys)
+    doc = json.loads(out2)
+    assert code == 0 and code2 == 0, (err, err2)
+    assert doc["robust"]["structural"]["P_blend"]["range"] == [0.05, 0.2]
+    assert doc["robust"]["structural_relative_sd"]["F_seal"] > 0
+    a, b = plain["parameters"]["F_seal"]["interval"], doc["parameters"]["F_seal"]["interval"]
+    est = plain["parameters"]["F_seal"]["estimate"]
+    assert doc["parameters"]["F_seal"]["estimate"] == pytest.approx(est, rel=1e-12)
+    assert b[1] - b[0] > a[1] - a[0]
+    for bad, words in (("P_blend=0.2:0.3", "strictly inside"), ("P_blend=x", "expected LO:HI"),
+                       ("F_seal=1:500", "is free"), ("P_blend=0.3:0.05", "LO must be below HI")):
+        code, _, err = _run([*base, "--structural", bad], capsys)
+        assert code == 2 and err.count("\n") == 1 and "structural" in err, (bad, err)
+        assert words in err, (bad, err)
