@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from .._util._parallel import cores
 from . import UserError, add_progress, load, stage
 from ._flags import NoEffect, new_output_folder, output_folder
 
@@ -177,7 +178,7 @@ def run_envelope(args) -> dict:
     out = Path(args.out) if args.out else None
     top = new_output_folder(out, ("envelope.csv",)) if out else None
     try:
-        env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30)
+        env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30, jobs=cores())
     except OptimalError as exc:
         raise UserError(str(exc)) from None
     written = []

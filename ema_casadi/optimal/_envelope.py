@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..model.assembly import Model
+from .._util._checks import integer
+from .._util._parallel import check_main_guard, process_map
+from ..model.assembly import Model, build_model
 from ._errors import Infeasible, OptimalError
 from ._problem import Problem, _margins, solve
 
@@ -155,8 +157,43 @@ def check_capacity(prob: Problem) -> None:
                      f"{r.what} ({r.why} = {probe.limits[r.name]:.4g} {r.unit})")
 
 
+def _steady_item(model: Model, T, ambient, loads) -> tuple:
+    """(top speeds against ``loads``, the largest load held, statuses) at soak ``T``."""
+    extra = {} if T is None else {ambient: T}
+    speeds, status = [], {}
+    for F in loads:
+        # the load opposes the outward move: it pushes the rod in (+)
+        prob = Problem(model, 1e-3, float(F), "time", None, 0.0, "drive", 4, False, extra)
+        prob.extra_temperature = T
+        v, st = _steady(prob, None)
+        # the smooth lock's creep against a load the motor cannot drive is no speed
+        speeds.append(0.0 if v < CREEP * prob.limits.get("rod_speed", 1.0) else v)
+        status[(T, float(F))] = st
+    prob = Problem(model, 1e-3, 0.0, "time", None, 0.0, "drive", 4, False, extra)
+    prob.load, prob.extra_temperature = None, T
+    largest, _ = _steady(prob, 0.0)
+    return np.array(speeds), largest, status
+
+
+def _move_item(model: Model, T, ambient, d, intervals) -> tuple:
+    """(the minimum time of a ``d`` move at no load, or nan; its failure or None) at soak ``T``."""
+    extra = {} if T is None else {ambient: T}
+    try:
+        return solve(Problem(model, float(d), 0.0, "time", None, 0.0, "drive", intervals, False, extra))["T"], None
+    except Infeasible as exc:
+        return np.nan, str(exc)
+
+
+def _item(args) -> tuple:
+    """One item of the envelope in a worker process: the model built again from its
+    parameters and variants (the same model)."""
+    params, variants, kind, rest = args
+    model = build_model(params, variants)
+    return _steady_item(model, *rest) if kind == "steady" else _move_item(model, *rest)
+
+
 def performance_envelope(model: Model, loads=None, distances=None, temperatures=None,
-                         intervals: int = 30) -> Envelope:
+                         intervals: int = 30, jobs: int = 1) -> Envelope:
     """The performance envelope of the drive within its operating limits.
 
     Parameters
@@ -173,6 +210,10 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         network); default 20 and 20 K below the lowest rated node there, else the parameter set.
     intervals : int
         Shooting intervals of each minimum-time move.
+    jobs : int
+        Worker processes (the steady states of each temperature, and each move, are
+        independent NLPs; a script needs a main guard above 1). The answers do not depend
+        on it: each item is the same computation on the same model.
     """
     t0 = time.perf_counter()
     held = model.envelope_limits().get("held_load", np.inf)
@@ -189,30 +230,25 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         raise OptimalError("temperatures: the model has no ambient-temperature input (choose a thermal network)")
     if np.any(loads < 0) or np.any(np.abs(loads) > held):
         raise OptimalError(f"loads: between 0 and the {held / 1e3:.4g} kN the screw holds")
+    jobs = integer(jobs, "jobs", OptimalError, minimum=1)
+    amb = ambient[0] if ambient else None
+    items = [("steady", (T, amb, loads)) for T in temperatures]
+    items += [("move", (T, amb, float(d), intervals)) for T in temperatures for d in distances]
+    if jobs > 1:
+        check_main_guard(OptimalError, f"performance_envelope(jobs={jobs})")
+        got = process_map(_item, [(model.params, model.variants, k, rest) for k, rest in items], jobs)
+    else:
+        got = [_steady_item(model, *rest) if k == "steady" else _move_item(model, *rest) for k, rest in items]
     top, largest, tmin, status = {}, {}, {}, {}
-    for T in temperatures:
-        extra = {} if T is None else {ambient[0]: T}
-        speeds = []
-        for F in loads:
-            # the load opposes the outward move: it pushes the rod in (+)
-            prob = Problem(model, 1e-3, float(F), "time", None, 0.0, "drive", 4, False, extra)
-            prob.extra_temperature = T
-            v, st = _steady(prob, None)
-            # the smooth lock's creep against a load the motor cannot drive is no speed
-            speeds.append(0.0 if v < CREEP * prob.limits.get("rod_speed", 1.0) else v)
-            status[(T, float(F))] = st
-        top[T] = np.array(speeds)
-        prob = Problem(model, 1e-3, 0.0, "time", None, 0.0, "drive", 4, False, extra)
-        prob.load, prob.extra_temperature = None, T
-        largest[T], _ = _steady(prob, 0.0)
-        times = []
-        for d in distances:
-            try:
-                times.append(solve(Problem(model, float(d), 0.0, "time", None, 0.0, "drive", intervals, False,
-                                           extra))["T"])
-            except Infeasible as exc:
-                times.append(np.nan)
-                status[(T, float(d))] = str(exc)
-        tmin[T] = np.array(times)
+    for (kind, rest), out in zip(items, got, strict=True):
+        T = rest[0]
+        if kind == "steady":
+            top[T], largest[T] = out[0], out[1]
+            status.update(out[2])
+        else:
+            tmin.setdefault(T, []).append(out[0])
+            if out[1] is not None:
+                status[(T, rest[2])] = out[1]
+    tmin = {T: np.array(v) for T, v in tmin.items()}
     return Envelope(temperatures=temperatures, loads=loads, top_speed=top, largest_force=largest, distances=distances,
                     min_time=tmin, wall_time_s=time.perf_counter() - t0, status=status)

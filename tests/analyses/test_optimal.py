@@ -3,6 +3,7 @@ computed from the parameters, the limits in the optimum and in its replay, the r
 
 import math
 
+import numpy as np
 import pytest
 
 import ema_casadi as ema
@@ -132,3 +133,18 @@ def test_envelope_top_speed_and_largest_force(params):
         assert v == pytest.approx(w_e / P.pp * lead, rel=1e-4), F
     assert env.largest_force[None] == pytest.approx(model.envelope_limits()["held_load"], rel=1e-6)
     assert env.min_time[None][0] > 5e-3 / (env.top_speed[None][0])  # slower than cruising all the way
+
+
+def test_envelope_on_two_processes_is_the_same_computation(params):
+    # each item (a temperature's steady states, a move) is the same NLP on the same model
+    # rebuilt in the worker from its parameters and variants: the same answers to rounding
+    from ema_casadi.optimal import performance_envelope
+
+    model = ema.build_model(params.replace(**FRICTIONLESS), {"screw": "rigid"})
+    one = performance_envelope(model, loads=[0.0, 20e3], distances=[2e-3, 5e-3], intervals=16)
+    two = performance_envelope(model, loads=[0.0, 20e3], distances=[2e-3, 5e-3], intervals=16, jobs=2)
+    assert np.allclose(two.top_speed[None], one.top_speed[None], rtol=1e-9, atol=0)
+    assert np.allclose(two.min_time[None], one.min_time[None], rtol=1e-9, atol=0)
+    assert two.largest_force[None] == pytest.approx(one.largest_force[None], rel=1e-9)
+    with pytest.raises(OptimalError, match="jobs"):
+        performance_envelope(model, loads=[0.0], distances=[2e-3], jobs=0)
