@@ -9,7 +9,7 @@ beside the ECU's own step of the same size; --out DIR writes command.csv (readab
 ema simulate --x-cmd DIR/command.csv:x_cmd), optimum.csv, replay.csv and move.png.
 --envelope instead tabulates the top rod speed against load, the largest load held and
 the minimum move time over distance, at soak temperatures (--temperatures, degC, with a
-thermal network: --variant thermal=lumped); --out DIR writes envelope.csv.
+thermal network: --variant thermal=lumped); --out DIR writes envelope.csv and envelope.png.
 Exit status 3 (one line naming the binding limit) when no move within the limits exists.
 Example: ema optimal --move 10mm --json
 Example: ema optimal --move 10mm --objective energy --duration 0.3 --out opt
@@ -30,6 +30,7 @@ ORDER = 14
 HELP = "minimum-time, -energy or -heat moves within the drive's limits; command shaping; the envelope"
 #: The files --out DIR holds.
 MOVE_FILES = ("command.csv", "optimum.csv", "replay.csv", "move.png")
+ENVELOPE_FILES = ("envelope.csv", "envelope.png")
 
 _ENV = NoEffect((), "with --envelope (it runs its own moves: --distances, --loads)", lambda a: a.envelope)
 _MOVE = NoEffect((), "without --envelope (it sets the envelope's grid)", lambda a: not a.envelope)
@@ -76,7 +77,7 @@ def add_arguments(p):
                    help="allow field weakening (lift the FOC's i_d >= 0): above the commissioned drive's bound")
     p.add_argument("--zoh", action="store_true", help="replay with the sampled ECU (RK4)")
     p.add_argument("--out", default=None, metavar="DIR", help=f"write {', '.join(MOVE_FILES)} (--envelope: "
-                                                             "envelope.csv)")
+                                                             "envelope.csv, envelope.png)")
     p.add_argument("--envelope", action="store_true",
                    help="the performance envelope: top rod speed against load, largest load held, minimum move "
                         "time over distance")
@@ -159,7 +160,7 @@ def _list(text, kind, bare, flag, stroke):
 
 
 def run_envelope(args) -> dict:
-    """``--envelope``: the table (and envelope.csv)."""
+    """``--envelope``: the table (and envelope.csv, envelope.png)."""
     import numpy as np
 
     from ..optimal import OptimalError, performance_envelope
@@ -176,7 +177,7 @@ def run_envelope(args) -> dict:
         except ValueError:
             raise UserError(f"--temperatures {args.temperatures}: expected degC numbers, e.g. 20,120") from None
     out = Path(args.out) if args.out else None
-    top = new_output_folder(out, ("envelope.csv",)) if out else None
+    top = new_output_folder(out, ENVELOPE_FILES) if out else None
     try:
         env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30, jobs=cores())
     except OptimalError as exc:
@@ -190,7 +191,8 @@ def run_envelope(args) -> dict:
             rows = np.column_stack([env.loads, *(env.top_speed[T] for T in env.temperatures)])
             write_text(folder / "envelope.csv", ",".join(head) + "\n" + "".join(
                 ",".join(f"{v:.10g}" for v in row) + "\n" for row in rows))
-            written.append(str(out / "envelope.csv"))
+            env.plot(folder / ENVELOPE_FILES[1])
+            written += [str(out / n) for n in ENVELOPE_FILES]
     return {"model": args.model, "variants": model.variants, **env.as_dict(), "written": written,
             "wall_time_s": time.perf_counter() - t0}
 
@@ -221,7 +223,8 @@ def report(r: dict) -> None:
     if "top_speed_m_s" in r:
         print(f"performance envelope ({r['wall_time_s']:.1f} s)")
         for T, v in r["top_speed_m_s"].items():
-            print(f"  at {T} degC: largest load held {r['largest_force_N'][T] / 1e3:.4g} kN; top speed "
+            at = "at the parameter set's temperatures" if T == "None" else f"at {T} degC"
+            print(f"  {at}: largest load held {r['largest_force_N'][T] / 1e3:.4g} kN; top speed "
                   + ", ".join(f"{s * 1e3:.4g} mm/s @ {F / 1e3:.3g} kN" for F, s in zip(r["loads_N"], v, strict=True)))
             print("    minimum time " + ", ".join(f"{t:.4g} s @ {d * 1e3:g} mm"
                                                for d, t in zip(r["distances_m"], r["min_time_s"][T], strict=True)))

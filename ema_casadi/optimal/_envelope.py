@@ -65,6 +65,20 @@ class Envelope:
                 "largest_force_N": dict(zip(key, self.largest_force.values(), strict=True)),
                 "min_time_s": dict(zip(key, self.min_time.values(), strict=True)), "wall_time_s": self.wall_time_s}
 
+    def plot(self, path=None):
+        """The figure: the top rod speed against the load (the largest load held marked)
+        and the minimum move time against the distance, per soak temperature; a
+        matplotlib Figure (written to ``path`` if given).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            A .png file to write.
+        """
+        from ..plots._optimal import plot_envelope
+
+        return plot_envelope(self, path)
+
 
 def _steady(prob: Problem, speed: float | None, direction: float = 1.0, full: bool = False):
     """Steady state on the drive level at the given rod speed (None: maximise it in

@@ -7,7 +7,7 @@ import numpy as np
 
 from ._base import finish, plt
 
-__all__ = ["plot_optimal_move", "PANELS"]
+__all__ = ["plot_optimal_move", "plot_envelope", "PANELS"]
 
 #: Panels: rating name -> (axis label, display factor).
 PANELS = {"stroke": ("rod position (mm)", 1e3), "rod_speed": ("rod speed (mm/s)", 1e3),
@@ -56,5 +56,37 @@ def plot_optimal_move(res, path=None):
     unit = "s" if res.objective == "time" else "J"
     fig.suptitle(f"optimal move ({res.objective}): {res.move * 1e3:g} mm under {res.load / 1e3:g} kN, "
                  f"{res.duration:.4g} s, cost {res.cost:.4g} {unit}", fontsize=10)
+    fig.tight_layout()
+    return finish(fig, path)
+
+
+def plot_envelope(env, path=None):
+    """The figure of a :class:`~ema_casadi.optimal.Envelope`: the top rod speed against
+    the load opposing the move (the largest load held marked) and the minimum move time
+    against the distance, one line per soak temperature; a Figure, or the path of the
+    PNG written.
+
+    Parameters
+    ----------
+    env : Envelope
+        The envelope.
+    path : str or Path, optional
+        PNG file.
+    """
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    for T in env.temperatures:
+        name = "parameter set" if T is None else f"{T:g} degC"
+        line, = a.plot(np.asarray(env.loads) / 1e3, 1e3 * np.asarray(env.top_speed[T]), "o-", ms=3, label=name)
+        a.axvline(env.largest_force[T] / 1e3, color=line.get_color(), lw=0.8, ls=":",
+                  label=f"largest load held, {name}")
+        b.plot(1e3 * np.asarray(env.distances), np.asarray(env.min_time[T]), "o-", ms=3, label=name)
+    a.set_xlabel("load opposing the move (kN)")
+    a.set_ylabel("top rod speed (mm/s)")
+    b.set_xlabel("move distance (mm)")
+    b.set_ylabel("minimum move time, no load (s)")
+    for ax in (a, b):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    fig.suptitle("performance envelope within the drive's operating limits", fontsize=10)
     fig.tight_layout()
     return finish(fig, path)

@@ -96,3 +96,5 @@ def test_envelope_table(capsys, tmp_path):
     v0, v20 = r["top_speed_m_s"]["None"]
     assert 0.085 < v20 < v0 < 0.1  # the voltage circle's top speed (98 mm/s), 89.5 mm/s against 20 kN and friction
     assert (out / "envelope.csv").read_text().startswith("load_N,v_top_m_s_at_ref\n")
+    assert (out / "envelope.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert r["written"] == [str(out / "envelope.csv"), str(out / "envelope.png")]
