@@ -245,9 +245,10 @@ def report(r: dict) -> None:
     if "failed" in rep:
         print(f"  replay failed: {rep['failed']}")
     elif rep:
+        e_step = rep["ecu_step_link_energy_J"]  # None: the ECU's step ran over another window
+        beside = f" (ECU step {e_step:.4g} J)" if e_step is not None else ""
         print(f"  replay in the full model: 2 % band after {rep['settling_time_s']:.5g} s; energy from the link "
-              f"{rep['link_energy_J']:.4g} J (ECU step {rep['ecu_step_link_energy_J'] or float('nan'):.4g} J) over "
-              f"{rep['window_s']:.4g} s")
+              f"{rep['link_energy_J']:.4g} J{beside} over {rep['window_s']:.4g} s")
         for k, c in rep["ratings"].items():
             print(f"    {k:22s} peak {c['peak']:.5g} {c['unit']:5s} limit {c['limit']:.5g}  "
                   f"{'ok' if c['within'] else 'EXCEEDED'} (ECU step {c['ecu_step_peak']:.5g})")
