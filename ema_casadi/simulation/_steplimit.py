@@ -390,17 +390,14 @@ def default_step(model: Model, t_end, inputs, zoh: bool, dt_out=None, fixed: boo
     fixed : bool
         RK4 runs.
     """
-    from ._inputs import input_signals
-
     if not fixed or isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not 0 < t_end < math.inf:
         return DT_DEFAULT
     given, pv = inputs()
-    sig = input_signals(model, given, pv)  # without the noise sequences (peak_load reads the load)
-    limit = rk4_step_limit(model, p=pv, load=peak_load(model, sig, float(t_end)), zoh=zoh)
+    limit = _limit_at_peak(model, given, pv, t_end, zoh)
     if DT_DEFAULT <= DT_MARGIN * limit.dt_max:
         return DT_DEFAULT
     lengths = (float(t_end),) + ((float(dt_out),) if isinstance(dt_out, (int, float)) and dt_out > 0 else ())
-    return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, DT_DEFAULT, lengths)
+    return _inside(limit, model, pv, zoh, DT_DEFAULT, lengths)
 
 
 def inside_limit(model: Model, signals: dict, t_end: float, zoh: bool, cap: float, lengths=(), pv=None) -> float:
@@ -426,10 +423,21 @@ def inside_limit(model: Model, signals: dict, t_end: float, zoh: bool, cap: floa
     pv : ndarray, optional
         The parameter vector (default the model's).
     """
-    from ._inputs import input_signals
-
     pv = model.p() if pv is None else pv
     given = {model.input_name(k): v for k, v in signals.items() if k in model.inputs or model.inputs_with(k)}
+    return _inside(_limit_at_peak(model, given, pv, t_end, zoh), model, pv, zoh, cap, lengths)
+
+
+def _limit_at_peak(model: Model, given: dict, pv, t_end, zoh: bool) -> StepLimit:
+    """RK4's stability limit at ``pv`` and the largest load of the run's inputs ``given``
+    (input name -> value; the undriven ones at their defaults, without noise sequences)."""
+    from ._inputs import input_signals
+
     sig = input_signals(model, given, pv)
-    limit = rk4_step_limit(model, p=pv, load=peak_load(model, sig, t_end), zoh=zoh)
+    return rk4_step_limit(model, p=pv, load=peak_load(model, sig, float(t_end)), zoh=zoh)
+
+
+def _inside(limit: StepLimit, model: Model, pv, zoh: bool, cap: float, lengths) -> float:
+    """:meth:`StepLimit.inside` at :data:`DT_MARGIN` and ``cap``, dividing the ECU's sample
+    periods with ``zoh``."""
     return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, cap, tuple(lengths))
