@@ -47,10 +47,9 @@ def _profile(prob: Problem, overshoot: float, t_return: float) -> tuple[np.ndarr
             np.array([prob.start, hi, hi, prob.target]))
 
 
-def _run(prob: Problem, x0, t_end, dt_out, profile=None):
-    cmd = Signal.table(*profile) if profile is not None else Signal.step(prob.target, 0.0)
+def _run(prob: Problem, x0, t_end, dt_out, profile):
     return simulate(prob.model, t_end, p=prob.p, x0=x0, dt_out=dt_out,
-                    inputs={prob.cmd: cmd, prob.load_input: prob.load, **prob.extra})
+                    inputs={prob.cmd: Signal.table(*profile), prob.load_input: prob.load, **prob.extra})
 
 
 def _settle(prob: Problem, res) -> float:
@@ -73,7 +72,7 @@ def shape_command(prob: Problem) -> dict:
     x0 = prob.start_state()
     t_try = 0.05
     for _ in range(8):  # a window the ECU's own step settles in, with room after it
-        step = _run(prob, x0, t_try, t_try / 400)
+        step = prob._ecu_step(t_try, x0)
         settle = _settle(prob, step)
         if math.isfinite(settle) and settle < 0.7 * t_try:
             break
