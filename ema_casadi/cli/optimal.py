@@ -50,6 +50,8 @@ NO_EFFECT = {
                             lambda a: a.objective == "time" and not a.envelope),) + _env("--duration", "0.3"),
     "--from": _env("--from", "5mm"), "--through": _env("--through", "ecu"),
     "--intervals": (NoEffect(("--through", "ecu", "--intervals", "20"), _ECU.why, _ECU.when),),
+    "--method": _env("--method", "collocation") + (NoEffect(("--through", "ecu", "--method", "collocation"), _ECU.why,
+                                                            _ECU.when),),
     "--field-weakening": _env("--field-weakening") + (NoEffect(("--through", "ecu", "--field-weakening"), _ECU.why,
                                                                _ECU.when),),
     "--zoh": _env("--zoh"), "--out": (), "--envelope": (),
@@ -73,6 +75,9 @@ def add_arguments(p):
                    help="drive: the motor voltages as the control (the drive's capability); ecu: the rod command "
                         "with the cascade in the loop (a command profile); default drive")
     p.add_argument("--intervals", type=int, default=None, help="shooting intervals; default 40")
+    p.add_argument("--method", default="auto", help="the transcription: auto (default: multiple shooting where "
+                   "intervals x RK4 substeps <= 400, else collocation: a stiff model under load), shooting, "
+                   "collocation (Radau IIA of degree 3 on the same grid)")
     p.add_argument("--field-weakening", action="store_true",
                    help="allow field weakening (lift the FOC's i_d >= 0): above the commissioned drive's bound")
     p.add_argument("--zoh", action="store_true", help="replay with the sampled ECU (RK4)")
@@ -98,13 +103,15 @@ def _quantity(text: str, kind: str, bare: str, flag: str, stroke: float) -> floa
 
 
 def _request(args, params):
-    from ..optimal import INTERVALS, LEVELS, OBJECTIVES
+    from ..optimal import INTERVALS, LEVELS, METHODS, OBJECTIVES
 
     stroke = params.actuator.stroke
     if args.objective not in OBJECTIVES:
         raise UserError(f"--objective {args.objective}: unknown; choose one of {', '.join(OBJECTIVES)}")
     if args.through not in LEVELS:
         raise UserError(f"--through {args.through}: unknown; choose one of {', '.join(LEVELS)}")
+    if args.method not in METHODS:
+        raise UserError(f"--method {args.method}: unknown; choose one of {', '.join(METHODS)}")
     duration = None
     if args.duration is not None:
         from ._options import seconds
@@ -118,7 +125,7 @@ def _request(args, params):
             "start": _quantity(args.start, "length", "mm", "--from", stroke),
             "objective": args.objective, "duration": duration, "through": args.through,
             "intervals": INTERVALS if args.intervals is None else args.intervals,
-            "field_weakening": args.field_weakening}
+            "field_weakening": args.field_weakening, "method": args.method}
 
 
 def run(args) -> dict:
@@ -131,7 +138,7 @@ def run(args) -> dict:
     req = _request(args, params)
     try:  # every value checked before the solve (and before the output folder is made)
         check_request(model, req["move"], req["load"], req["objective"], req["duration"], req["start"],
-                      req["through"], req["intervals"])
+                      req["through"], req["intervals"], req["method"])
     except OptimalError as exc:
         raise UserError(str(exc)) from None
     out = Path(args.out) if args.out else None
@@ -237,8 +244,9 @@ def report(r: dict) -> None:
         print(f"  {ip['solver']}: {ip['status']} after {ip['iterations']} runs, {ip['solve_time_s']:.2f} s; "
               f"overshoot {ip['overshoot']:.3g} x the move, back to the target at {ip['t_return']:.5g} s")
     else:
-        print(f"  IPOPT {ip['status']} in {ip['iterations']} iterations, {ip['solve_time_s']:.2f} s "
-              f"({ip['intervals']} intervals x {ip['substeps']} RK4 substeps); "
+        how = (f"{ip['intervals']} intervals x {ip['substeps']} RK4 substeps" if ip["method"] == "shooting" else
+               f"{ip['intervals']} intervals, Radau IIA collocation; RK4 would need {ip['substeps']} substeps")
+        print(f"  IPOPT {ip['status']} in {ip['iterations']} iterations, {ip['solve_time_s']:.2f} s ({how}); "
               f"binding: {', '.join(r['binding']) or 'none'}")
     print(f"  ECU's own step: 2 % band after {r['ecu_step_settling_time_s']:.5g} s")
     rep = r.get("replay") or {}

@@ -25,11 +25,13 @@ ROUNDING = 1e-9
 def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str = "time",
                  duration: float | None = None, start: float = 0.0, through: str = "drive",
                  intervals: int = INTERVALS, field_weakening: bool = False, replay: bool = True,
-                 zoh: bool = False) -> OptimalMove:
+                 zoh: bool = False, method: str = "auto") -> OptimalMove:
     """The optimal move of the actuator within the limits its parts declare.
 
     Direct multiple shooting (:func:`~ema_casadi.simulation.interval_function`, RK4
-    substeps inside RK4's stability limit, exact derivatives) on the model's smooth
+    substeps inside RK4's stability limit, exact derivatives) or, where the RK4 chain
+    would be too long for the exact Hessian (a stiff configuration: under load), direct
+    collocation (Radau IIA of degree 3 on the same grid), on the model's smooth
     variant (:meth:`~ema_casadi.model.assembly.Model.smooth`: smooth friction, the
     averaged bridge, smooth limits) with the backlash closed, solved by IPOPT. The
     constraints are the model's operating limits
@@ -67,6 +69,10 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         run the ECU's own step of the same size beside it.
     zoh : bool
         Replay with the sampled ECU (RK4 at the simulation's step).
+    method : {"auto", "shooting", "collocation"}
+        The transcription (``through="drive"``): ``auto`` shoots where intervals x RK4
+        substeps is at most :data:`~ema_casadi.optimal._problem.EXPAND_LIMIT` (400) and
+        collocates above (docs: optimal-control, *Transcription*).
 
     Returns
     -------
@@ -81,8 +87,9 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         IPOPT found no move within the limits (the message names the binding one).
     """
     move, load, objective, duration, start, through, intervals = check_request(
-        model, move, load, objective, duration, start, through, intervals)
-    prob = Problem(model, move, load, objective, duration, start, through, intervals, bool(field_weakening))
+        model, move, load, objective, duration, start, through, intervals, method)
+    prob = Problem(model, move, load, objective, duration, start, through, intervals, bool(field_weakening),
+                   method=method)
     if load * move > 0:  # the load opposes the move: can the drive move against it at all?
         check_capacity(prob)
     if duration is not None:
@@ -105,6 +112,7 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         ipopt={"solver": "grid + bounded search" if through == "ecu" else "IPOPT",
                "status": sol["status"], "iterations": sol["iterations"], "solve_time_s": sol["solve_time_s"],
                "setup_time_s": sol["setup_time_s"], "intervals": intervals, "substeps": sol["substeps"],
+               "method": sol.get("method", "shaping"),
                "solver_warnings": sol["warnings"],
                **({k: sol[k] for k in ("overshoot", "t_return")} if through == "ecu" else {})},
         variants=dict(m.variants), rod=prob.rod, command=prob.cmd, _units=m.units,
@@ -121,7 +129,7 @@ def _check_duration(prob: Problem) -> None:
     from ._errors import OptimalError
 
     fastest = Problem(prob.full, prob.move, prob.load, "time", None, prob.start, prob.through, prob.N,
-                      prob.field_weakening)
+                      prob.field_weakening, method=prob.method)
     try:
         T_min = solve(fastest)["T"]
     except Infeasible:

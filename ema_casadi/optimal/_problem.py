@@ -1,5 +1,6 @@
-"""The optimal-control problem of one move, by direct multiple shooting (module docs:
-:mod:`ema_casadi.optimal`)."""
+"""The optimal-control problem of one move, by direct multiple shooting or, where the
+RK4 chain would be too long for the exact Hessian, by direct collocation (module docs:
+:mod:`ema_casadi.optimal`; the collocation equations: :mod:`._collocation`)."""
 
 from __future__ import annotations
 
@@ -9,25 +10,24 @@ import time
 import casadi as ca
 import numpy as np
 
-from .._util._checks import integer, number
 from ..linearisation import operating_point
 from ..model.assembly import Model
 from ..signals import Signal
 from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
-from ._errors import Infeasible, OptimalError
+from ._collocation import WARM, collocation, widened
+from ._errors import Infeasible
+from ._request import LEVELS, METHODS, OBJECTIVES, check_method, check_request
 
-__all__ = ["OBJECTIVES", "LEVELS", "INTERVALS", "Problem", "solve", "rk4_substeps", "initial_guess", "check_request"]
+__all__ = ["OBJECTIVES", "LEVELS", "METHODS", "INTERVALS", "Problem", "solve", "rk4_substeps", "initial_guess",
+           "check_request"]
 
-#: What a move minimises: its duration, the energy drawn from the DC link, the heat in the winding.
-OBJECTIVES = ("time", "energy", "heat")
-#: The control: ``drive`` (the innermost loop's held outputs, the motor voltages: the
-#: drive's capability) or ``ecu`` (the rod command through the cascade).
-LEVELS = ("drive", "ecu")
 #: Shooting intervals of a move (default).
 INTERVALS = 40
 #: RK4 substeps are kept at this fraction of RK4's stability limit |h lambda| = 2.78.
 STABILITY_FRACTION = 0.5
-#: Substeps in all (intervals x substeps) up to which the NLP is expanded to SX with its exact Hessian.
+#: Substeps in all (intervals x substeps) up to which the shooting NLP is expanded to SX with its exact
+#: Hessian; above it ``auto`` collocates (a shooting asked for keeps the chain as MX calls with a
+#: quasi-Newton Hessian: 10 mm against 15 kN, 40 x 695 substeps, 90 iterations, 120 s).
 EXPAND_LIMIT = 400
 #: A limit counts as binding where the optimum sits within this fraction of it.
 BINDING = 1e-3
@@ -85,10 +85,15 @@ class Problem:
         Lift the drive-strategy ratings.
     inputs : dict, optional
         Other constant inputs by name or role (``ambient_temperature``: degC).
+    method : str
+        One of :data:`METHODS`; the one used is attribute ``method`` after :meth:`build`.
     """
 
     def __init__(self, model: Model, move: float, load: float, objective: str, duration: float | None,
-                 start: float, through: str, intervals: int, field_weakening: bool, inputs: dict | None = None):
+                 start: float, through: str, intervals: int, field_weakening: bool, inputs: dict | None = None,
+                 method: str = "auto"):
+        self.method, self.substeps = check_method(method), None
+        self.p_nlp, self._building = None, False  # the parameters as the NLP's (Opti) parameter: build()
         self.full, self.move, self.load, self.objective = model, move, load, objective
         self.duration, self.start, self.through, self.N = duration, start, through, intervals
         self.field_weakening = field_weakening
@@ -158,14 +163,15 @@ class Problem:
         """(xdot, y) at the columns of X with the controls of the columns of C."""
         U, H = self._inputs(C)
         n = X.shape[1]
-        P = ca.repmat(ca.MX(self.p), 1, n)
+        P = ca.repmat(self.p_nlp if self._building else ca.MX(self.p), 1, n)
         if self.through == "drive":
             return self.model.f_held.map(n)(X, U, P, H)
         return self.model.f.map(n)(X, U, P)
 
     def build(self, x0: np.ndarray, guess) -> tuple:
         """The NLP in CasADi's Opti: (opti, Xs, Cs, T, scale, c_scale), the scaled states
-        (nx x N+1) and controls (nc x N), the duration and the scales.
+        (nx x N+1) and controls (nc x N), the duration and the scales. The transcription
+        (attribute ``method``) is resolved here: :data:`METHODS`.
 
         Parameters
         ----------
@@ -176,6 +182,12 @@ class Problem:
         """
         m, N = self.model, self.N
         opti = ca.Opti()
+        self.substeps = self._substeps(x0, guess)
+        if self.method == "auto":
+            self.method = "shooting" if self.N * self.substeps <= EXPAND_LIMIT else "collocation"
+        if self.method == "collocation":  # the parameters an Opti parameter: solve() widens a switch first
+            self.p_nlp, self._building = opti.parameter(len(self.p)), True
+            opti.set_value(self.p_nlp, self.p)
         scale = np.maximum(m.full_scale(self.p), 1e-6)
         Xs = opti.variable(m.nx, N + 1)
         X = ca.diag(scale) @ Xs
@@ -188,46 +200,83 @@ class Problem:
             opti.set_initial(T, guess["T"])
         else:
             T = self.duration
-        w = np.diff(self.fractions())
-        dts = T * ca.DM(w).T
-        F = self._interval(x0, guess).map(N)
-        U, H = self._inputs(C)
-        P = ca.repmat(ca.MX(self.p), 1, N)
-        DT = dts
-        out = F(X[:, :-1], U, P, H, DT) if self.through == "drive" else F(X[:, :-1], U, P, DT)
-        power = self._power_outputs()
-        X_next, cost = (out[0], ca.sum2(out[1])) if power else (out, 0)
+        dts = T * ca.DM(np.diff(self.fractions())).T
+        X_next, cost, inner = self._dynamics(opti, x0, guess, Xs, X, C, dts, scale)
         opti.subject_to(Xs[:, 0] == x0 / scale)
         # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
         rest_on = m.rest_states(self.p)
         free = [i for i, n in enumerate(m.states) if n not in rest_on]
         opti.subject_to(ca.vec(Xs[free, 1:] - ca.diag(1 / scale[free]) @ X_next[free, :]) == 0)
-        # the limits at both ends of every interval, with its control
+        # the limits at both ends of every interval, with its control (both transcriptions: the same NLP but
+        # for the dynamics); the memory states at rest at the nodes and at the collocation points
         _, Y0 = self._rates(X[:, :-1], C)
         _, Y1 = self._rates(X[:, 1:], C)
-        for n, sig in rest_on.items():
-            i = m.index(n)
-            opti.subject_to(ca.vec(X[i, 1:] - self._signal(sig, X[:, 1:], Y1)) / scale[i] == 0)
+        for Xn, Yn in [(X[:, 1:], Y1), *inner]:
+            self._hold(opti, Xn, Yn, rest_on, scale)
         for Xn, Yn in ((X[:, :-1], Y0), (X[:, 1:], Y1)):
             self._constrain(opti, Xn, Yn)
-        # the end: at the target, at rest, every rate but the temperatures' zero
+        self._end(opti, Xs, X, C, scale, guess["T"], rest_on)
+        opti.minimize(T / guess["T"] if self.objective == "time" else cost / guess["cost_scale"])
+        opti.set_initial(Xs, guess["X"] / scale[:, None])
+        opti.set_initial(Cs, guess["C"] / c_scale[:, None])
+        self.cost, self._building = cost, False
+        return opti, Xs, Cs, T, scale, c_scale
+
+    def _dynamics(self, opti, x0, guess, Xs, X, C, dts, scale) -> tuple:
+        """(X_next, cost, points): every interval's end state (nx x N), the cost's quadrature
+        and the collocation points' (X, Y) (none for the shooting)."""
+        if self.method == "collocation":
+            return collocation(self, opti, Xs, C, dts, scale, guess)
+        F = interval_function(self.model, held=self.through == "drive", substeps=self.substeps,
+                              quadrature=self._power_outputs()).map(self.N)
+        U, H = self._inputs(C)
+        P = ca.repmat(ca.MX(self.p), 1, self.N)
+        out = F(X[:, :-1], U, P, H, dts) if self.through == "drive" else F(X[:, :-1], U, P, dts)
+        return (out[0], ca.sum2(out[1]), []) if self._power_outputs() else (out, 0, [])
+
+    def _hold(self, opti, X, Y, rest_on, scale) -> None:
+        """A memory state at rest on its signal is that signal at the columns of X, Y."""
+        for n, sig in rest_on.items():
+            i = self.model.index(n)
+            opti.subject_to(ca.vec(X[i, :] - self._signal(sig, X, Y)) / scale[i] == 0)
+
+    def _end(self, opti, Xs, X, C, scale, T_ref, rest_on) -> None:
+        """The end: at the target, at rest, every rate but the temperatures' (and the held
+        controller integrals') zero; a rate the speeds at rest make zero already (the shaft
+        angle's, the shaft speed) not again (:meth:`_kinematic`)."""
+        m, N = self.model, self.N
         xdot, y = self._rates(X[:, N], C[:, N - 1])
         opti.subject_to(self._signal(self.rod, X[:, N], y) == self.target)
         held = self.through == "drive"
         rates, rest = [], []
+        implied = self._kinematic()
         for i, n in enumerate(m.states):
             roles = m.state_info[n].roles
             if "temperature" in roles or (held and "controller_integral" in roles) or n in rest_on:
                 continue
-            rates.append(xdot[i] / (scale[i] / guess["T"]))
+            if i not in implied:
+                rates.append(xdot[i] / (scale[i] / T_ref))
             if set(roles) & set(_REST_ROLES):
                 rest.append(Xs[i, N])
         opti.subject_to(ca.vertcat(*rates, *rest) == 0)
-        opti.minimize(T / guess["T"] if self.objective == "time" else cost / guess["cost_scale"])
-        opti.set_initial(Xs, guess["X"] / scale[:, None])
-        opti.set_initial(Cs, guess["C"] / c_scale[:, None])
-        self.cost = cost
-        return opti, Xs, Cs, T, scale, c_scale
+
+    def _kinematic(self) -> set:
+        """States whose rate is a function of the resting states (shaft speed, rod and
+        contact velocities) alone, zero where they are (a position's rate, its speed):
+        their rate's end condition would repeat the speeds' (a rank-deficient Jacobian,
+        whose multipliers IPOPT's least-squares start leaves to the BLAS kernel's rounding)."""
+        m = self.model
+        xs, us, hs = ca.SX.sym("x", m.nx), ca.SX.sym("u", m.nu), ca.SX.sym("h", len(m.holds))
+        xdot = m.f_held(xs, us, self.p, hs)[0] if self.through == "drive" else m.f(xs, us, self.p)[0]
+        at_rest = [i for i, n in enumerate(m.states) if set(m.state_info[n].roles) & set(_REST_ROLES)]
+        zero = ca.Function("xdot", [xs, us, hs], [xdot])(np.zeros(m.nx), self._u0(), np.zeros(len(m.holds)))
+        out = set()
+        for i in range(m.nx):
+            dx, du, dh = (np.array(ca.which_depends(xdot[i], v, 1, False)) for v in (xs, us, hs))
+            if dx.any() and not du.any() and not dh.any() and set(np.flatnonzero(dx)) <= set(at_rest) \
+                    and float(zero[i]) == 0.0:
+                out.add(i)
+        return out
 
     def _control_scale(self) -> np.ndarray:
         if self.through == "drive":
@@ -253,14 +302,14 @@ class Problem:
             else:
                 opti.subject_to(ca.vec(sig[0]) >= lim)
 
-    def _interval(self, x0, guess):
+    def _substeps(self, x0, guess) -> int:
+        """RK4 substeps per interval within half RK4's stability limit at the start and at
+        the guess's middle node (:func:`rk4_substeps`, the longest interval, twice)."""
         held = self.through == "drive"
         h0 = np.zeros(len(self.model.holds)) if held else None
         u0 = self._u0()
         dt_max = (guess["T"] if self.objective == "time" else self.duration) * np.diff(self.fractions()).max()
-        n = max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
-        self.substeps = n
-        return interval_function(self.model, held=held, substeps=n, quadrature=self._power_outputs())
+        return max(rk4_substeps(self.model, x, u0, self.p, 2 * dt_max, h0) for x in (x0, guess["X"][:, self.N // 2]))
 
 
 def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
@@ -316,39 +365,48 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     x0 = prob.start_state()
     guess = initial_guess(prob, x0)
     opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
-    # a small problem expanded to SX with its exact Hessian; a long chain of substeps kept
-    # as calls (MX) with a quasi-Newton Hessian (the exact one of thousands of substeps is slow)
-    small = prob.N * prob.substeps <= EXPAND_LIMIT
+    # collocation and a short RK4 chain expanded to SX with the exact Hessian; a long chain of substeps
+    # (a shooting asked for) kept as calls (MX) with a quasi-Newton Hessian (the exact one is slow)
+    small = prob.method == "collocation" or prob.N * prob.substeps <= EXPAND_LIMIT
     # the monotone barrier from mu 1e-2 (the guess is near-feasible): on the reference 10 mm minimum time 28
     # iterations against the adaptive strategy's 241 (the same optimum to 2e-7), field weakening converges there
     # (adaptive: Restoration_Failed), energy 39 against 48
     ipopt = {"print_level": 0, "max_iter": max_iter, "tol": tol, "mu_strategy": "monotone", "mu_init": 1e-2}
     if not small:
         ipopt["hessian_approximation"] = "limited-memory"
+    # where the monotone barrier stops short (20 mm soaked at 20 degC with the thermal network: a local
+    # infeasibility), the adaptive one from the same guess
+    strategies = (ipopt, {**ipopt, "mu_strategy": "adaptive", "mu_init": 0.1})
     t_setup = time.perf_counter() - t0
     # CasADi's warnings of NaN trial points in IPOPT's line search (the solver steps back) kept
     # off stderr: counted in the result instead
     with captured_stderr() as messages:
-        # where the monotone barrier stops short (20 mm soaked at 20 degC with the thermal network: a local
-        # infeasibility), the adaptive one from the same guess
-        for strategy in (ipopt, {**ipopt, "mu_strategy": "adaptive", "mu_init": 0.1}):
-            opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": small}, strategy)
-            try:
-                sol = opti.solve()
-                stats, ok = sol.stats(), True
-                val = sol.value
-                break
-            except RuntimeError:
-                stats, ok = opti.stats(), False
-                val = opti.debug.value
+        stages = []
+        # collocation: the switches widened first (a smoother problem), its optimum the warm start
+        for p in (widened(prob) if prob.method == "collocation" else []):
+            opti.set_value(prob.p_nlp, p)
+            stats, ok, val = _ipopt(opti, strategies, small)
+            stages.append(int(stats["iter_count"]))
+            if ok:
+                opti.set_initial(opti.x, val(opti.x))
+                opti.set_initial(opti.lam_g, val(opti.lam_g))
+                opti.set_value(prob.p_nlp, prob.p)
+                stats, ok, val = _ipopt(opti, ({**ipopt, **WARM},), small)
+                stages.append(int(stats["iter_count"]))
+            if not ok:  # from the guess at the model's own width
+                opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
+        if not stages or not ok:
+            stats, ok, val = _ipopt(opti, strategies, small)
+            stages.append(int(stats["iter_count"]))
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
     cost = Tv if prob.objective == "time" else float(val(prob.cost))
     out = {"T": Tv, "X": X, "C": C, "t": Tv * prob.fractions(), "status": stats["return_status"],
-           "iterations": int(stats["iter_count"]), "solve_time_s": time.perf_counter() - t0 - t_setup,
+           "iterations": sum(stages), "stages": stages, "solve_time_s": time.perf_counter() - t0 - t_setup,
            "setup_time_s": t_setup, "cost": cost,
-           "warnings": messages.getvalue().count("WARNING"), "guess": guess, "x0": x0, "substeps": prob.substeps}
+           "warnings": messages.getvalue().count("WARNING"), "guess": guess, "x0": x0, "substeps": prob.substeps,
+           "method": prob.method}
     out["Y"] = _outputs(prob, X, C)
     out["margins"] = _margins(prob, X, out["Y"])
     if not ok:
@@ -358,6 +416,18 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
                          f"{stats['iter_count']} iterations; the binding limit is the {r.what} ({r.why} = "
                          f"{prob.limits[r.name]:.4g} {r.unit})", out)
     return out
+
+
+def _ipopt(opti, strategies, expand: bool) -> tuple:
+    """(stats, ok, value): IPOPT with each option set in turn until one converges."""
+    for strategy in strategies:
+        opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": expand}, strategy)
+        try:
+            sol = opti.solve()
+            return sol.stats(), True, sol.value
+        except RuntimeError:
+            pass
+    return opti.stats(), False, opti.debug.value
 
 
 def _outputs(prob: Problem, X, C) -> np.ndarray:
@@ -381,51 +451,3 @@ def _margins(prob: Problem, X, Y) -> dict:
         else:
             out[r.name] = float(s[0].min() - lim)
     return out
-
-
-def check_request(model: Model, move, load, objective, duration, start, through, intervals) -> tuple:
-    """Every argument checked before any work (:class:`OptimalError`, one line naming it).
-
-    Parameters
-    ----------
-    model, move, load, objective, duration, start, through, intervals
-        As :func:`~ema_casadi.optimal.optimal_move` takes them.
-    """
-    if not isinstance(model, Model):
-        raise OptimalError(f"model: expected a Model (from build_model), got {type(model).__name__}")
-    move = number(move, "move", OptimalError)
-    load = number(load, "load", OptimalError)
-    start = number(start, "start", OptimalError)
-    if objective not in OBJECTIVES:
-        raise OptimalError(f"objective '{objective}' unknown; choose one of {', '.join(OBJECTIVES)}")
-    if through not in LEVELS:
-        raise OptimalError(f"through '{through}' unknown; choose one of {', '.join(LEVELS)}")
-    intervals = integer(intervals, "intervals", OptimalError, minimum=4)
-    if through == "ecu" and objective != "time":
-        raise OptimalError(f"through ecu: command shaping minimises the time to the 2 % band (objective time), "
-                           f"not '{objective}'")
-    if objective == "time":
-        if duration is not None:
-            raise OptimalError("duration: a minimum-time move has no given duration (objective energy or heat)")
-    else:
-        if duration is None:
-            raise OptimalError(f"duration: an objective '{objective}' move needs its duration (s)")
-        duration = number(duration, "duration", OptimalError)
-        if not duration > 0:
-            raise OptimalError(f"duration {duration:g} s: must be positive")
-    if move == 0:
-        raise OptimalError("move: 0 m is no move")
-    limits = model.operating_limits()
-    stroke = limits.get("stroke")
-    if stroke is not None and not (abs(start) <= stroke and abs(start + move) <= stroke):
-        raise OptimalError(f"move {move * 1e3:g} mm from {start * 1e3:g} mm ends at {(start + move) * 1e3:g} mm, "
-                           f"beyond the stroke +-{stroke * 1e3:g} mm")
-    held = model.envelope_limits().get("held_load")
-    if held is not None and abs(load) > held:
-        raise OptimalError(f"load {load / 1e3:g} kN: above the {held / 1e3:.4g} kN the screw holds at the "
-                           "current limit")
-    speed = limits.get("rod_speed")
-    if duration is not None and speed and duration < abs(move) / speed:
-        raise OptimalError(f"duration {duration:g} s: below the minimum time of {abs(move) * 1e3:g} mm even at "
-                           f"the rated rod speed {speed * 1e3:g} mm/s ({abs(move) / speed:.4g} s)")
-    return move, load, objective, duration, start, through, intervals

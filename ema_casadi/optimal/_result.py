@@ -45,8 +45,10 @@ class OptimalMove:
     binding : list of str
         The ratings the optimum sits on (margin below 1e-3).
     ipopt : dict
-        ``solver``, ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``,
-        ``solver_warnings`` (CasADi's warnings during the solve, kept off stderr: NaN trial points).
+        ``solver``, ``status``, ``iterations``, ``solve_time_s``, ``setup_time_s``, ``intervals``, ``substeps``
+        (RK4 substeps per interval: the shooting's, or what it would take where it collocates), ``method``
+        (the transcription: ``shooting``, ``collocation``; ``shaping`` through the ECU), ``solver_warnings``
+        (CasADi's warnings during the solve, kept off stderr: NaN trial points).
     variants : dict
         The smooth variants the problem was solved on.
     rod, command : str
