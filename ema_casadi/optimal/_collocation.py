@@ -30,16 +30,17 @@ DEGREE = 3
 #: The collocation points' family (``ca.collocation_points``): ``radau`` includes the
 #: interval's end, the L-stable Radau IIA method.
 SCHEME = "radau"
-#: The switch widths of a first, smoother solve (parameter -> value): the screw's
-#: efficiency switch over the transmitted power (``P_blend``, 0.1 W on the reference:
-#: 8 mrad/s of shaft speed against 15 kN, a rate of 10^5 1/s at rest). At the model's
-#: own width the NLP under load has several optima a few 1e-4 apart in the braking, and
-#: which one IPOPT reaches from the ECU's step follows the rounding (the BLAS kernel,
-#: the barrier's start: 0.11496 ... 0.11662 s for 10 mm against 15 kN); from the
-#: optimum at 10 W every start tried reached the same one (0.1149842 s).
-WIDENED = {"P_blend": 10.0}
+#: The continuation's first, smoother solves, in turn: the model's smooth switches at the
+#: widths its parts declare (the ``switch_width`` policy; on the reference the screw's
+#: efficiency switch over the transmitted power, 0.1 W: 8 mrad/s of shaft speed against
+#: 15 kN, a rate of 10^5 1/s at rest, widened to 10 W, then 1 W). At the model's own width
+#: the NLP under load has several optima a few 1e-4 apart in the braking, and which one
+#: IPOPT reaches from the ECU's step follows the rounding (the BLAS kernel, the barrier's
+#: start: 0.11496 ... 0.11662 s for 10 mm against 15 kN); from the widened optima every
+#: start tried reached the same one (0.1149842 s).
+WIDENED = ("wider", "wide")
 #: IPOPT's warm start from the widened problem's optimum (primal and multipliers).
-WARM = {"warm_start_init_point": "yes", "mu_init": 1e-6, "warm_start_bound_push": 1e-9,
+WARM = {"warm_start_init_point": "yes", "mu_init": 1e-4, "warm_start_bound_push": 1e-9,
         "warm_start_mult_bound_push": 1e-9, "warm_start_slack_bound_push": 1e-9}
 
 
@@ -124,14 +125,18 @@ def collocation(prob, opti, Xs, C, dts, scale: np.ndarray, guess: dict) -> tuple
 
 
 def widened(prob) -> list:
-    """The parameter vectors of the continuation's first solves (:data:`WIDENED`, where
-    the model has the parameter and its switch is narrower): [] or [p]."""
-    p = np.array(prob.p, float)
+    """The parameter vectors of the continuation's first solves (:data:`WIDENED`: each
+    declared width wider than the model's own, in turn); [] where the model declares none."""
     names = prob.model.param_names
-    hit = [n for n, w in WIDENED.items() if n in names and 0 < p[names.index(n)] < w]
-    for n in hit:
-        p[names.index(n)] = WIDENED[n]
-    return [p] if hit else []
+    out = []
+    for value in WIDENED:
+        p = np.array(prob.p, float)
+        for n, w in prob.model.small_signal(switch_width=value).items():
+            i = names.index(n)
+            p[i] = w if 0 < p[i] < w else p[i]
+        if not np.array_equal(p, prob.p):
+            out.append(p)
+    return out
 
 
 def _free(prob) -> list:

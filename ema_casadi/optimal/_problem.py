@@ -240,7 +240,7 @@ class Problem:
             i = self.model.index(n)
             opti.subject_to(ca.vec(X[i, :] - self._signal(sig, X, Y)) / scale[i] == 0)
 
-    def _end(self, opti, Xs, X, C, scale, T_ref, rest_on) -> None:
+    def _end(self, opti, Xs, X, C, scale, T_guess, rest_on) -> None:
         """The end: at the target, at rest, every rate but the temperatures' (and the held
         controller integrals') zero; a rate the speeds at rest make zero already (the shaft
         angle's, the shaft speed) not again (:meth:`_kinematic`)."""
@@ -255,7 +255,7 @@ class Problem:
             if "temperature" in roles or (held and "controller_integral" in roles) or n in rest_on:
                 continue
             if i not in implied:
-                rates.append(xdot[i] / (scale[i] / T_ref))
+                rates.append(xdot[i] / (scale[i] / T_guess))
             if set(roles) & set(_REST_ROLES):
                 rest.append(Xs[i, N])
         opti.subject_to(ca.vertcat(*rates, *rest) == 0)
@@ -381,21 +381,19 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     # CasADi's warnings of NaN trial points in IPOPT's line search (the solver steps back) kept
     # off stderr: counted in the result instead
     with captured_stderr() as messages:
-        stages = []
-        # collocation: the switches widened first (a smoother problem), its optimum the warm start
-        for p in (widened(prob) if prob.method == "collocation" else []):
+        stages, ok = [], False
+        # collocation: the switches widened first (smoother problems), each optimum the next one's warm start
+        for k, p in enumerate([*widened(prob), prob.p] if prob.method == "collocation" else []):
             opti.set_value(prob.p_nlp, p)
-            stats, ok, val = _ipopt(opti, strategies, small)
+            stats, ok, val = _ipopt(opti, ({**ipopt, **WARM},) if k else strategies, small)
             stages.append(int(stats["iter_count"]))
-            if ok:
-                opti.set_initial(opti.x, val(opti.x))
-                opti.set_initial(opti.lam_g, val(opti.lam_g))
-                opti.set_value(prob.p_nlp, prob.p)
-                stats, ok, val = _ipopt(opti, ({**ipopt, **WARM},), small)
-                stages.append(int(stats["iter_count"]))
-            if not ok:  # from the guess at the model's own width
-                opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
-        if not stages or not ok:
+            if not ok:
+                break
+            opti.set_initial(opti.x, val(opti.x))
+            opti.set_initial(opti.lam_g, val(opti.lam_g))
+        if stages and not ok:  # from the guess at the model's own width
+            opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
+        if not ok:
             stats, ok, val = _ipopt(opti, strategies, small)
             stages.append(int(stats["iter_count"]))
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]

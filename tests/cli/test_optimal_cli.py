@@ -22,6 +22,7 @@ def _run(capsys, *args):
     (("--objective", "speed"), "--objective speed: unknown"),
     (("--objective", "energy", "--duration", "0.01"), "below the minimum time"),
     (("--through", "cascade"), "--through cascade: unknown"),
+    (("--method", "euler"), "--method euler: unknown"),
     (("--through", "ecu", "--objective", "energy", "--duration", "0.3"), "command shaping minimises the time"),
 ])
 def test_bad_requests_exit_2_with_one_line(capsys, tmp_path, args, words):

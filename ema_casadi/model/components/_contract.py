@@ -15,9 +15,11 @@ __all__ = ["POLICIES", "Limit", "Rating", "RATING_SENSES", "Freeze", "Seed", "Ga
 #: Small-signal policies of the linearisation: policy -> allowed values, first the
 #: default. A part states what each value sets (:attr:`Part.small_signal`). Policies
 #: the caller does not choose take their default (``quantisation = "off"``: a real
-#: sensor's quantisation steps 0, so its reading has slope 1).
+#: sensor's quantisation steps 0, so its reading has slope 1). ``switch_width``: a smooth
+#: switch's width (``keep``, or the ``wide`` and ``wider`` widths a continuation of an
+#: optimal move starts from: :mod:`ema_casadi.optimal._collocation`).
 POLICIES = {"friction": ("off", "smooth"), "backlash": ("off", "keep"), "quantisation": ("off", "keep"),
-            "screw_lock": ("off", "keep")}
+            "screw_lock": ("off", "keep"), "switch_width": ("keep", "wide", "wider")}
 
 
 @dataclass(frozen=True)

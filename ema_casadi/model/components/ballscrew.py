@@ -254,7 +254,10 @@ ETA = Input("eta", "1", "dimensionless", "screw-nut efficiency (a thermal model 
 
 
 #: Small-signal policy: backlash "off" closes the gap (dead zone and play have slope 1 at B = 0).
-_SMALL_SIGNAL = {"backlash": {"off": {"B": 0.0}}}
+#: The efficiency switch widened (``switch_width``): 1 W and 10 W of transmitted power (the
+#: reference's own 0.1 W is 8 mrad/s of shaft speed against 15 kN).
+_SMALL_SIGNAL = {"backlash": {"off": {"B": 0.0}},
+                 "switch_width": {"wide": {"P_blend": 1.0}, "wider": {"P_blend": 10.0}}}
 #: The elastic screw's self-locking memory: "off" (the default of linearisation, trim and
 #: every smooth use) is the blend over P_blend; "keep" linearises the pre-sliding memory.
 _SMALL_SIGNAL_LOCK = {**_SMALL_SIGNAL, "screw_lock": {"off": {"x_lock": 0.0}}}
