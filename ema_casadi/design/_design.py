@@ -15,7 +15,7 @@ from .._util._checks import integer, nearest, number
 from ..identification import SENSOR_NOISE, IdentificationError, free_parameters
 from ..model.assembly import build_model
 from ..model.params import Parameters
-from ..simulation import RunFailed, progress_bar
+from ..simulation import AnalysisFailed, progress_bar
 from ._excitation import realise, standard_test
 from ._fisher import information, intervals
 from ._library import admissible, at_limits, candidates, evaluate
@@ -37,7 +37,7 @@ class DesignError(ValueError):
     keep): one line naming it. The command line reports it with exit status 2."""
 
 
-class DesignFailed(RunFailed):
+class DesignFailed(AnalysisFailed):
     """A design that could not be made (every candidate failed or left the limits, the
     optimiser did not converge): exit status 3.
 
@@ -46,11 +46,6 @@ class DesignFailed(RunFailed):
     what : str
         The reason, one line.
     """
-
-    def __init__(self, what: str):
-        super().__init__(what, 0.0, None)
-        self.reason = what
-        self.args = (what,)
 
 
 _PRIOR = re.compile(r"^#\s+([A-Za-z_]\w*):\s*(\S+)\s*->\s*(\S+)\s*\(95 %:\s*(\S+)\s*\.\.\s*(\S+)\)")

@@ -13,7 +13,7 @@ from .._util._checks import instance, integer, nearest, number
 from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
-from ..simulation import RunFailed, progress_bar
+from ..simulation import AnalysisFailed, RunFailed, progress_bar
 from . import _consistency, _misfit
 from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal
@@ -39,7 +39,7 @@ REGRID = 0.05
 X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 
 
-class FitFailed(RunFailed):
+class FitFailed(AnalysisFailed):
     """A fit that did not converge, or whose model run failed at the start values: not
     a result (the command line: exit status 3, one line, no fitted file).
 
@@ -48,11 +48,6 @@ class FitFailed(RunFailed):
     what : str
         The reason, one line.
     """
-
-    def __init__(self, what: str):
-        super().__init__(what, 0.0, None)
-        self.reason = what
-        self.args = (what,)
 
 
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,

@@ -64,7 +64,7 @@ honour an interrupt (:mod:`ema_casadi._util._interrupts`) between chunks.
 from ._api import DT_OUT, MAX_STEPS, SOLVERS, check_run, simulate
 from ._choice import AUTO_ATOL, AUTO_RTOL, choose_solver, trimmed_start
 from ._cvodes import BDF_MAX_ORDER
-from ._envelope import GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure
+from ._envelope import AnalysisFailed, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure
 from ._inputs import as_signal, check_inputs, input_matrix, input_signals, noise_signal
 from ._interval import interval_function
 from ._pwm import check_switched
@@ -89,7 +89,7 @@ from ._steplimit import (
 
 __all__ = [
     "simulate", "SimResult", "SOLVERS", "DT_OUT", "MAX_STEPS", "AUTO_RTOL", "AUTO_ATOL", "choose_solver",
-    "SimulationError", "RunFailed", "Monitor", "rk4_step_function",
+    "SimulationError", "RunFailed", "AnalysisFailed", "Monitor", "rk4_step_function",
     "step_response_metrics", "hunting_metrics",
     "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal", "interval_function",
     # the interfaces other packages build on: request checks, inputs, the start, integrator failures

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RunFailed", "GaveUp", "Monitor", "Violation", "captured_stderr", "integrator_failure", "monitor_for"]
+__all__ = ["RunFailed", "AnalysisFailed", "GaveUp", "Monitor", "Violation", "captured_stderr", "integrator_failure",
+           "monitor_for"]
 
 
 class RunFailed(Exception):
@@ -53,6 +54,23 @@ class RunFailed(Exception):
         if result is not None:
             result.info.update(status="failed", reason=self.reason)
         super().__init__(self.reason)
+
+
+class AnalysisFailed(RunFailed):
+    """An analysis that ended without a result and at no instant of a run (a fit that did
+    not converge, a design that could not be made): the reason alone, one line (the
+    command line: exit status 3).
+
+    Parameters
+    ----------
+    what : str
+        The reason, one line.
+    """
+
+    def __init__(self, what: str):
+        super().__init__(what, 0.0, None)
+        self.reason = what
+        self.args = (what,)
 
 
 @dataclass(frozen=True)
