@@ -10,7 +10,11 @@ measured (0.3 um, 0.05 A noise, given to the fit), made by
   ``blend`` a screw-efficiency switch twice as wide (``P_blend`` 0.2 W for 0.1 W),
   ``rk4`` fixed-step RK4 at 2 us (250 steps per sample) instead of the adaptive RODAS4,
   ``backcalc`` a back-calculation anti-windup 1 % faster (``k_bc`` 1.01), and
-  ``blend_rk4`` (``witness``) the first two together. RK4 is first-order accurate
+  ``blend_rk4`` (``witness``) the first two together, ``rk4_1us`` RK4 at 1 us (inside its
+  stability limit), and ``lugre_smooth*`` the smooth friction law replaced by LuGre on the
+  same steady-state curve (``friction = "lugre_smooth"``) with the bristle stiffness
+  sigma_0 of the name (1e9, 1e10, 1e11; default ``lugre_smooth``: 1e8 N/m) and no bristle
+  damping. RK4 is first-order accurate
   across the rate limit's clip and the input table's kinks: at 25 us the rod position
   is off by 28 noise levels, at 5 us by 8; 2 us is above RK4's stability limit on the
   rod held under the slews' load (1.6 us at +8 kN, 1.1 us at -15 kN: ``ema.simulate``
@@ -33,7 +37,7 @@ adequate within model error).
 
 Usage::
 
-    python studies/coverage.py [--model right|blend|rk4|backcalc|blend_rk4|witness] [--n 50]
+    python studies/coverage.py [--model right|blend|rk4|rk4_1us|backcalc|blend_rk4|lugre_smooth_1e10|...] [--n 50]
         [--t-scale 0.25] [--jobs 2] [--structural NAME=LO:HI] [--json]
 
 Python: ``coverage(params, model="witness", n=50, t_scale=0.25, structural=None, jobs=1)``
@@ -68,7 +72,19 @@ WITNESSES = {
     "blend_rk4": {"variants": {}, "params": {"P_blend": 0.2}, "rk4_dt": 2e-6},
     "blend": {"variants": {}, "params": {"P_blend": 0.2}, "rk4_dt": None},
     "rk4": {"variants": {}, "params": {}, "rk4_dt": 2e-6},
+    "rk4_1us": {"variants": {}, "params": {}, "rk4_dt": 1e-6},
     "backcalc": {"variants": {}, "params": {"k_bc": 1.01}, "rk4_dt": None},
+    # LuGre on the smooth law's curve, no bristle damping: at sigma_0 = 1e8 N/m a pre-sliding deflection of
+    # 2.25 um at the seal friction, the rest time constant F_seal/(sigma_0 v_s) 22.5 ms (6 noise levels of misfit,
+    # inadequate); 1e9: 1.1 noise levels (inadequate), 1e10: 0.14, 1e11: 0.08 (docs/guide/model-error.md)
+    "lugre_smooth": {"variants": {"friction": "lugre_smooth"}, "params": {"sigma_0": 1e8, "sigma_1": 0.0},
+                     "rk4_dt": None},
+    "lugre_smooth_1e9": {"variants": {"friction": "lugre_smooth"}, "params": {"sigma_0": 1e9, "sigma_1": 0.0},
+                         "rk4_dt": None},
+    "lugre_smooth_1e10": {"variants": {"friction": "lugre_smooth"}, "params": {"sigma_0": 1e10, "sigma_1": 0.0},
+                          "rk4_dt": None},
+    "lugre_smooth_1e11": {"variants": {"friction": "lugre_smooth"}, "params": {"sigma_0": 1e11, "sigma_1": 0.0},
+                          "rk4_dt": None},
 }
 #: The study's historical witness (the first of the docs' table).
 WITNESS = WITNESSES["blend_rk4"]
@@ -119,7 +135,9 @@ def one_fit(item) -> dict | None:
                        **({"structural": structural} if structural else {}))
     except FitFailed:
         return None
-    return {"verdict": res.adequacy["verdict"], "wall_s": time.perf_counter() - t0,
+    worst = max(res.misfits, key=lambda m: m["systematic_sigma"], default=None)
+    return {"verdict": res.adequacy["verdict"], "misfit_sigma": worst["systematic_sigma"] if worst else 0.0,
+            "misfit_text": worst["text"] if worst else "", "wall_s": time.perf_counter() - t0,
             "cpu_s": time.process_time() - c0,
             "interval": {k: list(v) for k, v in res.interval.items()},
             "interval_textbook": {k: list(v) for k, v in res.interval_textbook.items()}}
@@ -179,6 +197,8 @@ def coverage(params=None, *, model: str = "witness", n: int = 50, t_scale: float
             "coverage": {k: float(np.mean(h)) for k, h in hits.items()},
             "coverage_textbook": {k: float(np.mean(h)) for k, h in hits_tb.items()},
             "width_ratio": {k: float(np.median(r)) if r else float("nan") for k, r in ratio.items()},
+            "misfit_sigma": float(np.median([o["misfit_sigma"] for o in done])) if done else float("nan"),
+            "misfit_text": done[0]["misfit_text"] if done else "",
             "wall_s": float(np.median([o["wall_s"] for o in done])) if done else float("nan"),
             "cpu_s": float(np.median([o["cpu_s"] for o in done])) if done else float("nan")}
 
@@ -186,7 +206,8 @@ def coverage(params=None, *, model: str = "witness", n: int = 50, t_scale: float
 def table(doc: dict) -> str:
     """The study as a Markdown table."""
     lines = [f"{doc['model']}: {doc['n']} realisations, exit 0 in {100 * doc['exit0']:.0f} % "
-             f"({doc['verdicts']}), {doc['failed']} not converged", "",
+             f"({doc['verdicts']}), {doc['failed']} not converged; systematic misfit (largest channel, median "
+             f"over the fits) {doc['misfit_sigma']:.2f} noise levels, first fit: {doc['misfit_text']}", "",
              "| parameter | robust 95 % covers | textbook 95 % covers | width robust / textbook |", "|---|---|---|---|"]
     for k in TRUTH:
         lines.append(f"| {k} | {100 * doc['coverage'][k]:.0f} % | {100 * doc['coverage_textbook'][k]:.0f} % | "

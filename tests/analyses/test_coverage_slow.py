@@ -1,6 +1,6 @@
 """Coverage of the headline (robust) 95 % intervals over 50 noise realisations
 (studies/coverage.py; the table in docs/guide/model-error.md): with the model right,
-and under two small model errors, each alone: a witness with a twice wider efficiency
+and under small model errors, each alone: a witness with a twice wider efficiency
 switch (``blend``: P_blend 0.2 W for 0.1 W), fitted plainly and with the switch's
 width declared as a structural constant (``--structural P_blend=0.05:0.2``, the
 type-B term), and a witness simulated by fixed-step RK4 at 2 us (``rk4``). Slow: 200
@@ -92,3 +92,33 @@ def test_robust_coverage_under_a_coarse_rk4_step(rk4, name):
                      "loaded records; the records' scale factor (about 2) widens it 2.3x the textbook interval, "
                      "not enough (measured coverage 64 %; docs/guide/model-error.md)")
     assert rk4["coverage"][name] >= LOW, rk4["coverage"]
+
+
+@pytest.fixture(scope="module")
+def lugre_1e10(params):
+    return study.coverage(params, model="lugre_smooth_1e10", n=50, progress=False)
+
+
+@pytest.fixture(scope="module")
+def rk4_1us(params):
+    return study.coverage(params, model="rk4_1us", n=50, progress=False)
+
+
+@pytest.mark.parametrize("name", list(study.TRUTH))
+def test_robust_coverage_under_rk4_inside_its_stability_limit(rk4_1us, name):
+    """RK4 at 1 us (0.07 noise levels of misfit): covered as with the model right
+    (measured 90-98 %), every fit adequate (50 of 50)."""
+    assert rk4_1us["exit0"] >= 0.95 and rk4_1us["failed"] == 0, rk4_1us
+    assert rk4_1us["coverage"][name] >= LOW, rk4_1us["coverage"]
+
+
+@pytest.mark.parametrize("name", list(study.TRUTH))
+def test_robust_coverage_under_lugre_bristles(lugre_1e10, name):
+    """LuGre on the smooth law's curve, sigma_0 = 1e10 N/m (0.14 noise levels): every fit
+    ends with exit 0 (measured 50 of 50), c_v, J_m and psi covered (measured 88-96 %)."""
+    assert lugre_1e10["exit0"] >= 0.95 and lugre_1e10["failed"] == 0, lugre_1e10
+    if name in ("F_seal", "C"):
+        pytest.xfail(f"{name}: the bristles' compliance at rest, absorbed alike in every record by the seal friction "
+                     "and the drive-train stiffness, biases it by about 1.5 textbook sd while every test passes "
+                     "(measured coverage F_seal 76 %, C 74 %; docs/guide/model-error.md)")
+    assert lugre_1e10["coverage"][name] >= LOW, lugre_1e10["coverage"]

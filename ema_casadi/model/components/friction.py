@@ -23,6 +23,14 @@ Three variants:
     stiffness) and sigma_1 (bristle damping) are its own. Continuous (no discrete map),
     so every ODE solver and the linearisation serve it; it sticks (pre-sliding: a force
     below breakaway deflects the bristles by F/sigma_0) and slips like the Karnopp law.
+``lugre_smooth`` (LuGre on the smooth law's curve)
+    The LuGre bristle state with g(v) = |F_c(v)|, the Coulomb part of ``smooth`` (its
+    shape and optional Stribeck hump): steady sliding gives exactly the smooth law, and
+    dz/dt = v - sigma_0 z (w/F_r) h(v/w) / hump(v) with h(x) = x/tanh(x) (even, 1 at rest,
+    :func:`x_over_tanh`; w = v_s for tanh, 2 v_s for the Fermi shape, which is
+    tanh(v/(2 v_s))). At rest z relaxes with the time constant F_r/(sigma_0 w): a spring
+    sigma_0 in series with the smooth law's slope F_r/w at rest (a Maxwell element),
+    which tends to the smooth law as sigma_0 grows.
 """
 
 from __future__ import annotations
@@ -32,8 +40,8 @@ import casadi as ca
 from ._part import Output, Part, State, der
 from .ballscrew import F_EXT
 
-__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "stribeck_curve", "lugre_rate", "SHAPES", "Smooth",
-           "Hybrid", "LuGre"]
+__all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "stribeck_curve", "lugre_rate", "x_over_tanh",
+           "smooth_bristle_rate", "SHAPES", "Smooth", "Hybrid", "LuGre", "LuGreSmooth"]
 
 SHAPES = ("tanh", "fermi")
 
@@ -309,4 +317,95 @@ class LuGre(Part):
             return ca.if_else(b.P.sigma_0 > 0, b["g_stribeck"] * moving / b.P.sigma_0, 0)
 
         out["z_ss"] = z_ss
+        return out
+
+
+# ---- LuGre on the smooth law's curve -----------------------------------------------------
+#: |x| below which x/tanh(x) is its series 1 + x^2/3 - x^4/45: the next term, 2 x^6/945, is
+#: 2e-21 there (below round-off of 1), so neither the value nor its derivative divides 0 by 0.
+X_SERIES = 1e-3
+
+
+def x_over_tanh(x):
+    """h(x) = x / tanh(x): even, analytic, 1 at x = 0 (the series below |x| = X_SERIES,
+    the quotient of a divisor kept away from 0 above; value and slope continuous to
+    round-off at the switch).
+
+    Parameters
+    ----------
+    x : SX
+        Argument (1).
+    """
+    small = x**2 < X_SERIES**2
+    xs = ca.if_else(small, 1, x)
+    return ca.if_else(small, 1 + x**2 / 3 - x**4 / 45, xs / ca.tanh(xs))
+
+
+def smooth_bristle_rate(v, z, F_r, P, shape="tanh", stribeck=False):
+    """Bristle rate dz/dt = v - sigma_0 z |v|/g(v) on the smooth law's curve
+    g(v) = |F_c(v)| (:func:`smooth`'s Coulomb part), written without 0/0 (m/s):
+    |v|/g(v) = (w/F_r) h(v/w) / hump(v), h = :func:`x_over_tanh`, w = v_s (tanh) or
+    2 v_s (Fermi: 2/(1 + e^-u) - 1 = tanh(u/2)), hump = 1 + (r_start - 1) e^-(v/v_st)^2
+    with ``stribeck``, else 1. F_r is floored at G_MIN (only a set without Coulomb
+    friction reaches it).
+
+    Parameters
+    ----------
+    v : SX
+        Velocity at the contact (m/s).
+    z : SX
+        Bristle deflection (m).
+    F_r : SX
+        Sliding level (eq. 7) (N).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``sigma_0``, ``v_s`` and, with ``stribeck``,
+        ``r_start``, ``v_st``).
+    shape : {"tanh", "fermi"}
+        The smooth law's sign function.
+    stribeck : bool
+        The smooth law's Stribeck hump.
+    """
+    if shape not in SHAPES:
+        raise ValueError(f"friction shape '{shape}' not one of {SHAPES}")
+    w = P.v_s if shape == "tanh" else 2 * P.v_s
+    hump = 1 + (P.r_start - 1) * ca.exp(-((v / P.v_st) ** 2)) if stribeck else 1
+    return v - P.sigma_0 * z * w * x_over_tanh(v / w) / (ca.fmax(F_r, G_MIN) * hump)
+
+
+class LuGreSmooth(Part):
+    """LuGre on the smooth law's curve: the bristle state of :class:`LuGre` with
+    g(v) = |F_c(v)| of :class:`Smooth` (same options), so steady sliding is the smooth
+    law; at rest the bristles relax (time constant F_r/(sigma_0 v_s))."""
+
+    family, value = "friction", "lugre_smooth"
+    doc = "LuGre on the smooth law's curve: bristle state z, steady state F_r s(v) (+ hump) + viscous"
+    # the trim holds z at its steady state (with sigma_0 = 0 nothing else determines it)
+    states = (State("z", "m", "LuGre bristle deflection", scale=lambda P: 1e-5, rest="z_ss"),)
+    inputs = (F_EXT,)
+    outputs = LuGre.outputs
+    heat = Smooth.heat
+    stored = ("E_bristle",)
+    params = _PARAMS + ("v_s", "r_start", "v_st", "sigma_0", "sigma_1")
+    small_signal = LuGre.small_signal
+    options = Smooth.options
+
+    def signals(self):
+        shape = self.opt.get("friction_shape", SHAPES[0])
+        strib = self.opt.get("stribeck", "off") == "on"
+
+        def bristle(b):
+            P, z, zdot, v = b.P, b["z"], b[der("z")], b["v_contact"]
+            return P.sigma_0 * z + P.sigma_1 * zdot, P.sigma_0 * z * (v - zdot) + P.sigma_1 * zdot * v
+
+        out = _common(None)
+        del out["P_friction"]  # provided with the bristle force
+        out[der("z")] = lambda b: smooth_bristle_rate(b["v_contact"], b["z"], b["F_r"], b.P, shape, strib)
+        out[("F_c", "P_friction")] = bristle
+        out["F_friction"] = lambda b: b["F_c"] + b.P.c_v * b["v_contact"]
+        out["stick"] = lambda b: 0
+        out["F_net"] = lambda b: b["F_drive"] - b["F_friction"]
+        out["E_bristle"] = lambda b: 0.5 * b.P.sigma_0 * b["z"] ** 2
+        # steady deflection: the smooth law's Coulomb part over sigma_0 (smooth in v, 0 at rest)
+        out["z_ss"] = lambda b: ca.if_else(b.P.sigma_0 > 0, smooth(b["v_contact"], b["F_r"], b.P, shape, strib)[1]
+                                           / ca.fmax(b.P.sigma_0, 1e-300), 0)
         return out
