@@ -213,8 +213,10 @@ def _check(model: Model, res: OptimalMove, sim, settle_step: float) -> dict:
         lim = float(r.limit(P))
         peak, peak_step = (_peak(r, np.array([run[n] for n in r.signals])) for run in (sim, step))
         within = peak <= lim * (1 + ROUNDING) if r.sense != "min" else peak >= lim - ROUNDING * abs(lim)
+        # role "strategy": how the ECU runs its drive (i_d = 0 commanded), not a limit of the actuator; the
+        # replay's signal is what the ECU's loops make of it (its FOC's voltage clip lets i_d follow a little)
         out["ratings"][r.name] = {"peak": peak, "limit": lim, "unit": r.unit, "within": bool(within),
-                                  "ratio": peak / lim if lim else None, "ecu_step_peak": peak_step}
+                                  "role": r.role, "ratio": peak / lim if lim else None, "ecu_step_peak": peak_step}
     out["settling_time_s"] = settling_time(model, sim, res.start, res.move)
     out["ecu_step_settling_time_s"] = settle_step
     power = model.output_with("electrical_power")
