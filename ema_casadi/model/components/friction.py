@@ -2,7 +2,7 @@
 opposes positive velocity. With the rigid screw the same laws act on the shaft, with
 the rod velocity v = omega p/(2 pi) and the force referred back through p/(2 pi).
 
-Three variants:
+Four variants:
 
 ``smooth`` (eq. 3)
     A continuous law, usable by any ODE solver and linearisable.
