@@ -42,8 +42,11 @@ def fit_text(result: dict) -> str:
         w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
     rob = result.get("robust") or {}
     if rob.get("scale_factor", 1.0) > 1.0:
-        w(f"records' scale factor {rob['scale_factor']:.3g} (chi-square {rob['records_chi2']:.4g} for "
-          f"{rob['records_dof']} directions): robust intervals inflated by it\n")
+        parts = rob.get("parts") or {}
+        w(f"scale factor {rob['scale_factor']:.3g}: the records' {parts.get('count')} parts disagree (chi-square "
+          f"{parts.get('chi2', float('nan')):.4g} for {parts.get('dof')} directions, p = {parts.get('p', 1.0):.2g}); "
+          "a model error they share is taken as large as the one in which they differ; robust intervals "
+          "inflated by it\n")
     me = result.get("model_error") or {}
     for m in me.get("misfits", [])[:6]:
         w(f"  systematic: {m['text']}\n")

@@ -24,7 +24,7 @@ no record's estimates shift against the others' by more than ``SHIFT_SD x
 model_error`` sandwich standard deviations (:mod:`._robust`; RMS over the directions
 the record determines: when the records agree its square is chi-square(d) / d, so 5 is
 beyond any noise, P < 1e-6 for d >= 1); *inadequate* otherwise. A smaller disagreement
-widens the intervals by the records' scale factor instead.
+widens the intervals by the scale factor of the records' parts instead (:mod:`._robust`).
 """
 
 from __future__ import annotations

@@ -132,9 +132,9 @@ def _robust_doc(rob, records) -> dict:
     recs = [{"record": rec.path, "bandwidth_samples": r["bandwidth"], "directions": r["directions"],
              "shift_sd": r["shift_sd"], "shift_robust_sd": r.get("shift_robust_sd", r["shift_sd"])}
             for rec, r in zip(records, rob["records"], strict=True)]
-    return {"kind": "robust (Newey-West sandwich per record, x records' scale factor)",
-            "scale_factor": rob["scale_factor"], "records_chi2": rob["chi2"], "records_dof": rob["dof"],
-            "records_p": rob.get("p"),
+    return {"kind": "robust (Newey-West sandwich per record, x the scale factor of the records' parts)",
+            "scale_factor": rob["scale_factor"], "tau2": rob.get("tau2", 0.0), "parts": rob.get("parts"),
+            "records_chi2": rob["chi2"], "records_dof": rob["dof"], "records_p": rob.get("p"),
             "records": recs, **({"structural": rob["structural"], "structural_relative_sd": rob["structural_sd"]}
                                 if "structural" in rob else {})}
 
@@ -224,7 +224,7 @@ class IdentResult(Summarised):
     interval : dict
         Name -> (lo, hi), the 95 % confidence interval (SI): the robust one
         (:mod:`._robust`, the sandwich of the residuals' autocorrelation, inflated by the
-        records' disagreement), the textbook one in :attr:`interval_textbook`.
+        disagreement of the records' parts), the textbook one in :attr:`interval_textbook`.
     std : dict
         Name -> standard deviation (SI, first order, robust).
     covariance, correlation : ndarray

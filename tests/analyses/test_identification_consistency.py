@@ -57,8 +57,9 @@ def test_records_that_disagree_are_reported(tmp_path):
     finds it (measured statistic 26 for an expectation of 4, p = 3e-5). The effect is
     below the noise and the records' estimates differ by 2.5 robust sd (RMS over the
     four directions each determines), under the 5 sd the default model error allows:
-    *adequate within model error*, the intervals inflated by the records' scale factor
-    sqrt(chi2 / dof) (> 1); with --model-error 0.4 (2 sd allowed) inadequate."""
+    *adequate within model error*, the intervals inflated by the scale factor of the
+    records' parts, S^2 = 1 + (G + 1) tau^2 (> 1: the parts disagree, p < 0.05); with
+    --model-error 0.4 (2 sd allowed) inadequate."""
     p = ema.load_parameters()
     truth = dict(EXAMPLE_TRUTH)
     a = synthetic_record(p, tmp_path / "steps.csv", t_end=1.0, x_cmd="step:1mm@0.05+step:-2mm@0.5",
@@ -73,8 +74,9 @@ def test_records_that_disagree_are_reported(tmp_path):
     line = res.adequacy["reasons"][-1]
     assert "records disagree" in line and (".csv" in line)
     rob = res.robust
-    assert rob["scale_factor"] == pytest.approx(np.sqrt(rob["records_chi2"] / rob["records_dof"]))
-    assert rob["scale_factor"] > 1.2 and rob["records_dof"] == 8
+    parts = rob["parts"]
+    assert rob["scale_factor"] == pytest.approx(np.sqrt(1 + (parts["count"] + 1) * rob["tau2"]), rel=1e-12)
+    assert parts["p"] < 0.05 and rob["tau2"] > 0 and rob["scale_factor"] > 1.2 and rob["records_dof"] == 8
     for n in truth:  # the headline interval carries the scale factor over the (white-noise) sandwich
         (lo, hi), (lo_tb, hi_tb) = res.interval[n], res.interval_textbook[n]
         assert hi - lo > 1.1 * (hi_tb - lo_tb), n
