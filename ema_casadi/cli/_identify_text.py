@@ -42,9 +42,9 @@ def fit_text(result: dict) -> str:
         w(f"  {Path(rec['record']).name} starts at " + ", ".join(f"{k} {v:.4g}" for k, v in rec["x0"].items()) + "\n")
     rob = result.get("robust") or {}
     if rob.get("scale_factor", 1.0) > 1.0:
-        parts = rob.get("parts") or {}
-        w(f"scale factor {rob['scale_factor']:.3g}: the records' {parts.get('count')} parts disagree (chi-square "
-          f"{parts.get('chi2', float('nan')):.4g} for {parts.get('dof')} directions, p = {parts.get('p', 1.0):.2g}); "
+        pc = rob.get("parts") or {}
+        w(f"scale factor {rob['scale_factor']:.3g}: the records' {pc.get('count')} parts disagree (chi-square "
+          f"{pc.get('chi2', float('nan')):.4g} for {pc.get('dof')} directions, p = {pc.get('p', 1.0):.2g}); "
           "a model error they share is taken as large as the one in which they differ; robust intervals "
           "inflated by it\n")
     me = result.get("model_error") or {}

@@ -3,11 +3,11 @@
 and under small model errors, each alone: a witness with a twice wider efficiency
 switch (``blend``: P_blend 0.2 W for 0.1 W), fitted plainly and with the switch's
 width declared as a structural constant (``--structural P_blend=0.05:0.2``, the
-type-B term), and a witness simulated by fixed-step RK4 at 2 us (``rk4``). Slow: 200
-fits of five parameters on four records of 0.6-1 s (about 2 s of CPU each; about 7-14 s
-of wall time each on the loaded 2-core machine). The RK4 witness's step is above the
-stability limit of the rod held under load (a StepLimitWarning, expected: its chatter
-is part of the model error).
+type-B term); witnesses simulated by fixed-step RK4 at 2 us (``rk4``, above its
+stability limit on the rod held under load: a StepLimitWarning, expected, its chatter
+is part of the model error) and at 1 us (inside it); and LuGre friction on the smooth
+law's steady-state curve at two bristle stiffnesses. Slow: 350 fits of five
+parameters on four records of 0.6-1 s (about 1-2 s of CPU each).
 
 Tolerances: with 50 realisations a true 95 % coverage gives 43 or more hits with
 probability 0.99 (binomial), so a share below 0.86 is a real shortfall."""
@@ -87,16 +87,20 @@ def test_robust_coverage_under_a_wider_efficiency_switch(blend, blend_typeb, nam
 
 @pytest.mark.parametrize("name", list(study.TRUTH))
 def test_robust_coverage_under_a_coarse_rk4_step(rk4, name):
-    if name == "F_seal":
-        pytest.xfail("F_seal: the RK4 witness's chatter of the held rod under load biases it by -0.5 % in the "
-                     "loaded records; the records' scale factor (about 2) widens it 2.3x the textbook interval, "
-                     "not enough (measured coverage 64 %; docs/guide/model-error.md)")
+    """RK4 at 2 us: its chatter of the held rod under load biases F_seal by -0.5 % in the
+    loaded records; the parts of the records disagree, and the scale factor (median 4.9)
+    covers it (measured 100 % for every parameter: conservative)."""
     assert rk4["coverage"][name] >= LOW, rk4["coverage"]
 
 
 @pytest.fixture(scope="module")
 def lugre_1e10(params):
     return study.coverage(params, model="lugre_smooth_1e10", n=50, progress=False)
+
+
+@pytest.fixture(scope="module")
+def lugre_1e11(params):
+    return study.coverage(params, model="lugre_smooth_1e11", n=50, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -113,12 +117,14 @@ def test_robust_coverage_under_rk4_inside_its_stability_limit(rk4_1us, name):
 
 
 @pytest.mark.parametrize("name", list(study.TRUTH))
-def test_robust_coverage_under_lugre_bristles(lugre_1e10, name):
-    """LuGre on the smooth law's curve, sigma_0 = 1e10 N/m (0.14 noise levels): every fit
-    ends with exit 0 (measured 50 of 50), c_v, J_m and psi covered (measured 88-96 %)."""
-    assert lugre_1e10["exit0"] >= 0.95 and lugre_1e10["failed"] == 0, lugre_1e10
-    if name in ("F_seal", "C"):
-        pytest.xfail(f"{name}: the bristles' compliance at rest, absorbed alike in every record by the seal friction "
-                     "and the drive-train stiffness, biases it by about 1.5 textbook sd while every test passes "
-                     "(measured coverage F_seal 76 %, C 74 %; docs/guide/model-error.md)")
-    assert lugre_1e10["coverage"][name] >= LOW, lugre_1e10["coverage"]
+def test_robust_coverage_under_lugre_bristles(lugre_1e10, lugre_1e11, name):
+    """LuGre on the smooth law's curve: every fit ends with exit 0 (measured 50 of 50 for
+    both stiffnesses) and every parameter is covered. At sigma_0 = 1e10 N/m (0.14 noise
+    levels) the bristles' compliance at rest biases F_seal and C by about 1.8 and 1.6
+    textbook sd alike in every record; the records' parts disagree (the test fires in
+    42 of 50) and the scale factor covers them (measured 92-98 %; 93-98.5 % over 200
+    realisations). At 1e11 (0.08 noise levels) covered as with the model right
+    (measured 88-96 %; 93-96.5 % over 200)."""
+    for doc in (lugre_1e10, lugre_1e11):
+        assert doc["exit0"] >= 0.95 and doc["failed"] == 0, doc
+        assert doc["coverage"][name] >= LOW, (doc["model"], doc["coverage"])

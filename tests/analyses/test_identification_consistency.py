@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
+from ema_casadi.cli._identify_text import fit_text
 from ema_casadi.identification import example_records
 from ema_casadi.identification._misfit import verdict
 from ema_casadi.identification._result import MISFIT_P
@@ -85,6 +86,8 @@ def test_records_that_disagree_are_reported(tmp_path):
     assert strict["verdict"] == "inadequate" and "robust sd" in strict["reasons"][0]
     doc = res.to_dict()
     assert doc["verdict"] == "adequate within model error" and doc["consistency"]["records"][0]["directions"] == 4
+    text = fit_text(doc)  # the command's report names the factor and the parts' test
+    assert f"scale factor {rob['scale_factor']:.3g}: the records' {parts['count']} parts disagree" in text
     for r in test["records"]:  # each record's own estimates and how far they are from the joint ones
         assert set(r["estimate_alone"]) == set(truth) and set(r["shift_sd"]) == set(truth)
     assert sum(r["contribution"] for r in test["records"]) == pytest.approx(test["statistic"])
