@@ -43,7 +43,8 @@ prediction rule of random-effects meta-analysis, Higgins, Thompson and Spiegelha
 2009; metrology's "dark uncertainty"): the estimate is off the truth by b plus the
 parts' mean of u, variance T (1 + 1/G). With T = tau^2 G C_HAC (one average part's
 covariance; one number to estimate), E[chi2_g] = dim V_g + tau^2 (1 + 1/(G - 1)) t_g,
-t_g = tr((V_g^T (C_g + C_-g) V_g)^-1 V_g^T G C_HAC V_g), so by moments
+t_g = tr((V_g^T (C_g + C_-g) V_g)^-1 V_g^T G C_HAC V_g) (C_HAC here from the parts'
+sandwiches, each part's own bandwidth), so by moments
 
     tau^2 = max(0, sum_g chi2_g - sum_g dim V_g) / ((1 + 1/(G - 1)) sum_g t_g),
     S^2 = 1 + (G + 1) tau^2,
