@@ -18,7 +18,7 @@ from . import _consistency, _misfit
 from ._lm import COST_TOL, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
-from ._result import IdentResult, uncertainty
+from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
 from ._structural import add_structural, check_structural, structural_covariance
 
@@ -30,6 +30,11 @@ SIGMA_ROUNDS = 6
 #: sequences were chosen replay them (the cost is then a smooth function, so the small
 #: steps near the optimum compare like with like); farther ones choose them anew.
 REGRID = 0.05
+#: Confirmations of an optimum on steps chosen there (:meth:`_Fit._confirmed`): an
+#: adaptive run can accept a step whose error its estimate misses, and a grid chosen
+#: there can hold a false optimum (one kernel's path: J_m 5 sd off, the cost 116 high).
+CONFIRMS = 2
+CONFIRM_EVALUATIONS = 8
 #: The states estimated by ``estimate_x0=True``: the mechanism's positions and speeds,
 #: what a record cut from the middle of a motion starts away from, and the integral
 #: parts of the outer (non-current) loops, which hold the current that carries the
@@ -347,6 +352,34 @@ class _Fit:
         return (None, None) if raw is None else self.weighted(raw[1], raw[2], sig)
 
     # -- the fit ---------------------------------------------------------------------
+    def _confirmed(self, sig, z, lo, hi, budget, tol) -> dict:
+        """Levenberg-Marquardt from ``z``, its optimum confirmed on step sequences chosen
+        there: where the Gauss-Newton step still predicts a decrease above 10 x the
+        tolerance, the fit goes on from there (at most :data:`CONFIRMS` times, each
+        within :data:`CONFIRM_EVALUATIONS`); where it is confirmed, or going on does not
+        converge (a misfit far above the noise: the grids resolve its optimum no finer),
+        the optimum on its own grid is kept."""
+        sol = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
+        if not sol["converged"]:
+            raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
+        for _ in range(CONFIRMS):
+            z = sol["z"]
+            if self.z_grid is not None and np.array_equal(z, self.z_grid):
+                return sol
+            kept = (self._cache, list(self.pred.steps), self.z_grid)
+            self._cache, self.z_grid = None, z.copy()
+            self.pred.refresh()
+            r, J = self._eval(z, sig)
+            room = min(CONFIRM_EVALUATIONS, self.max_eval - self.evaluations + 1)
+            nxt = None
+            if r is not None and _gn_decrease(r, J) >= 10 * tol and room >= 2:
+                nxt = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, room, tol)
+            if nxt is None or not nxt["converged"]:
+                self._cache, self.pred.steps, self.z_grid = kept
+                return sol
+            sol = nxt
+        return sol
+
     def run(self, z0) -> dict:
 
         fr = self.pred.free
@@ -373,9 +406,7 @@ class _Fit:
             if budget < 2:
                 raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
             tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
-            sol = levenberg_marquardt(lambda zz, sig=sig: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
-            if not sol["converged"]:
-                raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
+            sol = self._confirmed(sig, z, lo, hi, budget, tol)
             z = sol["z"]
             if not estimate:
                 break
@@ -392,6 +423,13 @@ class _Fit:
         n = len(fr.names)
         return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
                 "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
+
+
+def _gn_decrease(r, J) -> float:
+    """The cost decrease the Gauss-Newton step predicts at (r, J)."""
+    g, H = J.T @ r, J.T @ J
+    step = np.linalg.lstsq(H, -g, rcond=None)[0]
+    return float(-(g @ step) - 0.5 * step @ H @ step)
 
 
 def _rms(arrays) -> float:
@@ -453,24 +491,3 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
     res.misfits = _misfit.misfits(recs, preds, e, out["sigma"], out["estimated"], model, res.info["units"])
     res.adequacy = _misfit.verdict(res.adequacy, res.misfits, unc["robust"], model_error)
     return res
-
-
-def initial_states(fit: _Fit, out: dict) -> dict:
-    """How each record started: ``{"estimated": [states], "records": [{state: value}]}``
-    (SI), the estimated offsets' standard deviations alongside (``std``)."""
-    pred = fit.pred
-    states = pred.x0_states
-    if not states:
-        return {"estimated": [], "rule": "at rest at the first sample"}
-    n, m = len(pred.free.names), len(states)
-    J, r = out["J_full"], out["r"]
-    s2 = float(r @ r) / max(1, len(r) - J.shape[1]) if out["estimated"] else 1.0
-    cov = s2 * np.linalg.pinv(J.T @ J)
-    std = np.sqrt(np.maximum(np.diag(cov)[n:], 0)).reshape(len(pred.records), m) * pred.x0_scale
-    rows = []
-    for k in range(len(pred.records)):
-        x0 = pred.x0(k, pred.p(pred.free.theta(out["z"])))
-        rows.append({"record": pred.records[k].path,
-                     "x0": {s: float(x0[i]) for s, i in zip(states, pred.x0_index, strict=True)},
-                     "std": {s: float(v) for s, v in zip(states, std[k], strict=True)}})
-    return {"estimated": list(states), "rule": "estimated (offsets from rest at the first sample)", "records": rows}

@@ -474,3 +474,24 @@ class IdentResult(Summarised):
         from ._plot import write_report
 
         return write_report(self, folder)
+
+
+def initial_states(fit, out: dict) -> dict:
+    """How each record started: ``{"estimated": [states], "records": [{state: value}]}``
+    (SI), the estimated offsets' standard deviations alongside (``std``)."""
+    pred = fit.pred
+    states = pred.x0_states
+    if not states:
+        return {"estimated": [], "rule": "at rest at the first sample"}
+    n, m = len(pred.free.names), len(states)
+    J, r = out["J_full"], out["r"]
+    s2 = float(r @ r) / max(1, len(r) - J.shape[1]) if out["estimated"] else 1.0
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    std = np.sqrt(np.maximum(np.diag(cov)[n:], 0)).reshape(len(pred.records), m) * pred.x0_scale
+    rows = []
+    for k in range(len(pred.records)):
+        x0 = pred.x0(k, pred.p(pred.free.theta(out["z"])))
+        rows.append({"record": pred.records[k].path,
+                     "x0": {s: float(x0[i]) for s, i in zip(states, pred.x0_index, strict=True)},
+                     "std": {s: float(v) for s, v in zip(states, std[k], strict=True)}})
+    return {"estimated": list(states), "rule": "estimated (offsets from rest at the first sample)", "records": rows}
