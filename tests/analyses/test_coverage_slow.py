@@ -122,7 +122,7 @@ def test_robust_coverage_under_lugre_bristles(lugre_1e10, lugre_1e11, name):
     both stiffnesses) and every parameter is covered. At sigma_0 = 1e10 N/m (0.14 noise
     levels) the bristles' compliance at rest biases F_seal and C by about 1.8 and 1.6
     textbook sd alike in every record; the records' parts disagree (the test fires in
-    42 of 50) and the scale factor covers them (measured 92-98 %; 93-98.5 % over 200
+    42 of 50) and the scale factor covers them (measured 92-98 %; 93.5-98.5 % over 200
     realisations). At 1e11 (0.08 noise levels) covered as with the model right
     (measured 88-96 %; 93-96.5 % over 200)."""
     for doc in (lugre_1e10, lugre_1e11):
