@@ -281,9 +281,12 @@ def test_a_false_optimum_of_a_replayed_grid_is_not_reported(params, example, mon
     adaptive run missed an error can hold a false optimum (seen: J_m 5 sd off on one
     OpenBLAS kernel's path). Here the first solve is made to stop 3 sd from the
     optimum in F_seal, as such a grid did: the fit confirms the optimum on steps chosen
-    there, goes on, and reports the right optimum (within 0.05 sd: the stopping rule's
-    0.045 sd, module _lm) after more than one solve. The noise levels are given, so
-    the fit is one round (an estimated level's later rounds would start afresh)."""
+    there, goes on, and reports the optimum of the unpatched fit after more than one
+    solve: within 0.3 sd, the two stopping points' 0.045 sd each (module _lm) and the
+    discretisation difference of two step grids (up to 0.16 sd, module _problem), far
+    below the 3 sd displacement (measured 0.10 sd on the Sandybridge kernel). The noise
+    levels are given, so the fit is one round (an estimated level's later rounds would
+    start afresh)."""
     from ema_casadi.identification import _fit
 
     paths, _ = example
@@ -307,7 +310,7 @@ def test_a_false_optimum_of_a_replayed_grid_is_not_reported(params, example, mon
     res = idn.identify(params, paths, free=list(idn.EXAMPLE_TRUTH), sigma=sigma)
     assert len(solves) >= 2
     for name, value in good.estimate.items():
-        assert abs(res.estimate[name] - value) < 0.05 * good.std[name], name
+        assert abs(res.estimate[name] - value) < 0.3 * good.std[name], name
 
 
 def test_the_plots_are_figures(example_fit):
