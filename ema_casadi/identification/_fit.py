@@ -15,7 +15,7 @@ from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..simulation import AnalysisFailed, RunFailed, progress_bar
 from . import _consistency, _misfit
-from ._lm import COST_TOL, levenberg_marquardt
+from ._lm import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty
@@ -372,7 +372,7 @@ class _Fit:
             r, J = self._eval(z, sig)
             room = min(CONFIRM_EVALUATIONS, self.max_eval - self.evaluations + 1)
             nxt = None
-            if r is not None and _gn_decrease(r, J) >= 10 * tol and room >= 2:
+            if r is not None and gauss_newton_decrease(r, J, z, lo, hi) >= 10 * tol and room >= 2:
                 nxt = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, room, tol)
             if nxt is None or not nxt["converged"]:
                 self._cache, self.pred.steps, self.z_grid = kept
@@ -423,13 +423,6 @@ class _Fit:
         n = len(fr.names)
         return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
                 "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
-
-
-def _gn_decrease(r, J) -> float:
-    """The cost decrease the Gauss-Newton step predicts at (r, J)."""
-    g, H = J.T @ r, J.T @ J
-    step = np.linalg.lstsq(H, -g, rcond=None)[0]
-    return float(-(g @ step) - 0.5 * step @ H @ step)
 
 
 def _rms(arrays) -> float:

@@ -59,9 +59,7 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
         g, H = J.T @ r, J.T @ J
         d = np.sqrt(np.maximum(np.diag(H), 1e-300))
         Hs = H / np.outer(d, d)
-        gn = _solve(Hs + 1e-12 * np.eye(len(z)), -g / d) / d  # the Gauss-Newton step
-        gn = np.clip(z + gn, lo, hi) - z
-        gn_pred = -(g @ gn) - 0.5 * gn @ H @ gn
+        gn_pred = gauss_newton_decrease(r, J, z, lo, hi)
         if gn_pred < cost_tol:
             return {"z": z, "r": r, "J": J, "cost": cost, "converged": True, "evaluations": n_eval,
                     "message": "the Gauss-Newton step predicts a decrease below the tolerance"}
@@ -89,6 +87,16 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
             if bound < STEP_TOL:  # as far as the cost resolves: converged to that
                 return {"z": z, "r": r, "J": J, "cost": cost, "converged": True, "evaluations": n_eval,
                         "message": f"converged: no step longer than {STEP_TOL:g} decreases the cost"}
+
+
+def gauss_newton_decrease(r, J, z, lo, hi) -> float:
+    """The cost decrease the Gauss-Newton step from ``z`` predicts (the step kept
+    within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there."""
+    g, H = J.T @ r, J.T @ J
+    d = np.sqrt(np.maximum(np.diag(H), 1e-300))
+    gn = _solve(H / np.outer(d, d) + 1e-12 * np.eye(len(z)), -g / d) / d
+    gn = np.clip(z + gn, lo, hi) - z
+    return float(-(g @ gn) - 0.5 * gn @ H @ gn)
 
 
 def _solve(A, b):
