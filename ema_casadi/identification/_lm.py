@@ -59,7 +59,7 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
         g, H = J.T @ r, J.T @ J
         d = np.sqrt(np.maximum(np.diag(H), 1e-300))
         Hs = H / np.outer(d, d)
-        gn_pred = gauss_newton_decrease(r, J, z, lo, hi)
+        gn_pred = _predicted(g, H, z, lo, hi)
         if gn_pred < cost_tol:
             return {"z": z, "r": r, "J": J, "cost": cost, "converged": True, "evaluations": n_eval,
                     "message": "the Gauss-Newton step predicts a decrease below the tolerance"}
@@ -92,7 +92,10 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
 def gauss_newton_decrease(r, J, z, lo, hi) -> float:
     """The cost decrease the Gauss-Newton step from ``z`` predicts (the step kept
     within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there."""
-    g, H = J.T @ r, J.T @ J
+    return _predicted(J.T @ r, J.T @ J, z, lo, hi)
+
+
+def _predicted(g, H, z, lo, hi) -> float:
     d = np.sqrt(np.maximum(np.diag(H), 1e-300))
     gn = _solve(H / np.outer(d, d) + 1e-12 * np.eye(len(z)), -g / d) / d
     gn = np.clip(z + gn, lo, hi) - z

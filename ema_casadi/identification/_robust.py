@@ -129,13 +129,12 @@ def _pinv(A, rcond=1e-12):
     return (V[:, keep] / w[keep]) @ V[:, keep].T
 
 
-def _disagreement(A, M, parts) -> tuple[float, int, list[dict]]:
+def _disagreement(A, Ainv, M, parts) -> tuple[float, int, list[dict]]:
     """Each part's own estimate against the rest's (module docstring): per part its
     chi-square, directions, RMS shift in sandwich sd, and ``trace``, t_g / G of the
     module docstring (its chi-square's growth per unit of a random effect of covariance
     C_HAC = A^-1 M A^-1)."""
     g = sum(p["g"] for p in parts)
-    Ainv = _pinv(A)
     shape = Ainv @ M @ Ainv
     chi2, dof, out = 0.0, 0, []
     for p in parts:
@@ -215,9 +214,9 @@ def robust_covariance(J, r, blocks, pieces: int = PARTS) -> dict:
     recs = _sandwich_parts(J, r, blocks)
     M = sum(p["M"] for p in recs)
     cov_hac = Ainv @ M @ Ainv
-    chi2, dof, shifts = _disagreement(A, M, recs) if len(recs) > 1 else (0.0, 0, [{}] * len(recs))
+    chi2, dof, shifts = _disagreement(A, Ainv, M, recs)
     pieces_ = _sandwich_parts(J, r, _parts(blocks, pieces))
-    c2g, dofg, per = _disagreement(A, sum(p["M"] for p in pieces_), pieces_)
+    c2g, dofg, per = _disagreement(A, Ainv, sum(p["M"] for p in pieces_), pieces_)
     G = sum(1 for q in per if q["directions"])
     p_g = _p_value(c2g, dofg)
     trace = (1 + 1 / (G - 1)) * G * sum(q["trace"] for q in per) if G > 1 else 0.0
@@ -225,9 +224,8 @@ def robust_covariance(J, r, blocks, pieces: int = PARTS) -> dict:
     S2 = 1.0 + (G + 1) * tau2
     out = []
     for p, s in zip(recs, shifts, strict=True):
-        sd = s.get("shift_sd", 0.0)
-        out.append({"bandwidth": p["L"], "directions": s.get("directions", 0), "shift_sd": sd,
-                    "chi2": s.get("chi2", 0.0), "shift_robust_sd": sd / np.sqrt(S2)})
+        out.append({"bandwidth": p["L"], "directions": s["directions"], "shift_sd": s["shift_sd"],
+                    "chi2": s["chi2"], "shift_robust_sd": s["shift_sd"] / np.sqrt(S2)})
     return {"cov_hac": cov_hac, "cov": S2 * cov_hac, "scale_factor": float(np.sqrt(S2)), "tau2": float(tau2),
             "parts": {"count": G, "per_record": int(pieces), "chi2": float(c2g), "dof": int(dofg), "p": p_g},
             "chi2": float(chi2), "dof": int(dof), "p": _p_value(chi2, dof), "records": out}
