@@ -89,7 +89,8 @@ def _pwm_vs_averaged(params: Parameters, out: Path, written: list) -> dict:
     pwm = build_model(params, {**params.variants, "inverter": "pwm", "motor": "pmsm"})
     avg = build_model(params, {**params.variants, "inverter": "ideal"})
     x_cmd, t_end = Signal.ramp(0.04), 0.06
-    sw = simulate(pwm, t_end, x_cmd, 20e3, dt=5e-6, decimate=1)  # every sub-interval: the switched waveforms
+    # every sub-interval (the switched waveforms), at simulate()'s step inside RK4's stability limit
+    sw = simulate(pwm, t_end, x_cmd, 20e3, decimate=1)
     av = simulate(avg, t_end, x_cmd, 20e3, solver="cvodes", dt_out=2e-5)
     written.append(plot_pwm_vs_averaged(sw, av, out / "pwm_vs_averaged.png", int(params.motor.pp),
                                         f_sw=params.power.f_sw))

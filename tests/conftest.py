@@ -12,9 +12,12 @@ from ema_casadi import build_model, load_parameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "models" / "cesa_ema.toml"
-#: A two-run sweep file (two backlash values, 10 ms at RK4 0.1 ms, one metric): the
-#: smallest valid description, the base the bad-input batteries alter one key at a time
-SMALL_SWEEP = """[parameters]
+#: A two-run sweep file (two backlash values, 10 ms at RK4 0.1 ms on the hybrid friction, inside
+#: its 0.44 ms stability limit; one metric): the smallest valid description, the base the
+#: bad-input batteries alter one key at a time
+SMALL_SWEEP = """[variants]
+friction = "hybrid"
+[parameters]
 B = { values = [2e-5, 1e-4] }
 [scenario]
 duration = 0.01

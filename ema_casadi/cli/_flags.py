@@ -184,11 +184,11 @@ def refuse_dt(dt, solver, hint: str = "give --solver rk4 or drop --dt") -> None:
         raise UserError(f"--dt is the RK4 step; the solver chosen is {solver}: {hint}")
 
 
-def rk4_step(model, dt_given, default: float, zoh: bool, load: float = 0.0, margin: float = 0.8) -> float:
+def rk4_step(model, dt_given, default: float, zoh: bool, load: float = 0.0) -> float:
     """The RK4 step of a command: ``--dt`` refused above RK4's stability limit on the
     model at ``load`` (N) and, with ``zoh``, where one step would hold two ECU sampling
-    instants; without ``--dt`` the largest step under ``margin`` x the limit and
-    ``default`` that divides them (:meth:`~ema_casadi.simulation.StepLimit.inside`).
+    instants; without ``--dt`` the largest step under the margin x the limit and
+    ``default`` that divides them (:func:`~ema_casadi.simulation.inside_limit`).
 
     Parameters
     ----------
@@ -202,14 +202,12 @@ def rk4_step(model, dt_given, default: float, zoh: bool, load: float = 0.0, marg
         The ECU is sampled.
     load : float
         The run's largest load (N).
-    margin : float
-        The default's fraction of the limit.
     """
-    from ..simulation import rk4_step_limit, sample_periods, sampling_split
+    from ..simulation import inside_limit, rk4_step_limit, sampling_split
 
+    if dt_given is None:  # a constant load: its peak over any length
+        return inside_limit(model, {"load": load}, 1.0, zoh, default)
     limit = rk4_step_limit(model, load=load, zoh=zoh)
-    if dt_given is None:
-        return limit.inside(sample_periods(model).values() if zoh else (), margin, default)
     text = limit.message(dt_given, "--dt")
     if text is not None:
         raise UserError(text)

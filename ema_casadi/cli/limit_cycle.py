@@ -30,7 +30,9 @@ HELP = "limit cycles at a loop break by describing function, confirmed by a long
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
-#: The RK4 step when --dt is not given (s).
+#: The largest RK4 step when --dt is not given (s): the default is the largest step at
+#: most this inside RK4's stability limit on the model
+#: (:func:`~ema_casadi.simulation.inside_limit`).
 DEFAULT_DT = 1e-4
 
 
@@ -79,7 +81,8 @@ def add_arguments(p):
     p.add_argument("--backlash", type=float, default=None, help="backlash B (mm)")
     p.add_argument("--dt", type=seconds, default=None,
                    help=f"RK4 step (s) where RK4 runs (hybrid friction, a switched model; refused where the "
-                        f"variable-step solver runs); default {DEFAULT_DT:g}")
+                        f"variable-step solver runs); default the largest step at most {DEFAULT_DT:g} inside RK4's "
+                        "stability limit on the model")
     p.add_argument("--periods", type=int, default=16, help="periods per point (half dropped); default 16")
     p.add_argument("--t-end", type=seconds, default=None, help="confirming run (s); default 6 / 300; 0 skips it")
     p.add_argument("--harmonics", default="3,5,7",
@@ -240,6 +243,10 @@ def run(args) -> dict:
 
     refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto")[0],
               "give --variant friction=hybrid (RK4 with the stick/slip logic) or drop --dt")
+    if dt_given is None and (model.switched or choose_solver(model, "auto")[0] == "rk4"):
+        from ..simulation import inside_limit
+
+        args.dt = inside_limit(model, {}, None, False, DEFAULT_DT)
     if "K_i_x" not in {g.name for g in model.gains}:
         no_effect(args, "--k-i-x", f"(the position loop's integral gain): the controller is "
                   f"{model.variants.get('controller')} (give --variant controller=PI)")

@@ -54,7 +54,9 @@ def add_arguments(p):
     p.add_argument("--from-trim", action="store_true",
                    help="start at the trimmed operating point of the first segment's command and load (default: "
                         "at rest, all states zero)")
-    p.add_argument("--dt", type=seconds, default=None, help="RK4 step (s); default 1e-4 (the hybrid friction's)")
+    p.add_argument("--dt", type=seconds, default=None,
+                   help="RK4 step (s); default the largest step at most 1e-4 (the hybrid friction's) inside RK4's "
+                        "stability limit at the mission's largest load, dividing --dt-out")
     p.add_argument("--fast", action="store_true",
                    help=f"the fast path: the same model at {FAST_DT:g} s, about twice as fast (worst temperature "
                         "difference to the full model 0.16 K on models/mission_regional.toml; docs: missions)")
@@ -67,11 +69,11 @@ def add_arguments(p):
 def _check(args) -> Path:
     if args.fast and args.dt is not None:
         raise UserError("--fast sets the step; give --fast or --dt, not both")
-    args.dt = FAST_DT if args.fast else (1e-4 if args.dt is None else args.dt)
+    args.dt = FAST_DT if args.fast else args.dt  # None: run_mission's, inside RK4's stability limit
     for flag, val in (("--dt", args.dt), ("--dt-out", args.dt_out), ("--csv-dt", args.csv_dt)):
-        if not (math.isfinite(val) and val > 0):
+        if val is not None and not (math.isfinite(val) and val > 0):
             raise UserError(f"{flag} must be a positive number of seconds, got {val}")
-    k = args.dt_out / args.dt
+    k = args.dt_out / (args.dt or args.dt_out)
     if round(k) < 1 or abs(k - round(k)) > 1e-9 * k:
         raise UserError(f"--dt-out {args.dt_out:g} s must be a whole multiple of the step --dt {args.dt:g} s")
     if args.csv_dt < args.dt_out:

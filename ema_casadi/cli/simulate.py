@@ -35,6 +35,8 @@ import time
 
 from ..signals import SignalError, parse_signal
 from ..simulation import (
+    DT_DEFAULT,
+    DT_MARGIN,
     DT_OUT,
     SOLVERS,
     SimulationError,
@@ -42,9 +44,9 @@ from ..simulation import (
     check_run,
     check_switched,
     choose_solver,
+    default_step,
     peak_load,
     rk4_step_limit,
-    sample_periods,
     sampling_split,
     simulate,
 )
@@ -59,13 +61,6 @@ COMMAND = "simulate"
 COMMAND_STROKES = 3.0
 #: The rod command when --x-cmd is not given (a model that takes x_cmd).
 DEFAULT_X_CMD = "step:1mm@0.01"
-#: The largest RK4 step when --dt is not given (s): the default is the largest round
-#: step (1, 1.25, 2, 2.5, 5 x 10^k s) under 0.8 x RK4's stability limit on the model at
-#: the run's largest load (:func:`~ema_casadi.simulation.rk4_step_limit`) and at most this,
-#: dividing every ECU sample period with --zoh.
-DEFAULT_DT = 5e-6
-#: The default step's fraction of the stability limit.
-DT_MARGIN = 0.8
 ORDER = 2
 HELP = "time simulation with named outputs (CSV/NPZ, plot)"
 
@@ -85,8 +80,8 @@ def add_arguments(p):
     p.add_argument("--dt", type=seconds, default=None,
                    help="RK4 step (s), where rk4 runs (refused where another solver runs, and above RK4's stability "
                         "limit on the model at the run's largest load; with --zoh it must divide every ECU sample "
-                        f"period); default the largest round step under {DT_MARGIN:g} x that limit, at most "
-                        f"{DEFAULT_DT:g}")
+                        f"period); default simulate()'s: {DT_DEFAULT:g} where that is under {DT_MARGIN:g} x the "
+                        "limit, else the largest round step under it dividing the ECU's sample periods")
     p.add_argument("--dt-out", type=seconds, default=None,
                    help="spacing of the saved samples (s); default 1e-4 (rk4: the nearest whole number of steps); "
                         "the last sample is at --t-end")
@@ -163,7 +158,7 @@ def run(args) -> dict:
     dt_out = args.dt_out  # None: simulate()'s default (DT_OUT)
     params, model = load(args)
     _refuse_idle(args, model)
-    user_dt, args.dt = args.dt, DEFAULT_DT if args.dt is None else args.dt
+    user_dt, args.dt = args.dt, DT_DEFAULT if args.dt is None else args.dt
     if model.switched:  # the PWM bridge: carrier-synchronous, rk4 only, ECU always sampled
         if args.solver not in ("rk4", "auto"):
             raise UserError(f"--solver {args.solver}: the model switches (inverter={model.variants['inverter']}); "
@@ -235,8 +230,8 @@ def run(args) -> dict:
 def _step(args, model, user_dt, dt_out, signals) -> float:
     """The RK4 step: --dt checked against RK4's stability limit at the run's largest
     load (refused above it, naming the limit and the mode) and with --zoh against the
-    ECU's sample periods; without --dt the largest round step inside both
-    (:data:`DEFAULT_DT`, :data:`DT_MARGIN`), checked against --t-end and --dt-out."""
+    ECU's sample periods; without --dt simulate()'s own default
+    (:func:`~ema_casadi.simulation.default_step`), checked against --t-end and --dt-out."""
     sampled = args.zoh or model.switched
     limit = rk4_step_limit(model, load=peak_load(model, signals, args.t_end), zoh=sampled)
     if user_dt is not None:
@@ -246,8 +241,7 @@ def _step(args, model, user_dt, dt_out, signals) -> float:
         if args.zoh and not model.switched:  # split at the instants; refused where a step holds two
             sampling_split(model, user_dt, model.p(), UserError, "--dt")
         return user_dt
-    periods = sample_periods(model).values() if args.zoh else ()
-    dt = limit.inside(periods, DT_MARGIN, DEFAULT_DT)
+    dt = default_step(model, args.t_end, lambda: (signals, model.p()), sampled, dt_out or DT_OUT)
     if not model.switched:
         check_run(model, args.t_end, dt=dt, dt_out=dt_out, solver=args.solver, zoh=args.zoh,
                   event_tol=args.event_tol, labels={**FLAGS, "dt": f"the default step (inside RK4's stability limit "

@@ -361,14 +361,16 @@ def checked_p(model: Model, p) -> np.ndarray:
     return pv
 
 
-def _default_step(model: Model, pv, loop: str, zoh: bool) -> float:
-    """The RK4 step of the start run and the fallback: 1e-5 s (position loop) or 1e-4 s
-    (aircraft loop), inside RK4's stability limit on the model (80 % of it, dividing the
-    ECU's sample periods)."""
+def _default_step(model: Model, pv, loop: str, zoh: bool, inputs: dict) -> float:
+    """The RK4 step of the start run and the fallback: at most 1e-5 s (position loop) or
+    1e-4 s (aircraft loop), inside RK4's stability limit on the model at the held load
+    (:meth:`~ema_casadi.simulation.StepLimit.inside` at its margin, dividing the ECU's
+    sample periods)."""
     from ..simulation import rk4_step_limit, sample_periods
 
     cap = 1e-5 if loop == "position" else 1e-4
-    return rk4_step_limit(model, p=pv, zoh=zoh).inside(sample_periods(model, pv).values(), cap=cap)
+    load = abs(float((inputs or {}).get(model.input_with("load"), 0.0)))
+    return rk4_step_limit(model, p=pv, load=load, zoh=zoh).inside(sample_periods(model, pv).values(), cap=cap)
 
 
 def _start(model, s, start, t_warm, loop, sig_name, dt, inputs, zoh):
@@ -464,7 +466,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
     p = checked_p(model, p)
     inputs = checked_inputs(model, inputs, p)
     s = setup(model, loop, p, condition)
-    dt = dt or _default_step(model, s["p"], loop, zoh)
+    dt = dt or _default_step(model, s["p"], loop, zoh, inputs)
     sig_name = s["signal"]
     names = tuple(signals) if signals else tuple(dict.fromkeys([model.output_with("rod_position"), sig_name]))
     for n in names:

@@ -19,6 +19,7 @@ from ..simulation import (
     SimulationError,
     check_run,
     choose_solver,
+    inside_limit,
     progress_bar,
     simulate,
     trimmed_start,
@@ -28,7 +29,9 @@ from ._result import MissionResult
 
 __all__ = ["MissionFailed", "run_mission", "KEPT", "FULL_DT", "FAST_DT", "HEAT_RESIDUAL_TOL"]
 
-#: The full model's step (s): the hybrid friction's (docs: friction-and-endstops).
+#: The full model's largest step (s): the hybrid friction's (docs: friction-and-endstops);
+#: a mission without ``dt`` runs at the largest step inside RK4's stability limit at its
+#: largest load and at most this (:func:`~ema_casadi.simulation.inside_limit`).
 FULL_DT = 1e-4
 #: The fast path's step (s): the same model at twice the step. On the reference mission
 #: its temperatures differ from the full model's by at most 0.16 K (docs: missions);
@@ -91,7 +94,7 @@ def _progress(enabled: bool, frac: float, t: float, run: Mission, seg: str, T_w:
 
 
 def run_mission(params: Parameters, mission: Mission | str | Path, variants: dict | None = None, *,
-                dt: float = FULL_DT, dt_out: float = 0.01, block: float = 60.0, progress: bool = False,
+                dt: float | None = None, dt_out: float = 0.01, block: float = 60.0, progress: bool = False,
                 jit: bool = True, solver: str = "auto", from_trim: bool = False) -> MissionResult:
     """Run a mission on the full model (compiled RK4, every step at ``dt``).
 
@@ -109,9 +112,11 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     variants : dict, optional
         Variant choices over the mission file's ``[model]`` table and the mission
         defaults (thermal = lumped, friction = hybrid, iron_loss = on).
-    dt : float
-        RK4 step (s): :data:`FULL_DT` (1e-4 s, the hybrid friction's step) for the full
-        model, :data:`FAST_DT` (2e-4 s) for the fast path.
+    dt : float, optional
+        RK4 step (s); default the largest step at most :data:`FULL_DT` (1e-4 s, the
+        hybrid friction's step) inside RK4's stability limit on the mission's model at
+        its largest load that divides ``dt_out``; :data:`FAST_DT`
+        (2e-4 s) for the fast path.
     dt_out : float
         Spacing of the kept samples (s), a multiple of ``dt``; the energies are
         integrated from them.
@@ -131,13 +136,15 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
     """
     if not isinstance(mission, Mission):
         mission = load_mission(mission, params)
+    model = _model(params, mission, variants)
+    if dt is None and all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (dt_out, block)):
+        dt = _default_dt(model, mission, dt_out, block)
     for name, val in (("dt", dt), ("dt_out", dt_out), ("block", block)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
             raise MissionError(f"{name} must be a positive number of seconds, got {val!r}")
     k = dt_out / dt
     if abs(k - round(k)) > 1e-9 * k:
         raise MissionError(f"dt_out ({dt_out} s) must be a whole multiple of dt ({dt} s)")
-    model = _model(params, mission, variants)
     _check_size(model, mission, dt, dt_out, block)
     temps = model.states_with("temperature")
     losses = model.outputs_of("loss")
@@ -165,6 +172,31 @@ def run_mission(params: Parameters, mission: Mission | str | Path, variants: dic
         raise MissionFailed(f"{mission.source}: the heat balance does not close: residual {100 * residual:+.3g} % "
                             f"of the losses, beyond the {100 * HEAT_RESIDUAL_TOL:g} % tolerance (HEAT_RESIDUAL_TOL)")
     return res
+
+
+def _default_dt(model: Model, mission: Mission, dt_out: float, block: float) -> float:
+    """A mission's RK4 step without ``dt`` (s): the largest step at most :data:`FULL_DT`
+    under 0.8 x RK4's stability limit on ``model`` at the largest load of the mission
+    and of each of its blocks (each block's run checks its own), dividing ``dt_out``
+    where one does (:func:`~ema_casadi.simulation.inside_limit`).
+
+    Parameters
+    ----------
+    model : Model
+        The mission's model.
+    mission : Mission
+        The mission (its command, load and cavity temperature).
+    dt_out, block : float
+        The spacing of the kept samples and the mission time per block (s).
+    """
+    sig = {model.input_with(role): mission.signal(SIGNAL_KEYS[role]) for role in SEGMENT_ROLES}
+    dt, last = inside_limit(model, sig, mission.duration, False, FULL_DT, (dt_out,)), None
+    while dt != last:  # the blocks depend on the step (whole compiled chunks): until they agree
+        last = dt
+        for t0, length in _blocks(mission.duration, last, dt_out, block):
+            shifted = {n: s.shifted(t0) for n, s in sig.items()}
+            dt = min(dt, inside_limit(model, shifted, length, False, FULL_DT, (dt_out,)))
+    return dt
 
 
 def _check_size(model: Model, mission: Mission, dt: float, dt_out: float, block: float) -> None:

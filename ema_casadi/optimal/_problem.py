@@ -13,7 +13,7 @@ import numpy as np
 from ..linearisation import operating_point
 from ..model.assembly import Model
 from ..signals import Signal
-from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
+from ..simulation import captured_stderr, interval_function, jacobian_step_limit, simulate, step_response_metrics
 from ._collocation import WARM, collocation, widened
 from ._errors import Infeasible
 from ._request import LEVELS, METHODS, OBJECTIVES, check_method, check_request
@@ -23,7 +23,8 @@ __all__ = ["OBJECTIVES", "LEVELS", "METHODS", "INTERVALS", "Problem", "solve", "
 
 #: Shooting intervals of a move (default).
 INTERVALS = 40
-#: RK4 substeps are kept at this fraction of RK4's stability limit |h lambda| = 2.78.
+#: RK4 substeps are kept at this fraction of RK4's stability limit on the interval's
+#: modes (:func:`~ema_casadi.simulation.jacobian_step_limit`).
 STABILITY_FRACTION = 0.5
 #: Substeps in all (intervals x substeps) up to which the shooting NLP is expanded to SX with its exact
 #: Hessian; above it ``auto`` collocates (a shooting asked for keeps the chain as MX calls with a
@@ -40,8 +41,10 @@ _REST_ROLES = ("shaft_speed", "rod_velocity", "contact_velocity")
 
 
 def rk4_substeps(model: Model, x: np.ndarray, u: np.ndarray, p: np.ndarray, dt: float, held_h=None) -> int:
-    """RK4 substeps for an interval ``dt`` (s) from the Jacobian's largest eigenvalue at
-    the state ``x``: h |lambda| <= STABILITY_FRACTION x 2.78.
+    """RK4 substeps for an interval ``dt`` (s) from RK4's stability limit on the
+    Jacobian's eigenvalues at the state ``x`` (each along its own direction,
+    :func:`~ema_casadi.simulation.jacobian_step_limit`): substeps of at most
+    STABILITY_FRACTION x that limit.
 
     Parameters
     ----------
@@ -57,8 +60,7 @@ def rk4_substeps(model: Model, x: np.ndarray, u: np.ndarray, p: np.ndarray, dt: 
     xs = ca.SX.sym("x", model.nx)
     f = model.f_held(xs, u, p, held_h)[0] if held_h is not None else model.f(xs, u, p)[0]
     A = np.array(ca.Function("A", [xs], [ca.jacobian(f, xs)])(x))
-    lam = np.abs(np.linalg.eigvals(A)).max()
-    return max(1, math.ceil(dt * lam / (STABILITY_FRACTION * 2.78)))
+    return max(1, math.ceil(dt / (STABILITY_FRACTION * jacobian_step_limit(A)) - 1e-12))
 
 
 class Problem:

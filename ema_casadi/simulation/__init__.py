@@ -79,6 +79,8 @@ from ._steplimit import (
     StepLimitWarning,
     default_step,
     inside_limit,
+    jacobian_step_limit,
+    mode_step_limit,
     peak_load,
     rk4_growth,
     rk4_reach,
@@ -98,6 +100,6 @@ __all__ = [
     "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
     # RK4's stability limit and the ECU's sample instants
     "rk4_step_limit", "StepLimit", "StepLimitWarning", "rk4_reach", "rk4_growth", "RK4_REAL_REACH", "step_check",
-    "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN",
+    "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN", "mode_step_limit", "jacobian_step_limit",
     "sampling_split", "sample_periods", "peak_load",
 ]

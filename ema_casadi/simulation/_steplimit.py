@@ -37,7 +37,8 @@ import numpy as np
 from ..model.assembly import Model
 
 __all__ = ["StepLimit", "StepLimitWarning", "rk4_step_limit", "rk4_reach", "rk4_growth", "RK4_REAL_REACH",
-           "step_check", "peak_load", "sample_periods", "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN"]
+           "step_check", "peak_load", "sample_periods", "default_step", "inside_limit", "DT_DEFAULT", "DT_MARGIN",
+           "mode_step_limit", "jacobian_step_limit"]
 
 #: :func:`~ema_casadi.simulation.simulate`'s RK4 step without ``dt`` where it is inside
 #: :data:`DT_MARGIN` x RK4's stability limit (s): hybrid friction (0.26 ms limit).
@@ -88,6 +89,33 @@ def rk4_reach(direction: complex) -> float:
 
 #: RK4's reach on the negative real axis, ``h |lambda| <= 2.7853``.
 RK4_REAL_REACH = rk4_reach(-1.0)
+
+
+def mode_step_limit(lam: complex) -> float:
+    """RK4's largest stable step on the mode ``lam`` (s): ``rk4_reach(lam) / |lam|``
+    (``inf`` for a zero or right-half-plane eigenvalue). The reach is not one number:
+    2.785 on the negative real axis, 2.828 on the imaginary axis and 2.616 at 123 deg,
+    so a complex mode can be limiting below ``2.785 / |lam|``.
+
+    Parameters
+    ----------
+    lam : complex
+        The eigenvalue (1/s).
+    """
+    lam = complex(lam)
+    return math.inf if lam == 0 else rk4_reach(lam) / abs(lam)
+
+
+def jacobian_step_limit(A) -> float:
+    """RK4's largest stable step (s) on the linear flow ``dx/dt = A x``: the smallest
+    :func:`mode_step_limit` over the eigenvalues of ``A``.
+
+    Parameters
+    ----------
+    A : array_like
+        The Jacobian (1/s), square.
+    """
+    return min((mode_step_limit(lam) for lam in np.linalg.eigvals(np.asarray(A, float))), default=math.inf)
 
 
 class StepLimitWarning(UserWarning):
@@ -147,7 +175,7 @@ class StepLimit:
                 f"{_complex(lam)} 1/s of {st}, {pt}: it grows x{rk4_growth(dt * lam):.3g} per step until a "
                 f"nonlinearity bounds it, a chatter of {st}); use a step of at most {self.dt_max:.3g} s")
 
-    def inside(self, periods=(), margin: float = 0.8, cap: float | None = None, lengths=()) -> float:
+    def inside(self, periods=(), margin: float = DT_MARGIN, cap: float | None = None, lengths=()) -> float:
         """The largest step at most ``margin`` x :attr:`dt_max` (and ``cap``) that divides
         every period in ``periods`` (s; the ECU's sample periods): a round step (1,
         1.25, 2, 2.5 or 5 x 10^k s) or the fastest period over a whole number of steps;
@@ -217,9 +245,7 @@ def _fastest(model: Model, A: np.ndarray, scale: np.ndarray, point: str) -> tupl
     lam, V = np.linalg.eig(A)
     best = (point, math.inf, 0j, "")
     for j, lj in enumerate(lam):
-        if abs(lj) == 0:
-            continue
-        h = rk4_reach(lj) / abs(lj)
+        h = mode_step_limit(lj)
         if h < best[1]:
             w = np.abs(V[:, j]) / scale
             best = (point, float(h), complex(lj), model.states[int(np.argmax(w))])
@@ -367,12 +393,12 @@ def sample_periods(model: Model, pv=None) -> dict:
 
 
 def default_step(model: Model, t_end, inputs, zoh: bool, dt_out=None, fixed: bool = True) -> float:
-    """The RK4 step of a run without ``dt``: :data:`DT_DEFAULT` where it is inside
-    :data:`DT_MARGIN` x RK4's stability limit at the run's parameters and largest load
-    (:func:`rk4_step_limit`), else the largest step inside it that divides the ECU's
-    sample periods with ``zoh`` (and ``t_end`` and ``dt_out`` where one does,
-    :meth:`StepLimit.inside`). Not ``fixed`` (a variable-step solver runs), or a
-    ``t_end`` that is not a positive number: DT_DEFAULT (the run's checks refuse it).
+    """The RK4 step of a run without ``dt`` (:func:`~ema_casadi.simulation.simulate`,
+    ``ema simulate``): :func:`inside_limit` at most :data:`DT_DEFAULT`, which is kept
+    as it is where it is inside :data:`DT_MARGIN` x the limit (with ``zoh`` its steps
+    split at the sample instants), ``t_end`` and ``dt_out`` the lengths it should
+    divide. Not ``fixed`` (a variable-step solver runs), or a ``t_end`` that is not a
+    positive number: DT_DEFAULT (the run's checks refuse it).
 
     Parameters
     ----------
@@ -393,39 +419,49 @@ def default_step(model: Model, t_end, inputs, zoh: bool, dt_out=None, fixed: boo
     if not fixed or isinstance(t_end, bool) or not isinstance(t_end, (int, float)) or not 0 < t_end < math.inf:
         return DT_DEFAULT
     given, pv = inputs()
-    limit = _limit_at_peak(model, given, pv, t_end, zoh)
-    if DT_DEFAULT <= DT_MARGIN * limit.dt_max:
-        return DT_DEFAULT
     lengths = (float(t_end),) + ((float(dt_out),) if isinstance(dt_out, (int, float)) and dt_out > 0 else ())
-    return _inside(limit, model, pv, zoh, DT_DEFAULT, lengths)
+    return inside_limit(model, given, t_end, zoh, DT_DEFAULT, lengths, pv, keep_cap=True)
 
 
-def inside_limit(model: Model, signals: dict, t_end: float, zoh: bool, cap: float, lengths=(), pv=None) -> float:
-    """The largest step under :data:`DT_MARGIN` x RK4's stability limit on ``model`` at
-    its parameters and the largest load of ``signals`` (:func:`rk4_step_limit`), at
-    most ``cap``, dividing the ECU's sample periods with ``zoh`` (and ``lengths`` where
-    one does; :meth:`StepLimit.inside`): the default step of a fault table or a sweep.
+def inside_limit(model: Model, signals: dict, t_end: float | None, zoh: bool, cap: float = DT_DEFAULT, lengths=(),
+                 pv=None, keep_cap: bool = False) -> float:
+    """The one rule of every fixed-step default (a run's, a sweep's, a fault table's, a
+    mission's, a limit cycle's, the exported simulators'): the largest step under
+    :data:`DT_MARGIN` x RK4's stability limit on ``model`` at its parameters and the
+    largest load of ``signals`` (:func:`rk4_step_limit`), at most ``cap`` (the use's
+    own accuracy), dividing the ECU's sample periods with ``zoh`` (and ``lengths``
+    where one does; :meth:`StepLimit.inside`).
 
     Parameters
     ----------
     model : Model
         The model.
     signals : dict
-        Input name or role -> Signal or value of the run (a role the model lacks: left out).
-    t_end : float
-        The run's end (s).
+        Input name or role -> Signal or value of the run (a role the model lacks: left
+        out; undriven inputs at their defaults).
+    t_end : float or None
+        The run's end (s); None: no load (the unloaded limit, the signals ignored).
     zoh : bool
         The sampled ECU.
     cap : float
-        The largest step (s).
+        The largest step (s); default :data:`DT_DEFAULT`.
     lengths : iterable of float
         Lengths the step should divide (s: the run's end, its sample spacing).
     pv : ndarray, optional
         The parameter vector (default the model's).
+    keep_cap : bool
+        ``cap`` itself where it is inside the margin (it need not divide the sample
+        periods: the steps are split at the instants).
     """
     pv = model.p() if pv is None else pv
-    given = {model.input_name(k): v for k, v in signals.items() if k in model.inputs or model.inputs_with(k)}
-    return _inside(_limit_at_peak(model, given, pv, t_end, zoh), model, pv, zoh, cap, lengths)
+    if t_end is None:
+        limit = rk4_step_limit(model, p=pv, zoh=zoh)
+    else:
+        given = {model.input_name(k): v for k, v in signals.items() if k in model.inputs or model.inputs_with(k)}
+        limit = _limit_at_peak(model, given, pv, t_end, zoh)
+    if keep_cap and cap <= DT_MARGIN * limit.dt_max:
+        return cap
+    return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, cap, tuple(lengths))
 
 
 def _limit_at_peak(model: Model, given: dict, pv, t_end, zoh: bool) -> StepLimit:
@@ -435,9 +471,3 @@ def _limit_at_peak(model: Model, given: dict, pv, t_end, zoh: bool) -> StepLimit
 
     sig = input_signals(model, given, pv)
     return rk4_step_limit(model, p=pv, load=peak_load(model, sig, float(t_end)), zoh=zoh)
-
-
-def _inside(limit: StepLimit, model: Model, pv, zoh: bool, cap: float, lengths) -> float:
-    """:meth:`StepLimit.inside` at :data:`DT_MARGIN` and ``cap``, dividing the ECU's sample
-    periods with ``zoh``."""
-    return limit.inside(sample_periods(model, pv).values() if zoh else (), DT_MARGIN, cap, tuple(lengths))

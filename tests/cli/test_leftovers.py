@@ -27,6 +27,8 @@ MISSION = '[mission]\nname = "m"\n[[segment]]\nname = "a"\nduration = 2.0\nx_cmd
 SWEEP = """[sweep]
 seed = 1
 samples = 40
+[variants]
+friction = "hybrid"
 [parameters]
 B = { distribution = "uniform", low = 1e-5, high = 3e-5 }
 [scenario]

@@ -2,6 +2,7 @@
 ECU's exact instants (steps split at them): analytic modes, the chatter a step above
 the limit makes, the refusal on the command line, the fault table's step inside."""
 
+import json
 import math
 import subprocess
 import sys
@@ -72,14 +73,17 @@ def test_cli_refuses_a_step_above_the_limit_and_defaults_inside(model_cache):
     r = _cli(*scenario, "--dt", "1e-5", "--t-end", "0.02")
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
     assert "--dt 1e-05 s is above RK4's stability limit 6.52e-07 s" in r.stderr and "held under +30 kN" in r.stderr
-    # the default without --dt: the largest step under 0.8 x the limit dividing 62.5, 125 and 500 us
-    from ema_casadi.cli.simulate import DEFAULT_DT, DT_MARGIN
-    from ema_casadi.simulation import sample_periods
-
+    # the default without --dt is simulate()'s (one rule, default_step): the largest step under
+    # 0.8 x the limit dividing 62.5, 125 and 500 us (and the run's 20 ms and 0.1 ms samples)
+    r = _cli(*scenario, "--t-end", "0.02", "--json")
+    assert r.returncode == 0, r.stderr
+    assert "warning" not in r.stderr.lower()
     model = model_cache()
     limit = rk4_step_limit(model, load=30e3, zoh=True)
-    dt = limit.inside(sample_periods(model).values(), DT_MARGIN, DEFAULT_DT)
+    dt = ema.simulation.default_step(model, 0.02, lambda: ({"x_cmd": "step:1mm@0.01+sine:0.375mm@1@0.5",
+                                                             "f_ext": 30e3}, model.p()), True, 1e-4)
     assert dt == pytest.approx(62.5e-6 / 120, rel=1e-12) and dt <= 0.8 * limit.dt_max
+    assert json.loads(r.stdout)["steps"] == pytest.approx(0.02 / dt, abs=1)
 
 
 def test_samples_fall_on_their_own_instants_at_dt_1e5(model_cache):

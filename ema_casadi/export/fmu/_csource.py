@@ -34,7 +34,7 @@ DT_SMOOTH = 2e-6
 def default_dt(model: Model) -> float:
     """The exported simulators' default step (s): :data:`DT_DEFAULT` with hybrid
     friction, :data:`DT_SMOOTH` otherwise, and at most 0.8 x RK4's stability limit on
-    the model at rest without load (:func:`~ema_casadi.simulation.rk4_step_limit`; the
+    the model at rest without load (:func:`~ema_casadi.simulation.inside_limit`; the
     load is the importer's signal: held under a load F the smooth law's limit falls
     as 1/F_r(F), 1.6 us at 10 kN on the reference set).
 
@@ -43,9 +43,9 @@ def default_dt(model: Model) -> float:
     model : Model
         The assembled model.
     """
-    from ...simulation import rk4_step_limit
+    from ...simulation import inside_limit
 
-    return rk4_step_limit(model).inside((), 0.8, DT_DEFAULT if model.hybrid else DT_SMOOTH)
+    return inside_limit(model, {}, None, False, DT_DEFAULT if model.hybrid else DT_SMOOTH)
 
 
 def _cname(name: str) -> str:
