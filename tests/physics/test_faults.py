@@ -14,7 +14,8 @@ import ema_casadi as ema
 
 QUIET = dict(sigma_x=0.0, sigma_theta=0.0, sigma_i=0.0)
 #: RK4 at 10 us (the runs' accuracy was measured with it), a sample per 0.1 ms
-RK4 = dict(dt=1e-5, dt_out=1e-4, solver="rk4")
+#: RK4 at simulate()'s default step, inside its stability limit at each run's largest load.
+RK4 = dict(dt_out=1e-4, solver="rk4")
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +36,7 @@ def test_healthy_inputs_leave_the_trajectory_alone(faulty, model_cache):
     # every fault input 0: the rod moves as in the model without the fault part (the
     # jam anchor and the stuck memories follow their signals and act on nothing);
     # 1e-12 m is the regression tests' tolerance for a reordered sum
-    kw = dict(x_cmd="step:1mm@0.01", dt=1e-5, dt_out=1e-4)
+    kw = dict(x_cmd="step:1mm@0.01", dt_out=1e-4)
     a = ema.simulate(faulty, 0.1, **kw, solver="rk4")
     b = ema.simulate(model_cache(), 0.1, **kw, solver="rk4")
     assert np.max(np.abs(a["x_rod"] - b["x_rod"])) < 1e-12
@@ -173,7 +174,9 @@ def test_undervoltage_caps_the_speed(faulty, params):
 def test_position_bias_fault_shifts_the_held_rod(faulty):
     b = 2e-4  # m, a bias step at 0.1 s while the rod holds 1 mm
     r = ema.simulate(faulty, 0.4, x_cmd="step:1mm@0.01", bias_x=f"step:{b}@0.1", **RK4)
-    assert r["x_rod"][-1] == pytest.approx(1e-3 - b, abs=1e-8)  # ideal sensor: no quantisation
+    # ideal sensor: no quantisation; at 0.4 s the rod is still creeping in on the smooth law's
+    # slope F_r/v_s at rest (0.61 um short measured at a step inside RK4's limit), bound 1 um
+    assert r["x_rod"][-1] == pytest.approx(1e-3 - b, abs=1e-6)
 
 
 def _first(t, flag):
@@ -223,7 +226,7 @@ def test_a_latched_monitor_switches_the_bridge_off(watched, params):
 
 def test_healthy_noisy_run_trips_nothing(params):
     model = ema.build_model(params, {"faults": "on", "monitors": "on", "sensor": "real"})
-    r = ema.simulate(model, 0.5, x_cmd="step:5mm@0.01+sine:1mm@3@0.2", f_ext="step:10kN@0.1", zoh=True, dt=1e-5,
+    r = ema.simulate(model, 0.5, x_cmd="step:5mm@0.01+sine:1mm@3@0.2", f_ext="step:10kN@0.1", zoh=True,
                      dt_out=1e-4, solver="rk4")
     for name in model.outputs_of("alarm"):
         assert r[name].max() < 0.5, name
@@ -238,7 +241,7 @@ def test_winding_short_current_and_loss_match_the_closed_form(params):
     # over whole electrical periods after 0.3 s; the current loop lets a 1.7 A ripple
     # through, which moves the loss by 0.6 % (measured; 2 % is the acceptance bound)
     model = ema.build_model(params, {"winding_short": "on", "thermal": "lumped"})
-    mu, kw = 0.1, dict(x_cmd="ramp:0.04", dt=1e-5, dt_out=1e-5)
+    mu, kw = 0.1, dict(x_cmd="ramp:0.04", dt_out=1e-5)
     r = ema.simulate(model, 0.6, mu_short=f"step:{mu}@0.1", **kw, solver="rk4")
     th = params.motor.pp * r["phi"]
     k = th >= th[r.t > 0.3][0]
@@ -291,7 +294,7 @@ def test_a_fault_drives_a_sweep(params):
     data = {"sweep": {"seed": 3, "samples": 3},
             "variants": {"faults": "on", "monitors": "on"},
             "parameters": {"F_seal": {"distribution": "uniform", "low": 0.8, "high": 1.2, "relative": True}},
-            "scenario": {"duration": 0.15, "x_cmd": "ramp:40mm/s", "solver": "rk4", "dt": 1e-5, "dt_out": 1e-3,
+            "scenario": {"duration": 0.15, "x_cmd": "ramp:40mm/s", "solver": "rk4", "dt_out": 1e-3,
                          "zoh": True, "inputs": {"stuck_x": "step:1@0.05"}},
             "metrics": {"peak": {"signals": ["latch_cross", "latch_jam"]}}}
     res = sweep(parse_sweep(data, params), jobs=1)
@@ -330,7 +333,7 @@ def test_noise_fault_adds_noise_of_its_sigma(faulty, params):
     # position-loop rate: x_s - x_rod has that standard deviation (400 samples at 2 kHz:
     # 3.5 % standard error, 12 % allowed)
     sigma = 1e-4
-    r = ema.simulate(faulty, 0.25, x_cmd="step:1mm@0.01", noise_x=f"step:{sigma}@0.05", dt=1e-5, dt_out=5e-4,
+    r = ema.simulate(faulty, 0.25, x_cmd="step:1mm@0.01", noise_x=f"step:{sigma}@0.05", dt_out=5e-4,
                      solver="rk4")
     e = (r["x_s"] - r["x_rod"])[r.t > 0.05]
     assert np.all((r["x_s"] - r["x_rod"])[r.t < 0.05] == 0)

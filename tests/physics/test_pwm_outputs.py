@@ -105,7 +105,7 @@ def test_v_dc_i_dc_is_the_power_drawn(cli_run, model_cache):
     V_dc = float(model.p()[model.param_names.index("V_dc")])
     assert float(np.sum(V_dc * d["i_dc"][1:] * np.diff(d["time"]))) == pytest.approx(r["energies_J"]["P_dc"], rel=1e-3)
     sig = Signal.step(1e-3, 0.005) + Signal.sine(0.2e-3, 20.0, 0.01)
-    full = simulate(model, T_END, sig, 20e3, dt=5e-6, decimate=1)  # every sub-interval
+    full = simulate(model, T_END, sig, 20e3, decimate=1)  # every sub-interval, the default step
     assert np.allclose(V_dc * full["i_dc"], full["P_dc"], rtol=1e-12, atol=1e-9)
     dt = np.diff(full.t)
     short = float(np.sum((full["P_dc"] - V_dc * full["i_sw"])[:-1] * dt))

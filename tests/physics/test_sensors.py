@@ -21,8 +21,8 @@ def real(params):
 
 
 def _held(model, x_cmd, t_end=0.4, **p):
-    r = ema.simulate(model, t_end, x_cmd=f"step:{x_cmd}@0.01", zoh=True, dt=1e-5, dt_out=1e-4, p=model.p(**p),
-                     solver="rk4")
+    r = ema.simulate(model, t_end, x_cmd=f"step:{x_cmd}@0.01", zoh=True, dt_out=1e-4, p=model.p(**p),
+                     solver="rk4")  # the default step, inside RK4's stability limit
     return r["x_rod"][-1000:], r["x_s"][-1000:]  # the last 0.1 s
 
 
@@ -54,10 +54,10 @@ def test_resolver_quantisation_steps_the_speed_estimate(real, params):
     # at a constant speed the difference quotient of the quantised angle over one
     # speed-loop sample is a whole number of dtheta f_s_w (2 pi/2^16 x 8 kHz =
     # 0.767 rad/s) and takes the two values around the true speed
-    # The step dt = 6.25 us divides every ECU period (at 10 us the 8 kHz samples fall
-    # 12 or 13 steps apart and the quotient jitters by +-4 %: the integrator's timing)
+    # The step dt = 3.125 us divides every ECU period and is inside RK4's 5.57 us limit (at
+    # 10 us the 8 kHz samples fell 12 or 13 steps apart and the quotient jittered by +-4 %)
     v = 0.04  # m/s, rod ramp
-    r = ema.simulate(real, 0.3, x_cmd=f"ramp:{v}", zoh=True, dt=6.25e-6, dt_out=1.25e-4, solver="rk4")
+    r = ema.simulate(real, 0.3, x_cmd=f"ramp:{v}", zoh=True, dt=3.125e-6, dt_out=1.25e-4, solver="rk4")
     step = 2 * math.pi / 2**16 * params.control.f_s_w
     w = r["omega_s"][-800:]
     n = w / step
@@ -71,7 +71,7 @@ def test_resolver_quantisation_steps_the_speed_estimate(real, params):
 
 def test_noise_is_seeded_and_reproducible(params):
     model = ema.build_model(params, {"sensor": "real"})
-    runs = [ema.simulate(model, 0.05, x_cmd="step:1mm", zoh=True, dt=1e-5, p=model.p(noise_seed=s), solver="rk4")
+    runs = [ema.simulate(model, 0.05, x_cmd="step:1mm", zoh=True, p=model.p(noise_seed=s), solver="rk4")
             for s in (3, 3, 4)]
     assert np.array_equal(runs[0]["x_s"], runs[1]["x_s"])  # same seed, same run, bit for bit
     assert np.array_equal(runs[0]["i_q"], runs[1]["i_q"])

@@ -22,6 +22,7 @@ last bits of an intermediate (a reordered sum) can already move a variable-step
 has to be looked at, not waved through.
 """
 
+import contextlib
 import json
 import math
 from pathlib import Path
@@ -86,7 +87,12 @@ CASES = REF["simulate"]["cases"]
 def test_rod_trajectory_matches_reference(key):
     case = CASES[key]
     model = _model(case["variants"])
-    res = ema.simulate(model, **case["kwargs"])
+    # the references were recorded at their step: where it is above RK4's stability limit
+    # (5 us against 4.28 us with stribeck=on) the run says so, and must
+    dt = case["kwargs"].get("dt")
+    above = case["solver"] == "rk4" and dt is not None and dt > ema.rk4_step_limit(model).dt_max
+    with pytest.warns(ema.StepLimitWarning, match="above RK4") if above else contextlib.nullcontext():
+        res = ema.simulate(model, **case["kwargs"])
     data = _trajectories()
     t_ref, x_ref = data[case["t_key"]], data[key]
     t, x = np.asarray(res.t, float), np.asarray(res["x_rod"], float)
