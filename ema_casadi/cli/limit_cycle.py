@@ -30,6 +30,12 @@ HELP = "limit cycles at a loop break by describing function, confirmed by a long
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
+#: ``--method shooting`` on the position loop of a P controller with no --variant
+#: controller nor --k-i-x: the P loop settles (no orbit to shoot), so the shooting takes
+#: this hunting scenario (the integral action against the friction: a 5.9 Hz cycle of
+#: 5.5 um on the reference set) and says so.
+HUNTING = {"controller": "PI", "K_i_x": 3000.0}
+
 #: The largest RK4 step when --dt is not given (s): the default is the largest step at
 #: most this inside RK4's stability limit on the model
 #: (:func:`~ema_casadi.simulation.inside_limit`).
@@ -239,6 +245,9 @@ def run(args) -> dict:
         airframe_variant(args, "b747", ("b747", "transport"))
     args.condition = args.condition or "cruise_sl"
     params, model = load(args)
+    hunting = _hunting(args, model)
+    if hunting is not None:
+        params, model = load(args)
     from ..simulation import choose_solver
 
     refuse_dt(dt_given, True if model.switched else choose_solver(model, "auto")[0],
@@ -263,7 +272,7 @@ def run(args) -> dict:
             raise UserError(f"--method shooting: {why}")
     s = setup(model, args.loop, model.p(**over), args.condition)
     if shooting and args.no_df:
-        return _shooting(args, model, s, over, [], t_end, t0, plot, csv, cont)
+        return {**_shooting(args, model, s, over, [], t_end, t0, plot, csv, cont), "scenario": hunting}
     kw = dict(p=s["p"], x0=s["x0"], inputs=s["inputs"], meas0=s["meas0"], dt=args.dt, periods=args.periods,
               settle=args.periods // 2)
     stage(args, "limit-cycle", 0.0, "describing function")
@@ -274,7 +283,7 @@ def run(args) -> dict:
         cycles = [harmonic_balance(model, args.loop, c, harmonics=orders, **kw) for c in cycles]
     df.cycles = cycles
     if shooting:
-        return _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont)
+        return {**_shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont), "scenario": hunting}
     stage(args, "limit-cycle", 0.6, f"confirming by a {t_end:g} s simulation" if t_end > 0 else "")
     sim = confirm_cycle(s, t_end, args.dt) if t_end > 0 else None
     stage(args, "limit-cycle", 1.0, "done")
@@ -282,6 +291,20 @@ def run(args) -> dict:
     return {"model": args.model, "variants": model.variants, "loop": args.loop, "overrides": over,
             "describing_function": df.as_dict(), "harmonics": list(orders), "predicted": cycles, "simulation": sim,
             "t_end_s": t_end, "wall_time_s": time.perf_counter() - t0, "written": written}
+
+
+def _hunting(args, model) -> str | None:
+    """``--method shooting`` on the position loop of a P controller, nothing given that
+    sets the loop (--variant controller, --k-i-x, --continue): the :data:`HUNTING`
+    scenario put into ``args`` (the model to load again); the line that says so, else None."""
+    given = {k for k, _ in args.variant}
+    if (args.method != "shooting" or args.loop != "position" or model.variants.get("controller") != "P"
+            or "controller" in given or args.k_i_x is not None or args.cont is not None):
+        return None
+    args.variant = [*args.variant, ("controller", HUNTING["controller"])]
+    args.k_i_x = HUNTING["K_i_x"]
+    return (f"scenario: the P loop settles (no orbit to shoot), so the hunting one: --variant controller="
+            f"{HUNTING['controller']} --k-i-x {HUNTING['K_i_x']:g} (give --variant controller=P to shoot the P loop)")
 
 
 def _report_shooting(r: dict) -> None:
@@ -315,6 +338,8 @@ def _report_shooting(r: dict) -> None:
 
 def report(r: dict) -> None:
     if r.get("method") == "shooting":
+        if r.get("scenario"):
+            print(r["scenario"])
         _report_shooting(r)
         s = r.get("simulation")
         if s is not None:

@@ -20,7 +20,16 @@ from ..model.assembly import Model, build_model
 from ..model.components import SIGNAL_KEYS
 from ..model.params import Parameters
 from ..signals import Signal
-from ..simulation import STEPS_PER_CALL, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure, simulate
+from ..simulation import (
+    STEPS_PER_CALL,
+    GaveUp,
+    Monitor,
+    RunFailed,
+    captured_stderr,
+    inside_limit,
+    integrator_failure,
+    simulate,
+)
 
 #: What a sine stream measures, by role: the rod position and the motor current (the
 #: harmonics' channels, in this order).
@@ -117,6 +126,15 @@ class _HybridPeriods:
         self.model, self.K, self.dt_max = model, samples, dt_max
         self.npar = len(model.param_names)
         self.k_min = max(samples, -(-STEPS_PER_CALL // self.DECIMATE))
+        self._caps: dict = {}
+
+    def cap(self, p, f_ext: float, zoh: bool = False) -> float:
+        """The largest step (s): ``dt_max`` inside RK4's stability limit at the point's
+        parameters and load (:func:`~ema_casadi.simulation.inside_limit`), per point."""
+        key = (np.asarray(p, float).tobytes(), float(f_ext), zoh)
+        if key not in self._caps:
+            self._caps[key] = inside_limit(self.model, {"load": float(f_ext)}, 1.0, zoh, self.dt_max, pv=p)
+        return self._caps[key]
 
     def __call__(self, x0, pa):
         """One period from x0; returns (x at the period's end, samples), NaN if the run failed."""
@@ -130,7 +148,7 @@ class _HybridPeriods:
         envelope itself and raises RunFailed."""
         p = pa[: self.npar]
         A, freq, f_ext = pa[self.npar :]
-        n = max(self.k_min, math.ceil(1.0 / (freq * self.dt_max * self.DECIMATE) - 1e-9))
+        n = max(self.k_min, math.ceil(1.0 / (freq * self.cap(p, f_ext) * self.DECIMATE) - 1e-9))
         n += n % 2
         res = simulate(self.model, 1.0 / freq, inputs={"command": Signal.sine(A, freq), "load": float(f_ext)}, p=p,
                        x0=x0, dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
@@ -158,7 +176,7 @@ class _SwitchedPeriods(_HybridPeriods):
         n = max(1, round(f_c / freq))
         res = simulate(self.model, n / f_c, inputs={"command": Signal.sine(A, f_c / n), "load": float(f_ext)}, p=p,
                        x0=x0,
-                       dt=min(self.dt_max, 0.5 / f_c), dt_out=1.0 / f_c, solver="rk4")
+                       dt=min(self.cap(p, f_ext, True), 0.5 / f_c), dt_out=1.0 / f_c, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
         y = np.vstack([res[self.model.output_with(r)][1 : n + 1] for r in MEASURED])
         return x1, y, None

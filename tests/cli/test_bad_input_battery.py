@@ -423,7 +423,7 @@ SWEEP = {
     "metric-option": (SWEEP_OK.replace("peak = {}", "peak = { signal = 'i_q' }"), ["[metrics] peak", "'signal'"]),
     "dt-not-whole": (SWEEP_OK.replace("dt = 1e-4", "dt = 3e-4"), ["[scenario] duration", "whole number"]),
     "signal": (SWEEP_OK.replace("step:1mm@0.001", "stepp:1mm"), ["[scenario] x_cmd", "stepp"]),
-    "variant": (SWEEP_OK + '[variants]\nfriction = "sticky"\n', ["[variants] friction", "'sticky'"]),
+    "variant": (SWEEP_OK.replace('friction = "hybrid"', 'friction = "sticky"'), ["[variants] friction", "'sticky'"]),
     "samples-without-draws": ("[sweep]\nsamples = 3\n" + SWEEP_OK, ["[sweep] samples", "no parameter is drawn"]),
     "jobs-zero": (SWEEP_OK, "--jobs must be a positive integer", ["--jobs", "0"]),
     "out-suffix": (SWEEP_OK, "--out", ["--out", "{tmp}/s.txt"]),
