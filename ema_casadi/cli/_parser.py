@@ -146,7 +146,8 @@ def _subparsers(parser) -> argparse._SubParsersAction:
 def unknown_flag(argv: list[str], parser) -> str | None:
     """The one-line error for the first flag no parser knows (before argparse, whose
     message for ``ema --versoin`` is "arguments are required: COMMAND" and for
-    ``ema simulate --tend 1`` has no suggestion), with the nearest flag; None when
+    ``ema simulate --tend 1`` has no suggestion), with the nearest flag, or for a
+    command that does not exist (``ema simulat``), with the nearest command; None when
     every flag is known. A flag is known by its name or an unambiguous prefix (as
     argparse abbreviates); nothing after ``--`` is looked at.
 
@@ -167,6 +168,8 @@ def unknown_flag(argv: list[str], parser) -> str | None:
         if sub is parser and tok in choices:
             prog, sub = f"ema {tok}", choices[tok]
             continue
+        if sub is parser and not tok.startswith("-"):  # the command's place: a mistyped command
+            return f"ema: error: unknown command {tok!r}{nearest(tok, choices, 0.6)} (ema --help lists the commands)"
         if not tok.startswith("--") or len(tok) < 3:
             continue
         name = tok.split("=", 1)[0]

@@ -439,7 +439,11 @@ add("sweep-scheduler-address", Case("sweep", [], "--scheduler localhost", {"s.to
                                     raw=["sweep", REF, "s.toml", "--scheduler", "localhost"]))
 add("sweep-resume-without-out", Case("sweep", [], "--resume has no effect without --out", {"s.toml": SWEEP_OK},
                                      raw=["sweep", REF, "s.toml", "--resume"]))
-add("top-unknown-command", Case("simulate", [], "invalid choice: 'simulat'", raw=["simulat", REF]))
+add("top-unknown-command", Case("simulate", [], "unknown command 'simulat' (did you mean 'simulate'?)",
+                                raw=["simulat", REF]))
+# the mistyped command is named, not its flags (argparse's order blamed --t-end)
+add("top-unknown-command-with-flag", Case("simulate", [], "unknown command 'simulat' (did you mean 'simulate'?)",
+                                          raw=["simulat", "--t-end", "0.2"]))
 add("top-no-command", Case("simulate", [], "required: COMMAND", raw=[]))
 
 
