@@ -16,7 +16,7 @@ import numbers
 import numpy as np
 
 __all__ = ["describe", "number", "integer", "vector", "instance", "choice", "closest", "nearest", "budget",
-           "size_text"]
+           "size_text", "plausible_limit", "STROKE_FACTOR", "CURRENT_FACTOR", "FORCE_FACTOR"]
 
 
 def describe(value) -> str:
@@ -257,3 +257,33 @@ def budget(count: float, limit: float, what: str, error: type, *, unit: str = "p
         tail = f"; {hint}" if hint else ""
         raise error(f"{what}: {count:.3g} {unit}{mem}, above the limit of {limit:.3g} {unit}{name}{tail}")
     return int(count)
+
+
+#: A value given without a unit (a record's column, a bare number on a flag) is
+#: implausible in SI when a length exceeds this factor on the stroke (the end stops and a
+#: command's overshoot fit well inside), a current this factor on the current limit, a
+#: force this factor on what the screw holds.
+STROKE_FACTOR, CURRENT_FACTOR, FORCE_FACTOR = 1.5, 10.0, 10.0
+
+
+def plausible_limit(model, kind: str):
+    """``(limit, what)``: the largest magnitude (SI) a value of the quantity ``kind``
+    (``length``, ``current``, ``force``) read in SI is plausible up to on ``model``, and
+    what it is measured on (``1.5 x the stroke``); None for other quantities.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model (its stroke, current limit and held load).
+    kind : str
+        The quantity.
+    """
+    if kind == "length":
+        return STROKE_FACTOR * float(model.params.actuator.stroke), f"{STROKE_FACTOR:g} x the stroke"
+    if kind == "current":
+        return CURRENT_FACTOR * float(model.limit_values().get("current", math.inf)), \
+            f"{CURRENT_FACTOR:g} x the current limit"
+    if kind == "force":
+        return FORCE_FACTOR * float(model.envelope_limits().get("held_load", math.inf)), \
+            f"{FORCE_FACTOR:g} x what the screw holds"
+    return None

@@ -14,7 +14,7 @@ from pathlib import Path
 from . import UserError, check_output_dir, check_output_path
 
 __all__ = ["overrides", "refuse_dt", "rk4_step", "fill_defaults", "airframe_variant", "new_output_folder",
-           "output_folder", "NoEffect", "COMMON", "given", "no_effect", "refuse_no_effect"]
+           "output_folder", "NoEffect", "COMMON", "given", "no_effect", "refuse_no_effect", "check_bare"]
 
 
 @dataclass(frozen=True)
@@ -263,3 +263,38 @@ def _nearest(name, options) -> str:
     from .._util._checks import nearest
 
     return nearest(name, options)
+
+
+def check_bare(flag: str, name: str, text: str, value: float, kind, si: str, model) -> None:
+    """A bare number (no unit) is read in SI; refused, with the units that would read it
+    plausibly, where that reading is beyond what its quantity can be on the model
+    (:func:`~ema_casadi._util._checks.plausible_limit`: ``--sigma x_rod=0.3`` is 0.3 m,
+    four times the stroke), as a record's unitless column is.
+
+    Parameters
+    ----------
+    flag, name, text : str
+        The flag, the name given and the value's text.
+    value : float
+        The value read (SI).
+    kind : str or None
+        Its quantity (``length``, ...).
+    si : str
+        Its SI unit.
+    model : Model
+        The model.
+    """
+    from .._util._checks import plausible_limit
+    from ..signals import UNITS
+
+    try:
+        float(text)
+    except ValueError:
+        return  # a unit was given
+    bound = plausible_limit(model, kind)
+    if bound is None or not abs(value) > bound[0]:
+        return
+    fits = [u for u, f in sorted(UNITS[kind].items(), key=lambda kv: -kv[1]) if f < 1 and abs(value) * f <= bound[0]]
+    fix = " or ".join(f"{name}={text.strip()}{u}" for u in fits[:2]) or f"{name}=VALUE UNIT"
+    raise UserError(f"{flag} {name}={text.strip()}: a bare number is SI, {value:g} {si}, beyond {bound[0]:.4g} {si} "
+                    f"({bound[1]}); give its unit: {fix}")

@@ -21,7 +21,7 @@ from __future__ import annotations
 import sys
 
 from . import UserError, add_progress, check_output_dir, load, progress_of
-from ._flags import NoEffect
+from ._flags import NoEffect, check_bare
 
 COMMAND = "design-experiment"
 ORDER = 14
@@ -116,6 +116,7 @@ def _sigma(items, model) -> dict:
         except (SignalError, ValueError):
             what = f"a number (SI) or a quantity in a {kind} unit" if kind else f"a number in {units[key]} (SI)"
             raise UserError(f"--sigma {key}={value}: expected {what}") from None
+        check_bare("--sigma", key, value, out[key], kind, units[key], model)
     return out
 
 

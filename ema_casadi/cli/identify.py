@@ -34,7 +34,7 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
-from ._flags import NoEffect, no_effect
+from ._flags import NoEffect, check_bare, no_effect
 from ._identify_text import fit_text
 
 COMMAND = "identify"
@@ -139,6 +139,8 @@ def _quantities(items, flag, model) -> dict:
         except (SignalError, ValueError):
             raise UserError(f"{flag} {name}={text}: expected a number (SI) or a quantity in a "
                             f"{kind or units.get(name, 'SI')} unit") from None
+        if name in model.units:  # a signal's value (a parameter's bounds are checked as parameters)
+            check_bare(flag, name, text, out[name], kind, units[name], model)
     return out
 
 

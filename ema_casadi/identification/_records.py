@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util import _checks
 from .._util._checks import nearest
 from ..signals import KIND_OF_UNIT, Signal, SignalError, read_text, table_header, table_rows, unit_scale
 
@@ -295,10 +296,9 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
 
 #: A unitless time column spanning more than this (s) is not in seconds: refused.
 MAX_SPAN_S = 3600.0
-#: A unitless column is implausible in SI when a position exceeds this factor on the
-#: stroke (the end stops and a command's overshoot fit well inside), a current this
-#: factor on the current limit, a force this factor on what the screw holds.
-STROKE_FACTOR, CURRENT_FACTOR, FORCE_FACTOR = 1.5, 10.0, 10.0
+#: A unitless column is implausible in SI beyond these factors on the stroke, the current
+#: limit and the held load (:func:`~ema_casadi._util._checks.plausible_limit`).
+STROKE_FACTOR, CURRENT_FACTOR, FORCE_FACTOR = _checks.STROKE_FACTOR, _checks.CURRENT_FACTOR, _checks.FORCE_FACTOR
 
 
 def _plausible(path, name: str, si: str, values, model) -> None:
@@ -306,14 +306,10 @@ def _plausible(path, name: str, si: str, values, model) -> None:
     docstring's limits); else refused with the header that would read it right."""
     peak = float(np.max(np.abs(values))) if len(values) else 0.0
     kind = KIND_OF_UNIT.get(si)
-    if kind == "length":
-        limit, what = STROKE_FACTOR * float(model.params.actuator.stroke), "the stroke"
-    elif kind == "current":
-        limit, what = CURRENT_FACTOR * float(model.limit_values().get("current", np.inf)), "the current limit"
-    elif kind == "force":
-        limit, what = FORCE_FACTOR * float(model.envelope_limits().get("held_load", np.inf)), "what the screw holds"
-    else:
+    bound = _checks.plausible_limit(model, kind)
+    if bound is None:
         return
+    limit, what = bound
     if not peak > limit:
         return
     from ..signals import UNITS
@@ -321,11 +317,7 @@ def _plausible(path, name: str, si: str, values, model) -> None:
     fits = [u for u, f in sorted(UNITS[kind].items(), key=lambda kv: -kv[1]) if f < 1 and peak * f <= limit]
     fix = f"write the header as {name} [{fits[0]}]" if fits else f"give its unit in brackets ({name} [UNIT])"
     raise IdentificationError(f"{path}: column '{name}' has no unit and reaches {peak:.4g} {si}, beyond "
-                              f"{limit:.4g} {si} ({_factor(kind)} x {what}): not SI; {fix}")
-
-
-def _factor(kind: str) -> str:
-    return f"{ {'length': STROKE_FACTOR, 'current': CURRENT_FACTOR, 'force': FORCE_FACTOR}[kind]:g}"
+                              f"{limit:.4g} {si} ({what}): not SI; {fix}")
 
 
 #: Name parts that mark a measured signal (x_act, phi_meas, omega_fb): the suggestion is
