@@ -441,6 +441,10 @@ add("sweep-resume-without-out", Case("sweep", [], "--resume has no effect withou
                                      raw=["sweep", REF, "s.toml", "--resume"]))
 add("top-unknown-command", Case("simulate", [], "unknown command 'simulat' (did you mean 'simulate'?)",
                                 raw=["simulat", REF]))
+# a bare --sigma is SI: 0.3 m is four times the stroke, refused with the units that read it right
+for cmd in ("identify", "design-experiment"):
+    add(f"{cmd}-sigma-bare-implausible", Case("simulate", [], ["--sigma x_rod=0.3", "0.3 m", "1.5 x the stroke",
+                                                               "x_rod=0.3um"], raw=[cmd, "--sigma", "x_rod=0.3"]))
 # the mistyped command is named, not its flags (argparse's order blamed --t-end)
 add("top-unknown-command-with-flag", Case("simulate", [], "unknown command 'simulat' (did you mean 'simulate'?)",
                                           raw=["simulat", "--t-end", "0.2"]))
