@@ -30,11 +30,12 @@ HELP = "limit cycles at a loop break by describing function, confirmed by a long
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
-#: ``--method shooting`` on the position loop of a P controller with no --variant
-#: controller nor --k-i-x: the P loop settles (no orbit to shoot), so the shooting takes
-#: this hunting scenario (the integral action against the friction: a 5.9 Hz cycle of
-#: 5.5 um on the reference set) and says so.
-HUNTING = {"controller": "PI", "K_i_x": 3000.0}
+#: ``--method shooting`` on the position loop of a controller without integral action
+#: (the reference P) and no --variant controller nor --k-i-x: the P loop settles (no
+#: orbit to shoot), so the shooting takes this hunting scenario (the integral action
+#: against the friction: a 5.9 Hz cycle of 5.5 um on the reference set) and says so.
+HUNTING_GAIN = "K_i_x"
+HUNTING = {"controller": "PI", HUNTING_GAIN: 3000.0}
 
 #: The largest RK4 step when --dt is not given (s): the default is the largest step at
 #: most this inside RK4's stability limit on the model
@@ -294,17 +295,20 @@ def run(args) -> dict:
 
 
 def _hunting(args, model) -> str | None:
-    """``--method shooting`` on the position loop of a P controller, nothing given that
+    """``--method shooting`` on the position loop of a controller without integral action
+    (the reference set's P), nothing given that
     sets the loop (--variant controller, --k-i-x, --continue): the :data:`HUNTING`
     scenario put into ``args`` (the model to load again); the line that says so, else None."""
     given = {k for k, _ in args.variant}
-    if (args.method != "shooting" or args.loop != "position" or model.variants.get("controller") != "P"
+    integral = HUNTING_GAIN in {g.name for g in model.gains}  # the loop's integral action (a PI controller)
+    if (args.method != "shooting" or args.loop != "position" or integral
             or "controller" in given or args.k_i_x is not None or args.cont is not None):
         return None
     args.variant = [*args.variant, ("controller", HUNTING["controller"])]
-    args.k_i_x = HUNTING["K_i_x"]
+    args.k_i_x = HUNTING[HUNTING_GAIN]
     return (f"scenario: the P loop settles (no orbit to shoot), so the hunting one: --variant controller="
-            f"{HUNTING['controller']} --k-i-x {HUNTING['K_i_x']:g} (give --variant controller=P to shoot the P loop)")
+            f"{HUNTING['controller']} --k-i-x {HUNTING[HUNTING_GAIN]:g} (give --variant controller=P to shoot the "
+            "P loop)")
 
 
 def _report_shooting(r: dict) -> None:

@@ -52,3 +52,17 @@ def test_every_command_runs_on_its_defaults(command, tmp_path, monkeypatch, caps
 @pytest.mark.parametrize("command", sorted(SHORT))
 def test_every_command_on_its_own_defaults(command, tmp_path, monkeypatch, capsys):
     _run(command, [], tmp_path, monkeypatch, capsys)
+
+
+def test_shooting_on_its_defaults_takes_the_hunting_scenario_and_says_so(tmp_path, monkeypatch, capsys):
+    """The reference P loop settles (no orbit): --method shooting alone takes controller=PI,
+    K_i_x 3000 and names it on its first line; --variant controller=P keeps the P loop
+    (exit 3: nothing to shoot)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["limit-cycle", "--method", "shooting", "--no-df", "--t-end", "0", "--no-progress"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("scenario:") and "--variant controller=PI --k-i-x 3000" in out[0]
+    assert "periodic orbit of the position loop" in out[1] and "stable" in out[1]
+    assert main(["limit-cycle", "--method", "shooting", "--no-df", "--t-end", "0", "--no-progress",
+                 "--variant", "controller=P"]) == 3
+    assert "scenario" not in capsys.readouterr().out
