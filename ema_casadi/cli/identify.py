@@ -303,6 +303,7 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
     res = identify_api(params, recs, free, **kw, model=model)
     doc = res.to_dict()
+    doc["channel_units"] = {c["channel"]: model.units.get(c["channel"], "") for c in doc.get("channels", [])}
     if args.profile:
         doc["profiles"] = {n: profile(res, n) for n in args.profile}
     if checks:
