@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["ENGINEERING", "NOISE", "format_quantity", "format_number", "column_unit", "in_unit", "is_noise"]
+__all__ = ["ENGINEERING", "NOISE", "format_quantity", "format_number", "format_fixed", "column_unit", "in_unit",
+           "is_noise"]
 
 #: Relative noise floor: a value below ``NOISE`` times its kind's reference unit (the
 #: last rung of its ladder below, or the one given) prints as 0. Round-off of a double is
@@ -82,6 +83,21 @@ def format_number(value: float, digits: int = 4, *, scale: float = 1.0) -> str:
     if abs(value) < NOISE * abs(scale):
         return "0"
     return f"{value:.{digits}g}"
+
+
+def format_fixed(value: float, decimals: int) -> str:
+    """``value`` with ``decimals`` decimals, a value that rounds to zero as ``0.000``
+    rather than ``-0.000`` (a residue of the sign is noise, not a reading).
+
+    Parameters
+    ----------
+    value : float
+        The number (in the unit printed).
+    decimals : int
+        Decimals shown.
+    """
+    text = f"{float(value):.{decimals}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
 def column_unit(si_unit: str, values=()) -> tuple[str, float]:

@@ -8,7 +8,16 @@ import math
 
 import pytest
 
-from ema_casadi.signals import ENGINEERING, NOISE, column_unit, format_number, format_quantity, in_unit, is_noise
+from ema_casadi.signals import (
+    ENGINEERING,
+    NOISE,
+    column_unit,
+    format_fixed,
+    format_number,
+    format_quantity,
+    in_unit,
+    is_noise,
+)
 
 
 @pytest.mark.parametrize("value, si, text", [
@@ -39,6 +48,7 @@ def test_the_noise_floor_spares_real_small_readings():
     assert format_quantity(1e-9, "A") == "1e-09 A"
     assert not is_noise(1e-6, "A", scale=1.0) and is_noise(1e-6, "A", scale=1e-5 / NOISE)
     assert format_number(-2.6809e-17) == "0" and format_number(0.505) == "0.505"
+    assert format_fixed(-0.0004, 3) == "0.000" and format_fixed(-0.0006, 3) == "-0.001"
     assert format_number(float("nan")) == "nan" and format_number(-float("inf")) == "-inf"
 
 

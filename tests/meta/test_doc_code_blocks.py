@@ -7,9 +7,12 @@ runs them: no ``models/`` beside them (the docs load the packaged reference set,
 ``ema.load_parameters()``), and the user's PYTHONPATH replaced by the folder of the
 package under test alone (the installed one, or the working tree being tested). A
 block that is not meant to run says so in its fence, ```python {no-run} (keep those
-rare). Console blocks (```sh, ```console, ```shell) run the lines that call
-``ema ... --help`` or ``ema --version``: each must exit 0; the commands that do real
-work are covered by their own tests, and none names ``models/``.
+rare); what the page shows them printing, in ```text {output} blocks, is what they
+print (compared as ``_printed.mismatch`` says). Console blocks (```sh, ```console,
+```shell) run the lines that call ``ema ... --help`` or ``ema --version``: each must
+exit 0; the commands that do real work are covered by their own tests, and none names
+``models/``; a console block's printed output is checked against a run in
+``test_doc_outputs.py``.
 
 The pages' code is written with short runs, so the whole test stays within tens of
 seconds (each page is allowed ``TIMEOUT`` seconds, generous for a loaded machine).
@@ -32,6 +35,8 @@ TIMEOUT = 240
 _FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)\n"
                     r"(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.M | re.S)
 NO_RUN = "{no-run}"
+#: The fence of a ```text block that shows what the page's ```python blocks print.
+OUTPUT = "{output}"
 _CONSOLE = ("sh", "console", "shell", "bash")
 
 
@@ -142,6 +147,12 @@ def test_python_blocks_run(page, tmp_path):
     proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
                           timeout=TIMEOUT, env=_env(tmp_path))
     assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
+    shown = "".join(code for lang, opts, code in blocks(page) if lang == "text" and OUTPUT in opts)
+    if shown:  # what the page says its code prints is what it printed (tests/meta/_printed.py)
+        from _printed import mismatch
+
+        err = mismatch(shown, proc.stdout)
+        assert err is None, f"{page.relative_to(ROOT)}: its code no longer prints what the page shows:\n{err}"
 
 
 @pytest.mark.parametrize("page", _HELP_PAGES, ids=_ids(_HELP_PAGES))
