@@ -26,7 +26,8 @@ from ._options import seconds
 
 COMMAND = "limit-cycle"
 ORDER = 12
-HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
+HELP = ("limit cycles at a loop break: describing function and harmonic balance, or the exact periodic orbit "
+        "by shooting (--method shooting) with its Floquet stability; confirmed by a simulation")
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}

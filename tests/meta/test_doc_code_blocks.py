@@ -38,6 +38,8 @@ NO_RUN = "{no-run}"
 #: The fence of a ```text block that shows what the page's ```python blocks print.
 OUTPUT = "{output}"
 _CONSOLE = ("sh", "console", "shell", "bash")
+#: The longest line of code a page shows (a wider one runs off behind a horizontal scroll).
+LINE_LIMIT = 88
 
 
 def _pages() -> list[Path]:
@@ -163,3 +165,31 @@ def test_help_commands_run(page, tmp_path):
         proc = subprocess.run(ema + shlex.split(line)[1:], cwd=cwd, capture_output=True,
                               text=True, timeout=60, env=_env(tmp_path))
         assert proc.returncode == 0 and proc.stdout.strip(), f"{page.relative_to(ROOT)}: '{line}' failed: {proc.stderr}"
+
+
+def _typed_lines(lang: str, code: str) -> list[str]:
+    """The lines of a block a reader types or reads as code: every line of a Python,
+    shell or TOML block; of a console block the ``$`` lines and their continuations
+    (what a command prints is shown as it prints it)."""
+    if lang in ("python", "sh", "shell", "bash", "toml"):
+        return code.splitlines()
+    out, going_on = [], False
+    for line in code.splitlines() if lang == "console" else ():
+        if line.startswith("$ ") or going_on:
+            out.append(line)
+        going_on = (line.startswith("$ ") or going_on) and line.endswith("\\")
+    return out
+
+
+def test_code_lines_are_short():
+    """No line of code in the README or the docs is longer than LINE_LIMIT characters:
+    a trailing comment goes on its own line above, a long call is wrapped."""
+    long = [f"{page.relative_to(ROOT)}: {len(line)}: {line.strip()[:60]}"
+            for page in _pages() for lang, _, code in blocks(page) for line in _typed_lines(lang, code)
+            if len(line) > LINE_LIMIT]
+    assert not long, "\n".join(long)
+
+
+def test_the_line_check_reads_console_commands_only():
+    assert _typed_lines("console", "$ ema a \\\n    --b c\nprinted " + "x" * 100 + "\n") == ["$ ema a \\", "    --b c"]
+    assert _typed_lines("text", "anything") == []

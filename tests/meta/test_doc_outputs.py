@@ -114,3 +114,16 @@ def test_a_stated_tolerance_widens_the_numbers():
     assert mismatch("1644 steps", "1690 steps") is not None
     assert mismatch("1644 steps", "1690 steps", rtol=0.05) is None
     assert options("{slow rtol=0.02}") == {"slow": True, "rtol": 0.02}
+
+
+def test_the_readme_lists_the_parser_s_commands():
+    """The README's command list is the parser's, in its order (a new command that the
+    README leaves out, or a removed one it still names, fails here)."""
+    import re
+
+    from ema_casadi.cli._parser import build_parser
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    listed = re.search(r"Commands, as `ema --help` lists them: (.*?);", text, re.S)
+    assert listed, "README.md: no 'Commands, as `ema --help` lists them: ...;' line"
+    assert re.findall(r"`([a-z-]+)`", listed.group(1)) == list(build_parser()[1])
