@@ -2,7 +2,35 @@
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
+
+from ..signals import column_unit, in_unit
+from ..signals import format_quantity as q
+
+
+def _parameters(result: dict, w) -> None:
+    """The parameter table: each row in its parameter's engineering unit (the unit column)."""
+    from ..model.params import Parameters
+
+    si = Parameters.units()
+    w(f"{'parameter':<10} {'unit':>6} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
+      f"{'(textbook)':>25}  identifiable\n")
+    for n, d in result["parameters"].items():
+        u = si.get(n, "1")
+        name, size = column_unit(u, [d["start"], d.get("estimate") or 0.0])
+        name = name.replace("*", "·").replace("^2", "²")
+        f = partial(in_unit, size=size, digits=5, si_unit=u)
+        if d.get("estimate") is None:
+            w(f"{n:<10} {name:>6} {f(d['start']):>11} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
+            continue
+        lo, hi = d["interval"]
+        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
+        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
+        w(f"{n:<10} {name:>6} {f(d['start']):>11} {f(d['estimate']):>11} {f(lo):>12}..{f(hi):<12} "
+          f"{f(a):>12}..{f(b):<12}  {ok}\n")
+        if d.get("note"):
+            w(f"{'':<10}   note: {d['note']}\n")
 
 
 def fit_text(result: dict) -> str:
@@ -18,22 +46,12 @@ def fit_text(result: dict) -> str:
     truth = result.get("example", {}).get("truth", {})
     if truth:
         w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
-    w(f"{'parameter':<10} {'start':>11} {'estimate':>11} {'95 % interval (robust)':>25} "
-      f"{'(textbook)':>25}  identifiable\n")
-    for n, d in result["parameters"].items():
-        if d.get("estimate") is None:
-            w(f"{n:<10} {d['start']:>11.5g} {'(held)':>11} {'':>25}  no: {d['reason']}\n")
-            continue
-        lo, hi = d["interval"]
-        ok = "yes" if d["identifiable"] else f"no: {d['reason']}"
-        a, b = d.get("interval_textbook", (float("nan"), float("nan")))
-        w(f"{n:<10} {d['start']:>11.5g} {d['estimate']:>11.5g} {lo:>12.5g}..{hi:<12.5g} {a:>12.5g}..{b:<12.5g}  "
-          f"{ok}\n")
-        if d.get("note"):
-            w(f"{'':<10}   note: {d['note']}\n")
+    _parameters(result, w)
+    units = result.get("channel_units", {})
     for c in result["channels"]:
-        w(f"  {Path(c['record']).name}: {c['channel']} RMS {c['rms']:.4g} (sigma {c['sigma']:.4g}, "
-          f"x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
+        u = units.get(c["channel"]) or "1"
+        w(f"  {Path(c['record']).name}: {c['channel']} RMS residual {q(c['rms'], u)} (sensor noise sigma "
+          f"{q(c['sigma'], u)}, x{c['rms_over_sigma']:.3f}), lag-1 autocorrelation {c['autocorr_lag1']:+.3f}\n")
     test = result.get("consistency")
     if test:
         w(f"records {'consistent' if test['consistent'] else 'DISAGREE'}: fitted alone they lower the cost by "

@@ -137,7 +137,7 @@ def report(r: dict) -> None:
             s, g = d["step"], d["gust"]
             print(f"  {'':11s} step {s['step_deg']:g} deg: overshoot {s.get('overshoot', float('nan')) * 100:.1f} %, "
                   f"{_settling(s.get('settling_time_s'))}; gust {g['peak_m_s']:g} m/s: "
-                  f"|d n_z| {g['n_z_dev']:.3f}, |d theta| {math.degrees(g['theta_dev_rad']):.2f} deg")
+                  f"|d n_z| {g['n_z_dev']:.3f} g, |d theta| {math.degrees(g['theta_dev_rad']):.2f} deg")
     for w in r["written"]:
         print(f"wrote {w}")
 

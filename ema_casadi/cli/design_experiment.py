@@ -149,6 +149,18 @@ def run(args) -> dict:
     return doc
 
 
+def _segment(s: dict) -> str:
+    """A segment in words: ``multisine 4-16 Hz, 9.2 mm peak, at +15 kN``; ``6 slews
+    between -9.2 and +9.2 mm at constant speed, 30 % of each move reversing it, at 0 kN``."""
+    from ..signals import format_quantity as q
+
+    load = ("+" if s["load"] > 0 else "") + q(s["load"], "N", unit="kN")
+    if s["kind"] == "multisine":
+        return f"multisine {s['band'][0]:g}-{s['band'][1]:g} Hz, {q(s['amplitude'], 'm', 3)} peak, at {load}"
+    return (f"{int(s['band'][0])} slews between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)} at "
+            f"constant speed, {100 * s['band'][1]:.3g} % of each move reversing it, at {load}")
+
+
 def report(result: dict) -> None:
     """The comparison table, the segments, the limits used, the verification."""
     w = sys.stdout.write
@@ -156,15 +168,17 @@ def report(result: dict) -> None:
     w(f"{result['criterion']}-optimal {result['duration']:g} s test, {len(result['segments'])} kinds of segment "
       f"(IPOPT: {result['info']['ipopt']['status']}, {result['info']['admissible']} of "
       f"{result['info']['candidates']} candidates within the limits)\n")
+    w(f"  segments of {result['info']['segment']:g} s, each at one load level (+ pushes the rod in):\n")
     for s in result["segments"]:
         if s["count"]:
-            w(f"  {s['count']} x {s['segment']}\n")
+            w(f"  {s['count']} x {_segment(s)}\n")
     w(result["table"] + "\n")
     lc = c["largest_correlation"]
     w(f"largest correlation: designed {lc['designed']['pair'][0]}-{lc['designed']['pair'][1]} "
       f"{lc['designed']['corr']:+.3f}, standard {lc['standard']['pair'][0]}-{lc['standard']['pair'][1]} "
       f"{lc['standard']['corr']:+.3f}\n")
-    w("limits used (fraction): " + ", ".join(f"{k} {v:.3g}" for k, v in result["limits_used"].items()) + "\n")
+    w("share of each limit the designed test reaches (100 %: on it): "
+      + ", ".join(f"{k} {100 * v:.3g} %" for k, v in result["limits_used"].items()) + "\n")
     v = result.get("verification")
     if v:
         w(f"verify: {v['converged']} of {v['n']} fits converged ({v['restarted']} refitted from more starts), "

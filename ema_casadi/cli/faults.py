@@ -142,6 +142,34 @@ def run(args) -> dict:
     return jsonable(summary)
 
 
+def _report_cases(r: dict) -> None:
+    """The cases' table: each case's run, the rod's deviation and each monitor's delay,
+    with the words defined under it."""
+    from ..model.components.monitors import MONITORS
+    from ..signals import format_quantity as q
+
+    mons = r["monitors"]
+    print(f"{r['cases']} cases in {r['wall_time']:.1f} s")
+    head = " ".join(f"{m.removeprefix('latch_'):>7s}" for m in mons)
+    print(f"{'case':20s} {'run':6s} {'peak dev':>9s} {head}")
+    print(f"{'':20s} {'':6s} {'(mm)':>9s} " + " ".join(f"{'(ms)':>7s}" for _ in mons))
+    for row in r["rows"]:
+        cells = [row[f"detected_{m}_s"] for m in mons]
+        dev = row["peak_deviation_m"]
+        dev = q(dev, "m", unit="mm") if dev is not None and math.isfinite(dev) else "-"
+        print(f"{row['case']:20s} {'done' if row['status'] == 'ok' else 'FAILED':6s} {dev.removesuffix(' mm'):>9s} "
+              + " ".join(f"{q(c, 's', unit='ms').removesuffix(' ms'):>7s}" if c is not None else f"{'-':>7s}"
+                         for c in cells))
+    print("run: done = the case ran to its end (FAILED: the run stopped; --json has the reason); peak dev: the "
+          "largest |x_rod| difference from the no-fault run after the onset")
+    print("monitor columns: the delay from the fault's onset to the monitor's latch (- : not latched; in the row "
+          "none, a false alarm's time)")
+    for m in mons:
+        name = m.removeprefix("latch_")
+        if name in MONITORS:
+            print(f"  {name}: {MONITORS[name][2]}")
+
+
 def report(r: dict) -> None:
     if "kinds" in r:
         for kind, targets in r["kinds"].items():
@@ -151,16 +179,7 @@ def report(r: dict) -> None:
                 print(f"{what:28s} severity {lo:g}..{hi:g} {f['unit']:6s} ({f['input']}): {f['doc']}")
         print("monitors: " + ", ".join(r["monitors"]))
         return
-    mons = r["monitors"]
-    print(f"{r['cases']} cases in {r['wall_time']:.1f} s; detection delay after the onset (ms):")
-    head = " ".join(f"{m.removeprefix('latch_'):>7s}" for m in mons)
-    print(f"{'case':20s} {'status':7s} {'peak dev mm':>11s} {head}")
-    for row in r["rows"]:
-        cells = [row[f"detected_{m}_s"] for m in mons]
-        dev = row["peak_deviation_m"]
-        dev = 1e3 * dev if dev is not None and math.isfinite(dev) else math.nan
-        print(f"{row['case']:20s} {row['status']:7s} {dev:11.3f} "
-              + " ".join(f"{1e3 * c:7.1f}" if c is not None else f"{'-':>7s}" for c in cells))
+    _report_cases(r)
     if r["false_alarms_no_fault"]:
         print("false alarms without a fault: " + ", ".join(r["false_alarms_no_fault"]))
     h = r.get("healthy_runs")

@@ -305,6 +305,7 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     report = check_output_dir(args.report, report_names(len(recs), len(free)), "--report")
     res = identify_api(params, recs, free, **kw, model=model)
     doc = res.to_dict()
+    _channel_units(doc, model)
     if args.profile:
         doc["profiles"] = {n: profile(res, n) for n in args.profile}
     if checks:
@@ -356,6 +357,11 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     return doc
 
 
+def _channel_units(doc: dict, model) -> None:
+    """The SI unit of each fitted channel, for the text report's residuals."""
+    doc["channel_units"] = {c["channel"]: model.units.get(c["channel"], "") for c in doc.get("channels", [])}
+
+
 def _compare(args, params, model, records, free, kw, out) -> dict:
     """--compare: every combination fitted, ranked; the best written (as inadequate when
     no combination is adequate)."""
@@ -386,6 +392,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
 
         raise RunFailed("no combination converged", 0.0)
     doc = {**best.to_dict(), **cmp.to_dict()}
+    _channel_units(doc, model)
     bad = not best.adequacy["adequate"]
     doc["written"] = []
     if out is not None:

@@ -26,7 +26,8 @@ from ._options import seconds
 
 COMMAND = "limit-cycle"
 ORDER = 12
-HELP = "limit cycles at a loop break by describing function, confirmed by a long simulation"
+HELP = ("limit cycles at a loop break: describing function and harmonic balance, or the exact periodic orbit "
+        "by shooting (--method shooting) with its Floquet stability; confirmed by a simulation")
 #: Most points of the describing-function grid (amplitudes x frequencies).
 MAX_GRID = 400
 DEFAULTS = {"position": ("1um-30um:7", "1.5-15:10", 6.0), "aircraft": ("3um-300um:7", "0.3-5:8", 300.0)}
@@ -312,6 +313,8 @@ def _hunting(args, model) -> str | None:
 
 
 def _report_shooting(r: dict) -> None:
+    from ..signals import format_quantity as q
+
     if "orbit" not in r:
         print("  no periodic orbit found")
         return
@@ -321,26 +324,30 @@ def _report_shooting(r: dict) -> None:
     tm = complex(*o["trivial_multiplier"])
     print(f"periodic orbit of the {r['loop']} loop by shooting ({o['info']['method']}, "
           f"{o['info']['iterations']} Newton steps): {kind}")
-    print(f"  period {o['period_s']:.6g} s, frequency {o['freq_hz']:.6g} Hz, periodicity residual "
+    print(f"  period {q(o['period_s'], 's', 6)}, frequency {o['freq_hz']:.6g} Hz, periodicity residual "
           f"{o['periodicity_residual']:.2g} (of full scale)")
     print(f"  Floquet multipliers: trivial {abs(tm):.9f} (check: 1), largest other |mu| {max(mu[1:]):.4g}")
     for n, v in o["signals"].items():
         u = v["unit"]
-        print(f"  {n}: first harmonic {v['amplitude']:.4g} {u}, peak-to-peak {v['peak_to_peak']:.4g} {u}")
+        print(f"  {n}: first harmonic {q(v['amplitude'], u)}, peak-to-peak {q(v['peak_to_peak'], u)}")
     pr = o.get("prediction")
     if pr:
         ae = "-" if pr["amplitude_error"] is None else f"{pr['amplitude_error'] * 100:+.1f} %"
-        print(f"  describing-function prediction: {pr['amplitude']:.4g} at {pr['freq_hz']:.4g} Hz "
+        u = o["signals"].get(pr.get("signal"), {}).get("unit", "m")
+        print(f"  describing-function prediction: first harmonic {q(pr['amplitude'], u)} of "
+              f"{pr.get('signal', 'x_rod')} at {pr['freq_hz']:.4g} Hz "
               f"(frequency error {pr['freq_error'] * 100:+.1f} %, amplitude error {ae})")
     c = r.get("continuation")
     if c:
-        print(f"  continuation over {c['parameter']}: {len(c['values'])} orbits, {min(c['values']):.4g} .. "
-              f"{max(c['values']):.4g} {c['unit']} (end: {c['info']['end']})")
+        print(f"  continuation over {c['parameter']}: {len(c['values'])} orbits, {q(min(c['values']), c['unit'])} .. "
+              f"{q(max(c['values']), c['unit'])} (end: {c['info']['end']})")
         for b in c["bifurcations"]:
-            print(f"    {b['kind']} at {c['parameter']} = {b['value']:.4g} {c['unit']}")
+            print(f"    {b['kind']} at {c['parameter']} = {q(b['value'], c['unit'])}")
 
 
 def report(r: dict) -> None:
+    from ..signals import format_quantity as q
+
     if r.get("method") == "shooting":
         if r.get("scenario"):
             print(r["scenario"])
@@ -348,7 +355,7 @@ def report(r: dict) -> None:
         s = r.get("simulation")
         if s is not None:
             f = "-" if s["freq_hz"] is None else f"{s['freq_hz']:.4g} Hz"
-            print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {s['amplitude']:.4g}, frequency {f}")
+            print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {q(s['amplitude'], 'm')}, frequency {f}")
         for w in r["written"]:
             print(f"wrote {w}")
         return
@@ -360,17 +367,17 @@ def report(r: dict) -> None:
         if "harmonic_balance" in c:
             h = c["harmonic_balance"]
             bad = "" if h["converged"] else f" - NOT converged (residual {h['residual']:.2g}): not a cycle"
-            print(f"  describing function: {kind} cycle, amplitude {c['df_amplitude'] * 1e6:.3g} um at "
+            print(f"  describing function: {kind} cycle, amplitude {q(c['df_amplitude'], 'm', 3)} at "
                   f"{c['df_freq_hz']:.4g} Hz")
-            print(f"  harmonic balance (1, {', '.join(map(str, r['harmonics']))}): amplitude {h['amplitude'] * 1e6:.3g}"
-                  f" um at {h['freq_hz']:.4g} Hz{bad}")
-            print(f"  prediction ({c['method']}): amplitude {c['amplitude'] * 1e6:.3g} um at {c['freq_hz']:.4g} Hz")
+            print(f"  harmonic balance (1, {', '.join(map(str, r['harmonics']))}): amplitude "
+                  f"{q(h['amplitude'], 'm', 3)} at {h['freq_hz']:.4g} Hz{bad}")
+            print(f"  prediction ({c['method']}): amplitude {q(c['amplitude'], 'm', 3)} at {c['freq_hz']:.4g} Hz")
         else:
-            print(f"  predicted {kind} cycle: amplitude {c['amplitude'] * 1e6:.3g} um at {c['freq_hz']:.4g} Hz")
+            print(f"  predicted {kind} cycle: amplitude {q(c['amplitude'], 'm', 3)} at {c['freq_hz']:.4g} Hz")
     s = r["simulation"]
     if s is not None:
         f = "-" if s["freq_hz"] is None else f"{s['freq_hz']:.4g} Hz"
-        print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {s['amplitude'] * 1e6:.3g} um "
-              f"(half peak-to-peak {s['half_pp'] * 1e6:.3g} um), frequency {f}")
+        print(f"  simulation ({r['t_end_s']:g} s, second half): amplitude {q(s['amplitude'], 'm', 3)} "
+              f"(half peak-to-peak {q(s['half_pp'], 'm', 3)}), frequency {f}")
     for w in r["written"]:
         print(f"wrote {w}")

@@ -158,7 +158,7 @@ def run(args) -> dict:
         with output_folder(out, top) as folder:
             written = write_move(res, folder, out)
     return {"model": args.model, "variants": model.variants, "request": req, **res.as_dict(),
-            "written": written, "wall_time_s": time.perf_counter() - t0}
+            "ecu_rate_limit_m_s": params.control.v_max, "written": written, "wall_time_s": time.perf_counter() - t0}
 
 
 def _list(text, kind, bare, flag, stroke):
@@ -229,39 +229,68 @@ def report(r: dict) -> None:
     if r.get("failure"):
         return
     if "top_speed_m_s" in r:
-        print(f"performance envelope ({r['wall_time_s']:.1f} s)")
-        for T, v in r["top_speed_m_s"].items():
-            at = "at the parameter set's temperatures" if T == "None" else f"at {T} degC"
-            print(f"  {at}: largest load held {r['largest_force_N'][T] / 1e3:.4g} kN; top speed "
-                  + ", ".join(f"{s * 1e3:.4g} mm/s @ {F / 1e3:.3g} kN" for F, s in zip(r["loads_N"], v, strict=True)))
-            print("    minimum time " + ", ".join(f"{t:.4g} s @ {d * 1e3:g} mm"
-                                               for d, t in zip(r["distances_m"], r["min_time_s"][T], strict=True)))
+        _report_envelope(r)
         return
-    unit = "s" if r["objective"] == "time" else "J"
-    print(f"optimal move ({r['objective']}, through {r['through']}): {r['move'] * 1e3:g} mm from "
-          f"{r['start'] * 1e3:g} mm under {r['load'] / 1e3:g} kN in {r['duration']:.5g} s, cost {r['cost']:.5g} {unit}")
+    from ..signals import format_quantity as q
+
+    what = {"time": "minimum time", "energy": "minimum energy from the DC link", "heat": "minimum heat in the winding"}
+    cost = q(r["cost"], "s") if r["objective"] == "time" else q(r["cost"], "J")
+    print(f"optimal move ({what[r['objective']]}, through the {'ECU' if r['through'] == 'ecu' else 'drive'}): "
+          f"{q(r['move'], 'm')} from {q(r['start'], 'm')} under {q(r['load'], 'N')} in {q(r['duration'], 's')}, "
+          f"cost {cost}")
     ip = r["ipopt"]
     if r["through"] == "ecu":
         print(f"  {ip['solver']}: {ip['status']} after {ip['iterations']} runs, {ip['solve_time_s']:.2f} s; "
-              f"overshoot {ip['overshoot']:.3g} x the move, back to the target at {ip['t_return']:.5g} s")
+              f"overshoot {ip['overshoot']:.3g} x the move, back to the target at {q(ip['t_return'], 's')}")
     else:
         how = (f"{ip['intervals']} intervals x {ip['substeps']} RK4 substeps" if ip["method"] == "shooting" else
                f"{ip['intervals']} intervals, Radau IIA collocation; RK4 would need {ip['substeps']} substeps")
         print(f"  IPOPT {ip['status']} in {ip['iterations']} iterations, {ip['solve_time_s']:.2f} s ({how}); "
-              f"binding: {', '.join(r['binding']) or 'none'}")
-    print(f"  ECU's own step: 2 % band after {r['ecu_step_settling_time_s']:.5g} s")
+              f"limits the optimum runs on: {', '.join(r['binding']) or 'none'}")
     rep = r.get("replay") or {}
     if "failed" in rep:
         print(f"  replay failed: {rep['failed']}")
     elif rep:
-        e_step = rep["ecu_step_link_energy_J"]  # None: the ECU's step ran over another window
-        beside = f" (ECU step {e_step:.4g} J)" if e_step is not None else ""
-        print(f"  replay in the full model: 2 % band after {rep['settling_time_s']:.5g} s; energy from the link "
-              f"{rep['link_energy_J']:.4g} J{beside} over {rep['window_s']:.4g} s")
-        for k, c in rep["ratings"].items():
-            verdict = "ok" if c["within"] else "EXCEEDED" if c["role"] != "strategy" else \
-                "left (the ECU's drive strategy, not a limit: its loops' own tracking)"
-            print(f"    {k:22s} peak {c['peak']:.5g} {c['unit']:5s} limit {c['limit']:.5g}  "
-                  f"{verdict} (ECU step {c['ecu_step_peak']:.5g})")
+        _report_replay(r, rep)
     for w in r["written"]:
         print(f"wrote {w}")
+
+
+def _report_replay(r: dict, rep: dict) -> None:
+    """The three runs side by side: the optimum (the solved problem), its replay (the
+    command profile through the full model and its ECU) and the ECU's own step."""
+    from ..signals import format_quantity as q
+
+    print(f"  into the 2 % band: optimum {q(r['duration'], 's')}, replay {q(rep['settling_time_s'], 's')}, "
+          f"ECU's own step {q(r['ecu_step_settling_time_s'], 's')}")
+    v_max = r.get("ecu_rate_limit_m_s")
+    if r["through"] == "drive" and v_max is not None and rep["settling_time_s"] > r["duration"]:
+        print(f"    (the replay is later than the optimum: its command passes through the ECU, which holds the rod to "
+              f"its {q(v_max, 'm/s', 3)} rate limit; the optimum drives the motor voltages directly)")
+    print("  peaks against the limits: optimum = the solved move; replay = its command profile through the full "
+          "model and its ECU; ECU step = the ECU's own step of the same size")
+    print(f"    {'rating':16s} {'limit':>11s} {'optimum':>12s} {'replay':>11s} {'ECU step':>11s}  replay")
+    for k, c in rep["ratings"].items():
+        verdict = "ok" if c["within"] else "EXCEEDED" if c["role"] != "strategy" else \
+            "left (the ECU's drive strategy, not a limit: its loops' own tracking)"
+        m = r["margins"].get(k)
+        on = "-" if m is None else "on it" if k in r["binding"] else \
+            f"{100 * m:.0f} % below" if c["limit"] else "off it"
+        unit, lim = c["unit"], c["limit"]
+        print(f"    {k:16s} {q(lim, unit):>11s} {on:>12s} {q(c['peak'], unit, scale=lim or None):>11s} "
+              f"{q(c['ecu_step_peak'], unit, scale=lim or None):>11s}  {verdict}")
+    e_step = rep["ecu_step_link_energy_J"]  # None: the ECU's step ran over another window
+    beside = f" (ECU step {q(e_step, 'J')})" if e_step is not None else ""
+    print(f"  energy from the DC link over {q(rep['window_s'], 's')}: replay {q(rep['link_energy_J'], 'J')}{beside}")
+
+
+def _report_envelope(r: dict) -> None:
+    from ..signals import format_quantity as q
+
+    print(f"performance envelope ({r['wall_time_s']:.1f} s)")
+    for T, v in r["top_speed_m_s"].items():
+        at = "at the parameter set's temperatures" if T == "None" else f"at {T} °C"
+        print(f"  {at}: largest load held {q(r['largest_force_N'][T], 'N')}; top speed "
+              + ", ".join(f"{q(s, 'm/s')} @ {q(F, 'N', 3)}" for F, s in zip(r["loads_N"], v, strict=True)))
+        print("    minimum time " + ", ".join(f"{q(t, 's')} @ {q(d, 'm')}"
+                                           for d, t in zip(r["distances_m"], r["min_time_s"][T], strict=True)))

@@ -360,7 +360,9 @@ def report(r: dict) -> None:
     if r["balance_residual_J"] is not None:
         print(f"energy: int P_dc = {r['energies_J']['P_dc']:.6g} J, stored change {r['stored_energy_change_J']:.4g} J, "
               f"balance residual {r['balance_residual_J']:.3g} J ({_rel(r['balance_relative'])})")
-    print(f"final: x_rod = {f['x_rod'] * 1e3:.4f} mm, v_rod = {f['v_rod'] * 1e3:.3f} mm/s, "
-          f"i_q = {f['i_q']:.3f} A, F_in = {f['F_in']:.1f} N")
+    from ..signals import format_fixed as fixed
+
+    print(f"final: x_rod = {fixed(f['x_rod'] * 1e3, 4)} mm, v_rod = {fixed(f['v_rod'] * 1e3, 3)} mm/s, "
+          f"i_q = {fixed(f['i_q'], 3)} A, F_in = {fixed(f['F_in'], 1)} N")
     for w in r["written"]:
         print(f"wrote {w}")

@@ -208,16 +208,20 @@ def report(r: dict) -> None:
           f"{r['solve_time_s']:.2f} s (build {r['build_time_s']:.2f} s)")
     print(f"requirements: {bound} (loop-at-a-time, and unconditionally with the outer loops open), "
           f"separation >= {req['separation']:g}, overshoot <= {100 * req['overshoot']:g} %, limits on a "
-          f"{req['step'] * 1e3:g} mm step, {req['sensor_noise'] * 1e6:g} um sensor noise -> <= "
+          f"{req['step'] * 1e3:g} mm step, {req['sensor_noise'] * 1e6:g} µm sensor noise -> <= "
           f"{100 * req['command_noise']:g} % I_max; loads {', '.join(f'{f / 1e3:g} kN' for f in r['loads_N'])}")
     if r["active"]:
         from ..tuning import Requirements, describe_constraint
 
         rq = Requirements(**req)
         print("limited by: " + "; ".join(dict.fromkeys(describe_constraint(a, rq) for a in r["active"])))
-    print(f"  {'gain':6s} {'before':>12s} {'after':>12s}")
+    from ..model.params import Parameters
+
+    units = Parameters.units()
+    print(f"  {'gain':6s} {'unit':>10s} {'before':>12s} {'after':>12s}")
     for g, v in r["gains_after"].items():
-        print(f"  {g:6s} {r['gains_before'][g]:12.5g} {v:12.5g}")
+        u = units.get(g, "1").replace("*", "·").replace("^2", "²")
+        print(f"  {g:6s} {'' if u == '1' else u:>10s} {r['gains_before'][g]:12.5g} {v:12.5g}")
     for key in ("before", "after"):
         v = r[key]
         down = float(v["worst"].get("gm_down_db", math.inf))

@@ -111,13 +111,20 @@ class DesignResult:
         return float((self.standard_predicted if standard else self.predicted)["corr"][k, j])
 
     def table(self) -> str:
-        """The comparison as a Markdown table (widths in % of the value)."""
-        c = self.comparison()
-        lines = [f"| parameter | value | designed 95 % width | {self.standard.name} | ratio |", "|---|---|---|---|---|"]
+        """The comparison as a Markdown table: each parameter's value in its unit, the
+        95 % interval widths in % of the value the designed and the standard test
+        predict, and their ratio standard / designed (above 1: the design pins the
+        parameter down that many times more narrowly)."""
+        from ..model.params import Parameters
+        from ..signals import format_quantity
+
+        c, units = self.comparison(), Parameters.units()
+        lines = [f"| parameter | value | designed test: 95 % width | standard test ({self.standard.name}): "
+                 "95 % width | ratio standard / designed (> 1: the design is narrower) |", "|---|---|---|---|---|"]
         for k, n in enumerate(self.free.names):
             p = c["parameters"][n]
-            lines.append(f"| {n} | {self.thetas[0][k]:.4g} | {100 * p['designed']:.3g} % | "
-                         f"{100 * p['standard']:.3g} % | {p['ratio']:.3g} |")
+            lines.append(f"| {n} | {format_quantity(self.thetas[0][k], units.get(n, '1'))} | "
+                         f"{100 * p['designed']:.3g} % | {100 * p['standard']:.3g} % | {p['ratio']:.3g} |")
         g = c["geometric_mean_width"]
         lines.append(f"| geometric mean | | {100 * g['designed']:.3g} % | {100 * g['standard']:.3g} % | "
                      f"{c['geometric_mean_ratio']:.3g} |")

@@ -37,8 +37,9 @@ def _mark_margins(ax_m, ax_p, bode: dict, m) -> None:
             ax_m.annotate("", xy=(f_x, g_x), xytext=(f_x, 0.0),
                           arrowprops={"arrowstyle": "<->", "color": color, "lw": 1.2})
             ax_m.text(f_x * 1.15, g_x / 2, f"{text}\n@ {f_x:.3g} Hz", color=color, fontsize=8, va="center")
-    ax_m.set_title(f"{m.loop} loop: {_gm_text(m)}, PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}"
-                   + ("" if m.stable else " (closed loop UNSTABLE)"), fontsize=9)
+    # a line each (loop, gain margins, phase and disk margins): side by side, one line runs into the next title
+    ax_m.set_title(f"{m.loop} loop" + ("" if m.stable else " (closed loop UNSTABLE)") + f"\n{_gm_text(m)}\n"
+                   f"PM {m.pm_deg:.1f}°, disk α {m.disk_margin:.2f}", fontsize=9)
 
 
 def _gm_text(m) -> str:

@@ -39,7 +39,7 @@ def describe_constraint(v: dict, req: Requirements | None = None) -> str:
         "unconditional": f"unconditional stability (no phase crossover above -{r.margin_targets()[0]:g} dB) "
                          "with the outer loops open",
         "separation": f"loop separation >= {r.separation:g} x the next outer loop's crossover",
-        "noise": (f"current-command response to {r.sensor_noise * 1e6:g} um of position-sensor noise "
+        "noise": (f"current-command response to {r.sensor_noise * 1e6:g} µm of position-sensor noise "
                   f"<= {100 * r.command_noise:g} % of I_max"),
     }.get(v["kind"], v["kind"])
     where = f"{v['loop']} loop, " if v.get("loop") and v["kind"] in (

@@ -7,9 +7,12 @@ runs them: no ``models/`` beside them (the docs load the packaged reference set,
 ``ema.load_parameters()``), and the user's PYTHONPATH replaced by the folder of the
 package under test alone (the installed one, or the working tree being tested). A
 block that is not meant to run says so in its fence, ```python {no-run} (keep those
-rare). Console blocks (```sh, ```console, ```shell) run the lines that call
-``ema ... --help`` or ``ema --version``: each must exit 0; the commands that do real
-work are covered by their own tests, and none names ``models/``.
+rare); what the page shows them printing, in ```text {output} blocks, is what they
+print (compared as ``_printed.mismatch`` says). Console blocks (```sh, ```console,
+```shell) run the lines that call ``ema ... --help`` or ``ema --version``: each must
+exit 0; the commands that do real work are covered by their own tests, and none names
+``models/``; a console block's printed output is checked against a run in
+``test_doc_outputs.py``.
 
 The pages' code is written with short runs, so the whole test stays within tens of
 seconds (each page is allowed ``TIMEOUT`` seconds, generous for a loaded machine).
@@ -32,7 +35,11 @@ TIMEOUT = 240
 _FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<info>[^\n`]*)\n"
                     r"(?P<body>.*?)^(?P=indent)(?P=fence)[ \t]*$", re.M | re.S)
 NO_RUN = "{no-run}"
+#: The fence of a ```text block that shows what the page's ```python blocks print.
+OUTPUT = "{output}"
 _CONSOLE = ("sh", "console", "shell", "bash")
+#: The longest line of code a page shows (a wider one runs off behind a horizontal scroll).
+LINE_LIMIT = 88
 
 
 def _pages() -> list[Path]:
@@ -142,6 +149,12 @@ def test_python_blocks_run(page, tmp_path):
     proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
                           timeout=TIMEOUT, env=_env(tmp_path))
     assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
+    shown = "".join(code for lang, opts, code in blocks(page) if lang == "text" and OUTPUT in opts)
+    if shown:  # what the page says its code prints is what it printed (tests/meta/_printed.py)
+        from _printed import mismatch
+
+        err = mismatch(shown, proc.stdout)
+        assert err is None, f"{page.relative_to(ROOT)}: its code no longer prints what the page shows:\n{err}"
 
 
 @pytest.mark.parametrize("page", _HELP_PAGES, ids=_ids(_HELP_PAGES))
@@ -152,3 +165,31 @@ def test_help_commands_run(page, tmp_path):
         proc = subprocess.run(ema + shlex.split(line)[1:], cwd=cwd, capture_output=True,
                               text=True, timeout=60, env=_env(tmp_path))
         assert proc.returncode == 0 and proc.stdout.strip(), f"{page.relative_to(ROOT)}: '{line}' failed: {proc.stderr}"
+
+
+def _typed_lines(lang: str, code: str) -> list[str]:
+    """The lines of a block a reader types or reads as code: every line of a Python,
+    shell or TOML block; of a console block the ``$`` lines and their continuations
+    (what a command prints is shown as it prints it)."""
+    if lang in ("python", "sh", "shell", "bash", "toml"):
+        return code.splitlines()
+    out, going_on = [], False
+    for line in code.splitlines() if lang == "console" else ():
+        if line.startswith("$ ") or going_on:
+            out.append(line)
+        going_on = (line.startswith("$ ") or going_on) and line.endswith("\\")
+    return out
+
+
+def test_code_lines_are_short():
+    """No line of code in the README or the docs is longer than LINE_LIMIT characters:
+    a trailing comment goes on its own line above, a long call is wrapped."""
+    long = [f"{page.relative_to(ROOT)}: {len(line)}: {line.strip()[:60]}"
+            for page in _pages() for lang, _, code in blocks(page) for line in _typed_lines(lang, code)
+            if len(line) > LINE_LIMIT]
+    assert not long, "\n".join(long)
+
+
+def test_the_line_check_reads_console_commands_only():
+    assert _typed_lines("console", "$ ema a \\\n    --b c\nprinted " + "x" * 100 + "\n") == ["$ ema a \\", "    --b c"]
+    assert _typed_lines("text", "anything") == []
