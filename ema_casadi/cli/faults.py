@@ -145,7 +145,7 @@ def run(args) -> dict:
 def _report_cases(r: dict) -> None:
     """The cases' table: each case's run, the rod's deviation and each monitor's delay,
     with the words defined under it."""
-    from ..model.components.monitors import MONITORS
+    from ..model.components import MONITOR_MEANINGS
     from ..signals import format_quantity as q
 
     mons = r["monitors"]
@@ -166,8 +166,8 @@ def _report_cases(r: dict) -> None:
           "none, a false alarm's time)")
     for m in mons:
         name = m.removeprefix("latch_")
-        if name in MONITORS:
-            print(f"  {name}: {MONITORS[name][2]}")
+        if name in MONITOR_MEANINGS:
+            print(f"  {name}: {MONITOR_MEANINGS[name]}")
 
 
 def report(r: dict) -> None:
