@@ -1,4 +1,5 @@
-"""Levenberg-Marquardt with a step bound and a statistical stopping rule.
+"""Least squares: Levenberg-Marquardt with a step bound and a statistical stopping
+rule, the Gauss-Newton prediction, and the Newton step of a (square or not) system.
 
 The residuals are weighted by the noise levels, so the cost 1/2 sum r^2 rises by 1/2
 when the estimates move by one standard deviation (in the direction that moves it
@@ -13,6 +14,8 @@ round-off is reached first).
 from __future__ import annotations
 
 import numpy as np
+
+__all__ = ["COST_TOL", "STEP_TOL", "STEP0", "levenberg_marquardt", "gauss_newton_decrease", "newton_step"]
 
 #: Stop when the Gauss-Newton step predicts a cost decrease below this.
 COST_TOL = 1e-3
@@ -91,7 +94,19 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
 
 def gauss_newton_decrease(r, J, z, lo, hi) -> float:
     """The cost decrease the Gauss-Newton step from ``z`` predicts (the step kept
-    within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there."""
+    within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there.
+
+    Parameters
+    ----------
+    r : ndarray
+        Residuals at ``z``.
+    J : ndarray
+        Their Jacobian at ``z``.
+    z : ndarray
+        The point.
+    lo, hi : ndarray
+        The box.
+    """
     return _predicted(J.T @ r, J.T @ J, z, lo, hi)
 
 
@@ -100,6 +115,39 @@ def _predicted(g, H, z, lo, hi) -> float:
     gn = _solve(H / np.outer(d, d) + 1e-12 * np.eye(len(z)), -g / d) / d
     gn = np.clip(z + gn, lo, hi) - z
     return float(-(g @ gn) - 0.5 * gn @ H @ gn)
+
+
+def newton_step(J, r, *, rcond: float | None = None, max_step: float | None = None) -> np.ndarray:
+    """The Newton (Gauss-Newton) step ``dz`` of the system r(z) = 0 with Jacobian ``J``:
+    J dz = -r solved in the least-squares sense with the minimum norm (a square,
+    regular J: its solution; a direction the equations do not fix is not moved).
+
+    Parameters
+    ----------
+    J : ndarray
+        Jacobian (m x n).
+    r : ndarray
+        Residuals (m).
+    rcond : float, optional
+        Singular values below ``rcond`` times the largest are treated as zero (None:
+        a square system is solved by LU, falling back to least squares where singular).
+    max_step : float, optional
+        Largest component of the step: a longer step is shortened along its direction.
+
+    Returns
+    -------
+    ndarray
+        The step (n); not finite where J or r are not.
+    """
+    J, r = np.asarray(J, float), np.asarray(r, float)
+    if rcond is None and J.shape[0] == J.shape[1]:
+        dz = _solve(J, -r)
+    else:
+        dz = np.linalg.lstsq(J, -r, rcond=rcond)[0]
+    if max_step is not None:
+        big = float(np.max(np.abs(dz))) if dz.size else 0.0
+        dz = dz * (max_step / big) if big > max_step else dz
+    return dz
 
 
 def _solve(A, b):
