@@ -117,10 +117,11 @@ def _predicted(g, H, z, lo, hi) -> float:
     return float(-(g @ gn) - 0.5 * gn @ H @ gn)
 
 
-def newton_step(J, r, *, rcond: float | None = None, max_step: float | None = None) -> np.ndarray:
+def newton_step(J, r, *, least_squares: bool = False, rcond: float | None = None, max_step: float | None = None,
+                capped: int | None = None) -> np.ndarray:
     """The Newton (Gauss-Newton) step ``dz`` of the system r(z) = 0 with Jacobian ``J``:
-    J dz = -r solved in the least-squares sense with the minimum norm (a square,
-    regular J: its solution; a direction the equations do not fix is not moved).
+    J dz = -r, solved by LU (a square system), or in the least-squares sense with the
+    minimum norm (a direction the equations do not fix is not moved).
 
     Parameters
     ----------
@@ -128,11 +129,16 @@ def newton_step(J, r, *, rcond: float | None = None, max_step: float | None = No
         Jacobian (m x n).
     r : ndarray
         Residuals (m).
+    least_squares : bool
+        Minimum-norm least squares (any m); else LU (m = n; ``numpy.linalg.LinAlgError``
+        where J is singular).
     rcond : float, optional
-        Singular values below ``rcond`` times the largest are treated as zero (None:
-        a square system is solved by LU, falling back to least squares where singular).
+        Least squares: singular values below ``rcond`` times the largest count as zero
+        (None: machine precision times max(m, n)).
     max_step : float, optional
-        Largest component of the step: a longer step is shortened along its direction.
+        Largest magnitude of a component: a longer step is shortened along its direction.
+    capped : int, optional
+        Only the first ``capped`` components are held to ``max_step`` (default all).
 
     Returns
     -------
@@ -140,12 +146,10 @@ def newton_step(J, r, *, rcond: float | None = None, max_step: float | None = No
         The step (n); not finite where J or r are not.
     """
     J, r = np.asarray(J, float), np.asarray(r, float)
-    if rcond is None and J.shape[0] == J.shape[1]:
-        dz = _solve(J, -r)
-    else:
-        dz = np.linalg.lstsq(J, -r, rcond=rcond)[0]
+    dz = np.linalg.lstsq(J, -r, rcond=rcond)[0] if least_squares else np.linalg.solve(J, -r)
     if max_step is not None:
-        big = float(np.max(np.abs(dz))) if dz.size else 0.0
+        head = dz[:capped] if capped is not None else dz
+        big = float(np.max(np.abs(head))) if head.size else 0.0
         dz = dz * (max_step / big) if big > max_step else dz
     return dz
 

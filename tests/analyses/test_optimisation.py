@@ -128,9 +128,13 @@ def test_newton_step_square_and_minimum_norm():
     r = np.array([1.0, -2.0])
     np.testing.assert_allclose(J @ newton_step(J, r), -r, atol=1e-14)
     # a direction the equation does not fix is not moved: min-norm of [1 1] dz = -1
-    np.testing.assert_allclose(newton_step(np.array([[1.0, 1.0]]), np.array([1.0]), rcond=1e-13), [-0.5, -0.5])
-    np.testing.assert_allclose(newton_step(J, 100 * r, max_step=0.1), newton_step(J, r) * 0.1 / np.abs(
-        newton_step(J, r)).max())
+    np.testing.assert_allclose(newton_step(np.array([[1.0, 1.0]]), np.array([1.0]), least_squares=True, rcond=1e-13),
+                               [-0.5, -0.5])
+    full = newton_step(J, r)
+    np.testing.assert_allclose(newton_step(J, 100 * r, max_step=0.1), full * 0.1 / np.abs(full).max())
+    np.testing.assert_allclose(newton_step(J, 100 * r, max_step=0.1, capped=1), 100 * full * 0.1 / abs(100 * full[0]))
+    with pytest.raises(np.linalg.LinAlgError):
+        newton_step(np.ones((2, 2)), r)
 
 
 def _rk4(substeps=4):
