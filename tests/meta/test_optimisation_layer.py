@@ -1,6 +1,6 @@
 """One optimisation layer: no module outside ``ema_casadi/optimisation`` creates an IPOPT
 (or any CasADi NLP/QP) solver or writes its own Levenberg-Marquardt loop; the analyses
-that optimise import the layer.
+that optimise import the layer; the Newton iterations take their step from it.
 
 Read from the source with :mod:`ast`: a call of ``nlpsol``, ``qpsol``, ``conic`` or an
 ``Opti`` object's ``.solver(...)`` (any ``X.solver(...)`` call), and a function whose name
@@ -19,7 +19,7 @@ LAYER = "optimisation"
 SOLVER_CALLS = ("nlpsol", "qpsol", "conic", "solver")
 LSQ_WORDS = ("levenberg", "marquardt", "gauss_newton", "least_squares")
 #: The analyses that optimise: each imports the layer.
-CALLERS = ("tuning", "optimal", "design", "identification")
+CALLERS = ("tuning", "optimal", "design", "identification", "linearisation", "limitcycle")
 
 
 def _sources():
@@ -64,3 +64,15 @@ def test_the_callers_use_the_layer():
     for caller in CALLERS:
         text = "".join(p.read_text(encoding="utf-8") for p in (ROOT / caller).rglob("*.py"))
         assert "..optimisation import" in text, f"{caller} does not use ema_casadi.{LAYER}"
+
+
+def test_one_newton_step():
+    # the Newton iterations (trim, flight trim, periodic orbit, harmonic balance) keep their
+    # residuals and globalisation; the step itself is the layer's newton_step
+    found = []
+    for rel, tree in _sources():
+        for fn in ast.walk(tree):
+            if isinstance(fn, ast.FunctionDef) and "newton" in fn.name.lower():
+                found += [f"{rel}:{n.lineno} {_called(n)}(" for n in ast.walk(fn)
+                          if isinstance(n, ast.Call) and _called(n) in ("solve", "lstsq", "pinv")]
+    assert not found, f"Newton steps solved outside ema_casadi/{LAYER} (use newton_step): {found}"
