@@ -12,7 +12,7 @@ import numpy as np
 
 from ..linearisation import operating_point
 from ..model.assembly import Model
-from ..optimisation import solve_ipopt
+from ..optimisation import continuity, multiple_shooting, solve_ipopt
 from ..signals import Signal
 from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
 from ._collocation import WARM, collocation, widened
@@ -207,7 +207,7 @@ class Problem:
         # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
         rest_on = m.rest_states(self.p)
         free = [i for i, n in enumerate(m.states) if n not in rest_on]
-        opti.subject_to(ca.vec(Xs[free, 1:] - ca.diag(1 / scale[free]) @ X_next[free, :]) == 0)
+        continuity(opti, Xs, X_next, scale, free)
         # the limits at both ends of every interval, with its control (both transcriptions: the same NLP but
         # for the dynamics); the memory states at rest at the nodes and at the collocation points
         _, Y0 = self._rates(X[:, :-1], C)
@@ -229,10 +229,10 @@ class Problem:
         if self.method == "collocation":
             return collocation(self, opti, Xs, C, dts, scale, guess)
         F = interval_function(self.model, held=self.through == "drive", substeps=self.substeps,
-                              quadrature=self._power_outputs()).map(self.N)
+                              quadrature=self._power_outputs())
         U, H = self._inputs(C)
         P = ca.repmat(ca.MX(self.p), 1, self.N)
-        out = F(X[:, :-1], U, P, H, dts) if self.through == "drive" else F(X[:, :-1], U, P, dts)
+        out = multiple_shooting(F, X, U, P, H, dts) if self.through == "drive" else multiple_shooting(F, X, U, P, dts)
         return (out[0], ca.sum2(out[1]), []) if self._power_outputs() else (out, 0, [])
 
     def _hold(self, opti, X, Y, rest_on, scale) -> None:
