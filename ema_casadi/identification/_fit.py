@@ -1,7 +1,7 @@
 """``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
-noise) by Levenberg-Marquardt (``_lm``) with the exact Jacobian, noise levels
-estimated where not given, then the Fisher-information uncertainty and the
-identifiability verdicts."""
+noise) by Levenberg-Marquardt (:func:`ema_casadi.optimisation.levenberg_marquardt`)
+with the exact Jacobian, noise levels estimated where not given, then the
+Fisher-information uncertainty and the identifiability verdicts."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from .._util._checks import instance, integer, nearest, number
 from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
+from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import AnalysisFailed, RunFailed, progress_bar
 from . import _consistency, _misfit
-from ._lm import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ._problem import Predictor, free_parameters, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty

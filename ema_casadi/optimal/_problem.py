@@ -12,6 +12,7 @@ import numpy as np
 
 from ..linearisation import operating_point
 from ..model.assembly import Model
+from ..optimisation import continuity, multiple_shooting, solve_ipopt
 from ..signals import Signal
 from ..simulation import captured_stderr, interval_function, jacobian_step_limit, simulate, step_response_metrics
 from ._collocation import WARM, collocation, widened
@@ -208,7 +209,7 @@ class Problem:
         # continuity, but a memory state at rest on its signal (the play with the gap closed) is that signal
         rest_on = m.rest_states(self.p)
         free = [i for i, n in enumerate(m.states) if n not in rest_on]
-        opti.subject_to(ca.vec(Xs[free, 1:] - ca.diag(1 / scale[free]) @ X_next[free, :]) == 0)
+        continuity(opti, Xs, X_next, scale, free)
         # the limits at both ends of every interval, with its control (both transcriptions: the same NLP but
         # for the dynamics); the memory states at rest at the nodes and at the collocation points
         _, Y0 = self._rates(X[:, :-1], C)
@@ -230,10 +231,10 @@ class Problem:
         if self.method == "collocation":
             return collocation(self, opti, Xs, C, dts, scale, guess)
         F = interval_function(self.model, held=self.through == "drive", substeps=self.substeps,
-                              quadrature=self._power_outputs()).map(self.N)
+                              quadrature=self._power_outputs())
         U, H = self._inputs(C)
         P = ca.repmat(ca.MX(self.p), 1, self.N)
-        out = F(X[:, :-1], U, P, H, dts) if self.through == "drive" else F(X[:, :-1], U, P, dts)
+        out = multiple_shooting(F, X, U, P, H, dts) if self.through == "drive" else multiple_shooting(F, X, U, P, dts)
         return (out[0], ca.sum2(out[1]), []) if self._power_outputs() else (out, 0, [])
 
     def _hold(self, opti, X, Y, rest_on, scale) -> None:
@@ -385,19 +386,21 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     with captured_stderr() as messages:
         stages, ok = [], False
         # collocation: the switches widened first (smoother problems), each optimum the next one's warm start
-        for k, p in enumerate([*widened(prob), prob.p] if prob.method == "collocation" else []):
+        warm = None
+        for p in [*widened(prob), prob.p] if prob.method == "collocation" else []:
             opti.set_value(prob.p_nlp, p)
-            stats, ok, val = _ipopt(opti, ({**ipopt, **WARM},) if k else strategies, small)
-            stages.append(int(stats["iter_count"]))
+            res = solve_ipopt(opti, {**ipopt, **WARM} if warm else strategies, expand=small, warm=warm)
+            stats, ok, val = res.stats, res.success, res.value
+            stages.append(res.iterations)
             if not ok:
                 break
-            opti.set_initial(opti.x, val(opti.x))
-            opti.set_initial(opti.lam_g, val(opti.lam_g))
+            warm = res.warm
         if stages and not ok:  # from the guess at the model's own width
             opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
         if not ok:
-            stats, ok, val = _ipopt(opti, strategies, small)
-            stages.append(int(stats["iter_count"]))
+            res = solve_ipopt(opti, strategies, expand=small)
+            stats, ok, val = res.stats, res.success, res.value
+            stages.append(res.iterations)
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
@@ -416,18 +419,6 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
                          f"{stats['iter_count']} iterations; the binding limit is the {r.what} ({r.why} = "
                          f"{prob.limits[r.name]:.4g} {r.unit})", out)
     return out
-
-
-def _ipopt(opti, strategies, expand: bool) -> tuple:
-    """(stats, ok, value): IPOPT with each option set in turn until one converges."""
-    for strategy in strategies:
-        opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": expand}, strategy)
-        try:
-            sol = opti.solve()
-            return sol.stats(), True, sol.value
-        except RuntimeError:
-            pass
-    return opti.stats(), False, opti.debug.value
 
 
 def _outputs(prob: Problem, X, C) -> np.ndarray:
