@@ -142,6 +142,8 @@ def test_python_blocks_run(page, tmp_path):
     proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
                           timeout=TIMEOUT, env=_env(tmp_path))
     assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
+    # the docs' examples step inside RK4's stability limit (a run above it warns on stderr)
+    assert "StepLimitWarning" not in proc.stderr, f"{page.relative_to(ROOT)}: {proc.stderr[-3000:]}"
 
 
 @pytest.mark.parametrize("page", _HELP_PAGES, ids=_ids(_HELP_PAGES))
