@@ -6,7 +6,8 @@ With an integral term in the position loop (``controller="PI"``) stiction makes 
 classic stick-slip limit cycle ("hunting"): the integrator winds up while the rod is
 stuck, the rod breaks away, overshoots and sticks on the other side. The paper's
 claim: the hybrid (Karnopp) friction model at a 1e-4 s step hunts no more than the
-smooth (tanh) model at 1e-5 s - at a tenth of the steps.
+smooth (tanh) model at 1e-5 s - at a tenth of the steps. The smooth law here runs at
+2.5e-6 s: 1e-5 s is above RK4's stability limit on it (5.57 us, docs: fixed steps).
 
 A 1 mm step at 0.01 s with K_i_x = 3000 1/s², 4 s of compiled fixed-step RK4; the cycle
 is measured over the last 2 s. ``studies/hunting.py`` is the full study (more step
@@ -24,7 +25,7 @@ params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.to
 step = Signal.step(1e-3, 0.01)
 
 fig, ax = plt.subplots(figsize=(9, 4))
-for friction, dt in [("smooth", 1e-5), ("hybrid", 1e-4)]:
+for friction, dt in [("smooth", 2.5e-6), ("hybrid", 1e-4)]:
     model = ema.build_model(params, {"friction": friction, "controller": "PI"})
     res = ema.simulate(model, 4.0, x_cmd=step, p=model.p(K_i_x=3000.0), solver="rk4", dt=dt, dt_out=1e-3)
     error = res["x_rod"] - res["x_cmd"]

@@ -149,6 +149,8 @@ def test_python_blocks_run(page, tmp_path):
     proc = subprocess.run([sys.executable, script.name], cwd=tmp_path, capture_output=True, text=True,
                           timeout=TIMEOUT, env=_env(tmp_path))
     assert proc.returncode == 0, f"{page.relative_to(ROOT)}: its code failed:\n{proc.stderr[-3000:]}"
+    # the docs' examples step inside RK4's stability limit (a run above it warns on stderr)
+    assert "StepLimitWarning" not in proc.stderr, f"{page.relative_to(ROOT)}: {proc.stderr[-3000:]}"
     shown = "".join(code for lang, opts, code in blocks(page) if lang == "text" and OUTPUT in opts)
     if shown:  # what the page says its code prints is what it printed (tests/meta/_printed.py)
         from _printed import mismatch
