@@ -5,7 +5,7 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
-from ..signals import column_unit, in_unit
+from ..signals import column_unit, in_unit, unit_text
 from ..signals import format_quantity as q
 
 
@@ -19,7 +19,7 @@ def _parameters(result: dict, w) -> None:
     for n, d in result["parameters"].items():
         u = si.get(n, "1")
         name, size = column_unit(u, [d["start"], d.get("estimate") or 0.0])
-        name = name.replace("*", "·").replace("^2", "²")
+        name = unit_text(name)
         f = partial(in_unit, size=size, digits=5, si_unit=u)
         if d.get("estimate") is None:
             w(f"{n:<10} {name:>6} {f(d['start']):>11} {'(held)':>11} {'':>25}  no: {d['reason']}\n")

@@ -128,21 +128,21 @@ def report(r: dict) -> None:
           + (f"({run['steps']} carrier periods of the switched bridge, RK4 at most {run['dt']:g} s per "
              f"sub-interval, " if run.get("switched") else f"({run['steps']} RK4 steps of {run['dt']:g} s, ")
           + f"{run['mode_switches']} stick/slip switches)")
-    print("peak temperatures (degC):")
+    print("peak temperatures (°C):")
     for n, p in r["peaks"].items():
         state = "ok" if p["ok"] else "EXCEEDED"
         print(f"  {n:5s} {p['node']:9s} {p['peak_degC']:7.1f} at {p['t_peak_s']:6.0f} s ({p['segment']}), "
               f"limit {p['limit_degC']:g}: {state} (margin {p['margin_K']:.1f} K)")
     parts = list(r["energy_by_part_J"])
-    print(f"{'segment':18s} {'s':>5s} {'T_amb':>11s} {'T_w end/peak':>13s} "
+    print(f"{'segment':18s} {'s':>5s} {'T_amb °C':>11s} {'T_w °C end/peak':>15s} "
           + " ".join(f"{p + ' J':>10s}" for p in parts) + f" {'in J':>9s}")
     for s in r["segments"]:
         ta = s["T_amb_degC"]
         tw = f"{s['temperature_end_degC']['T_w']:.1f}/{s['temperature_peak_degC']['T_w']:.1f}"
-        print(f"{s['name'][:18]:18s} {s['duration_s']:5.0f} {ta['min']:5.0f}..{ta['max']:<4.0f} {tw:>13s} "
+        print(f"{s['name'][:18]:18s} {s['duration_s']:5.0f} {ta['min']:5.0f}..{ta['max']:<4.0f} {tw:>15s} "
               + " ".join(f"{s['energy_by_part_J'][p]:10.0f}" for p in parts) + f" {s['energy_J']['P_dc']:9.0f}")
     e = r["energy_J"]
-    print(f"{'total':18s} {r['duration_s']:5.0f} {'':11s} {'':13s} "
+    print(f"{'total':18s} {r['duration_s']:5.0f} {'':11s} {'':15s} "
           + " ".join(f"{r['energy_by_part_J'][p]:10.0f}" for p in parts) + f" {e['P_dc']:9.0f}")
     hb = r["heat_balance"]
     print(f"heat: losses {hb['losses_J']:.0f} J = stored {hb['stored_heat_J']:.0f} J + to ambient "

@@ -118,13 +118,21 @@ def report(r: dict) -> None:
     stats = r["summary"]["statistics"]
     sens = r["summary"]["sensitivity_spearman"]
     params = list(next(iter(sens.values()), {}))
-    print(f"{'metric':34s} {'n':>5s} {'mean':>11s} {'p05':>11s} {'median':>11s} {'p95':>11s} "
+    from ..signals import column_unit, in_unit, unit_text
+
+    units = r.get("units") or {}
+    print(f"{'metric':34s} {'unit':>6s} {'n':>5s} {'mean':>11s} {'p05':>11s} {'median':>11s} {'p95':>11s} "
           + " ".join(f"{'rho ' + p:>10s}" for p in params))
     for m, s in stats.items():
         if s["n"]:
-            print(f"{m:34s} {s['n']:5d} {s['mean']:11.4g} {s['p05']:11.4g} {s['median']:11.4g} {s['p95']:11.4g} "
-                  + " ".join(f"{sens[m][p]:10.2f}" for p in params))
+            si = units.get(m) or "1"
+            keys = ("mean", "p05", "median", "p95")
+            name, size = column_unit(si, [s[k] for k in keys])
+            cells = " ".join(f"{in_unit(s[k], size, si_unit=si):>11s}" for k in keys)
+            rho = " ".join(f"{sens[m][p]:10.2f}" for p in params)
+            print(f"{m:34s} {unit_text(name):>6s} {s['n']:5d} {cells} {rho}")
         else:
-            print(f"{m:34s} {0:5d}")
+            print(f"{m:34s} {'':>6s} {0:5d}")
+    print("rho: Spearman's rank correlation of the metric with the swept parameter (-1..1)")
     for w in r["written"]:
         print(f"wrote {w}")

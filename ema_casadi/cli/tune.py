@@ -216,12 +216,12 @@ def report(r: dict) -> None:
         rq = Requirements(**req)
         print("limited by: " + "; ".join(dict.fromkeys(describe_constraint(a, rq) for a in r["active"])))
     from ..model.params import Parameters
+    from ..signals import unit_text
 
     units = Parameters.units()
     print(f"  {'gain':6s} {'unit':>10s} {'before':>12s} {'after':>12s}")
     for g, v in r["gains_after"].items():
-        u = units.get(g, "1").replace("*", "·").replace("^2", "²")
-        print(f"  {g:6s} {'' if u == '1' else u:>10s} {r['gains_before'][g]:12.5g} {v:12.5g}")
+        print(f"  {g:6s} {unit_text(units.get(g, '1')):>10s} {r['gains_before'][g]:12.5g} {v:12.5g}")
     for key in ("before", "after"):
         v = r[key]
         down = float(v["worst"].get("gm_down_db", math.inf))

@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..signals import format_quantity
+
 #: Running-mean window of the systematic misfit (s): 20 ms, 40 samples at 2 kHz (the
 #: noise floor of the mean is then 0.16 noise levels).
 WINDOW_S = 0.02
@@ -126,7 +128,8 @@ def misfits(records, preds, errors, sigma, estimated, model, units) -> list[dict
                      if sys_sigma > 0.05 else "")
             out.append({"record": rec.path, "channel": c, "systematic": sys, "systematic_sigma": sys_sigma,
                         "noise": s_n, "window_s": w * dt, "segments": shares, "mostly": mostly, "span": span,
-                        "text": f"{Path(rec.path).name}: {c}: {sys:.3g} {unit} systematic ({sys_sigma:.2f} sigma)"
+                        "text": f"{Path(rec.path).name}: {c}: {format_quantity(sys, unit or '1', 3)} systematic "
+                                f"({sys_sigma:.2f} sigma)"
                                 f"{where}", "t": t, "mean": m})
     return out
 

@@ -16,6 +16,7 @@ from ._format import (
     format_quantity,
     in_unit,
     is_noise,
+    unit_text,
 )
 from ._parse import parse_signal
 from ._signal import (
@@ -36,4 +37,4 @@ from ._tables import TIME_NAMES, read_text, table_header, table_rows, unit_scale
 __all__ = ["Signal", "SignalError", "parse_signal", "parse_quantity", "parse_list", "parse_range", "log_grid",
            "check_signal", "constant", "read_text", "decode_utf8", "TIME_NAMES", "UNITS", "SI_UNIT", "KIND_OF_UNIT",
            "table_rows", "table_header", "unit_scale", "write_series", "ENGINEERING", "NOISE", "format_quantity",
-           "format_number", "format_fixed", "column_unit", "in_unit", "is_noise"]
+           "format_number", "format_fixed", "unit_text", "column_unit", "in_unit", "is_noise"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 __all__ = ["ENGINEERING", "NOISE", "format_quantity", "format_number", "format_fixed", "column_unit", "in_unit",
-           "is_noise"]
+           "is_noise", "unit_text"]
 
 #: Relative noise floor: a value below ``NOISE`` times its kind's reference unit (the
 #: last rung of its ladder below, or the one given) prints as 0. Round-off of a double is
@@ -45,6 +45,20 @@ ENGINEERING: dict[str, tuple[tuple[str, float, float], ...]] = {
 }
 #: The reference unit of each SI unit's noise floor (SI): a mm, a N, a ms, ...
 _REFERENCE = {"m": 1e-3, "m/s": 1e-3, "s": 1e-3, "N/m": 1e6}
+
+
+def unit_text(unit: str) -> str:
+    """A unit as a report writes it: ``N*s/m`` -> ``N·s/m``, ``kg*m^2`` -> ``kg·m²``,
+    ``degC`` -> ``°C``, the pure number ``1`` -> ``""``.
+
+    Parameters
+    ----------
+    unit : str
+        The unit as the parameter tables and the model declare it.
+    """
+    if unit in ("1", ""):
+        return ""
+    return unit.replace("*", "·").replace("^2", "²").replace("^3", "³").replace("degC", "°C")
 
 
 def is_noise(value: float, si_unit: str = "1", scale: float | None = None) -> bool:
@@ -168,7 +182,7 @@ def format_quantity(value: float, si_unit: str, digits: int = 4, *, unit: str | 
     """
     if si_unit not in ENGINEERING and unit is None:  # printed as it is, written as read: N·s/m, kg·m²
         text = in_unit(value, 1.0, digits, si_unit=si_unit, scale=scale)
-        return text if si_unit in ("", "1") else f"{text} {si_unit.replace('*', '·').replace('^2', '²')}"
+        return text if si_unit in ("", "1") else f"{text} {unit_text(si_unit)}"
     if unit is None:
         name, size = column_unit(si_unit, [value])
     else:

@@ -135,10 +135,10 @@ def test_the_demo_s_pwm_mission_and_sine_stream_figures(reference, checked, tmp_
 
 
 def test_the_analyses_figures(reference, checked, tmp_path):
-    """The optimal move, the fault study's coverage and the describing function's
-    Nichols chart, each from a short run."""
+    """The optimal move, the fault study's coverage, the describing function's Nichols
+    chart and a periodic orbit, each from a short run."""
     from ema_casadi.faults import run_faults
-    from ema_casadi.limitcycle import describing_function, plot_nichols, setup
+    from ema_casadi.limitcycle import describing_function, periodic_orbit, plot_nichols, setup
     from ema_casadi.optimal import optimal_move
 
     params, model = reference
@@ -148,4 +148,21 @@ def test_the_analyses_figures(reference, checked, tmp_path):
     df = describing_function(model, "position", np.array([2e-6, 2e-5]), np.array([3.0, 6.0]), p=s["p"],
                              x0=s["x0"])
     plot_nichols(df, tmp_path / "nichols.png")
-    _clean(checked, 3)
+    hunting = ema.build_model(params, {**params.variants, "controller": "PI", "friction": "smooth"})
+    periodic_orbit(hunting, "position", p=hunting.p(K_i_x=3000.0)).plot(tmp_path / "orbit.png")
+    _clean(checked, 4)
+
+
+@pytest.mark.slow
+def test_the_longer_analyses_figures(reference, checked, tmp_path):
+    """The experiment design's figure, the tuning's three and the performance envelope
+    (their runs take 5-10 s each on the 2-core machine)."""
+    from ema_casadi.design import design_experiment
+    from ema_casadi.optimal import performance_envelope
+    from ema_casadi.tuning import plot_tuning
+
+    params, model = reference
+    design_experiment(params, ["F_seal", "psi"], 2.0, max_load=0.0).plot(tmp_path / "design.png")
+    plot_tuning(ema.tune(params), model, params, tmp_path)
+    performance_envelope(model, [0.0, 10e3], [2e-3, 5e-3], intervals=15).plot(tmp_path / "envelope.png")
+    _clean(checked, 5)

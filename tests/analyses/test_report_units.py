@@ -17,6 +17,7 @@ from ema_casadi.signals import (
     format_quantity,
     in_unit,
     is_noise,
+    unit_text,
 )
 
 
@@ -69,3 +70,8 @@ def test_every_ladder_runs_from_large_to_small_and_ends_open():
     for si, ladder in ENGINEERING.items():
         lows = [low for _, _, low in ladder]
         assert lows == sorted(lows, reverse=True) and lows[-1] == 0.0, si
+
+
+def test_units_are_written_as_read():
+    assert [unit_text(u) for u in ("N*s/m", "kg*m^2", "degC", "1", "V/(A*s)")] == \
+        ["N·s/m", "kg·m²", "°C", "", "V/(A·s)"]

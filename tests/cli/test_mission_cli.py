@@ -139,7 +139,7 @@ def test_mission_report_and_no_progress(tmp_path, short, capsys):
     assert main(["mission", "--mission", str(short), "--out", str(tmp_path), "--no-progress"]) == 0
     captured = capsys.readouterr()
     assert captured.err == ""
-    assert "peak temperatures (degC):" in captured.out and "limit 150: ok" in captured.out
+    assert "peak temperatures (°C):" in captured.out and "limit 150: ok" in captured.out
     assert "total" in captured.out and "wrote" in captured.out
 
 
