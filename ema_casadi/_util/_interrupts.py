@@ -12,10 +12,11 @@ A signal that arrives before :func:`handling` — while the ``ema`` process is s
 importing its command line — is recorded by :func:`record_early` and replayed by
 :func:`replay_early` as soon as the handling starts.
 
-Some work cannot be interrupted from Python (IPOPT keeps iterating after a failed
-callback and the tuner then carries on): a watchdog started by the first signal
-ends the process ``grace`` seconds later with the same status, after the caller's
-``on_timeout`` has removed the temporary files.
+IPOPT asks :func:`check` at the end of every iteration (the optimisation layer's
+callback: ``ema_casadi.optimisation.solve_ipopt``) and stops there. Work that cannot be
+interrupted from Python (a long compiled evaluation): a watchdog started by the first
+signal ends the process ``grace`` seconds later with the same status, after the
+caller's ``on_timeout`` has removed the temporary files.
 """
 
 from __future__ import annotations

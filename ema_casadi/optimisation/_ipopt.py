@@ -157,9 +157,12 @@ def solve_ipopt(opti: ca.Opti, ipopt: Mapping | Sequence[Mapping] = (), *, expan
         try:
             sol = opti.solve()
             value, ok = sol.value, True
-        except RuntimeError:
+        except RuntimeError as exc:
             if hook.raised is not None:
                 raise hook.raised from None
+            _interrupts.check()  # a signal CasADi turned into its error (building, or inside an evaluation)
+            if "KeyboardInterrupt" in str(exc):
+                raise KeyboardInterrupt from exc
             try:
                 opti.stats()
             except RuntimeError:

@@ -172,3 +172,23 @@ def test_each_transcription_estimates_a_decay_rate(method):
     # RK4 at h = 0.025 (error ~(a h)^4 / 120 = 2.5e-7 per step) and Radau IIA of order 5 at
     # h = 0.1: the estimate within 1e-6 of the truth (measured 4e-8 and 5e-8)
     assert float(res.value(p)) == pytest.approx(a_true, rel=1e-6)
+
+
+def test_collocation_quadrature_and_free_start():
+    # x' = u with u = 1 on 10 intervals of 0.1 s, the start free at x(0) = 0.5 by a
+    # constraint of the caller's; the integral of y = x^2 over each interval is exact
+    # for Radau IIA of degree 3 (quadrature of order 5 on a quadratic in t)
+    N = 10
+    opti = ca.Opti()
+    U, dts = ca.DM.ones(1, N), ca.DM.ones(1, N) * 0.1
+    tr = transcribe(opti, "collocation", x0=[0.0], guess=np.zeros((1, N + 1)), scale=np.array([1.0]), U=U, dts=dts,
+                    rates=lambda X, Uc: (Uc, X**2), fixed_start=False, integrand=lambda y: y)
+    opti.subject_to(tr.X[0, 0] == 0.5)
+    opti.minimize(0)
+    res = solve_ipopt(opti, {"tol": 1e-12})
+    x = np.array(res.value(tr.X)).ravel()
+    np.testing.assert_allclose(x, 0.5 + 0.1 * np.arange(N + 1), atol=1e-12)
+    q = np.array(res.value(tr.quadrature)).ravel()
+    t0 = 0.1 * np.arange(N)
+    np.testing.assert_allclose(q, ((0.5 + t0 + 0.1) ** 3 - (0.5 + t0) ** 3) / 3, atol=1e-12)
+    assert len(tr.points) == 3 and tr.points[-1][0].shape == (1, N)

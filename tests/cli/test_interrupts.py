@@ -4,8 +4,9 @@ at several instants: during the start-up imports (0.3 s), the model build (1 s) 
 the run (2 s). Real subprocesses, ``python -m ema_casadi.cli``.
 
 Each run costs its delay plus about a second; the 24 runs take ~35 s (under 20 s on
-two workers). IPOPT (``tune``) keeps iterating after a failed callback, so there the
-watchdog ends the process one second after the signal.
+two workers). IPOPT (``tune``) stops at the end of the iteration it is in (the
+optimisation layer's per-iteration callback asks the signal's flag); the watchdog, one
+second after the signal, remains for work that cannot be interrupted from Python.
 """
 
 import os
