@@ -34,6 +34,7 @@ _EXPORTS = {
     ".linearisation": ("LinearizationError", "OperatingPointError", "linear_model", "linearize", "loop_transfer",
                        "operating_point"),
     "._util._resources": ("packaged_file", "packaged_files"),
+    "._util._errors": ("EmaError", "InputError", "InfeasibleError", "RunError"),
     ".signals": ("Signal", "SignalError", "parse_signal"),
     ".simulation": ("RunFailed", "SimResult", "SimulationError", "simulate", "rk4_step_limit", "StepLimitWarning"),
     ".sinestream": ("FreqRespError", "FreqResponse", "sine_stream"),
@@ -65,6 +66,7 @@ def __dir__():
 __version__ = "0.1.0"
 
 __all__ = [
+    "EmaError", "InputError", "InfeasibleError", "RunError",
     "AssemblyError", "Model", "build_model",
     "DEFAULT_VARIANTS", "REGISTRY", "VARIANTS", "ParameterError", "Parameters", "load_parameters",
     "packaged_file", "packaged_files",

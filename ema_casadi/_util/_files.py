@@ -30,13 +30,15 @@ import tempfile
 import threading
 from pathlib import Path
 
+from ._errors import InputError
+
 __all__ = [
     "atomic_path", "atomic_dir", "write_text", "write_with", "transaction", "scratch_dir", "remove_temporaries",
     "check_file", "check_folder", "OutputPathError", "after_commit", "on_error",
 ]
 
 
-class OutputPathError(ValueError):
+class OutputPathError(InputError, ValueError):
     """An output path that cannot be written (one line, names the path)."""
 
 

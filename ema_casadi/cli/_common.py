@@ -6,12 +6,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from .._util._errors import InputError
 from ._options import _holds_table, model_path
 
 if TYPE_CHECKING:
     from pathlib import Path
 
-__all__ = ["EXIT_FAILED", "UserError", "user_errors", "second_file", "load", "jsonable", "check_output_path",
+__all__ = ["EXIT_FAILED", "UserError", "second_file", "load", "jsonable", "check_output_path",
            "check_output_dir"]
 
 
@@ -19,21 +20,8 @@ __all__ = ["EXIT_FAILED", "UserError", "user_errors", "second_file", "load", "js
 EXIT_FAILED = 3
 
 
-class UserError(ValueError):
+class UserError(InputError, ValueError):
     """A mistake in the command line; reported as one line, exit status 2."""
-
-
-def user_errors() -> tuple:
-    """The exceptions that are a mistake in the input: one line on stderr, exit status 2."""
-    from .._util import _files
-    from ..export import ExportError
-    from ..linearisation import LinearizationError
-    from ..model.params import ParameterError
-    from ..signals import SignalError
-    from ..simulation import SimulationError
-
-    return (UserError, _files.OutputPathError, ParameterError, SignalError, SimulationError, LinearizationError,
-            ExportError)
 
 
 def second_file(args, positional: str | None, flag_value: str | None, *, flag: str, what: str, key: str,
@@ -146,10 +134,7 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...], flag: str) ->
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise UserError(f"{flag} {path}: expected a file ending in {' or '.join(suffixes)}")
-    try:
-        return _files.check_file(p, f"{flag} {path}")
-    except _files.OutputPathError as exc:
-        raise UserError(str(exc)) from None
+    return _files.check_file(p, f"{flag} {path}")
 
 
 def check_output_dir(path: str | None, names, flag: str) -> Path | None:
@@ -169,7 +154,4 @@ def check_output_dir(path: str | None, names, flag: str) -> Path | None:
 
     if path is None:
         return None
-    try:
-        return _files.check_folder(path, names, f"{flag} {path}")
-    except _files.OutputPathError as exc:
-        raise UserError(str(exc)) from None
+    return _files.check_folder(path, names, f"{flag} {path}")

@@ -9,7 +9,8 @@ import sys
 import threading
 
 from .._util import _interrupts
-from ._common import EXIT_FAILED, jsonable, user_errors
+from .._util._errors import EmaError, InputError
+from ._common import EXIT_FAILED, jsonable
 from ._options import model_path
 from ._parser import _subparsers, build_parser, given_flags, join_values, unknown_flag
 
@@ -100,12 +101,23 @@ def one_line_warnings(command: str):
         warnings.showwarning = before
 
 
+def _refused(command: str, exc: EmaError) -> int:
+    """An error of the family as the contract's one line on stderr; its exit status: a
+    mistake in the input ``error:``, exit 2; an infeasible request or a failed run
+    ``failed:``, exit 3."""
+    text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    if isinstance(exc, InputError):
+        sys.stderr.write(f"ema {command}: error: {text}\n")
+        return 2
+    sys.stderr.write(f"ema {command}: failed: {text}\n")
+    return EXIT_FAILED
+
+
 def _run(argv, stop) -> int:
     """Parse, run the command in one output transaction, report; the exit status."""
     import json
 
     from .._util import _files
-    from ..simulation import RunFailed
 
     os.environ.setdefault("MPLBACKEND", "Agg")  # the command line draws off screen (PNG files only)
     parser, mods = build_parser()
@@ -123,7 +135,6 @@ def _run(argv, stop) -> int:
     mod = mods[args.command]
     hint = getattr(mod, "interrupt_hint", None)
     stop.hint = hint(args) if hint else ""
-    errors = user_errors()
     quiet = one_line_warnings(args.command) if process else contextlib.nullcontext()
     try:
         with quiet, _files.transaction():
@@ -132,14 +143,9 @@ def _run(argv, stop) -> int:
             refuse_no_effect(args, {**COMMON, **getattr(mod, "NO_EFFECT", {})})  # before any work
             result = mod.run(args)
             _interrupts.check()
-    except errors as exc:
+    except EmaError as exc:  # the one place the family becomes an exit status and one line
         _interrupts.check()
-        sys.stderr.write(f"ema {args.command}: error: {exc}\n")
-        return 2
-    except RunFailed as exc:
-        _interrupts.check()
-        sys.stderr.write(f"ema {args.command}: failed: {exc}\n")
-        return EXIT_FAILED
+        return _refused(args.command, exc)
     if args.json:
         json.dump(jsonable(result), sys.stdout, indent=1)
         sys.stdout.write("\n")

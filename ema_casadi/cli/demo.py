@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from .._util import _files
 from ..demo import DEMO_FILES, KEPT_FOLDERS, run_demo
-from . import UserError, add_progress, load, progress_of
+from . import add_progress, load, progress_of
 
 COMMAND = "demo"
 ORDER = 1
@@ -24,10 +24,7 @@ def add_arguments(p):
 
 
 def run(args) -> dict:
-    try:
-        out = _files.check_folder(args.out, DEMO_FILES, f"--out {args.out}", keep=KEPT_FOLDERS)
-    except _files.OutputPathError as exc:
-        raise UserError(str(exc)) from None
+    out = _files.check_folder(args.out, DEMO_FILES, f"--out {args.out}", keep=KEPT_FOLDERS)
     params, _ = load(args)
     return run_demo(params, out, progress=progress_of(args))
 

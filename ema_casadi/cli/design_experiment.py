@@ -121,7 +121,7 @@ def _sigma(items, model) -> dict:
 
 
 def run(args) -> dict:
-    from ..design import DesignError, design_experiment, output_names
+    from ..design import design_experiment, output_names
 
     if args.verify < 0:
         raise UserError(f"--verify must be at least 0, got {args.verify}")
@@ -137,10 +137,7 @@ def run(args) -> dict:
           "weights": _weights(args.weights), "stroke": stroke, "max_load": max_load, "max_speed": max_speed,
           "sigma": _sigma(args.sigma, model), "channels": args.channels, "prior": args.prior, "draws": args.draws,
           "seed": args.seed, "variants": None, "progress": progress_of(args)}
-    try:
-        res = design_experiment(params, args.free, duration, **kw)
-    except DesignError as exc:
-        raise UserError(str(exc)) from None
+    res = design_experiment(params, args.free, duration, **kw)
     doc = res.to_json()
     if args.verify:
         doc["verification"] = res.verify(args.verify, seed=args.seed, progress=progress_of(args))

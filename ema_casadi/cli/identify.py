@@ -221,7 +221,6 @@ for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-re
 
 
 def run(args) -> dict:
-    from ..identification import IdentificationError
 
     if args.example_records is not None:
         return _write_examples(args)
@@ -239,25 +238,22 @@ def run(args) -> dict:
         raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
     params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
-    try:
-        if not records:
-            return _example(args, params, model, out, progress)
-        if args.free is None:
-            raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
-        free = [s.strip() for s in args.free.split(",") if s.strip()]
-        kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
-              "starts": args.starts, "max_evaluations": args.max_evaluations,
-              "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
-              "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
-              **({} if args.model_error is None else {"model_error": args.model_error}),
-              **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
-        if args.track:
-            return _track(args, params, model, records, free, kw)
-        if args.compare:
-            return _compare(args, params, model, records, free, kw, out)
-        return _fit(args, params, model, records, free, kw, out)
-    except IdentificationError as exc:
-        raise UserError(str(exc)) from None
+    if not records:
+        return _example(args, params, model, out, progress)
+    if args.free is None:
+        raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
+    free = [s.strip() for s in args.free.split(",") if s.strip()]
+    kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
+          "starts": args.starts, "max_evaluations": args.max_evaluations,
+          "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
+          "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
+          **({} if args.model_error is None else {"model_error": args.model_error}),
+          **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
+    if args.track:
+        return _track(args, params, model, records, free, kw)
+    if args.compare:
+        return _compare(args, params, model, records, free, kw, out)
+    return _fit(args, params, model, records, free, kw, out)
 
 
 def _write_examples(args) -> dict:

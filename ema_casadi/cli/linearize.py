@@ -14,7 +14,7 @@ import math
 import sys
 import warnings
 
-from ..linearisation import BACKLASH_POLICIES, FRICTION_POLICIES, LOOPS, LinearizationError
+from ..linearisation import BACKLASH_POLICIES, FRICTION_POLICIES, LOOPS
 from ..signals import SignalError, parse_quantity
 from . import UserError, check_output_path, load
 
@@ -60,10 +60,7 @@ def operating_point_from_args(args, params, model):
             raise UserError(f"{flag} '{text}': not a finite number")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        try:
-            op = operating_point(model, **values, friction=args.friction, backlash=args.backlash)
-        except LinearizationError as exc:
-            raise UserError(str(exc)) from None
+        op = operating_point(model, **values, friction=args.friction, backlash=args.backlash)
     for w in caught:
         sys.stderr.write(f"ema {args.command}: warning: {w.message}\n")
     return op

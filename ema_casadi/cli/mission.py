@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 from .._util._resources import REFERENCE_MISSION
@@ -88,7 +87,7 @@ def _check(args) -> Path:
 
 
 def run(args) -> dict:
-    from ..mission import MissionError, MissionFailed, load_mission, run_mission
+    from ..mission import load_mission, run_mission
     from ..model.params import load_parameters
 
     out = _check(args)
@@ -102,15 +101,9 @@ def run(args) -> dict:
     paths = {k: out / n for k, n in names.items()}
     top = new_output_folder(out, names.values())  # the outputs checked before any work
     params = load_parameters(args.model)
-    try:
-        mission = load_mission(args.mission, params)
-        res = run_mission(params, mission, dict(args.variant), dt=args.dt, dt_out=args.dt_out,
-                          progress=progress_of(args), from_trim=args.from_trim)
-    except MissionError as exc:
-        raise UserError(str(exc)) from None
-    except MissionFailed as exc:
-        sys.stderr.write(f"ema mission: failed: {exc}\n")
-        raise SystemExit(3) from None
+    mission = load_mission(args.mission, params)
+    res = run_mission(params, mission, dict(args.variant), dt=args.dt, dt_out=args.dt_out,
+                      progress=progress_of(args), from_trim=args.from_trim)
     from .._util._files import write_text
 
     summary = res.summary()

@@ -132,23 +132,19 @@ def _request(args, params):
 def run(args) -> dict:
     if args.envelope:
         return run_envelope(args)
-    from ..optimal import Infeasible, OptimalError, check_request, optimal_move
+    from ..optimal import Infeasible, check_request, optimal_move
 
     t0 = time.perf_counter()
     params, model = load(args)
     req = _request(args, params)
-    try:  # every value checked before the solve (and before the output folder is made)
-        check_request(model, req["move"], req["load"], req["objective"], req["duration"], req["start"],
-                      req["through"], req["intervals"], req["method"])
-    except OptimalError as exc:
-        raise UserError(str(exc)) from None
+    # every value checked before the solve (and before the output folder is made)
+    check_request(model, req["move"], req["load"], req["objective"], req["duration"], req["start"],
+                  req["through"], req["intervals"], req["method"])
     out = Path(args.out) if args.out else None
     top = new_output_folder(out, MOVE_FILES) if out else None
     stage(args, "optimal move", 0.1, f"{req['objective']}, through {req['through']}")
     try:
         res = optimal_move(model, zoh=args.zoh, **req)
-    except OptimalError as exc:
-        raise UserError(str(exc)) from None
     except Infeasible as exc:
         return {"model": args.model, "request": req, "failure": f"infeasible: {exc}",
                 "wall_time_s": time.perf_counter() - t0}
@@ -171,7 +167,7 @@ def run_envelope(args) -> dict:
     """``--envelope``: the table (and envelope.csv, envelope.png)."""
     import numpy as np
 
-    from ..optimal import OptimalError, performance_envelope
+    from ..optimal import performance_envelope
 
     t0 = time.perf_counter()
     params, model = load(args)
@@ -186,10 +182,7 @@ def run_envelope(args) -> dict:
             raise UserError(f"--temperatures {args.temperatures}: expected degC numbers, e.g. 20,120") from None
     out = Path(args.out) if args.out else None
     top = new_output_folder(out, ENVELOPE_FILES) if out else None
-    try:
-        env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30, jobs=cores())
-    except OptimalError as exc:
-        raise UserError(str(exc)) from None
+    env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30, jobs=cores())
     written = []
     if out is not None:
         with output_folder(out, top) as folder:

@@ -67,7 +67,7 @@ def interrupt_hint(args) -> str:
 
 def run(args) -> dict:
     from ..model.params import load_parameters
-    from ..sweeps import SweepError, load_sweep, sweep
+    from ..sweeps import load_sweep, sweep
 
     args.spec = second_file(args, args.spec, args.spec_file, flag="--spec", what="sweep", key="sweep",
                             default=DEFAULT_SPEC)
@@ -89,12 +89,9 @@ def run(args) -> dict:
     validate_variants({k: v for k, v in params.variants.items() if k not in given}, str(args.model))
     validate_variants(params.variants, "--variant")
     progress = progress_of(args)
-    try:
-        spec = load_sweep(args.spec, params)
-        res = sweep(spec, out, jobs=args.jobs, backend="threads" if args.threads else "processes",
-                    scheduler=args.scheduler, resume=args.resume, progress=progress)
-    except SweepError as exc:
-        raise UserError(str(exc)) from None
+    spec = load_sweep(args.spec, params)
+    res = sweep(spec, out, jobs=args.jobs, backend="threads" if args.threads else "processes",
+                scheduler=args.scheduler, resume=args.resume, progress=progress)
     written = [str(out)] if out is not None else []
     if plot is not None:
         written.append(str(res.plot(plot)))

@@ -119,7 +119,7 @@ def _loads(text) -> list[float]:
 
 
 def run(args) -> dict:
-    from ..tuning import Requirements, TuneError, default_free, plot_tuning, scaled_gains, tune
+    from ..tuning import Requirements, default_free, plot_tuning, scaled_gains, tune
 
     out = check_output_path(args.out, (".toml",), "--out")
     plot_dir = check_output_dir(args.plot_dir, PLOT_FILES, "--plot-dir")
@@ -159,13 +159,10 @@ def run(args) -> dict:
                        bandwidth_min_hz=args.bandwidth_min, sigma=args.sigma, step=step,
                        rate_ratio=args.rate_ratio, separation=args.separation, sensor_noise=sensor_noise,
                        command_noise=args.command_noise / 100)
-    try:
-        start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
-        stage(args, "tune", 0.0, f"IPOPT on {len(loads)} load case(s), then the verification")
-        res = tune(params, model=model, free=free, loads=loads, objective=args.objective, requirements=req,
-                   start=start, max_iter=args.max_iter, hessian=args.hessian, verify_step=sim_step)
-    except TuneError as exc:
-        raise UserError(str(exc)) from None
+    start = scaled_gains(params, args.start_scale, free) if args.start_scale != 1.0 else None
+    stage(args, "tune", 0.0, f"IPOPT on {len(loads)} load case(s), then the verification")
+    res = tune(params, model=model, free=free, loads=loads, objective=args.objective, requirements=req,
+               start=start, max_iter=args.max_iter, hessian=args.hessian, verify_step=sim_step)
     stage(args, "tune", 0.9 if plot_dir is not None else 1.0, "plots" if plot_dir is not None else "done")
     if not res.success:
         raise UserError(res.message)

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from .._util._checks import integer, nearest, number
+from .._util._errors import InputError
 from ..identification import SENSOR_NOISE, IdentificationError, free_parameters
 from ..model.assembly import build_model
 from ..model.params import Parameters
@@ -32,7 +33,7 @@ SPREAD = 0.2
 MIN_SEGMENTS = 2
 
 
-class DesignError(ValueError):
+class DesignError(InputError, ValueError):
     """A mistake in an experiment-design request (a parameter, a flag, limits no test can
     keep): one line naming it. The command line reports it with exit status 2."""
 

@@ -19,12 +19,12 @@ the textbook ones beside; per parameter too), and over the adequate ones beside 
 
 from __future__ import annotations
 
-import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from .._util._files import scratch_dir
 from .._util._parallel import cores
 from ..identification import FitFailed, identify, synthetic_record
 from ..signals import Signal
@@ -93,7 +93,9 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
         progress_bar(done[0] / n, progress, "verify", f"fit {done[0]} of {n}")
         return out
 
-    with tempfile.TemporaryDirectory(prefix="ema-verify-") as folder:
+    # a private folder: its records are written at once, not staged to the end of the
+    # command's transaction (the fits read them back at once)
+    with scratch_dir() as folder:
         fits = [one(0, folder)]  # the first alone: the compiled functions are built once
         if n > 1:
             with ThreadPoolExecutor(max(1, min(jobs or cores(), n - 1)), thread_name_prefix="ema-verify") as pool:

@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._util._checks import nearest, read_toml
+from .._util._errors import InputError
 from ..model.components import REGISTRY, SIGNAL_KEYS, Fault
 from ..model.params import ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
@@ -64,7 +65,7 @@ _SCENARIO = ("duration", X_CMD, F_EXT, "dt", "dt_out", "condition", THETA_CMD, W
 _FAULT = ("kind", "target", "onset", "severity", "ramp")
 
 
-class FaultError(ValueError):
+class FaultError(InputError, ValueError):
     """A mistake in a fault file or a fault request (one line naming file and key)."""
 
 

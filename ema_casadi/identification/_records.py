@@ -28,6 +28,7 @@ import numpy as np
 
 from .._util import _checks
 from .._util._checks import nearest
+from .._util._errors import InputError
 from ..signals import KIND_OF_UNIT, Signal, SignalError, read_text, table_header, table_rows, unit_scale
 
 __all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
@@ -40,7 +41,7 @@ MAX_BYTES = 2**31
 _FIELD = re.compile(r"^#\s*([A-Za-z_][\w.]*)\s*[:=]\s*(\S.*?)\s*$")
 
 
-class IdentificationError(ValueError):
+class IdentificationError(InputError, ValueError):
     """A mistake in an identification request (a record, a free parameter, a bound, a
     flag): one line naming it. The command line reports it with exit status 2."""
 

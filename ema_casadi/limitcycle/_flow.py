@@ -11,6 +11,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from .._util._errors import RunError
 from ..model.assembly import Model
 from ..signals import constant
 from ..simulation import forward_sensitivities, simulate
@@ -35,7 +36,7 @@ SAMPLES = 400
 #: loses the sampled ECU's trivial multiplier (4e-4 instead of 0.93); 1e-5 wanders.
 FD_STEP = 1e-6
 
-class OrbitNotFound(RuntimeError):
+class OrbitNotFound(RunError, RuntimeError):
     """Newton did not converge to a periodic orbit from the start given (a named failure)."""
 
 

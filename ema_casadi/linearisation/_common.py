@@ -5,6 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from .._util._errors import InputError
 from ..model.assembly import Model
 from ..model.components import PART_CLASSES, POLICIES
 
@@ -22,7 +23,7 @@ OUTER = ("closed", "open")
 # saturation limits are lifted by this factor while solving the trim
 _LIFT = 1e6
 
-class LinearizationError(ValueError):
+class LinearizationError(InputError, ValueError):
     """A linearisation request cannot be served (bad option, unsupported variant)."""
 
 

@@ -12,6 +12,7 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
+from .._util._errors import InputError
 from ..model.components import PART_CLASSES, SIGNAL_KEYS, VariantError, parts_for, validate_variants
 from ..model.params import Parameters
 from ..signals import Signal, SignalError, constant, parse_quantity, parse_signal
@@ -51,7 +52,7 @@ _CHUNK = 1_000_000  # samples checked at a time
 _MAX_CHECKED = 1e8
 
 
-class MissionError(ValueError):
+class MissionError(InputError, ValueError):
     """A mission file or request is invalid; the one-line message names the file, the
     segment and the key."""
 

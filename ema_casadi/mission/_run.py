@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._errors import RunError
 from ..model.assembly import Model, build_model
 from ..model.components import SIGNAL_KEYS, node_outflow
 from ..model.params import Parameters
@@ -54,7 +55,7 @@ KEPT = ("command", "rod_position", "load", "ambient_temperature", "motor_current
 SEGMENT_ROLES = ("command", "load", "ambient_temperature")
 
 
-class MissionFailed(RuntimeError):
+class MissionFailed(RunError, RuntimeError):
     """The run left the physical envelope or the integration failed (not a converged answer)."""
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from .._util._checks import describe, number, read_toml
 from .._util._checks import nearest as _nearest
+from .._util._errors import InputError
 from .._util._files import write_text
 from .._util._notebook import Summarised
 from ._param_units import absent as _absent
@@ -33,7 +34,7 @@ from ._relations import check_relations
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked"]
 
 
-class ParameterError(ValueError):
+class ParameterError(InputError, ValueError):
     """A parameter file or variant choice is invalid (one line: the file, the key, what was expected)."""
 
 

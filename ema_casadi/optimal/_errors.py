@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .._util._errors import InfeasibleError
 from ..simulation import SimulationError
 
 __all__ = ["OptimalError", "Infeasible"]
@@ -12,7 +13,7 @@ class OptimalError(SimulationError):
     a duration below the minimum time, an unknown objective): one line naming it."""
 
 
-class Infeasible(RuntimeError):
+class Infeasible(InfeasibleError, RuntimeError):
     """IPOPT found no move within the limits; the message names the limit that binds.
 
     Parameters

@@ -45,11 +45,13 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from .._util._errors import InputError
+
 __all__ = ["Signal", "SignalError", "parse_quantity", "parse_list", "parse_range", "log_grid", "check_signal",
            "constant", "UNITS", "SI_UNIT", "KIND_OF_UNIT"]
 
 
-class SignalError(ValueError):
+class SignalError(InputError, ValueError):
     """A signal description cannot be read; the message says what was expected."""
 
 

@@ -24,11 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._util._errors import RunError
+
 __all__ = ["RunFailed", "AnalysisFailed", "GaveUp", "Monitor", "Violation", "captured_stderr", "integrator_failure",
            "monitor_for"]
 
 
-class RunFailed(Exception):
+class RunFailed(RunError):
     """A run that left the physical envelope, went non-finite or whose integrator
     failed; not a user mistake (so not a :class:`SimulationError`).
 
@@ -273,7 +275,7 @@ _FLAGS = {
 _T_RE = re.compile(r"At t\s*=\s*([-+0-9.eE]+)")
 
 
-class GaveUp(Exception):
+class GaveUp(RunError):
     """An integrator gave up (the one such exception of the package): ``what`` (one line)
     and ``time``, the integrator's time where it did (s, or the normalised time of a
     sine-stream period). Callers turn it into a failed run (:class:`RunFailed`, a failed point).

@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .._util._errors import InputError
 from .._util._files import write_with
 
 __all__ = ["SimulationError", "SimResult", "step_response_metrics", "hunting_metrics", "progress_bar"]
 
 
-class SimulationError(ValueError):
+class SimulationError(InputError, ValueError):
     """Bad simulation request (one line, names the argument)."""
 
 

@@ -31,12 +31,13 @@ import math
 import numpy as np
 
 from .._util._checks import nearest, number
+from .._util._errors import RunError
 from ..model.components import SIGNAL_KEYS
 
 __all__ = ["METRICS", "check_metrics", "metric_columns", "compute_metrics", "PointFailed"]
 
 
-class PointFailed(Exception):
+class PointFailed(RunError):
     """A metric whose analysis reported a failed point (the run is failed)."""
 
 #: The metric option of the margins and the bandwidth: the load of their operating point (N), by its file key.

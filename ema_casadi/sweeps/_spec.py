@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from .._util._checks import budget, nearest, read_toml
+from .._util._errors import InputError
 from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
@@ -70,7 +71,7 @@ _GRID_KEYS = ("values", "from", "to", "points", "spacing", "relative", "unit")
 _DIST_KEYS = ("distribution", "low", "high", "mean", "std", "median", "sigma", "relative", "unit")
 
 
-class SweepError(ValueError):
+class SweepError(InputError, ValueError):
     """A mistake in a sweep description or request (one line naming file and key)."""
 
 

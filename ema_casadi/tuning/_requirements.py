@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._util._checks import nearest
+from .._util._errors import InputError
 from ..model.assembly import Model
 from ..model.components import PART_CLASSES, REGISTRY, served_by
 from ..model.params import Parameters
@@ -42,7 +43,7 @@ def _where(gain: str) -> str:
 OBJECTIVES = ("bandwidth", "tracking")
 
 
-class TuneError(ValueError):
+class TuneError(InputError, ValueError):
     """A tuning request cannot be served (unknown gain, bad requirement, a load the
     actuator cannot hold). The one-line message names the option."""
 

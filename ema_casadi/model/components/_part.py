@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import ClassVar
 
+from ..._util._errors import InputError
 from ._contract import POLICIES, RATING_SENSES, Fault, Freeze, Gain, Limit, Node, Rating, Seed, node_outflow
 
 __all__ = [
@@ -107,7 +108,7 @@ def heat_signal(node: str) -> str:
 MARGIN = 3.0
 
 
-class AssemblyError(ValueError):
+class AssemblyError(InputError, ValueError):
     """Parts that do not fit together (a signal nobody provides, an algebraic loop,
     two parts declaring one name differently)."""
 
