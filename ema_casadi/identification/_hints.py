@@ -61,8 +61,7 @@ def switching_mask(model, pred, t) -> np.ndarray:
     still = np.abs(v) <= _misfit.HOLD_FRACTION * v_max
     events = np.concatenate([np.nonzero(np.sign(v[1:]) * np.sign(v[:-1]) < 0)[0],
                              np.nonzero(still[:-1] & ~still[1:])[0]])
-    v_st = model.params.as_dict().get("v_st", 0.0)
-    mask = np.abs(v) < LOW_SPEED * v_st
+    mask = np.zeros(len(t), bool)
     for f in events:
         mask[max(0, f - k):min(len(t), f + k + 1)] = True
     return mask
