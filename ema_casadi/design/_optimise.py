@@ -30,6 +30,8 @@ import math
 import casadi as ca
 import numpy as np
 
+from ..optimisation import solve_ipopt
+
 __all__ = ["CRITERIA", "criterion", "optimal_weights", "efficient_rounding"]
 
 #: The criteria (``--criterion``).
@@ -99,16 +101,17 @@ def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1) -> dict:
     K, n = Ms.shape[0], Ms.shape[1]
     pw = np.ones(n) if weights is None else np.asarray(weights, float)
     scale = float(np.mean([np.trace(m) for m in Ms])) / n or 1.0
-    w = ca.MX.sym("w", K)
+    opti = ca.Opti()
+    w = opti.variable(K)
     stack = ca.DM((Ms / scale).reshape(K, n * n))
     M = ca.reshape(ca.mtimes(stack.T, w), n, n)
-    f = _expression(M, crit, pw)
-    opts = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-10,
-            "ipopt.max_iter": 500}
-    solver = ca.nlpsol("design_weights", "ipopt", {"x": w, "f": f, "g": ca.sum1(w)}, opts)
-    sol = solver(x0=np.full(K, 1.0 / K), lbx=0.0, ubx=1.0, lbg=1.0, ubg=1.0)
-    stats = solver.stats()
-    ws = np.clip(np.array(sol["x"]).ravel(), 0.0, None)
+    opti.minimize(_expression(M, crit, pw))
+    opti.subject_to(ca.sum1(w) == 1)
+    opti.subject_to(opti.bounded(0.0, w, 1.0))
+    opti.set_initial(w, np.full(K, 1.0 / K))
+    res = solve_ipopt(opti, {"tol": 1e-10, "max_iter": 500}, simple_bounds=True)
+    stats = res.stats
+    ws = np.clip(np.atleast_1d(np.array(res.value(w), float).ravel()), 0.0, None)
     ws /= ws.sum()
     return {"w": ws, "value": criterion(slots * np.tensordot(ws, Ms, 1), crit, pw), "status": stats["return_status"],
             "iterations": int(stats["iter_count"]), "success": bool(stats["success"])}

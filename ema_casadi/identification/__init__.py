@@ -2,7 +2,7 @@
 
 Named parameters of a parameter file are fitted to measured time series by weighted
 least squares (maximum likelihood under Gaussian sensor noise): Levenberg-Marquardt
-(``_lm``, with a statistical stopping rule) whose residuals and exact Jacobian come
+(:mod:`ema_casadi.optimisation`, with a statistical stopping rule) whose residuals and exact Jacobian come
 from one run per record of the compiled RODAS4 solver with forward sensitivities
 (``simulation.forward_sensitivities``; the model is built once, the parameters are its input). Positive
 parameters are fitted in log scale, bounds honoured, noise levels per channel given

@@ -32,7 +32,7 @@ import numpy as np
 from scipy import stats
 
 from .._util._parallel import cores
-from ._lm import levenberg_marquardt
+from ..optimisation import levenberg_marquardt
 from ._problem import Predictor, marginal
 from ._result import MISFIT_P
 

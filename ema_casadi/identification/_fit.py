@@ -1,7 +1,7 @@
 """``identify()``: weighted least squares (maximum likelihood with Gaussian sensor
-noise) by Levenberg-Marquardt (``_lm``) with the exact Jacobian, noise levels
-estimated where not given, then the Fisher-information uncertainty and the
-identifiability verdicts."""
+noise) by Levenberg-Marquardt (:func:`ema_casadi.optimisation.levenberg_marquardt`)
+with the exact Jacobian, noise levels estimated where not given, then the
+Fisher-information uncertainty and the identifiability verdicts."""
 
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ from .._util._checks import instance, integer, nearest, number
 from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
+from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
 from ._failed import FitFailed
 from ._hints import friction_hint, hints_at
 from ._hold import check_hold, held_doc
-from ._lm import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ._problem import Predictor, free_parameters, given_model, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty

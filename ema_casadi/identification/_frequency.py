@@ -27,8 +27,8 @@ import numpy as np
 from .._util._checks import nearest
 from ..model.assembly import build_model
 from ..model.components import SIGNAL_KEYS
+from ..optimisation import levenberg_marquardt
 from ..signals import SignalError, table_rows
-from ._lm import levenberg_marquardt
 from ._problem import free_parameters
 from ._records import IdentificationError, Record, _fields
 from ._result import IdentResult, uncertainty

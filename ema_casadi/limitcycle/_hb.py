@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from ..model.assembly import Model
+from ..optimisation import newton_step
 from ._df import _periodic_runner
 
 __all__ = ["harmonic_balance", "harmonic_orders"]
@@ -126,8 +127,7 @@ def _newton_step(run, z, r, H, h: float = 0.03):
         dz = np.zeros(len(z))
         dz[j] = h
         J[:, j] = (_residual(run, z + dz, H)[0] - r) / h
-    step = np.linalg.lstsq(J, -r, rcond=None)[0]
-    step *= min(1.0, 0.3 / max(np.max(np.abs(step[:2])), 1e-300))
+    step = newton_step(J, r, least_squares=True, max_step=0.3, capped=2)
     for _ in range(5):
         zn = z + step
         rn, _ = _residual(run, zn, H)

@@ -35,6 +35,7 @@ import numpy as np
 
 from .._util._notebook import Summarised
 from ..model.assembly import Model
+from ..optimisation import newton_step
 from ..simulation import RunFailed
 from ._df import cycle_of
 from ._flow import Flow, OrbitNotFound
@@ -228,13 +229,11 @@ def _newton(flow: Flow, x0, T, tol, iterations, stop=None):
         J[:nx, :nx] = (M - np.eye(nx)) * D[None, :] / D[:, None]
         J[:nx, nx] = flow.f(xT) / D * T
         J[nx, :nx] = c * D
-        try:
-            dz = np.linalg.solve(J, -r)
+        try:  # damped where the linear model is far off
+            dz = newton_step(J, r, max_step=STEP_MAX, capped=nx)
         except np.linalg.LinAlgError as exc:
             raise OrbitNotFound(f"no periodic orbit near the start: singular shooting matrix at Newton step {it}") \
                 from exc
-        big = float(np.max(np.abs(dz[:nx])))
-        dz = dz * (STEP_MAX / big) if big > STEP_MAX else dz  # damped where the linear model is far off
         x, T = _backtracked(flow, x, T, dz, D, res) if flow.method == "rk4" else _stepped(x, T, dz, D)
     raise OrbitNotFound(f"no periodic orbit near the start: periodicity residual {residuals[-1]:.2g} after "
                         f"{iterations} Newton steps (need < {tol:g})")

@@ -19,6 +19,7 @@ import numpy as np
 from .._util._checks import instance
 from ..model.assembly import Model
 from ..model.params import Parameters
+from ..optimisation import newton_step
 from ._common import OperatingPointError, _eval
 from ._trim import (
     OperatingPoint,
@@ -81,7 +82,7 @@ def _newton(model, x, u, p, free, fix, size, tol, max_iter):
         J[: model.nx, model.nx:] = B[:, iu]
         J[model.nx + np.arange(len(ix)), ix] = 1.0
         J[model.nx + len(ix):] = Jp
-        step = np.linalg.lstsq(J, -r, rcond=1e-13)[0]
+        step = newton_step(J, r, least_squares=True, rcond=1e-13)
         if not np.all(np.isfinite(step)):
             break
         for lam in (1.0, 0.5, 0.25, 0.125, 0.0625):

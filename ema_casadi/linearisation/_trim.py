@@ -13,6 +13,7 @@ from .._util._notebook import Summarised
 from ..model.assembly import AssemblyError, Model
 from ..model.components import POLICIES, SIGNAL_KEYS
 from ..model.params import Parameters
+from ..optimisation import newton_step
 from ._common import _LIFT, LinearizationError, OperatingPointError, _eval
 
 #: The keys of a trim request in files, reports and the keyword conveniences of
@@ -183,7 +184,7 @@ def _newton(model, x, u, p, target, size, tol, max_iter):
         rel = float(np.max(np.abs(r) / np.where(scale > 0, scale, 1.0)))
         if rel < tol:
             return x, rel, True
-        dx = np.linalg.lstsq(np.vstack([A, J_rest]), -r, rcond=1e-13)[0]
+        dx = newton_step(np.vstack([A, J_rest]), r, least_squares=True, rcond=1e-13)
         if not np.all(np.isfinite(dx)):
             break
         x = x + dx

@@ -13,6 +13,7 @@ import numpy as np
 from .._util._checks import integer
 from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
+from ..optimisation import solve_ipopt
 from ._errors import Infeasible, OptimalError
 from ._problem import Problem, _margins, solve
 
@@ -134,14 +135,9 @@ def _steady(prob: Problem, speed: float | None, direction: float = 1.0, full: bo
         opti.minimize(-direction * v / v_ref)
         opti.set_initial(xs, np.where(np.isin(np.arange(m.nx), [m.index(n) for n in m.states_with("shaft_speed")]),
                                       0.5, 0.0))
-    opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": True},
-                {"print_level": 0, "max_iter": 300, "tol": 1e-9})
-    try:
-        sol = opti.solve()
-        val, status = sol.value, sol.stats()["return_status"]
-        best = float(val(-F if free_load else v))
-    except RuntimeError:
-        val, status, best = opti.debug.value, opti.stats()["return_status"], np.nan
+    res = solve_ipopt(opti, {"max_iter": 300, "tol": 1e-9}, expand=True)
+    val, status = res.value, res.status
+    best = float(val(-F if free_load else v)) if res.success else np.nan
     if not full:
         return best, status
     X, Y = np.asarray(val(x), float).reshape(-1, 1), np.asarray(val(y), float).reshape(-1, 1)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..linearisation import operating_point
 from ..model.assembly import Model
+from ..optimisation import solve_ipopt
 from ..signals import Signal
 from ..simulation import captured_stderr, interval_function, simulate, step_response_metrics
 from ._collocation import WARM, collocation, widened
@@ -383,19 +384,21 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     with captured_stderr() as messages:
         stages, ok = [], False
         # collocation: the switches widened first (smoother problems), each optimum the next one's warm start
-        for k, p in enumerate([*widened(prob), prob.p] if prob.method == "collocation" else []):
+        warm = None
+        for p in [*widened(prob), prob.p] if prob.method == "collocation" else []:
             opti.set_value(prob.p_nlp, p)
-            stats, ok, val = _ipopt(opti, ({**ipopt, **WARM},) if k else strategies, small)
-            stages.append(int(stats["iter_count"]))
+            res = solve_ipopt(opti, {**ipopt, **WARM} if warm else strategies, expand=small, warm=warm)
+            stats, ok, val = res.stats, res.success, res.value
+            stages.append(res.iterations)
             if not ok:
                 break
-            opti.set_initial(opti.x, val(opti.x))
-            opti.set_initial(opti.lam_g, val(opti.lam_g))
+            warm = res.warm
         if stages and not ok:  # from the guess at the model's own width
             opti, Xs, Cs, T, scale, c_scale = prob.build(x0, guess)
         if not ok:
-            stats, ok, val = _ipopt(opti, strategies, small)
-            stages.append(int(stats["iter_count"]))
+            res = solve_ipopt(opti, strategies, expand=small)
+            stats, ok, val = res.stats, res.success, res.value
+            stages.append(res.iterations)
     X = np.asarray(val(Xs)).reshape(prob.model.nx, -1) * scale[:, None]
     C = np.asarray(val(Cs)).reshape(len(prob.controls), -1) * c_scale[:, None]
     Tv = float(val(T)) if prob.objective == "time" else float(T)
@@ -414,18 +417,6 @@ def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
                          f"{stats['iter_count']} iterations; the binding limit is the {r.what} ({r.why} = "
                          f"{prob.limits[r.name]:.4g} {r.unit})", out)
     return out
-
-
-def _ipopt(opti, strategies, expand: bool) -> tuple:
-    """(stats, ok, value): IPOPT with each option set in turn until one converges."""
-    for strategy in strategies:
-        opti.solver("ipopt", {"print_time": False, "ipopt.sb": "yes", "expand": expand}, strategy)
-        try:
-            sol = opti.solve()
-            return sol.stats(), True, sol.value
-        except RuntimeError:
-            pass
-    return opti.stats(), False, opti.debug.value
 
 
 def _outputs(prob: Problem, X, C) -> np.ndarray:

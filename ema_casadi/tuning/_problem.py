@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import casadi as ca
 import numpy as np
@@ -12,6 +11,7 @@ from ..frequency import bandwidth, closed_loop
 from ..linearisation import LinearizationError, jacobian_function, operating_point
 from ..model.assembly import Model
 from ..model.params import Parameters
+from ..optimisation import solve_ipopt
 from ._callbacks import spectral_abscissa
 from ._cascade import (
     OUTER_OPEN,
@@ -194,15 +194,14 @@ class TuningProblem(_Inspection):
         self._J_function = ca.Function("main_objective", [theta, self._fb_sym, self._zeta], [self._J_main])
         opti.minimize(self._J_main + effort + _PENALTY * ca.sum1(self._slack))
         self._iterates: list = []
-        opti.callback(self._record)
 
     @property
     def _fb_sym(self):  # the bandwidth variable's symbol (a stand-in without the bandwidth objective)
         return self._fb_log if self._fb is not None else self.__dict__.setdefault("_fb_dummy", ca.MX.sym("unused"))
 
-    def _record(self, _iteration) -> None:
-        """Keep every IPOPT iterate (theta, fb_log, zeta) for :meth:`feasible_iterates`."""
-        dv = self._opti.debug.value
+    def _record(self, _iteration, dv) -> None:
+        """Keep every IPOPT iterate (theta, fb_log, zeta) for :meth:`feasible_iterates`
+        (``dv``: the iterate's value of an expression)."""
         fb_log = float(dv(self._fb_log)) if self._fb is not None else 0.0
         zeta = np.atleast_1d(np.array(dv(self._zeta), float).ravel()) if self._zeta.numel() else self._zeta0
         self._iterates.append((np.atleast_1d(np.array(dv(self._scaling.theta), float).ravel()), fb_log, zeta))
@@ -314,37 +313,22 @@ class TuningProblem(_Inspection):
         """
         if hessian not in ("exact", "limited-memory"):
             raise TuneError(f"hessian '{hessian}' unknown; choose exact or limited-memory")
-        self._opti.solver("ipopt", self._ipopt_options(max_iter, hessian, warm))
-        t0 = time.perf_counter()
-        try:
-            val = self._opti.solve().value
-        except RuntimeError:
-            try:
-                self._opti.stats()
-            except RuntimeError:
-                raise  # not a solver failure: an error building or evaluating the problem
-            val = self._opti.debug.value
-        wall = time.perf_counter() - t0
-        out = self._read_solution(val)
-        out.update(stats=self._opti.stats(), wall=wall)
+        # detect_simple_bounds (simple_bounds): the gain, bandwidth, gap and slack bounds reach
+        # IPOPT as variable bounds (Opti passes every constraint as a row of g otherwise), so
+        # the iterates never leave them and the slacks (started on their bound 0) stay >= 0
+        res = solve_ipopt(self._opti, self._ipopt_options(max_iter, hessian, warm), simple_bounds=True,
+                          warm=warm, on_iteration=self._record)
+        out = self._read_solution(res.value)
+        out.update(stats=res.stats, wall=res.wall_s, warm=res.warm)
         return out
 
-    def _ipopt_options(self, max_iter, hessian, warm) -> dict:
+    @staticmethod
+    def _ipopt_options(max_iter, hessian, warm) -> dict:
         # mu_init 1e-2 instead of 0.1: the start is usually feasible or nearly so, and a
-        # smaller initial barrier halves the iterations on the reference problem
-        # detect_simple_bounds: the gain, bandwidth, gap and slack bounds reach IPOPT as
-        # variable bounds (Opti passes every constraint as a row of g otherwise), so the
-        # iterates never leave them and the slacks (started on their bound 0) stay >= 0
-        opts = {"print_time": False, "detect_simple_bounds": True, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                "ipopt.max_iter": int(max_iter), "ipopt.hessian_approximation": hessian,
-                "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.mu_init": 1e-2,
-                "ipopt.theta_max_fact": _THETA_MAX}
-        if warm is not None:
-            self._opti.set_initial(self._opti.x, warm[0])
-            self._opti.set_initial(self._opti.lam_g, warm[1])
-            opts.update({"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6,
-                         "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9})
-        return opts
+        # smaller initial barrier halves the iterations on the reference problem; from a
+        # warm start (the optimiser's own warm-start settings added) 1e-6
+        return {"max_iter": int(max_iter), "hessian_approximation": hessian, "tol": 1e-6, "acceptable_tol": 1e-4,
+                "mu_init": 1e-2 if warm is None else 1e-6, "theta_max_fact": _THETA_MAX}
 
     def _read_solution(self, val) -> dict:
         theta = np.atleast_1d(np.array(val(self._scaling.theta), float).ravel())
@@ -353,8 +337,7 @@ class TuningProblem(_Inspection):
         gains = self._scaling.values(theta)
         slack = np.atleast_1d(np.array(val(self._slack), float).ravel())
         groups = self._group_rows([np.atleast_1d(np.array(val(grp.expr), float).ravel()) for grp in self.groups], slack)
-        x_lam = (np.array(val(self._opti.x), float).ravel(), np.array(val(self._opti.lam_g), float).ravel())
-        return {"gains": dict(zip(self.free, map(float, gains), strict=False)), "warm": x_lam,
+        return {"gains": dict(zip(self.free, map(float, gains), strict=False)),
                 "groups": groups, "objective": float(val(self._J_main)),
                 "f_b": float(val(self._fb)) if self._fb is not None else None}
 

@@ -327,7 +327,7 @@ def test_a_false_optimum_of_a_replayed_grid_is_not_reported(params, example, mon
     OpenBLAS kernel's path). Here the first solve is made to stop 3 sd from the
     optimum in F_seal, as such a grid did: the fit confirms the optimum on steps chosen
     there, goes on, and reports the optimum of the unpatched fit after more than one
-    solve: within 0.3 sd, the two stopping points' 0.045 sd each (module _lm) and the
+    solve: within 0.3 sd, the two stopping points' 0.045 sd each (ema_casadi.optimisation) and the
     discretisation difference of two step grids (up to 0.16 sd, module _problem), far
     below the 3 sd displacement (measured 0.10 sd on the Sandybridge kernel). The noise
     levels are given, so the fit is one round (an estimated level's later rounds would

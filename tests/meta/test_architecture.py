@@ -31,7 +31,7 @@ MODEL_LAYER = ["model"]
 #: The analyses (paths relative to the package), which ask the model only.
 ANALYSES = [
     "linearisation", "sinestream", "mission", "tuning", "sweeps", "simulation",
-    "aircraft", "limitcycle", "export", "frequency", "faults", "optimal",  # export holds fmu/
+    "aircraft", "limitcycle", "export", "frequency", "faults", "optimal", "optimisation",  # export holds fmu/
 ]
 
 #: Parameter groups that describe the whole actuator rather than one part: the stroke

@@ -11,18 +11,19 @@ is for Python when that module is imported first.
 
 The layers, bottom to top (a module may import its own layer and the layers below):
 
-=============  ===========================================================================
-``_util``      checks, files, interrupts, keywords, parallel map, compiled libraries
-``signals``    the signal algebra, CSV tables, the text syntax
-``model``      parameters, parts (``components/``), the assembly
-``plots``      figures drawn from data (duck-typed results; no analysis imported)
-analyses       ``simulation``, ``linearisation``, ``frequency``, ``export`` (with
-               ``fmu/``), ``sinestream``, ``limitcycle``, ``aircraft``, ``mission``,
-               ``tuning``, ``sweeps``, ``identification``, ``faults``: among themselves a DAG
-               (no package cycle)
-``demo``       the demonstration run (uses everything below)
-``cli``        the ``ema`` command
-=============  ===========================================================================
+================  ===========================================================================
+``_util``         checks, files, interrupts, keywords, parallel map, compiled libraries
+``signals``       the signal algebra, CSV tables, the text syntax
+``model``         parameters, parts (``components/``), the assembly
+``plots``         figures drawn from data (duck-typed results; no analysis imported)
+``optimisation``  the IPOPT wrapper, least squares, transcriptions (model and helpers only)
+analyses          ``simulation``, ``linearisation``, ``frequency``, ``export`` (with
+                  ``fmu/``), ``sinestream``, ``limitcycle``, ``aircraft``, ``mission``,
+                  ``tuning``, ``sweeps``, ``identification``, ``faults``: among themselves a DAG
+                  (no package cycle)
+``demo``          the demonstration run (uses everything below)
+``cli``           the ``ema`` command
+================  ===========================================================================
 
 The package's root ``__init__`` loads its names on first use (no static import).
 """
@@ -42,7 +43,7 @@ ROOT = Path(ema_casadi.__file__).parent
 ANALYSES = ("simulation", "linearisation", "frequency", "export", "sinestream", "limitcycle", "aircraft", "mission",
             "tuning", "sweeps", "identification", "faults", "design", "optimal")
 #: Layer of each top-level module or package, bottom (0) to top.
-LAYERS = [("_util",), ("signals",), ("model",), ("plots",), ANALYSES, ("demo",), ("cli",)]
+LAYERS = [("_util",), ("signals",), ("model",), ("plots",), ("optimisation",), ANALYSES, ("demo",), ("cli",)]
 RANK = {name: rank for rank, names in enumerate(LAYERS) for name in names}
 
 

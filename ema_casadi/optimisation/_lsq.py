@@ -1,4 +1,5 @@
-"""Levenberg-Marquardt with a step bound and a statistical stopping rule.
+"""Least squares: Levenberg-Marquardt with a step bound and a statistical stopping
+rule, the Gauss-Newton prediction, and the Newton step of a (square or not) system.
 
 The residuals are weighted by the noise levels, so the cost 1/2 sum r^2 rises by 1/2
 when the estimates move by one standard deviation (in the direction that moves it
@@ -13,6 +14,8 @@ round-off is reached first).
 from __future__ import annotations
 
 import numpy as np
+
+__all__ = ["COST_TOL", "STEP_TOL", "STEP0", "levenberg_marquardt", "gauss_newton_decrease", "newton_step"]
 
 #: Stop when the Gauss-Newton step predicts a cost decrease below this.
 COST_TOL = 1e-3
@@ -91,7 +94,19 @@ def levenberg_marquardt(evaluate, z0, lo, hi, max_evaluations: int, cost_tol: fl
 
 def gauss_newton_decrease(r, J, z, lo, hi) -> float:
     """The cost decrease the Gauss-Newton step from ``z`` predicts (the step kept
-    within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there."""
+    within the box [lo, hi]), with residuals ``r`` and Jacobian ``J`` there.
+
+    Parameters
+    ----------
+    r : ndarray
+        Residuals at ``z``.
+    J : ndarray
+        Their Jacobian at ``z``.
+    z : ndarray
+        The point.
+    lo, hi : ndarray
+        The box.
+    """
     return _predicted(J.T @ r, J.T @ J, z, lo, hi)
 
 
@@ -100,6 +115,43 @@ def _predicted(g, H, z, lo, hi) -> float:
     gn = _solve(H / np.outer(d, d) + 1e-12 * np.eye(len(z)), -g / d) / d
     gn = np.clip(z + gn, lo, hi) - z
     return float(-(g @ gn) - 0.5 * gn @ H @ gn)
+
+
+def newton_step(J, r, *, least_squares: bool = False, rcond: float | None = None, max_step: float | None = None,
+                capped: int | None = None) -> np.ndarray:
+    """The Newton (Gauss-Newton) step ``dz`` of the system r(z) = 0 with Jacobian ``J``:
+    J dz = -r, solved by LU (a square system), or in the least-squares sense with the
+    minimum norm (a direction the equations do not fix is not moved).
+
+    Parameters
+    ----------
+    J : ndarray
+        Jacobian (m x n).
+    r : ndarray
+        Residuals (m).
+    least_squares : bool
+        Minimum-norm least squares (any m); else LU (m = n; ``numpy.linalg.LinAlgError``
+        where J is singular).
+    rcond : float, optional
+        Least squares: singular values below ``rcond`` times the largest count as zero
+        (None: machine precision times max(m, n)).
+    max_step : float, optional
+        Largest magnitude of a component: a longer step is shortened along its direction.
+    capped : int, optional
+        Only the first ``capped`` components are held to ``max_step`` (default all).
+
+    Returns
+    -------
+    ndarray
+        The step (n); not finite where J or r are not.
+    """
+    J, r = np.asarray(J, float), np.asarray(r, float)
+    dz = np.linalg.lstsq(J, -r, rcond=rcond)[0] if least_squares else np.linalg.solve(J, -r)
+    if max_step is not None:
+        head = dz[:capped] if capped is not None else dz
+        big = float(np.max(np.abs(head))) if head.size else 0.0
+        dz = dz * (max_step / big) if big > max_step else dz
+    return dz
 
 
 def _solve(A, b):
