@@ -17,7 +17,7 @@ from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
 from ._failed import FitFailed
-from ._hints import friction_hint, hints_at
+from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
 from ._problem import Predictor, free_parameters, given_model, marginal
 from ._records import IdentificationError, Record, read_record
@@ -494,5 +494,6 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tupl
     res.misfits = _misfit.misfits(recs, preds, e, out["sigma"], out["estimated"], model, res.info["units"])
     res.adequacy = _misfit.verdict(res.adequacy, res.misfits, unc["robust"], model_error)
     if not res.adequacy["adequate"]:
-        res.info["hints"] = friction_hint(model, recs, preds, e, out["sigma"], out["estimated"], [*fr.names, *held])
+        res.info["hints"] = friction_hint(model, recs, preds, e, out["sigma"], out["estimated"], [*fr.names, *held],
+                                          hump_score(fit, theta, out["sigma"]))
     return res
