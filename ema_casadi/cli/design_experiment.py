@@ -35,8 +35,9 @@ def add_arguments(p):
     p.add_argument("--free", default=FREE, metavar="NAME[,NAME...]",
                    help=f"parameters to pin down (flat names); default {FREE}")
     p.add_argument("--duration", default="10s", metavar="T", help="test length, whole seconds (10s, 8); default 10 s")
-    p.add_argument("--criterion", default="D", metavar="D|A|E",
-                   help="D (ellipsoid volume), A (sum of variances), E (largest variance); default D")
+    p.add_argument("--criterion", default="DC", metavar="DC|D|A|E",
+                   help="DC (D with no parameter's interval wider than the standard test's), D (ellipsoid "
+                        "volume), A (sum of variances), E (largest variance); default DC")
     p.add_argument("--weights", default=None, metavar="NAME=W[,NAME=W...]",
                    help="weights of the parameters in the criterion (default 1 each; 0 leaves one out)")
     p.add_argument("--stroke", default="10mm", metavar="X", help="the rod stays within +-X; default 10 mm")
@@ -159,6 +160,11 @@ def report(result: dict) -> None:
         if s["count"]:
             w(f"  {s['count']} x {s['segment']}\n")
     w(result["table"] + "\n")
+    ref = result["info"].get("reference")
+    if ref:
+        how = "reached" if ref["reachable"] else "not reachable with these segments; the max-min optimum"
+        w(f"no parameter's predicted interval wider than {ref['variance_bound'] ** 0.5:.3g} x the standard test's "
+          f"(target {ref['width_ratio_target']:g}: {how})\n")
     lc = c["largest_correlation"]
     w(f"largest correlation: designed {lc['designed']['pair'][0]}-{lc['designed']['pair'][1]} "
       f"{lc['designed']['corr']:+.3f}, standard {lc['standard']['pair'][0]}-{lc['standard']['pair'][1]} "
@@ -173,5 +179,8 @@ def report(result: dict) -> None:
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
+        for n, r in (v.get("against_standard") or {}).items():
+            w(f"  {n}: realised width / the standard test's predicted {100 * v['standard_width'][n]:.3g} % = "
+              f"{r:.3f}\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

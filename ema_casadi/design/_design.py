@@ -19,7 +19,7 @@ from ..simulation import AnalysisFailed, progress_bar
 from ._excitation import realise, standard_test
 from ._fisher import information, intervals
 from ._library import admissible, at_limits, candidates, evaluate
-from ._optimise import CRITERIA, efficient_rounding, optimal_weights
+from ._optimise import CRITERIA, WIDTH_RATIO, efficient_rounding, optimal_weights
 from ._optimise import criterion as criterion_value
 
 __all__ = ["DesignError", "DesignFailed", "design_experiment", "read_prior", "DEFAULT_FREE", "SPREAD"]
@@ -124,7 +124,7 @@ def _sigma(model, channels, sigma) -> dict:
     return out
 
 
-def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "D",
+def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "DC",
                       weights: dict | None = None, stroke: float = 0.01, max_load: float = 15e3,
                       max_speed: float | None = None, sigma: dict | None = None, channels=None, prior=None,
                       draws: int | None = None, spread: float = SPREAD, segment: float = 1.0, rate: float = 2000.0,
@@ -143,9 +143,12 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         Flat names of the parameters to pin down.
     duration : float
         Test length (s), a whole number of segments.
-    criterion : {"D", "A", "E"}
-        D: the volume of the confidence ellipsoid; A: the sum of the (weighted) relative
-        variances; E: the largest (weighted) variance.
+    criterion : {"DC", "D", "A", "E"}
+        DC (default): D with no named parameter's predicted interval wider than the
+        standard test's of the same length (0.95 x it where the library allows, else the
+        max-min optimum of the ratios; :mod:`._optimise`); D: the volume of the
+        confidence ellipsoid; A: the sum of the (weighted) relative variances; E: the
+        largest (weighted) variance.
     weights : dict, optional
         Name -> weight of a free parameter in the criterion (default 1 each; 0: not of
         interest, D then takes the others' ellipsoid).
@@ -299,8 +302,12 @@ def _run(req, progress: bool, t_wall: float):
                            "prediction")
     segs = [cands[k] for k in ok]
     Ms = np.array([ev[k][0] for k in ok])
+    standard = standard_test(duration, stroke, max_load, rate, *names, max_speed=req.max_speed)
+    bar(0.65, "the standard test")
+    std_infos = [information(model, standard, fr, sig, th, **lim) for th in thetas]
+    M_std = np.mean([i.M for i in std_infos], axis=0)  # the reference of the DC criterion
     t0 = time.perf_counter()
-    opt = optimal_weights(Ms, criterion, pw, n_seg)
+    opt = optimal_weights(Ms, criterion, pw, n_seg, reference=M_std)
     t_opt = time.perf_counter() - t0
     if not opt["success"]:
         raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
@@ -310,15 +317,11 @@ def _run(req, progress: bool, t_wall: float):
     test = realise([segs[k] for k in order], segment, rate, *names)
     bar(0.85, "the designed test")
     infos = [information(model, test, fr, sig, th, **lim) for th in thetas]
-    standard = standard_test(duration, stroke, max_load, rate, *names, max_speed=req.max_speed)
-    bar(0.95, "the standard test")
-    std_infos = [information(model, standard, fr, sig, th, **lim) for th in thetas]
     usage = {n: max(i.usage[n] for i in infos) for n in infos[0].usage}
     if not admissible(usage):
         worst = max(usage, key=lambda n: usage[n] / (0.95 if n == "stroke" else 1.0))
         raise DesignFailed(f"the designed test's prediction leaves the {worst} limit ({usage[worst]:.3g} x it)")
     M = np.mean([i.M for i in infos], axis=0)
-    M_std = np.mean([i.M for i in std_infos], axis=0)
     bar(1.0, "done")
     table = [{"segment": s.label(), "kind": s.kind, "band": list(s.band), "load": s.load, "amplitude": s.amplitude,
               "share": float(opt["w"][ok_k]), "count": int(counts[ok_k])}
@@ -327,6 +330,9 @@ def _run(req, progress: bool, t_wall: float):
             "criterion_value": criterion_value(M, criterion, pw),
             "criterion_standard": criterion_value(M_std, criterion, pw),
             "ipopt": {"status": opt["status"], "iterations": opt["iterations"]},
+            **({"reference": {"maxmin_variance_ratio": opt["maxmin"], "variance_bound": opt["bound"],
+                              "width_ratio_target": WIDTH_RATIO, "reachable": opt["maxmin"] <= WIDTH_RATIO**2}}
+               if criterion == "DC" else {}),
             "candidates": len(cands), "admissible": len(ok), "draws": len(thetas),
             "prior_sd": dict(zip(fr.names, prior_sd.tolist(), strict=True)),
             "additive_criterion": opt["value"], "segment": segment, "rate": rate, "duration": duration,
