@@ -97,7 +97,7 @@ def criterion(M, crit: str = "D", weights=None) -> float:
     return value if np.isfinite(value) else math.inf
 
 
-def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1, reference=None) -> dict:
+def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1, reference=None, factor=None) -> dict:
     """The optimal share of each candidate: IPOPT on ``min criterion(slots sum_i w_i M_i)``
     over the simplex.
 
@@ -113,6 +113,9 @@ def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1, reference
         Segments in the test (scales M: the values then belong to the test).
     reference : array_like, optional
         ``DC``: the reference test's information (n x n) (its variances ``v_k``).
+    factor : array_like, optional
+        ``DC``: per parameter, a factor on its reference variance (default 1 each): the
+        caller's correction where the realised test fell short of the additive one.
 
     Returns
     -------
@@ -129,7 +132,7 @@ def optimal_weights(Ms, crit: str = "D", weights=None, slots: int = 1, reference
     scale = float(np.mean([np.trace(m) for m in Ms])) / n or 1.0
     extra = {}
     if crit == "DC":  # the variances against the reference's, in the scaled information's units
-        v_ref = np.diag(np.linalg.inv(np.asarray(reference, float)))
+        v_ref = np.diag(np.linalg.inv(np.asarray(reference, float))) * (1.0 if factor is None else np.asarray(factor))
         v = v_ref * scale * slots  # the scaled information sum_i w_i M_i / scale has variances C_kk slots scale
         named = [k for k in range(n) if pw[k] > 0]
         M0 = np.tensordot(np.full(K, 1.0 / K), Ms / scale, 1)
