@@ -284,12 +284,37 @@ def _realise(req, segs, w, thetas, lim):
     return counts, test, [information(req.model, test, req.fr, req.sig, th, **lim) for th in thetas]
 
 
+def _rounds(req, segs, Ms, M_std, thetas, lim):
+    """The weights, the realised test and its information; for DC the rounds against the
+    standard test (:data:`DC_ROUNDS`), the one nearest it kept: (chosen round, rounds,
+    opt, counts, test, infos, M)."""
+    fr, criterion, pw, n_seg = req.fr, req.criterion, req.pw, req.n_seg
+    factor, rounds, tried = np.ones(len(fr.names)), [], []
+    for _ in range(DC_ROUNDS if criterion == "DC" else 1):
+        opt = optimal_weights(Ms, criterion, pw, n_seg, reference=M_std, factor=factor)
+        if not opt["success"]:
+            raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
+        counts, test, infos = _realise(req, segs, opt["w"], thetas, lim)
+        M = np.mean([i.M for i in infos], axis=0)
+        ratio = np.diag(np.linalg.inv(M)) / np.diag(np.linalg.inv(M_std))  # realised variances / the standard's
+        worst = float(np.max(ratio[pw > 0]))
+        rounds.append({"variance_ratio": ratio.tolist(), "factor": factor.tolist(), "worst_width_ratio":
+                       float(np.sqrt(worst))})
+        tried.append((worst, len(tried), opt, counts, test, infos, M))
+        over = (pw > 0) & (ratio > WIDTH_RATIO**2)
+        if criterion != "DC" or not over.any():
+            break
+        factor = np.where(over, factor * WIDTH_RATIO**2 / ratio, factor)  # the additive sum was optimistic there
+    _, best, opt, counts, test, infos, M = min(tried, key=lambda r: r[:2])  # DC: the round nearest the standard
+    return best, rounds, opt, counts, test, infos, M
+
+
 def _run(req, progress: bool, t_wall: float):
     """The design: candidates, weights, the realised test, the standard test."""
     from ._result import DesignResult
 
     params, model, fr, sig, names = req.params, req.model, req.fr, req.sig, req.names
-    segment, rate, stroke, max_load, n_seg = req.segment, req.rate, req.stroke, req.max_load, req.n_seg
+    segment, rate, stroke, max_load = req.segment, req.rate, req.stroke, req.max_load
     lim = {"stroke": stroke, "max_load": max_load, "max_speed": req.max_speed}
     criterion, pw, duration, variants, library = req.criterion, req.pw, req.duration, req.variants, req.library
     prior, draws, spread, seed = req.prior, req.draws, req.spread, req.seed
@@ -320,23 +345,7 @@ def _run(req, progress: bool, t_wall: float):
     std_infos = [information(model, standard, fr, sig, th, **lim) for th in thetas]
     M_std = np.mean([i.M for i in std_infos], axis=0)  # the reference of the DC criterion
     t0 = time.perf_counter()
-    factor, rounds, tried = np.ones(len(fr.names)), [], []
-    for _ in range(DC_ROUNDS if criterion == "DC" else 1):
-        opt = optimal_weights(Ms, criterion, pw, n_seg, reference=M_std, factor=factor)
-        if not opt["success"]:
-            raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
-        counts, test, infos = _realise(req, segs, opt["w"], thetas, lim)
-        M = np.mean([i.M for i in infos], axis=0)
-        ratio = np.diag(np.linalg.inv(M)) / np.diag(np.linalg.inv(M_std))  # realised variances / the standard's
-        worst = float(np.max(ratio[pw > 0]))
-        rounds.append({"variance_ratio": ratio.tolist(), "factor": factor.tolist(), "worst_width_ratio":
-                       float(np.sqrt(worst))})
-        tried.append((worst, len(tried), opt, counts, test, infos, M))
-        over = (pw > 0) & (ratio > WIDTH_RATIO**2)
-        if criterion != "DC" or not over.any():
-            break
-        factor = np.where(over, factor * WIDTH_RATIO**2 / ratio, factor)  # the additive sum was optimistic there
-    _, best, opt, counts, test, infos, M = min(tried, key=lambda r: r[:2])  # DC: the round nearest the standard
+    best, rounds, opt, counts, test, infos, M = _rounds(req, segs, Ms, M_std, thetas, lim)
     t_opt = time.perf_counter() - t0
     bar(0.85, "the designed test")
     usage = {n: max(i.usage[n] for i in infos) for n in infos[0].usage}
