@@ -78,6 +78,8 @@ def fit_text(result: dict) -> str:
     else:
         for reason in result["misfit"]:
             w(f"INADEQUATE: {reason}\n")
+    for hint in result.get("hints") or []:
+        w(f"hint: {hint['text']}\n")
     for row in result.get("comparison", []):
         verdict = row.get("verdict") or ("adequate" if row["adequate"] else "INADEQUATE")
         state = "failed: " + row["failed"] if "failed" in row else verdict.replace("inadequate", "INADEQUATE")
@@ -90,4 +92,28 @@ def fit_text(result: dict) -> str:
     w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")
+    return "".join(parts)
+
+
+def failure_text(result: dict) -> str:
+    """A fit without a result: its status, the last iterate, the cost's course, the
+    hints (the reason itself is the command's line on stderr).
+
+    Parameters
+    ----------
+    result : dict
+        The document of ``FitFailed.to_dict`` (or of a comparison none of whose
+        combinations converged).
+    """
+    parts = [f"status: {result['status']}\n"]
+    it = result.get("last_iterate") or {}
+    if it:
+        parts.append("last iterate: " + ", ".join(f"{k} = {v:.6g}" for k, v in it.items()) + "\n")
+    hist = [h["cost"] for h in result.get("cost_history") or []]
+    if hist:
+        parts.append(f"cost over {len(hist)} evaluations: {hist[0]:.6g} -> {min(hist):.6g} (last {hist[-1]:.6g})\n")
+    for row in result.get("comparison", []):
+        parts.append(f"compared {row['variants']}: failed: {row.get('failed', '')}\n")
+    for hint in result.get("hints", []):
+        parts.append(f"hint: {hint['text']}\n")
     return "".join(parts)

@@ -35,8 +35,9 @@ def add_arguments(p):
     p.add_argument("--free", default=FREE, metavar="NAME[,NAME...]",
                    help=f"parameters to pin down (flat names); default {FREE}")
     p.add_argument("--duration", default="10s", metavar="T", help="test length, whole seconds (10s, 8); default 10 s")
-    p.add_argument("--criterion", default="D", metavar="D|A|E",
-                   help="D (ellipsoid volume), A (sum of variances), E (largest variance); default D")
+    p.add_argument("--criterion", default="DC", metavar="DC|D|A|E",
+                   help="DC (D with no parameter's interval wider than the standard test's), D (ellipsoid "
+                        "volume), A (sum of variances), E (largest variance); default DC")
     p.add_argument("--weights", default=None, metavar="NAME=W[,NAME=W...]",
                    help="weights of the parameters in the criterion (default 1 each; 0 leaves one out)")
     p.add_argument("--stroke", default="10mm", metavar="X", help="the rod stays within +-X; default 10 mm")
@@ -171,6 +172,12 @@ def report(result: dict) -> None:
         if s["count"]:
             w(f"  {s['count']} x {_segment(s)}\n")
     w(result["table"] + "\n")
+    ref = result["info"].get("reference")
+    if ref:
+        ok = ref["width_ratio_realised"] <= 1.0
+        w(f"{'every' if ok else 'NOT every'} parameter's predicted interval within the standard test's: the widest "
+          f"{ref['width_ratio_realised']:.3g} x it (target {ref['width_ratio_target']:g}; round "
+          f"{ref['chosen_round'] + 1} of {len(ref['rounds'])})\n")
     lc = c["largest_correlation"]
     w(f"largest correlation: designed {lc['designed']['pair'][0]}-{lc['designed']['pair'][1]} "
       f"{lc['designed']['corr']:+.3f}, standard {lc['standard']['pair'][0]}-{lc['standard']['pair'][1]} "
@@ -186,5 +193,8 @@ def report(result: dict) -> None:
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
+        for n, r in (v.get("against_standard") or {}).items():
+            w(f"  {n}: realised width / the standard test's predicted {100 * v['standard_width'][n]:.3g} % = "
+              f"{r:.3f}\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

@@ -8,10 +8,12 @@ layout with the estimates in place; --report DIR writes measured vs fitted figur
 residuals, the correlation heat map, the intervals and summary.json/summary.md.
 The headline 95 % intervals are robust (a Newey-West sandwich of the residuals'
 autocorrelation per record, inflated by the records' disagreement), the textbook
-ones beside them. A parameter whose robust interval is wider than +-50 % is not
-identifiable from these records (held at its start value and the others fitted
-again); a strong correlation is a note with the combination that is determined.
-A fit that does not converge ends with exit status 3 and writes nothing. The
+ones beside them. A parameter whose robust interval is wider than +-50 % is poorly
+determined: reported with its estimate and interval, held only on request (--hold
+NAME[=VALUE], --hold-unidentifiable; its type-B effect on the others' intervals
+shown); a strong correlation is a note with the combination that is determined.
+A fit that does not converge ends with exit status 3 and writes nothing (with --json,
+one document: status, reason, last iterate, cost history). The
 verdict: adequate (the residuals are explained by the noise: chi-square, Ljung-Box
 whiteness, records' consistency); adequate within model error (a test fails but
 every channel's systematic misfit is at most --model-error noise levels and no
@@ -35,7 +37,7 @@ from pathlib import Path
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
 from ._flags import NoEffect, check_bare, no_effect
-from ._identify_text import fit_text
+from ._identify_text import failure_text, fit_text
 
 COMMAND = "identify"
 ORDER = 12
@@ -74,8 +76,13 @@ def add_arguments(p):
                         "clamping) and rank them: adequate first, then by BIC; the best is written")
     p.add_argument("--max-fits", type=int, default=None, metavar="N",
                    help="--compare: most combinations (each a full fit); default 8")
-    p.add_argument("--keep-unidentifiable", action="store_true",
-                   help="do not hold parameters with intervals wider than +-50 %% at their start values")
+    p.add_argument("--hold", action="append", default=[], metavar="NAME[=VALUE]",
+                   help="hold a free parameter after the fit, at VALUE (SI or with a unit) or bare at its start "
+                        "value, and fit the others again; its type-B effect on their intervals is shown (its range: "
+                        "--structural NAME=LO:HI, else its interval while free), repeatable")
+    p.add_argument("--hold-unidentifiable", action="store_true",
+                   help="hold every poorly determined parameter (interval wider than +-50 %%) at its start value "
+                        "(default: reported with its estimate and interval, marked poorly determined)")
     p.add_argument("--profile", action="append", default=[], metavar="NAME",
                    help="profile-likelihood interval of a free parameter, repeatable")
     p.add_argument("--validate", nargs="+", default=[], metavar="RECORD",
@@ -144,6 +151,13 @@ def _quantities(items, flag, model) -> dict:
     return out
 
 
+def _holds(items, model) -> dict:
+    """--hold NAME[=VALUE]: name -> value (SI; a unit of the parameter's quantity) or None
+    (its start value)."""
+    bare = {s.strip(): None for s in items if "=" not in s}
+    return {**bare, **_quantities([s for s in items if "=" in s], "--hold", model)}
+
+
 def _split(args) -> list:
     """The records; a first positional that is not a .toml file is a record (then the
     model is the packaged reference, args.model set to None)."""
@@ -205,13 +219,14 @@ NO_EFFECT = {
     "--bounds": (_on(_COMPARE_FIT, *_CMP, "--bounds", "F_seal=1:500"),),
     "--structural": tuple(_on(rule, *ex, "--structural", "P_blend=0.05:0.2") for rule, ex in
                           ((_TRACK, _TRENDS), (_EXAMPLE, ()), (_COMPARE_FIT, _CMP))),
-    "--keep-unidentifiable": (_on(_COMPARE_FIT, *_CMP, "--keep-unidentifiable"),),
+    "--hold": (_on(_COMPARE_FIT, *_CMP, "--hold", "F_seal"),),
+    "--hold-unidentifiable": (_on(_COMPARE_FIT, *_CMP, "--hold-unidentifiable"),),
 }
 #: A value of each flag for the examples of the --example-records rule (flags without one take none).
 _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
-           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2",
+           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
            "--structural": "P_blend=0.05:0.2"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
@@ -221,6 +236,7 @@ for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-re
 
 
 def run(args) -> dict:
+    from ..identification import FitFailed
 
     if args.example_records is not None:
         return _write_examples(args)
@@ -238,22 +254,26 @@ def run(args) -> dict:
         raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
     params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
-    if not records:
-        return _example(args, params, model, out, progress)
-    if args.free is None:
-        raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
-    free = [s.strip() for s in args.free.split(",") if s.strip()]
-    kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
-          "starts": args.starts, "max_evaluations": args.max_evaluations,
-          "hold_unidentifiable": not args.keep_unidentifiable, "estimate_x0": args.estimate_x0,
-          "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
-          **({} if args.model_error is None else {"model_error": args.model_error}),
-          **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
-    if args.track:
-        return _track(args, params, model, records, free, kw)
-    if args.compare:
-        return _compare(args, params, model, records, free, kw, out)
-    return _fit(args, params, model, records, free, kw, out)
+    try:
+        if not records:
+            return _example(args, params, model, out, progress)
+        if args.free is None:
+            raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
+        free = [s.strip() for s in args.free.split(",") if s.strip()]
+        kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
+              "starts": args.starts, "max_evaluations": args.max_evaluations,
+              "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
+              "estimate_x0": args.estimate_x0,
+              "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
+              **({} if args.model_error is None else {"model_error": args.model_error}),
+              **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
+        if args.track:
+            return _track(args, params, model, records, free, kw)
+        if args.compare:
+            return _compare(args, params, model, records, free, kw, out)
+        return _fit(args, params, model, records, free, kw, out)
+    except FitFailed as exc:  # not converged, or the model fails at the start: the document still
+        return {**exc.to_dict(), "failure": exc.reason, "written": []}
 
 
 def _write_examples(args) -> dict:
@@ -314,13 +334,15 @@ def _fit(args, params, model, records, free, kw, out) -> dict:
     if report is not None:
         written.append(str(res.write_report(report)))
     doc["written"] = written
+    doc["reason"] = res.info["optimizer_message"]
+    doc["last_iterate"] = {**res.estimate, **{n: h["held_at"] for n, h in res.held.items()}}
     if bad:
         reasons = res.adequacy["reasons"]
         line = f"inadequate fit: {reasons[0]}" + (f" (and {len(reasons) - 1} more)" if len(reasons) > 1 else "")
         if args.allow_misfit:
             sys.stderr.write(f"ema identify: warning: {line}\n")
         else:
-            doc["failure"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
+            doc["failure"] = doc["reason"] = line + "; the intervals are not trustworthy (--allow-misfit to accept)"
     return doc
 
 
@@ -336,7 +358,8 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    for flag in ("--starts", "--jobs", "--bounds", "--keep-unidentifiable", "--model-error", "--structural"):  # none
+    for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
+                 "--structural"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -383,10 +406,10 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
                   estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"))
     best = cmp.best
-    if best is None:
-        from ..simulation import RunFailed
-
-        raise RunFailed("no combination converged", 0.0)
+    if best is None:  # every combination failed: their reasons, one document
+        why = "no combination converged: " + "; ".join(f"{r['variants']}: {r['failed']}" for r in cmp.rows)
+        return {"status": "failed", "converged": False, "reason": why, **cmp.to_dict(), "failure": why,
+                "written": []}
     doc = {**best.to_dict(), **cmp.to_dict()}
     _channel_units(doc, model)
     bad = not best.adequacy["adequate"]
@@ -435,7 +458,8 @@ def _example(args, params, model, out, progress) -> dict:
         free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
         doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
                                                       "max_evaluations": args.max_evaluations,
-                                                      "hold_unidentifiable": not args.keep_unidentifiable,
+                                                      "hold": _holds(args.hold, model),
+                                                      "hold_unidentifiable": args.hold_unidentifiable,
                                                       "sigma": _quantities(args.sigma, "--sigma", model),
                                                       "bounds": _bounds(args.bounds),
                                                       "jobs": min(args.starts, args.jobs or cores())}, out)
@@ -456,5 +480,8 @@ def report(result: dict) -> None:
         from ..identification import report_text
 
         w(report_text(result))
+        return
+    if result.get("converged") is False:  # the reason goes to stderr; the last iterate here
+        w(failure_text(result))
         return
     w(fit_text(result))

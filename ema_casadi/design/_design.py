@@ -20,13 +20,16 @@ from ..simulation import AnalysisFailed, progress_bar
 from ._excitation import realise, standard_test
 from ._fisher import information, intervals
 from ._library import admissible, at_limits, candidates, evaluate
-from ._optimise import CRITERIA, efficient_rounding, optimal_weights
+from ._optimise import CRITERIA, WIDTH_RATIO, efficient_rounding, optimal_weights
 from ._optimise import criterion as criterion_value
 
 __all__ = ["DesignError", "DesignFailed", "design_experiment", "read_prior", "DEFAULT_FREE", "SPREAD"]
 
 #: The seven parameters of the recovery case (friction, backlash, stiffness, the motor).
 DEFAULT_FREE = ("F_seal", "C_bear", "c_v", "B", "C", "J_m", "psi")
+#: DC: rounds of the realised test against the standard (each parameter whose realised
+#: variance ratio exceeds the target has its additive bound tightened by the excess).
+DC_ROUNDS = 4
 #: Relative standard deviation of the prior's draws where no fitted file gives one.
 SPREAD = 0.2
 #: A test shorter than this many segments has no room for a design.
@@ -125,7 +128,7 @@ def _sigma(model, channels, sigma) -> dict:
     return out
 
 
-def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "D",
+def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 10.0, *, criterion: str = "DC",
                       weights: dict | None = None, stroke: float = 0.01, max_load: float = 15e3,
                       max_speed: float | None = None, sigma: dict | None = None, channels=None, prior=None,
                       draws: int | None = None, spread: float = SPREAD, segment: float = 1.0, rate: float = 2000.0,
@@ -144,9 +147,12 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         Flat names of the parameters to pin down.
     duration : float
         Test length (s), a whole number of segments.
-    criterion : {"D", "A", "E"}
-        D: the volume of the confidence ellipsoid; A: the sum of the (weighted) relative
-        variances; E: the largest (weighted) variance.
+    criterion : {"DC", "D", "A", "E"}
+        DC (default): D with no named parameter's predicted interval wider than the
+        standard test's of the same length (0.95 x it where the library allows, else the
+        max-min optimum of the ratios; :mod:`._optimise`); D: the volume of the
+        confidence ellipsoid; A: the sum of the (weighted) relative variances; E: the
+        largest (weighted) variance.
     weights : dict, optional
         Name -> weight of a free parameter in the criterion (default 1 each; 0: not of
         interest, D then takes the others' ellipsoid).
@@ -269,12 +275,47 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
     return SimpleNamespace(**{k: v for k, v in locals().items() if k != 'exc'})
 
 
+def _realise(req, segs, w, thetas, lim):
+    """The shares ``w`` rounded to whole segments, the test realised, its information
+    per draw: (counts, test, infos)."""
+    counts = efficient_rounding(w, req.n_seg)
+    order = sorted([k for k in range(len(segs)) for _ in range(counts[k])],
+                   key=lambda k: (segs[k].load, segs[k].kind, segs[k].band, segs[k].amplitude))
+    test = realise([segs[k] for k in order], req.segment, req.rate, *req.names)
+    return counts, test, [information(req.model, test, req.fr, req.sig, th, **lim) for th in thetas]
+
+
+def _rounds(req, segs, Ms, M_std, thetas, lim):
+    """The weights, the realised test and its information; for DC the rounds against the
+    standard test (:data:`DC_ROUNDS`), the one nearest it kept: (chosen round, rounds,
+    opt, counts, test, infos, M)."""
+    fr, criterion, pw, n_seg = req.fr, req.criterion, req.pw, req.n_seg
+    factor, rounds, tried = np.ones(len(fr.names)), [], []
+    for _ in range(DC_ROUNDS if criterion == "DC" else 1):
+        opt = optimal_weights(Ms, criterion, pw, n_seg, reference=M_std, factor=factor)
+        if not opt["success"]:
+            raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
+        counts, test, infos = _realise(req, segs, opt["w"], thetas, lim)
+        M = np.mean([i.M for i in infos], axis=0)
+        ratio = np.diag(np.linalg.inv(M)) / np.diag(np.linalg.inv(M_std))  # realised variances / the standard's
+        worst = float(np.max(ratio[pw > 0]))
+        rounds.append({"variance_ratio": ratio.tolist(), "factor": factor.tolist(), "worst_width_ratio":
+                       float(np.sqrt(worst))})
+        tried.append((worst, len(tried), opt, counts, test, infos, M))
+        over = (pw > 0) & (ratio > WIDTH_RATIO**2)
+        if criterion != "DC" or not over.any():
+            break
+        factor = np.where(over, factor * WIDTH_RATIO**2 / ratio, factor)  # the additive sum was optimistic there
+    _, best, opt, counts, test, infos, M = min(tried, key=lambda r: r[:2])  # DC: the round nearest the standard
+    return best, rounds, opt, counts, test, infos, M
+
+
 def _run(req, progress: bool, t_wall: float):
     """The design: candidates, weights, the realised test, the standard test."""
     from ._result import DesignResult
 
     params, model, fr, sig, names = req.params, req.model, req.fr, req.sig, req.names
-    segment, rate, stroke, max_load, n_seg = req.segment, req.rate, req.stroke, req.max_load, req.n_seg
+    segment, rate, stroke, max_load = req.segment, req.rate, req.stroke, req.max_load
     lim = {"stroke": stroke, "max_load": max_load, "max_speed": req.max_speed}
     criterion, pw, duration, variants, library = req.criterion, req.pw, req.duration, req.variants, req.library
     prior, draws, spread, seed = req.prior, req.draws, req.spread, req.seed
@@ -300,26 +341,18 @@ def _run(req, progress: bool, t_wall: float):
                            "prediction")
     segs = [cands[k] for k in ok]
     Ms = np.array([ev[k][0] for k in ok])
-    t0 = time.perf_counter()
-    opt = optimal_weights(Ms, criterion, pw, n_seg)
-    t_opt = time.perf_counter() - t0
-    if not opt["success"]:
-        raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
-    counts = efficient_rounding(opt["w"], n_seg)
-    order = sorted([k for k in range(len(segs)) for _ in range(counts[k])],
-                   key=lambda k: (segs[k].load, segs[k].kind, segs[k].band, segs[k].amplitude))
-    test = realise([segs[k] for k in order], segment, rate, *names)
-    bar(0.85, "the designed test")
-    infos = [information(model, test, fr, sig, th, **lim) for th in thetas]
     standard = standard_test(duration, stroke, max_load, rate, *names, max_speed=req.max_speed)
-    bar(0.95, "the standard test")
+    bar(0.65, "the standard test")
     std_infos = [information(model, standard, fr, sig, th, **lim) for th in thetas]
+    M_std = np.mean([i.M for i in std_infos], axis=0)  # the reference of the DC criterion
+    t0 = time.perf_counter()
+    best, rounds, opt, counts, test, infos, M = _rounds(req, segs, Ms, M_std, thetas, lim)
+    t_opt = time.perf_counter() - t0
+    bar(0.85, "the designed test")
     usage = {n: max(i.usage[n] for i in infos) for n in infos[0].usage}
     if not admissible(usage):
         worst = max(usage, key=lambda n: usage[n] / (0.95 if n == "stroke" else 1.0))
         raise DesignFailed(f"the designed test's prediction leaves the {worst} limit ({usage[worst]:.3g} x it)")
-    M = np.mean([i.M for i in infos], axis=0)
-    M_std = np.mean([i.M for i in std_infos], axis=0)
     bar(1.0, "done")
     table = [{"segment": s.label(), "kind": s.kind, "band": list(s.band), "load": s.load, "amplitude": s.amplitude,
               "share": float(opt["w"][ok_k]), "count": int(counts[ok_k])}
@@ -328,6 +361,11 @@ def _run(req, progress: bool, t_wall: float):
             "criterion_value": criterion_value(M, criterion, pw),
             "criterion_standard": criterion_value(M_std, criterion, pw),
             "ipopt": {"status": opt["status"], "iterations": opt["iterations"]},
+            **({"reference": {"maxmin_variance_ratio": opt["maxmin"], "variance_bound": opt["bound"],
+                              "width_ratio_target": WIDTH_RATIO, "reachable": opt["maxmin"] <= WIDTH_RATIO**2,
+                              "rounds": rounds, "chosen_round": best,
+                              "width_ratio_realised": rounds[best]["worst_width_ratio"]}}
+               if criterion == "DC" else {}),
             "candidates": len(cands), "admissible": len(ok), "draws": len(thetas),
             "prior_sd": dict(zip(fr.names, prior_sd.tolist(), strict=True)),
             "additive_criterion": opt["value"], "segment": segment, "rate": rate, "duration": duration,

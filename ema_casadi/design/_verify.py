@@ -104,6 +104,7 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     adequate = [f for f in converged if f["adequate"]]
     good = converged  # the headline: every converged fit (after the restarts)
     pred = {m: float(result.predicted["width"][k]) for k, m in enumerate(names)}
+    std_width = {m: float(result.standard_predicted["width"][k]) for k, m in enumerate(names)}
 
     def width(kind):
         return {m: float(np.mean([(f[kind][m][1] - f[kind][m][0]) / truth[m] for f in good])) if good
@@ -126,6 +127,7 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
             "coverage_adequate": float(np.mean(every)) if every else float("nan"),
             "truth": truth, "predicted_width": pred, "realised_width": real, "realised_width_textbook": real_tb,
             "width_ratio": {m: real[m] / pred[m] for m in names}, "scatter_width": scatter,
+            "standard_width": std_width, "against_standard": {m: real[m] / std_width[m] for m in names},
             "coverage": float(np.mean(covered)) if covered else float("nan"), "limits_used": usage,
             "fits": [{k: f.get(k) for k in ("estimate", "failed", "cost", "adequate", "message", "prediction_rtol",
                                             "restarted")}

@@ -21,6 +21,7 @@ import numpy as np
 from .._util._checks import nearest
 from .._util._notebook import Summarised
 from ._fit import FitFailed, identify
+from ._hints import option_parameters
 from ._records import IdentificationError
 
 #: Combinations compared at most unless the caller raises it (each is a full fit).
@@ -141,8 +142,10 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
         The records.
     free : sequence of str
         The free parameters (the same for every combination; one that a combination's
-        parts do not use, such as the clamping band ``w_aw`` with back-calculation, is
-        left out of that combination's fit and named in its row's ``not_used``).
+        parts do not use, such as the clamping band ``w_aw`` with back-calculation, or
+        a friction option's own parameter where that option is off (``r_start``,
+        ``v_st`` with ``stribeck = off``), is left out of that combination's fit and
+        named in its row's ``not_used``).
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
@@ -158,7 +161,8 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     for combo in combinations(options, variants, max_fits):
         model = build_model(params, combo)
         # a parameter of a structure the combination leaves out (w_aw without clamping): not fitted there
-        unused = [n for n in free if n in model.param_names and n not in model.used_params]
+        unused = [n for n in free if n in model.param_names and (n not in model.used_params
+                                                                  or n in option_parameters(model.variants))]
         mine = [n for n in free if n not in unused]
         try:
             res = identify(params, records, mine, sigma=sigma, variants=combo, max_evaluations=max_evaluations,

@@ -14,9 +14,12 @@ from .._util._parallel import check_main_guard, process_map
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
-from ..simulation import AnalysisFailed, RunFailed, progress_bar
+from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
-from ._problem import Predictor, free_parameters, marginal
+from ._failed import FitFailed
+from ._hints import friction_hint, hints_at, hump_score
+from ._hold import check_hold, held_doc
+from ._problem import Predictor, free_parameters, given_model, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
@@ -44,20 +47,9 @@ CONFIRM_EVALUATIONS = 8
 X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 
 
-class FitFailed(AnalysisFailed):
-    """A fit that did not converge, or whose model run failed at the start values: not
-    a result (the command line: exit status 3, one line, no fitted file).
-
-    Parameters
-    ----------
-    what : str
-        The reason, one line.
-    """
-
-
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
-             max_evaluations: int = 60, hold_unidentifiable: bool = True, estimate_x0=False,
+             max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
              structural: dict | None = None, progress: bool = False, model: Model | None = None) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
@@ -89,9 +81,15 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         guard for jobs > 1); the result is the same for any jobs.
     max_evaluations : int
         Model evaluations per fit at most; a fit that needs more did not converge.
+    hold : dict or sequence of str, optional
+        Free parameters to hold after the fit (:mod:`._hold`): name -> value (SI), or
+        None for the start value (a sequence of names: each at its start value). The
+        others are fitted again without them; each held one adds its type-B term (its
+        range: ``structural``'s entry, else its interval while free) to their robust
+        intervals. Nothing is held unless asked: a parameter whose robust interval is
+        wider than +-50 % is reported with its estimate and marked poorly determined.
     hold_unidentifiable : bool
-        A parameter whose interval is wider than +-50 % is held at its start value
-        and the others are fitted again without it.
+        Also hold every poorly determined parameter at its start value (as ``hold``).
     estimate_x0 : bool or sequence of str
         Estimate each record's initial state instead of starting it at rest: True for
         the mechanical states (:data:`X0_ROLES`: positions and speeds) and the outer
@@ -110,7 +108,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     structural : dict, optional
         Name -> (lo, hi) (SI): constants of the structure held at their values whose
         plausible range adds a type-B component to the headline covariance, the
-        estimates' linearised shift over the range (:mod:`._structural`).
+        estimates' linearised shift over the range (:mod:`._structural`); an entry for
+        a parameter named in ``hold`` is that one's range.
     progress : bool
         One line of progress on stderr.
     model : Model, optional
@@ -146,10 +145,20 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
     model_error = number(model_error, "model_error", IdentificationError, positive=True)
+    if not isinstance(hold_unidentifiable, bool):
+        raise IdentificationError(f"hold_unidentifiable: expected True or False, got {hold_unidentifiable!r}")
+    values, ranges, structural = check_hold(fr, hold, structural)
     structural = check_structural(model, structural, fr.names)
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
-    fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
-    res = _finish(fit, best, recs, model, params, t_wall, hold_unidentifiable, consistency, model_error, structural)
+    try:
+        fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
+    except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
+        if exc.iterate and exc.status == "not converged":
+            exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
+                                 [exc.iterate[n] for n in fr.names], fr.names)
+        raise
+    res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
+                  model_error, structural)
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
@@ -197,7 +206,7 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
             except FitFailed as exc:
                 if starts == 1:
                     raise
-                results.append((None, exc.reason))
+                results.append((None, exc))
     else:
         check_main_guard(IdentificationError, f"identify(starts={starts}, jobs={jobs})")
         for _z0, got in zip(points, process_map(_start_in_worker, [(*spec, z0) for z0 in points], jobs), strict=True):
@@ -209,34 +218,13 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
             results.append((fit, got["out"]))
     done = [(k, f, o) for k, (f, o) in enumerate(results) if f is not None]
     if not done:
-        raise FitFailed(f"none of the {starts} starts converged ({results[0][1]})")
+        first = results[0][1]
+        why = f"none of the {starts} starts converged ({getattr(first, 'reason', first)})"
+        if isinstance(first, FitFailed):  # the first start's last iterate and history
+            raise FitFailed(why, status=first.status, iterate=first.iterate, cost=first.cost, history=first.history)
+        raise FitFailed(why, status="not converged")
     _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
     return fit, out
-
-
-def given_model(model, params: Parameters, variants: dict | None) -> Model:
-    """The model of ``params`` and ``variants``: the one the caller built (checked to be
-    that model), or built here.
-
-    Parameters
-    ----------
-    model : Model or None
-        The caller's model.
-    params : Parameters
-        The parameter set.
-    variants : dict or None
-        Variant overrides.
-    """
-    if model is None:
-        return build_model(params, variants)
-    from ..model.components import validate_variants
-
-    instance(model, Model, "model", IdentificationError, " (from build_model)")
-    same = np.array_equal(model.params.vector(), params.vector(), equal_nan=True)  # the model keeps a copy
-    if not same or dict(model.variants) != validate_variants({**params.variants, **(variants or {})}):
-        raise IdentificationError("model: not the model of these parameters and variants "
-                                  "(build_model(params, variants))")
-    return model
 
 
 def _start_in_worker(args) -> dict | str:
@@ -298,6 +286,8 @@ class _Fit:
         self.z_grid = None
         self.failure = ""
         self.evaluations = 0
+        self.history = []  # per evaluation: its cost (the round's weights), for the JSON of every exit
+        self.round, self._logged = 0, None
 
     # -- residuals -------------------------------------------------------------------
     def errors(self, theta):
@@ -349,7 +339,21 @@ class _Fit:
     def _eval(self, z, sig):
         """Weighted residuals and Jacobian at ``z`` (None, None where the run failed)."""
         raw = self._raw(z)
-        return (None, None) if raw is None else self.weighted(raw[1], raw[2], sig)
+        if raw is None:
+            return None, None
+        r, J = self.weighted(raw[1], raw[2], sig)
+        key = (np.asarray(z, float).tobytes(), self.round)
+        if key != self._logged:  # each point once per round (a cached one is not a new evaluation)
+            self._logged = key
+            self.history.append({"evaluation": self.evaluations, "cost": 0.5 * float(r @ r), "round": self.round})
+        return r, J
+
+    def failed(self, what: str, z, cost=None, status: str = "not converged") -> FitFailed:
+        """The :class:`FitFailed` of this fit at optimiser point ``z`` (its last iterate)."""
+        fr = self.pred.free
+        theta = fr.theta(np.asarray(z, float)[: len(fr.names)])
+        return FitFailed(what, status=status, iterate=dict(zip(fr.names, theta.tolist(), strict=True)),
+                         cost=None if cost is None or not np.isfinite(cost) else float(cost), history=self.history)
 
     # -- the fit ---------------------------------------------------------------------
     def _confirmed(self, sig, z, lo, hi, budget, tol) -> dict:
@@ -361,7 +365,8 @@ class _Fit:
         the optimum on its own grid is kept."""
         sol = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
         if not sol["converged"]:
-            raise FitFailed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})")
+            raise self.failed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})",
+                              sol["z"], sol["cost"])
         for _ in range(CONFIRMS):
             z = sol["z"]
             if self.z_grid is not None and np.array_equal(z, self.z_grid):
@@ -390,7 +395,7 @@ class _Fit:
         self.z_grid = None
         raw = self._raw(z0)
         if raw is None:
-            raise FitFailed(f"the model run fails at the start values: {self.failure}")
+            raise self.failed(f"the model run fails at the start values: {self.failure}", z0, status="failed")
         e0 = raw[1]
         sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
         sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
@@ -400,11 +405,12 @@ class _Fit:
         estimate = [c for c in self.channels if c not in self.given]
 
         for _round in range(SIGMA_ROUNDS):
+            self.round = _round
             if _round:  # the step sequences chosen anew at a later round's start, then frozen
                 self._cache, self.z_grid = None, None
             budget = self.max_eval - self.evaluations + 1  # the round's start may be the cached point
             if budget < 2:
-                raise FitFailed(f"did not converge within {self.max_eval} model evaluations")
+                raise self.failed(f"did not converge within {self.max_eval} model evaluations", z)
             tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
             sol = self._confirmed(sig, z, lo, hi, budget, tol)
             z = sol["z"]
@@ -438,42 +444,46 @@ def robust_of(fit: _Fit, out: dict, structural: dict | None = None) -> dict:
     return add_structural(rob, structural_covariance(fit, out, structural or {}))
 
 
-def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool,
+def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tuple,
             consistency_test: bool = True, model_error: float = _misfit.MODEL_ERROR,
             structural: dict | None = None) -> IdentResult:
-    """Uncertainty, identifiability; parameters with intervals wider than +-50 % held at
-    their start values and the others fitted again; the result."""
+    """Uncertainty, identifiability (a wide interval: poorly determined, reported with
+    its estimate); the parameters ``hold`` asks for (:func:`._hold.check_hold`'s values
+    and ranges, and whether to hold every poorly determined one at its start) held and
+    the others fitted again, the held ones' type-B term in their intervals; the result."""
+    values, ranges, hold_wide = hold
     fr = fit.pred.free
     start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
     estimated = bool(out["estimated"])
     unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural))
-    held = {}
-    wide = [n for n, w in zip(fr.names, unc["wide"], strict=True) if w]
     evaluations = fit.pred.evaluations
-    if hold and wide and len(wide) < len(fr.names):
+    history = list(fit.history)
+    if hold_wide:
+        values = {**{n: float(fr.theta0[k]) for k, n in enumerate(fr.names) if unc["wide"][k]}, **values}
+    held = {}
+    if values and len(values) < len(fr.names):
         theta = fr.theta(out["z"])
-        for n in wide:
-            k = fr.names.index(n)
-            held[n] = {"start": float(fr.theta0[k]), "estimate_when_free": float(theta[k]),
-                       "interval_when_free": [float(v) for v in unc["interval"][k]],
-                       "relative_halfwidth": float(unc["halfwidth"][k])}
-        keep = [n for n in fr.names if n not in wide]
+        held = held_doc(fr, theta, unc, values, ranges)
+        keep = [n for n in fr.names if n not in held]
         base = fit.pred.base.copy()
-        base[fr.index] = np.where(np.isin(fr.names, wide), fr.theta0, theta)
+        base[fr.index] = [held[n]["held_at"] if n in held else v for n, v in zip(fr.names, theta, strict=True)]
         pred = Predictor(model, recs, fr.subset(keep, theta), base, fit.pred.x0_states)
         sig = {c: out["sigma"][c] for c in out["estimated"]}
         fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
         z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])
         out = {**fit2.run(z0), "estimated": out["estimated"]}
         fit, fr = fit2, pred.free
-        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural))
+        typeb = {**(structural or {}), **{n: tuple(h["range"]) for n, h in held.items()}}
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, typeb))
         evaluations += pred.evaluations
+        history += fit2.history
     theta = fr.theta(out["z"])
     preds, e, _ = fit._raw(out["z_full"])
     res = IdentResult._build(model=model, params=params, free=fr, theta=theta, unc=unc, out=out, records=recs,
                              preds=preds, errors=e, held=held, wall_time=time.perf_counter() - t_wall,
                              evaluations=evaluations, start=start)
     res.info["initial_state"] = initial_states(fit, out)
+    res.info["cost_history"] = history
     if consistency_test and len(recs) > 1:
         test = _consistency.consistency(fit, out)
         res.adequacy["consistency"] = test
@@ -483,4 +493,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: bool
             res.adequacy["adequate"] = False
     res.misfits = _misfit.misfits(recs, preds, e, out["sigma"], out["estimated"], model, res.info["units"])
     res.adequacy = _misfit.verdict(res.adequacy, res.misfits, unc["robust"], model_error)
+    if not res.adequacy["adequate"]:
+        res.info["hints"] = friction_hint(model, recs, preds, e, out["sigma"], out["estimated"], [*fr.names, *held],
+                                          hump_score(fit, theta, out["sigma"]))
     return res

@@ -20,10 +20,11 @@ from dataclasses import dataclass, fields
 import casadi as ca
 import numpy as np
 
-from .._util._checks import nearest
+from .._util._checks import instance, nearest
 from .._util._compiled import BufferCall, compile_function
 from .._util._parallel import cores
-from ..model.params import GROUPS, NONNEG, POS
+from ..model.assembly import Model, build_model
+from ..model.params import GROUPS, NONNEG, POS, Parameters
 from ..simulation import forward_sensitivities, input_signals
 from ._records import IdentificationError, Record, available_bytes
 
@@ -414,3 +415,28 @@ def marginal(J, n: int) -> np.ndarray:
         return J
     Jt, Jx = J[:, :n], J[:, n:]
     return Jt - Jx @ np.linalg.lstsq(Jx, Jt, rcond=1e-12)[0]
+
+
+def given_model(model, params: Parameters, variants: dict | None) -> Model:
+    """The model of ``params`` and ``variants``: the one the caller built (checked to be
+    that model), or built here.
+
+    Parameters
+    ----------
+    model : Model or None
+        The caller's model.
+    params : Parameters
+        The parameter set.
+    variants : dict or None
+        Variant overrides.
+    """
+    if model is None:
+        return build_model(params, variants)
+    from ..model.components import validate_variants
+
+    instance(model, Model, "model", IdentificationError, " (from build_model)")
+    same = np.array_equal(model.params.vector(), params.vector(), equal_nan=True)  # the model keeps a copy
+    if not same or dict(model.variants) != validate_variants({**params.variants, **(variants or {})}):
+        raise IdentificationError("model: not the model of these parameters and variants "
+                                  "(build_model(params, variants))")
+    return model

@@ -92,9 +92,9 @@ def uncertainty(free, z, J, r, estimated: bool, robust: dict | None = None) -> d
     return {"s2": s2, "cov_z": cov_z, "cov": cov, "std_z": std_z, "corr": corr, "interval": np.column_stack([lo, hi]),
             "halfwidth": rel, "wide": wide, "correlated": correlated, "partner": partner, "singular_values": sv,
             "weak": weak, "std_z_textbook": std_tb, "interval_textbook": np.column_stack([lo_tb, hi_tb]),
-            "std_textbook": std_tb * np.abs(D), "combination": [_combination(free, cov_z, k, partner[k], theta)
-                                                                if correlated[k] else None for k in range(n)],
-            "robust": robust}
+            "std_textbook": std_tb * np.abs(D), "std": std_z * np.abs(D),
+            "combination": [_combination(free, cov_z, k, partner[k], theta) if correlated[k] else None
+                            for k in range(n)], "robust": robust}
 
 
 def _intervals(free, theta, std_z):
@@ -218,7 +218,7 @@ class IdentResult(Summarised):
     Attributes
     ----------
     names : tuple of str
-        The parameters fitted (those held as not identifiable are in :attr:`held`).
+        The parameters fitted (those held on request are in :attr:`held`).
     start, estimate : dict
         Name -> start value and estimate (SI).
     interval : dict
@@ -230,12 +230,12 @@ class IdentResult(Summarised):
     covariance, correlation : ndarray
         In :attr:`names` order (SI).
     identifiable : dict
-        Name -> True, or the reason it is not (a robust 95 % interval wider than
-        +-50 %; a strong correlation alone is a note, :attr:`notes`).
+        Name -> True, or the reason it is not: poorly determined (a robust 95 %
+        interval wider than +-50 %, the estimate reported), or held on request; a
+        strong correlation alone is a note, :attr:`notes`.
     held : dict
-        Parameters not identifiable from the records (interval wider than +-50 %),
-        held at their start values while the others were fitted again: name ->
-        their start, their estimate and interval while free.
+        Parameters held on request while the others were fitted again: name -> the
+        value held, its type-B range, its estimate while free (:func:`._hold.held_doc`).
     weak_directions : list of dict
         Directions in log-parameter space the records determine poorly (from the SVD).
     channels : list of dict
@@ -272,7 +272,7 @@ class IdentResult(Summarised):
         Cost, evaluations, wall time, the model's variants, records, noise factor s^2.
     params, fitted_params : Parameters
         The set fitted and the set with the estimates in place (held parameters at
-        their start values).
+        their held values).
     """
 
     names: tuple
@@ -314,7 +314,8 @@ class IdentResult(Summarised):
         ident = {}
         for k, n in enumerate(names):
             if unc["wide"][k]:
-                ident[n] = f"95 % interval +-{100 * unc['halfwidth'][k]:.3g} % (wider than +-{100 * WIDE:g} %)"
+                ident[n] = (f"poorly determined: 95 % interval +-{100 * unc['halfwidth'][k]:.3g} % (wider than "
+                            f"+-{100 * WIDE:g} %)")
             else:
                 ident[n] = True
         notes, combos = {}, {}
@@ -325,16 +326,17 @@ class IdentResult(Summarised):
                 notes[n] = (f"correlated with {names[j]} ({unc['corr'][k, j]:+.3f}); each is determined to its "
                             f"interval, and {comb['expression']} to +-{100 * comb['halfwidth']:.2g} %")
         for n, h in held.items():
-            ident[n] = (f"95 % interval +-{100 * h['relative_halfwidth']:.3g} % when free: held at its start value "
-                        f"{h['start']:.6g}")
+            how, half = "its start value" if h["at_start"] else "the value named", 100 * h["relative_halfwidth"]
+            ident[n] = f"held at {h['held_at']:.6g} on request ({how}); 95 % interval +-{half:.3g} % when free"
         traj = [{"record": rec.path, "t": rec.t, "measured": dict(rec.channels),
                  "fitted": {c: pr["y"][c] for c in rec.channels}} for rec, pr in zip(records, preds, strict=True)]
-        fitted = params.replace(**{n: float(v) for n, v in zip(names, theta, strict=True)})
+        fitted = params.replace(**{n: float(v) for n, v in zip(names, theta, strict=True)},
+                                **{n: h["held_at"] for n, h in held.items()})
         stats = channel_stats(records, preds, errors, out["sigma"])
         return cls(names=tuple(names), start={n: float(start[n]) for n in names},
                    estimate={n: float(v) for n, v in zip(names, theta, strict=True)},
                    interval={n: (float(a), float(b)) for n, (a, b) in zip(names, unc["interval"], strict=True)},
-                   std={n: float(np.sqrt(unc["cov"][k, k])) for k, n in enumerate(names)},
+                   std={n: float(v) for n, v in zip(names, unc["std"], strict=True)},
                    covariance=unc["cov"], correlation=unc["corr"], identifiable=ident, held=held,
                    weak_directions=unc["weak"], channels=stats, adequacy=adequacy(stats, out["estimated"]),
                    notes=notes, combinations=combos, interval_textbook={n: (float(a), float(b)) for n, (a, b)
@@ -358,15 +360,15 @@ class IdentResult(Summarised):
         for n in self.names:
             params[n] = {"start": self.start[n], "estimate": self.estimate[n], "interval": list(self.interval[n]),
                          "std": self.std[n], "identifiable": self.identifiable[n] is True,
-                         **({} if self.identifiable[n] is True else {"reason": self.identifiable[n]}),
+                         **({} if self.identifiable[n] is True else {"reason": self.identifiable[n],
+                             "poorly_determined": self.identifiable[n].startswith("poorly")}),
                          **({"note": self.notes[n], "combination": self.combinations.get(n)}
                             if n in self.notes else {}),
                          **({"interval_textbook": list(self.interval_textbook[n]),
                              "std_textbook": self.std_textbook[n]} if n in self.interval_textbook else {})}
         for n, h in self.held.items():
-            params[n] = {"start": h["start"], "estimate": None, "held_at": h["start"], "identifiable": False,
-                         "reason": self.identifiable[n], "estimate_when_free": h["estimate_when_free"],
-                         "interval_when_free": h["interval_when_free"]}
+            params[n] = {"start": h["start"], "estimate": None, "identifiable": False, "reason": self.identifiable[n],
+                         **{k: v for k, v in h.items() if k != "start"}}
         return {"status": self.status, "adequate": self.adequacy["adequate"],
                 "verdict": self.adequacy.get("verdict", "adequate" if self.adequacy["adequate"] else "inadequate"),
                 "misfit": self.adequacy["reasons"], "intervals_trustworthy": self.adequacy["adequate"],
@@ -400,7 +402,8 @@ class IdentResult(Summarised):
             lines.append(f"| {n} | {self.start[n]:.5g} | {self.estimate[n]:.5g} | {lo:.5g} .. {hi:.5g} | "
                          f"{a:.5g} .. {b:.5g} | {ok} |")
         for n, h in self.held.items():
-            lines.append(f"| {n} | {h['start']:.5g} | (held) | - | - | **no**: {self.identifiable[n]} |")
+            lines.append(f"| {n} | {h['start']:.5g} | (held at {h['held_at']:.5g}) | - | - | **no**: "
+                         f"{self.identifiable[n]} |")
         for m in (self.adequacy.get("model_error") or {}).get("misfits", []):
             lines.append(f"\nModel error: {m['text']}")
         if "structural" in self.robust:
@@ -420,7 +423,7 @@ class IdentResult(Summarised):
     def write(self, path: str | Path, note: str = "") -> Path:
         """Write the fitted parameter file: the input file's text with the estimates put
         in place of the values (comments and layout kept), a header naming the fit;
-        parameters held as not identifiable keep their values (and say so).
+        parameters held on request get their held values (and say so).
 
         Parameters
         ----------
@@ -441,12 +444,12 @@ class IdentResult(Summarised):
                         + "; ".join(m["text"] for m in self.adequacy["model_error"]["misfits"][:3]))
         for n in self.names:
             lo, hi = self.interval[n]
-            tag = "" if self.identifiable[n] is True else f"  NOT IDENTIFIABLE: {self.identifiable[n]}"
+            tag = "" if self.identifiable[n] is True else f"  {self.identifiable[n].upper()}"
             head.append(f"  {n}: {self.start[n]:.6g} -> {self.estimate[n]:.6g} (95 %: {lo:.6g} .. {hi:.6g}){tag}")
         for n in self.held:
-            head.append(f"  {n}: NOT IDENTIFIABLE from these records, left at {self.held[n]['start']:.6g}: "
-                        f"{self.identifiable[n]}")
-        return write_fitted(self.params, self.estimate, path, "\n".join(head), self.info.get("variant_overrides"))
+            head.append(f"  {n}: HELD: {self.identifiable[n]}")
+        values = {**self.estimate, **{n: h["held_at"] for n, h in self.held.items()}}
+        return write_fitted(self.params, values, path, "\n".join(head), self.info.get("variant_overrides"))
 
     def plot(self, truth: dict | None = None) -> dict:
         """The report's figures (matplotlib Figures by name): ``fit_<k>`` measured vs

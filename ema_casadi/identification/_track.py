@@ -147,7 +147,7 @@ def trend(t, est, std, limit: float | None = None) -> dict:
 
 def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | None = None,
           sigma: dict | None = None, bounds: dict | None = None, variants: dict | None = None,
-          max_evaluations: int = 60, hold_unidentifiable: bool = True, progress: bool = False,
+          max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, progress: bool = False,
           model=None) -> TrackResult:
     """Fit each record alone and trend the estimates against the records' time stamp.
 
@@ -164,12 +164,12 @@ def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | 
         The time-stamp field or column.
     limits : dict, optional
         Parameter -> limit (SI): the crossing is predicted.
-    sigma, bounds, variants, max_evaluations, hold_unidentifiable, progress, model
+    sigma, bounds, variants, max_evaluations, hold, hold_unidentifiable, progress, model
         As for :func:`~ema_casadi.identification.identify`, for every fit (the model
         built once, by the caller or here, and passed to each).
     """
     fit = {"sigma": sigma, "bounds": bounds, "variants": variants, "max_evaluations": max_evaluations,
-           "hold_unidentifiable": hold_unidentifiable, "progress": progress}
+           "hold": hold, "hold_unidentifiable": hold_unidentifiable, "progress": progress}
     limits = dict(limits or {})
     for n in limits:
         if n not in free:
@@ -193,7 +193,7 @@ def track(params, records, free, *, stamp: str = "flight_hours", limits: dict | 
     t = [r["stamp"] for r in rows]
     for n in free:
         if not all(n in r["parameters"] for r in rows):
-            continue  # held as not identifiable in some record
+            continue  # held on request in some record
         est = [r["parameters"][n]["estimate"] for r in rows]
         std = [r["parameters"][n]["std"] for r in rows]
         trends[n] = trend(t, est, std, limits.get(n))

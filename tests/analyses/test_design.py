@@ -80,6 +80,29 @@ def test_optimal_weights_reach_the_analytic_optimum():
     assert a["success"] and np.allclose(a["w"], [1 / 3, 2 / 3], atol=1e-7)
 
 
+def test_the_dc_criterion_keeps_every_parameter_within_the_reference():
+    """Two candidates, each informative on one of two parameters: D alone shares them
+    equally (w = 0.5), which leaves parameter 1 with variance 1/5.5 against the
+    reference's 1/6. DC: the D optimum subject to each variance at most 0.95^2 of the
+    reference's: analytically w1 = (6 / 0.9025 - 1) / 9 (the constraint active, the
+    nearest point to D's optimum). A reference no share can reach (variances 1/12 and
+    1/2): the max-min optimum equalises the two ratios, 12 / (9 w + 1) = 2 / (10 - 9 w),
+    at w1 = 59/63, t* = 14/11; the design is then the D optimum within the bound
+    b = 1.001 t*: parameter 1's constraint active, 12 / (9 w1 + 1) = b."""
+    from ema_casadi.design._optimise import WIDTH_RATIO
+
+    Ms = [np.diag([10.0, 1.0]), np.diag([1.0, 10.0])]
+    assert optimal_weights(Ms, "D")["w"] == pytest.approx([0.5, 0.5], abs=1e-6)
+    got = optimal_weights(Ms, "DC", reference=np.diag([6.0, 2.0]))
+    w1 = (6 / WIDTH_RATIO**2 - 1) / 9
+    assert got["w"][0] == pytest.approx(w1, abs=1e-6) and got["maxmin"] < WIDTH_RATIO**2
+    assert max(got["ratios"]) <= WIDTH_RATIO**2 * (1 + 1e-6)
+    far = optimal_weights(Ms, "DC", reference=np.diag([12.0, 2.0]))
+    assert far["maxmin"] == pytest.approx(14 / 11, rel=1e-6)
+    assert max(far["ratios"]) <= far["bound"] * (1 + 1e-6) and far["bound"] == pytest.approx(14 / 11 * 1.001)
+    assert far["w"][0] == pytest.approx((12 / far["bound"] - 1) / 9, abs=1e-6)
+
+
 def test_efficient_rounding_keeps_the_total_and_the_support():
     n = efficient_rounding([0.5, 0.3, 0.2, 0.0], 10)
     assert n.sum() == 10 and n[3] == 0 and list(n) == [5, 3, 2, 0]

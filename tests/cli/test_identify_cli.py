@@ -79,6 +79,47 @@ def test_a_fit_that_does_not_converge_exits_3_and_writes_nothing(tmp_path, capsy
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("case", ["converged", "inadequate", "not converged", "failed"])
+def test_every_exit_prints_one_json_document(tmp_path, capsys, monkeypatch, record, misfit_record, case):
+    """--json: whatever the fit's end, one JSON document on stdout with the status, the
+    last iterate, the cost history and the reason; exit 0 for a converged adequate
+    fit, 3 otherwise with the reason on stderr in one line. "failed": the model run
+    fails at the start values (made to fail here). Without --json the text names the
+    status and the last iterate."""
+    if case == "failed":
+        from ema_casadi.simulation import RunFailed
+
+        def fail(self, theta):
+            raise RunFailed("x_rod = 0.08 m beyond its envelope", 0.01)
+
+        monkeypatch.setattr(idn._fit._Fit, "errors", fail)
+    rec = misfit_record if case == "inadequate" else record
+    limit = ["--max-evaluations", "2"] if case == "not converged" else []
+    sigma = ["--sigma", "x_rod=0.3um", "--sigma", "i_q=0.05A"]  # given: one weighting, the costs comparable
+    argv = ["identify", REF, str(rec), "--free", "F_seal,c_v" if limit else "F_seal", *limit, *sigma,
+            "--no-progress"]
+    code, out, err = _run([*argv, "--json"], capsys)
+    doc = json.loads(out)
+    assert code == (0 if case == "converged" else 3), err
+    assert doc["status"] == ("converged" if case in ("converged", "inadequate") else case)
+    assert doc.get("verdict", case) == {"converged": "adequate"}.get(case, case) and doc["reason"], doc
+    assert set(doc["last_iterate"]) == ({"F_seal", "c_v"} if limit else {"F_seal"})
+    costs = [h["cost"] for h in doc["cost_history"]]
+    assert all(c >= 0 for c in costs) and (costs or case == "failed")
+    if case == "converged":
+        assert doc["last_iterate"]["F_seal"] == doc["parameters"]["F_seal"]["estimate"] and not err
+        assert min(costs) == pytest.approx(doc["cost"], rel=1e-12) and costs[0] > doc["cost"]
+    else:
+        assert err.count("\n") == 1 and doc["reason"].split(";")[0] in err, err
+    if case == "not converged":  # the start and the one step the budget allowed
+        assert len(costs) == 2 and "did not converge within 2" in doc["reason"]
+    if case == "failed":
+        assert "fails at the start values" in doc["reason"] and doc["last_iterate"]["F_seal"] == 150.0
+    code, out, err = _run(argv, capsys)
+    if case in ("not converged", "failed"):
+        assert out.startswith(f"status: {case}\nlast iterate: F_seal = ") and err.count("\n") == 1, out
+
+
 def test_a_fit_writes_the_file_and_the_report(tmp_path, capsys, record):
     code, out, err = _run(["identify", str(record), "--free", "F_seal", "--sigma", "x_rod=0.3um",
                            "--sigma", "i_q=0.05A", "--out", str(tmp_path / "fit.toml"),
