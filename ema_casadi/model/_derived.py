@@ -304,9 +304,9 @@ def _modify(providers, name, fn, part):
     def wrapped(b):
         val = prov(b)
         if not isinstance(key, tuple):
-            return fn(b, val)
+            return b.acting(part, fn, val)
         vals = list(val)
-        vals[key.index(name)] = fn(b, vals[key.index(name)])
+        vals[key.index(name)] = b.acting(part, fn, vals[key.index(name)])
         return tuple(vals)
 
     for n in key if isinstance(key, tuple) else (key,):
