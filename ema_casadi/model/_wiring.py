@@ -35,9 +35,11 @@ class Declarations:
 
 def declarations(parts) -> Declarations:
     """Merge what the parts declare; a name declared twice must agree; every port of
-    every part connected (:func:`~ema_casadi.model.components._ports.wiring`)."""
+    every part connected (:func:`~ema_casadi.model.components._ports.wiring`). Parts of
+    an instance (``part.instance``, see :mod:`~ema_casadi.model._instances`) have their
+    own sums (``A.F_load_rod``, ``A.P_heat_winding``); the stored energy is one sum."""
     states, inputs, outputs, providers, owner, state_owner = {}, {}, {}, {}, {}, {}
-    loops, holds, stored, loads, heat, masses = {}, [], [], [], {}, []
+    loops, holds, stored, sums = {}, [], [], {}
     for part in parts:
         for s in part.states:
             if s.name in states:
@@ -59,27 +61,50 @@ def declarations(parts) -> Declarations:
         loops.update({lp.name: lp for lp in part.loops})
         holds += part.holds
         stored += part.stored
-        loads += part.loads
-        masses += part.masses
-        heat.update(part.heat)
+        group = sums.setdefault(getattr(part, "instance", ""), {"loads": [], "masses": [], "heat": {}})
+        group["loads"] += part.loads
+        group["masses"] += part.masses
+        group["heat"].update(part.heat)
     modify(parts, providers)
     providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
-    providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
-    providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
-    for node in HEAT_NODES:
-        providers[heat_signal(node)] = (heat_signal(node), lambda b, node=node: _heat(b, node, heat, outputs))
-    for n in ("E_stored", "F_load_rod", "M_load_rod", *map(heat_signal, HEAT_NODES)):
-        owner[n] = None
+    owner["E_stored"] = None
+    for inst, group in sums.items():
+        _add_sums(providers, owner, outputs, inst, group)
     for o in SUMS:
         outputs[o.name] = o
     # an input that a part provides as a signal is internal (the airframe's flight-control
     # law provides the actuator's x_cmd); the model's inputs: signals first, injections last
+    known = set(providers) | set(states) | set(inputs)
     inputs = {n: i for n, i in inputs.items() if n not in providers}
     ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
     units = {n: d.unit for table in (states, inputs, outputs) for n, d in table.items()}
-    table = wiring(parts, owner, state_owner, inputs, units)
+    resolve = {id(p): _resolver(p, known) for p in parts}
+    table = wiring(parts, owner, state_owner, inputs, units, resolve)
     return Declarations(states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds),
-                        (owner, allowed_reads(parts)), table)
+                        (owner, allowed_reads(parts, resolve)), table)
+
+
+def _resolver(part, known):
+    """How a part's port names map to the model's: ``inst.n`` where the model has it
+    (a part of an instance), else ``n``."""
+    inst, connect = getattr(part, "instance", ""), getattr(part, "connect", {})
+    if not inst:
+        return lambda n: n
+    return lambda n: connect[n] if n in connect else (f"{inst}.{n}" if f"{inst}.{n}" in known else n)
+
+
+def _add_sums(providers, owner, outputs, inst, group) -> None:
+    """The sums the assembly forms for one instance (or the model, ``inst`` empty): the
+    load and the masses on the rod, the heat into each thermal node."""
+    pre = (lambda n: f"{inst}.{n}") if inst else (lambda n: n)
+    loads, masses, heat = group["loads"], group["masses"], group["heat"]
+    providers[pre("F_load_rod")] = (pre("F_load_rod"), lambda b: _sum(b, loads))
+    providers[pre("M_load_rod")] = (pre("M_load_rod"), lambda b: _sum(b, masses))
+    for node in HEAT_NODES:
+        name = pre(heat_signal(node))
+        providers[name] = (name, lambda b, node=node: _heat(b, node, heat, outputs))
+    for n in ("F_load_rod", "M_load_rod", *map(heat_signal, HEAT_NODES)):
+        owner[pre(n)] = None
 
 
 def _heat(bus, node, heat, outputs):

@@ -95,6 +95,9 @@ class Model(Summarised, Contract):
     ignored : tuple of str
         Option keys of the variant dict that no chosen part reads (e.g.
         ``friction_shape`` with hybrid friction): accepted and ignored.
+    system : object or None
+        With several actuator instances on one surface, their description (names,
+        modes, per-instance tables); None for one actuator.
     connections : tuple
         The connection table: one :class:`~ema_casadi.model.components.Connection` per
         port a part reads (reader, port, unit, provider); :meth:`connections_text`.
@@ -124,6 +127,7 @@ class Model(Summarised, Contract):
     holds: tuple = ()
     ignored: tuple = ()
     connections: tuple = ()
+    system: object = None
     _p0: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Functions derived from this model (rollouts, integrators, Jacobians), built once
     #: and kept with it: they live and die with the model (a cache keyed by ``id(f)``
@@ -247,8 +251,10 @@ class Model(Summarised, Contract):
         """
         if params is None and not overrides:  # the common case, cached (params are frozen)
             if self._p0 is None:
-                self._p0 = self.params.vector()
+                self._p0 = self.params.vector() if self.system is None else self.system.vector(self.params)
             return self._p0.copy()
+        if self.system is not None:
+            return self.system.vector(params or self.params, **overrides)
         return (params or self.params).vector(**overrides)
 
     def pdict(self, p=None) -> SimpleNamespace:
@@ -393,10 +399,20 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     params = dataclasses.replace(params, variants=v)
     parts, ignored = parts_for(v)
     check_tables(params, parts)
+    if params.system:  # several actuator instances on one surface
+        from ._system import instances
+
+        system, parts = instances(params, parts)
+        return _assemble(params, v, parts, ignored, list(system.names), system)
+    return _assemble(params, v, parts, ignored, Parameters.names(), None)
+
+
+def _assemble(params, v, parts, ignored, names, system) -> Model:
+    """The model of these parts on the parameter ``names`` (``system``: its instances)."""
     d = declarations(parts)
     states, inputs, outputs, providers, loops, holds = d.states, d.inputs, d.outputs, d.providers, d.loops, d.holds
-
-    names = Parameters.names()
+    if system is not None:
+        system.check_connections(parts, d)
     clash = sorted({n for part in parts for n in part.limits} & set(names))
     if clash:
         raise AssemblyError(f"envelope limits {clash} have the names of parameters")
@@ -407,6 +423,9 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     adjusted = {n: fn(P, U) for part in parts for n, fn in part.adjust().items()}
     if adjusted:  # parameters some part makes signals (Part.adjust)
         P = SimpleNamespace(**{**vars(P), **adjusted})
+    for part in parts:
+        if getattr(part, "instance", ""):  # its copies of the parameters (A.K_x as K_x)
+            part.bind(P, [n.split(".", 1)[1] for n in names if n.startswith(f"{part.instance}.")])
     X = {n: ca.SX.sym(n) for n in states}
     x = ca.vertcat(*X.values())
     roles: dict = {}
@@ -430,5 +449,5 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         variants=v, params=params, states=tuple(states), inputs=tuple(inputs), outputs=tuple(outputs),
         param_names=tuple(names), f=f, f_held=f_held, sample=sample, project=project, parts=tuple(parts),
         state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,
-        ignored=tuple(ignored), connections=d.connections,
+        ignored=tuple(ignored), connections=d.connections, system=system,
     )

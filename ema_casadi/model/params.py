@@ -381,6 +381,9 @@ class Parameters(Summarised, FaultTables):
         Variant keys given by ``load_parameters(variants=...)`` (a wrong one is blamed there).
     missing : tuple of str
         Tables the file lacks (NaN values): ``build_model`` names one its variants read.
+    system : dict
+        The ``[instances]``, ``[surface]`` and ``[equaliser]`` tables of a model of several
+        actuators on one surface, as read ({} for one actuator): checked by ``build_model``.
     """
 
     actuator: Actuator
@@ -397,6 +400,9 @@ class Parameters(Summarised, FaultTables):
     source: str = "<memory>"
     missing: tuple = ()
     overrides: tuple = ()
+    #: The tables of a model of several actuators (``[instances]``, ``[surface]``,
+    #: ``[equaliser]``), as read: checked when the model is built (docs: dual actuators).
+    system: dict = field(default_factory=dict)
 
     def _facts(self) -> dict:
         return {"source": Path(self.source).name, "parameters": len(self.names()),
@@ -467,7 +473,7 @@ class Parameters(Summarised, FaultTables):
             if k not in flat_group:
                 raise UnknownParameterError(_unknown("Parameters.replace", k, flat_group))
             raw[flat_group[k]][k] = v
-        return _build(raw, self.variants, self.source, plain=True)
+        return replace(_build(raw, self.variants, self.source, plain=True), system=self.system)
 
     def to_toml(self, path: str | Path, header: str = "") -> Path:
         """Write the set as a parameter file (atomically: no half-written file).
@@ -558,8 +564,12 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
     return value
 
 
+#: Tables of a model of several actuators, read by the assembly (not flat parameters).
+SYSTEM_TABLES = ("instances", "surface", "equaliser")
+
+
 def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> Parameters:
-    unknown = set(data) - set(GROUPS) - {"model"}
+    unknown = set(data) - set(GROUPS) - {"model", *SYSTEM_TABLES}
     for g in sorted(unknown):
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
     groups, missing = {}, []
@@ -642,7 +652,8 @@ def load_parameters(path: str | Path | None = None, variants: dict[str, str] | N
     given = _variant_table(variants or {}, "variants")
     merged.update(given)
     # the registry checks the names when a model is built, blaming the file or `variants`
-    return replace(_build(data, merged, src), overrides=tuple(given))
+    system = {k: data[k] for k in SYSTEM_TABLES if k in data}
+    return replace(_build(data, merged, src), overrides=tuple(given), system=system)
 
 
 # -- one flat value set from outside a file (a command-line flag) -----------------------

@@ -62,12 +62,14 @@ INPUT_ROLES = ("command", "load", "efficiency", "ambient_temperature", "attitude
 #: ambient) and energies (stored mechanically and magnetically, stored as heat); the
 #: temperature-dependent winding resistance, magnet flux and screw efficiency; behind an
 #: airframe the rod command it gives, its law's rod and elevator commands, the elevator, the
-#: surface load on the rod and the normal load factor.
+#: surface load on the rod and the normal load factor; a surface driven by several
+#: actuators: its angle, each attachment's force and the force fight between two channels.
 OUTPUT_ROLES = ("rod_position", "rod_velocity", "motor_speed", "motor_current", "screw_force",
                 "nut_position", "current_command", "d_voltage", "q_voltage", "stuck",
                 "load_power", "electrical_power", "ambient_heat", "stored_energy", "thermal_energy",
                 "winding_resistance", "magnet_flux", "screw_efficiency",
-                "rod_command", "law_command", "elevator_command", "elevator", "surface_load", "load_factor")
+                "rod_command", "law_command", "elevator_command", "elevator", "surface_load", "load_factor",
+                "surface_angle", "attachment_force", "force_fight")
 
 #: The key under which a role's signal is written in files, flags and reports (the CLI
 #: contract: a mission segment's ``x_cmd``, a sweep scenario's ``f_ext``, a trim's JSON
@@ -514,8 +516,9 @@ class Bus:
     def _check(self, name: str) -> None:
         part = self._who[-1] if self._who else None
         if part is not None and self._allowed is not None and name not in self._allowed[id(part)]:
-            raise AssemblyError(f"{part.family} = {part.value} reads '{name}' without declaring it: add "
-                                f"Port('{name}', ...) to its reads")
+            inst = getattr(part, "instance", "")
+            raise AssemblyError(f"{inst + '.' if inst else ''}{part.family} = {part.value} reads '{name}' without "
+                                f"declaring it: add Port('{name}', ...) to its reads")
 
     def acting(self, part, fn, *args):
         """``fn(self, *args)`` with the reads checked against ``part``'s ports (a modifier).

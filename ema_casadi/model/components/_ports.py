@@ -93,13 +93,19 @@ def own_names(part) -> set:
     return names
 
 
-def allowed_reads(parts) -> dict:
+def allowed_reads(parts, resolve: dict | None = None) -> dict:
     """``id(part) -> frozenset`` of the names each part may read: its own (:func:`own_names`)
-    and its declared ports."""
-    return {id(p): frozenset(own_names(p) | {r.name for r in p.reads}) for p in parts}
+    and its declared ports (each through ``resolve[id(part)]``, the model's name of a
+    port: the instance's signal where the part belongs to one)."""
+    resolve = resolve or {}
+    return {id(p): frozenset(own_names(p) | {resolve.get(id(p), _same)(r.name) for r in p.reads}) for p in parts}
 
 
-def wiring(parts, owner: dict, states: dict, inputs: dict, units: dict) -> tuple:
+def _same(name: str) -> str:
+    return name
+
+
+def wiring(parts, owner: dict, states: dict, inputs: dict, units: dict, resolve: dict | None = None) -> tuple:
     """The connection table of a model, every port checked.
 
     Parameters
@@ -113,29 +119,33 @@ def wiring(parts, owner: dict, states: dict, inputs: dict, units: dict) -> tuple
         declaration (inputs).
     units : dict
         Signal name -> declared unit, where some declaration gives one.
+    resolve : dict, optional
+        ``id(part)`` -> ``fn(port name) -> model name`` (default: the same name).
     """
     from ._part import AssemblyError
 
     rows = []
     for part in parts:
+        to = (resolve or {}).get(id(part), _same)
         for port in part.reads:
-            if port.name in owner:
-                who = owner[port.name]
+            name = to(port.name)
+            if name in owner:
+                who = owner[name]
                 provider = "assembly" if who is None else label(who)
-            elif port.name in states:
-                provider = label(states[port.name])
-            elif port.name in inputs:
+            elif name in states:
+                provider = label(states[name])
+            elif name in inputs:
                 provider = "model input"
             elif port.optional:
                 provider = "(unconnected, optional)"
             else:
                 raise AssemblyError(f"port '{port.name}' of {label(part)} is connected to nothing: no part "
                                     "provides it (choose a variant that does, or connect it)")
-            declared = units.get(port.name)
+            declared = units.get(name)
             if declared is not None and declared != port.unit:
                 raise AssemblyError(f"port '{port.name}' of {label(part)} reads {port.unit}, its provider "
                                     f"{provider} gives {declared}")
-            rows.append(Connection(label(part), port.name, port.unit, port.name, provider))
+            rows.append(Connection(label(part), port.name, port.unit, name, provider))
     return tuple(rows)
 
 
