@@ -93,6 +93,21 @@ class View:
         return self._root.acting(part, lambda b, *a: fn(self, *a), *args)
 
 
+def _state(s, inst):
+    """A state's declaration for instance ``inst``: names prefixed, its functions of the
+    parameters and outputs reading the instance's."""
+    def local(fn):
+        return None if fn is None else (lambda *a: fn(*(Local(x, inst) for x in a)))
+
+    seed = None if s.seed is None else dataclasses.replace(s.seed, offset=local(s.seed.offset),
+                                                            warn=local(s.seed.warn))
+    node = None if s.node is None else dataclasses.replace(s.node, capacity=local(s.node.capacity),
+                                                            limit=local(s.node.limit))
+    return dataclasses.replace(s, name=prefixed(inst, s.name), roles=_roles(inst, s.roles), loop=_opt(inst, s.loop),
+                               rest=_opt(inst, s.rest), scale=local(s.scale), travel=local(s.travel),
+                               rest_when=local(s.rest_when), seed=seed, node=node)
+
+
 def _roles(inst, roles):
     return tuple(f"{inst}.{r}" for r in roles)
 
@@ -122,9 +137,7 @@ class Instanced(Part):
         self.inner, self.instance, self.connect = part, inst, dict(connect or {})
         self.family, self.value, self.doc = part.family, part.value, part.doc
         pre = self._name
-        self.states = tuple(dataclasses.replace(
-            s, name=pre(s.name), roles=_roles(inst, s.roles), loop=_opt(inst, s.loop), rest=_opt(inst, s.rest))
-            for s in part.states)
+        self.states = tuple(_state(s, inst) for s in part.states)
         self.inputs = tuple(dataclasses.replace(
             i, name=pre(i.name), roles=_roles(inst, i.roles), noise=_opt(inst, i.noise), seed=_opt(inst, i.seed),
             default=pre(i.default) if isinstance(i.default, str) else i.default) for i in part.inputs)

@@ -28,7 +28,9 @@ The parts a model of several actuator instances (``A``, ``B``) adds to theirs:
 - :class:`Equaliser` (a controller part): each channel's command, ``x_cmd,c = x_cmd -
   e_c``, with ``law = "integral"`` corrected by the integral of its attachment force's
   difference from the attached channels' mean, ``de_c/dt = K_eq s_c (F_c - F_mean)``,
-  held at ``|e_c| <= dx_eq_max`` (limited authority); ``law = "off"``: ``e_c = 0``.
+  held at ``|e_c| <= dx_eq_max`` (limited authority), less the corrections' mean over
+  :data:`TAU_COMMON` (a common correction moves the surface, not the fight);
+  ``law = "off"``: ``e_c = 0``.
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ import casadi as ca
 from ._part import Input, Output, Part, State, der
 from ._ports import Port
 
-__all__ = ["Hinge", "Channel", "Equaliser", "SURFACE_PARAMS", "CHANNEL_PARAMS", "EQUALISER_PARAMS", "MODES"]
+__all__ = ["Hinge", "Channel", "Equaliser", "SURFACE_PARAMS", "CHANNEL_PARAMS", "EQUALISER_PARAMS", "MODES",
+           "TAU_COMMON"]
 
 #: The surface's parameters: name -> (SI unit, check, meaning).
 SURFACE_PARAMS = {
@@ -65,6 +68,10 @@ EQUALISER_PARAMS = {
     "K_eq": ("m/(N*s)", "non-negative", "equalisation gain: command rate per newton of force difference (m/(N s))"),
     "dx_eq_max": ("m", "non-negative", "equalisation authority: the largest command correction (m)"),
 }
+#: Decay time (s) of the equaliser's common mode, the mean of the corrections: it moves
+#: every command alike, so no force difference sees it; without it the integrators'
+#: sum would be a neutral mode (undetermined in a trim, a zero eigenvalue).
+TAU_COMMON = 1.0
 #: Channel modes -> (bridge_on, attached_on).
 MODES = {"active": (1.0, 1.0), "standby": (0.0, 1.0), "off": (0.0, 0.0)}
 
@@ -245,7 +252,8 @@ class Equaliser(Part):
             s = [b[f"{k}.attached"] for k in chans]
             F = [b[f"{k}.F_att"] for k in chans]
             mean = sum(si * Fi for si, Fi in zip(s, F, strict=True)) / ca.fmax(sum(s), 1e-9)
-            r = b.P.K_eq * b[f"{c}.attached"] * (b[f"{c}.F_att"] - mean)
+            common = sum(b[f"{k}.e_eq"] for k in chans) / len(chans)
+            r = b.P.K_eq * b[f"{c}.attached"] * (b[f"{c}.F_att"] - mean) - common / TAU_COMMON
             e, lim = b[f"{c}.e_eq"], b.P.dx_eq_max
             return ca.if_else(ca.logic_or(ca.logic_and(e >= lim, r > 0), ca.logic_and(e <= -lim, r < 0)), 0, r)
 
