@@ -32,6 +32,7 @@ Used by :mod:`ema_casadi.model.assembly` only.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 
@@ -41,7 +42,7 @@ from .._util._checks import nearest
 from .components.surface import CHANNEL_PARAMS, EQUALISER_PARAMS, MODES, SURFACE_PARAMS, Channel, Equaliser, Hinge
 from .params import GROUPS, ParameterError, Parameters, UnknownParameterError, _check_value
 
-__all__ = ["System", "read_system", "system_parts", "instances"]
+__all__ = ["System", "read_system", "system_parts", "instances", "system_vector"]
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _OPTIONS = {"surface": ("torsion", ("rigid", "elastic")), "equaliser": ("law", ("integral", "off"))}
@@ -103,6 +104,14 @@ class System:
                     raise ParameterError(f"[instances.{c}.connect] {port} = {target!r}: no signal of that name in "
                                          f"the model{nearest(target, sorted(known))}")
 
+    def units(self) -> dict:
+        """SI unit of every parameter name of the model (:attr:`names`)."""
+        base = {**Parameters.units(), **{n: u for n, (u, _, _) in CHANNEL_PARAMS.items()}}
+        shared = {n: u for table in (SURFACE_PARAMS, EQUALISER_PARAMS) for n, (u, _, _) in table.items()}
+        out = {**Parameters.units(), **shared}
+        out.update({f"{c}.{n}": u for c in self.channels for n, u in base.items()})
+        return {n: out[n] for n in self.names}
+
     def vector(self, params: Parameters, **overrides) -> np.ndarray:
         """The parameter vector (SI) in :attr:`names` order.
 
@@ -114,7 +123,7 @@ class System:
             Values by flat name: a plain name sets the shared value and every instance
             that does not override it; ``A.name`` instance ``A`` only.
         """
-        base = params.as_dict()
+        base = dataclasses.replace(params, system={}).as_dict()
         bad = [k for k in overrides if k not in self.names and k not in base]
         if bad:
             raise UnknownParameterError(f"Parameters.vector() got an unexpected keyword argument '{bad[0]}': no "
@@ -268,3 +277,20 @@ def instances(params: Parameters, parts) -> tuple[System, list]:
     variants = {**params.variants}
     wrapped = {c: [Instanced(p, c, system.connect.get(c)) for p in parts_for(variants)[0]] for c in system.channels}
     return system, system_parts(system, wrapped)
+
+
+def system_vector(params: Parameters, **overrides) -> np.ndarray:
+    """The parameter vector of the model a parameter set with ``[instances]`` builds
+    (:meth:`System.vector`; what ``Parameters.vector`` returns for such a set).
+
+    Parameters
+    ----------
+    params : Parameters
+        The set, with its system tables.
+    **overrides : float
+        Values by flat name (``K_x``: shared and every instance not overriding it; ``A.K_x``).
+    """
+    from .components import parts_for, validate_variants
+
+    parts, _ = parts_for(validate_variants(params.variants))
+    return read_system(params, parts).vector(params, **overrides)

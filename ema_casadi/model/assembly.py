@@ -217,7 +217,7 @@ class Model(Summarised, Contract):
         role : str
             A state role (see :class:`~ema_casadi.model.components.State`).
         """
-        names = self.states_with(role)
+        names = self._lead(self.states_with, role)
         if len(names) != 1:
             raise AssemblyError(f"the model has {len(names)} states with role '{role}', expected one")
         return names[0]
@@ -256,6 +256,10 @@ class Model(Summarised, Contract):
         if self.system is not None:
             return self.system.vector(params or self.params, **overrides)
         return (params or self.params).vector(**overrides)
+
+    def param_units(self) -> dict[str, str]:
+        """SI unit of every entry of the parameter vector (``param_names``), by name."""
+        return Parameters.units() if self.system is None else self.system.units()
 
     def pdict(self, p=None) -> SimpleNamespace:
         """Parameter values by name (attribute access), from ``p`` or the model's set.

@@ -444,13 +444,18 @@ class Parameters(Summarised, FaultTables):
         return out
 
     def vector(self, **overrides: float) -> np.ndarray:
-        """Flat numeric vector for the model's ``p`` input.
+        """Flat numeric vector for the model's ``p`` input (with ``[instances]``: the model
+        of several actuators' vector, each instance's copies after the shared names).
 
         Parameters
         ----------
         **overrides : float
             Values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
+        if self.system:  # several actuator instances: the model's whole vector
+            from ._system import system_vector
+
+            return system_vector(self, **overrides)
         d = self.as_dict()
         for k, v in overrides.items():
             if k not in d:

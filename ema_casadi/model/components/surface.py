@@ -49,7 +49,7 @@ SURFACE_PARAMS = {
     "r_att": ("m", "positive", "horn radius: rod travel per surface radian (m)"),
     "S_c": ("m^3", "non-negative", "surface area times mean chord, S_e c_e (m^3)"),
     "C_h_delta": ("1/rad", "real", "hinge-moment coefficient per surface angle (negative: restoring) (1/rad)"),
-    "q_bar": ("Pa", "non-negative", "dynamic pressure (Pa)"),
+    "q_bar": ("N/m^2", "non-negative", "dynamic pressure (Pa)"),
     "c_h": ("N*m*s/rad", "non-negative", "hinge damping, aerodynamic and structural (N m s/rad)"),
     "K_theta": ("N*m/rad", "positive", "torsional stiffness between neighbouring attachments (N m/rad)"),
     "c_theta": ("N*m*s/rad", "non-negative", "torsional damping between neighbouring attachments (N m s/rad)"),
@@ -106,7 +106,8 @@ class Hinge(Part):
         travel = lambda P: P.r_att  # noqa: E731
         self.states = tuple(s for sec in sections for s in (
             State(f"{sec}delta", "rad", f"surface angle{' at ' + sec[:-1] if sec else ''} (trailing edge down)",
-                  roles=("surface_angle",) if not sec else (), scale=lambda P: P.stroke / P.r_att, travel=travel),
+                  roles=("surface_angle", "rod_position") if sec == sections[0] else (),
+                  scale=lambda P: P.stroke / P.r_att, travel=travel),
             State(f"{sec}delta_dot", "rad/s", "surface rate", scale=lambda P: P.v_max / P.r_att)))
         self.inputs = (Input("f_ext", "N", "force", "hinge load as a force at the horn radius (positive pushes the "
                              "rods in): H_ext = -r_att f_ext", roles=("load",)),)
