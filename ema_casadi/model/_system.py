@@ -42,7 +42,7 @@ from .._util._checks import nearest
 from .components.surface import CHANNEL_PARAMS, EQUALISER_PARAMS, MODES, SURFACE_PARAMS, Channel, Equaliser, Hinge
 from .params import GROUPS, ParameterError, Parameters, UnknownParameterError, _check_value
 
-__all__ = ["System", "read_system", "system_parts", "instances", "system_vector"]
+__all__ = ["System", "read_system", "system_parts", "instances", "system_vector", "system_scalars", "replace_system"]
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _OPTIONS = {"surface": ("torsion", ("rigid", "elastic")), "equaliser": ("law", ("integral", "off"))}
@@ -294,3 +294,65 @@ def system_vector(params: Parameters, **overrides) -> np.ndarray:
 
     parts, _ = parts_for(validate_variants(params.variants))
     return read_system(params, parts).vector(params, **overrides)
+
+
+def system_scalars(params: Parameters) -> dict:
+    """Scalar parameter name -> (nominal (SI), unit, check) of the model a set with
+    ``[instances]`` builds (what ``Parameters.scalars`` returns for it).
+
+    Parameters
+    ----------
+    params : Parameters
+        The set, with its system tables.
+    """
+    from .components import parts_for, validate_variants
+
+    system = read_system(params, parts_for(validate_variants(params.variants))[0])
+    base = dataclasses.replace(params, system={}).scalars()
+    checks = {**{n: (u, c) for n, (_, u, c) in base.items()},
+              **{n: (u, c) for table in (CHANNEL_PARAMS, SURFACE_PARAMS, EQUALISER_PARAMS) for n, (u, c, _) in
+                 table.items()}}
+    values = dict(zip(system.names, system.vector(params), strict=True))
+    out = {}
+    for name in system.names:
+        plain = name.split(".", 1)[-1]
+        if plain in checks:
+            out[name] = (values[name], *checks[plain])
+    return out
+
+
+def replace_system(params: Parameters, values: dict) -> dict:
+    """The system tables with ``values`` set (``A.C`` in ``[instances.A.screw]``, ``B.x_rig``
+    in ``[instances.B.channel]``, ``K_theta`` in ``[surface]``), checked as a file is.
+
+    Parameters
+    ----------
+    params : Parameters
+        The set, with its system tables.
+    values : dict
+        Name -> value (SI).
+    """
+    import copy
+
+    from .components import parts_for, validate_variants
+
+    system = copy.deepcopy(params.system)
+    group_of = params.group_of()
+    units = {**Parameters.units(), **{n: t[0] for table in (CHANNEL_PARAMS, SURFACE_PARAMS, EQUALISER_PARAMS)
+                                      for n, t in table.items()}}
+    for name, v in values.items():
+        inst, _, key = name.rpartition(".")
+        entry = {"value": float(v), "unit": units.get(key, "1")}
+        if inst and inst in system.get("instances", {}) and (key in CHANNEL_PARAMS or key in group_of) \
+                and key not in ("bridge_on", "attached_on"):
+            table = "channel" if key in CHANNEL_PARAMS else group_of[key]
+            system["instances"][inst].setdefault(table, {})[key] = entry
+        elif not inst and key in SURFACE_PARAMS:
+            system.setdefault("surface", {})[key] = entry
+        elif not inst and key in EQUALISER_PARAMS:
+            system.setdefault("equaliser", {})[key] = entry
+        else:
+            raise UnknownParameterError(f"Parameters.replace() got an unexpected keyword argument '{name}': no "
+                                        f"parameter of that name")
+    read_system(dataclasses.replace(params, system=system), parts_for(validate_variants(params.variants))[0])
+    return system

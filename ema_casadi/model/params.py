@@ -463,6 +463,18 @@ class Parameters(Summarised, FaultTables):
             d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
         return np.array([d[n] for n in self.names()], dtype=float)
 
+    def scalars(self) -> dict[str, tuple]:
+        """Every scalar entry of the parameter vector of the model this set builds ->
+        (nominal value (SI), unit, check): the groups' fields, and with ``[instances]``
+        each instance's copies (``A.C``, ``B.x_rig``) and the surface's and equaliser's."""
+        if self.system:
+            from ._system import system_scalars
+
+            return system_scalars(self)
+        d = self.as_dict()
+        return {f.name: (d[f.name], f.metadata["unit"], f.metadata["check"]) for cls in GROUPS.values()
+                for f in fields(cls) if not f.metadata.get("table")}
+
     def replace(self, **values: float) -> Parameters:
         """A copy with some flat parameters changed (validated like a file).
 
@@ -474,11 +486,17 @@ class Parameters(Summarised, FaultTables):
         raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()
                if g not in self.missing}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
+        system = self.system
+        if system:  # an instance's (A.C) or the surface's value goes into its table
+            from ._system import replace_system
+
+            system = replace_system(self, {k: v for k, v in values.items() if k not in flat_group})
+            values = {k: v for k, v in values.items() if k in flat_group}
         for k, v in values.items():
             if k not in flat_group:
                 raise UnknownParameterError(_unknown("Parameters.replace", k, flat_group))
             raw[flat_group[k]][k] = v
-        return replace(_build(raw, self.variants, self.source, plain=True), system=self.system)
+        return replace(_build(raw, self.variants, self.source, plain=True), system=system)
 
     def to_toml(self, path: str | Path, header: str = "") -> Path:
         """Write the set as a parameter file (atomically: no half-written file).

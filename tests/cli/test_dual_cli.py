@@ -71,3 +71,21 @@ def test_a_bad_instance_table_is_refused_in_one_line(case, tmp_path, capsys, mon
     assert status == 2 and len(lines) == 1 and "Traceback" not in err, err
     assert message in lines[0], lines[0]
     assert out == "" and sorted(p.name for p in tmp_path.iterdir()) == ["dual.toml"]
+
+
+def test_ema_sweep_draws_an_instances_parameter(tmp_path, capsys):
+    """A sweep over channel B's rigging offset (``B.x_rig``, an instance's parameter): the
+    largest fight of each run is the one at t = 0, where both rods and the surface start at
+    0 and B's attachment alone is stretched by the offset: k_att,B x_rig / 2 (5 kN); none
+    with the channels matched."""
+    spec = tmp_path / "fight.toml"
+    spec.write_text('[sweep]\nname = "fight over the rigging offset"\n[parameters]\n'
+                    '"B.x_rig" = { values = [-1e-4, 0.0, 1e-4], unit = "m" }\n'
+                    '[scenario]\nduration = 0.2\nx_cmd = "step:5mm@0.01"\n[metrics]\npeak = { signals = ["F_fight"] }\n')
+    out = tmp_path / "fight.csv"
+    status, _, err = _run(["sweep", str(DUAL), str(spec), "--jobs", "1", "--out", str(out)], capsys)
+    assert status == 0, err
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    peaks = {float(r[1]): float(r[2]) for r in rows}
+    assert peaks[0.0] <= 1.0
+    assert peaks[1e-4] == pytest.approx(1e8 * 1e-4 / 2, rel=1e-6) and peaks[-1e-4] == pytest.approx(peaks[1e-4])

@@ -199,3 +199,37 @@ def test_the_fmu_of_the_whole_surface_reproduces_the_model(dual, tmp_path):
                        atol=1e-13, dt_out=1e-3)
     assert np.max(np.abs(np.interp(ref.t, res["time"], res["x_surf"]) - ref["x_surf"])) < 1e-8  # 2e-10 m measured
     assert np.max(np.abs(np.interp(ref.t, res["time"], res["F_fight"]) - ref["F_fight"])) < 1.0  # 0.03 N measured
+
+
+@pytest.fixture(scope="module")
+def dual_faults(dual_params):
+    return ema.build_model(dataclasses.replace(dual_params, variants={**dual_params.variants, "faults": "on"}))
+
+
+def test_a_jammed_channel_is_fought_by_the_other_up_to_its_current_limit(dual_faults):
+    """Channel B jams 50 ms before a 5 mm step: A drives on to its current limit, so the
+    fight is A's stall force against B's jam, and the surface twists between them."""
+    model = dual_faults
+    jam = ema.Signal.step(1.0, 0.05)
+    run = ema.simulate(model, 0.6, x_cmd=ema.Signal.step(0.005, 0.1), f_ext=5e3, inputs={"B.a_jam": jam},
+                       from_trim=True)
+    P = vars(model.pdict())
+    assert run["A.i_q"][-1] == pytest.approx(P["A.I_max"], rel=1e-6)  # A saturated (24 A)
+    assert run["F_fight"][-1] > 4e4  # 55.4 kN measured: A's stall force against the jam
+    # the surface's balance: both attachments, the hinge load and the aero spring
+    k_aero = -P["q_bar"] * P["S_c"] * P["C_h_delta"] / P["r_att"] ** 2
+    total = run["A.F_att"][-1] + run["B.F_att"][-1]
+    assert total == pytest.approx(5e3 + k_aero * run["x_surf"][-1], abs=50.0)
+    assert 0.0 < run["x_surf"][-1] < 0.005  # 1.34 mm: A's attachment and the torsion give, B holds
+
+
+def test_a_channel_losing_its_supply_leaves_the_load_to_the_other(dual_faults):
+    """Channel B's DC link lost at 15 kN: its motor holds little (back-driven through the
+    screw), A carries most of the load; the surface's balance holds."""
+    model = dual_faults
+    run = ema.simulate(model, 0.6, f_ext=15e3, inputs={"B.a_supply": ema.Signal.step(1.0, 0.05)}, from_trim=True)
+    P = vars(model.pdict())
+    k_aero = -P["q_bar"] * P["S_c"] * P["C_h_delta"] / P["r_att"] ** 2
+    F_A, F_B, x = run["A.F_att"][-1], run["B.F_att"][-1], run["x_surf"][-1]
+    assert F_A > 0.8 * 15e3 and abs(F_B) < 0.2 * 15e3  # 13.4 kN and 1.3 kN measured
+    assert F_A + F_B == pytest.approx(15e3 + k_aero * x, rel=2e-3)
