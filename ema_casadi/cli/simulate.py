@@ -55,6 +55,9 @@ from ._flags import NoEffect, no_effect, refuse_dt
 from ._flags import given as flag_given
 from ._options import seconds
 
+#: The roles whose signals' final values a model of several actuators reports.
+_FINAL_ROLES = ("rod_position", "rod_velocity", "attachment_force", "force_fight")
+
 COMMAND = "simulate"
 #: A rod command beyond this many strokes means nothing (the end stops hold the rod at
 #: the stroke): refused.
@@ -213,8 +216,7 @@ def run(args) -> dict:
         "tolerance": info.get("tolerance"),
         "from_trim": args.from_trim,
         "t_end": args.t_end,
-        "final": res.final(),
-        "units": {k: res.units().get(k, "") for k in res.final()},
+        **_final(model, res),
         "wall_time": time.perf_counter() - t0,
         "compute_time": info.get("compute_time"),
         "compile_time": info.get("compile_time", 0.0),
@@ -345,6 +347,12 @@ def _rel(x) -> str:
     return "-" if x is None else f"{x:.2e} of int P_dc"
 
 
+def _final(model, res) -> dict:
+    """The final values, their units, and the signals a model of several actuators reports."""
+    return {"final": res.final(), "units": {k: res.units().get(k, "") for k in res.final()},
+            "final_signals": [n for role in _FINAL_ROLES for n in model.outputs_with(role)]}
+
+
 def report(r: dict) -> None:
     f = r["final"]
     tol = ", ".join(f"{k} {v:g}" for k, v in (r["tolerance"] or {}).items())
@@ -362,7 +370,10 @@ def report(r: dict) -> None:
               f"balance residual {r['balance_residual_J']:.3g} J ({_rel(r['balance_relative'])})")
     from ..signals import format_fixed as fixed
 
-    print(f"final: x_rod = {fixed(f['x_rod'] * 1e3, 4)} mm, v_rod = {fixed(f['v_rod'] * 1e3, 3)} mm/s, "
-          f"i_q = {fixed(f['i_q'], 3)} A, F_in = {fixed(f['F_in'], 1)} N")
+    if all(k in f for k in ("x_rod", "v_rod", "i_q", "F_in")):
+        print(f"final: x_rod = {fixed(f['x_rod'] * 1e3, 4)} mm, v_rod = {fixed(f['v_rod'] * 1e3, 3)} mm/s, "
+              f"i_q = {fixed(f['i_q'], 3)} A, F_in = {fixed(f['F_in'], 1)} N")
+    else:  # a model of several actuators: the surface, the channels' forces, the fight
+        print("final: " + ", ".join(f"{k} = {f[k]:.6g} {r['units'][k]}" for k in r["final_signals"]))
     for w in r["written"]:
         print(f"wrote {w}")

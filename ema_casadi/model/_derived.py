@@ -105,7 +105,7 @@ class Contract:
         role : str
             An input role (:data:`~ema_casadi.model.components.INPUT_ROLES`).
         """
-        return _one(self.inputs_with(role), role, "inputs")
+        return _one(self._lead(self.inputs_with, role), role, "inputs")
 
     def outputs_with(self, role: str) -> tuple[str, ...]:
         """Names of the outputs that declare ``role``.
@@ -119,13 +119,15 @@ class Contract:
 
     def output_with(self, role: str) -> str:
         """The name of the one output with ``role``; AssemblyError if there is not exactly one.
+        With several actuator instances, a role no shared part plays is the lead
+        (first) instance's.
 
         Parameters
         ----------
         role : str
             An output role (:data:`~ema_casadi.model.components.OUTPUT_ROLES`).
         """
-        return _one(self.outputs_with(role), role, "outputs")
+        return _one(self._lead(self.outputs_with, role), role, "outputs")
 
     def signals_with(self, role: str) -> tuple[str, ...]:
         """The outputs with ``role``, else the states, else the inputs (the columns of a
@@ -149,7 +151,17 @@ class Contract:
         role : str
             An output, state or input role.
         """
-        return _one(self.signals_with(role), role, "signals")
+        return _one(self._lead(self.signals_with, role), role, "signals")
+
+    def _lead(self, lookup, role: str) -> tuple:
+        """``lookup(role)``; in a model of several actuator instances, where no shared part
+        plays the role, the first instance's (the lead channel, ``A.i_q`` for
+        ``motor_current``): the analyses that measure one actuator measure it."""
+        names = lookup(role)
+        system = getattr(self, "system", None)
+        if names or system is None:
+            return names
+        return lookup(f"{system.channels[0]}.{role}")
 
     def input_name(self, key: str) -> str:
         """The input a key names: an input's name as is, else the one input with that role.
@@ -214,7 +226,16 @@ class Contract:
             Parameter vector (SI); default the model's set.
         """
         P = self.pdict(p)
-        return {lim.name: float(lim.limit(P)) for lim in self.trim_limits}
+        return self._with_lead({lim.name: float(lim.limit(P)) for lim in self.trim_limits})
+
+    def _with_lead(self, values: dict) -> dict:
+        """``values``, and in a model of several actuator instances the lead instance's
+        (``A.rod_speed``) under the plain name (``rod_speed``) as well."""
+        system = getattr(self, "system", None)
+        if system is None:
+            return values
+        lead = f"{system.channels[0]}."
+        return {**{k[len(lead):]: v for k, v in values.items() if k.startswith(lead)}, **values}
 
     @property
     def ratings(self) -> tuple:
@@ -236,7 +257,7 @@ class Contract:
             Parameter vector (SI); default the model's set.
         """
         P = self.pdict(p)
-        return {r.name: float(r.limit(P)) for r in self.ratings}
+        return self._with_lead({r.name: float(r.limit(P)) for r in self.ratings})
 
     def heat_outputs(self, node: str) -> tuple[str, ...]:
         """The loss outputs the parts route to a thermal node (their ``heat`` tables).
@@ -304,9 +325,9 @@ def _modify(providers, name, fn, part):
     def wrapped(b):
         val = prov(b)
         if not isinstance(key, tuple):
-            return fn(b, val)
+            return b.acting(part, fn, val)
         vals = list(val)
-        vals[key.index(name)] = fn(b, vals[key.index(name)])
+        vals[key.index(name)] = b.acting(part, fn, vals[key.index(name)])
         return tuple(vals)
 
     for n in key if isinstance(key, tuple) else (key,):

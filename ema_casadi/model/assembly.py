@@ -47,18 +47,15 @@ import numpy as np
 
 from .._util._kwargs import check_keywords
 from .._util._notebook import Summarised, changed_variants
-from ._derived import Contract, modify, switched_split
+from ._derived import Contract, switched_split
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
-from .components import HEAT_NODES, AssemblyError, Bus, Output, der, heat_signal, parts_for, validate_variants
+from ._wiring import check_tables, declarations
+from .components import AssemblyError, Bus, der, parts_for, validate_variants
+from .components._ports import connections_text
 from .params import ParameterError, Parameters
 
 __all__ = ["Model", "build_model", "AssemblyError"]
-
-#: Outputs the assembly adds to those of the parts.
-_SUMS = (Output("E_stored", "J", "stored energy: kinetic + spring + magnetic (+ end stop)", kind="energy",
-                roles=("stored_energy",)),)
-
 
 @dataclass(repr=False)
 class Model(Summarised, Contract):
@@ -98,6 +95,12 @@ class Model(Summarised, Contract):
     ignored : tuple of str
         Option keys of the variant dict that no chosen part reads (e.g.
         ``friction_shape`` with hybrid friction): accepted and ignored.
+    system : object or None
+        With several actuator instances on one surface, their description (names,
+        modes, per-instance tables); None for one actuator.
+    connections : tuple
+        The connection table: one :class:`~ema_casadi.model.components.Connection` per
+        port a part reads (reader, port, unit, provider); :meth:`connections_text`.
     cache : dict
         Functions derived from the model (rollouts, integrators, Jacobians), kept with it.
     """
@@ -123,6 +126,8 @@ class Model(Summarised, Contract):
     loops: dict = field(default_factory=dict)
     holds: tuple = ()
     ignored: tuple = ()
+    connections: tuple = ()
+    system: object = None
     _p0: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Functions derived from this model (rollouts, integrators, Jacobians), built once
     #: and kept with it: they live and die with the model (a cache keyed by ``id(f)``
@@ -134,7 +139,11 @@ class Model(Summarised, Contract):
 
         return {"variants": changed_variants(self.variants, DEFAULT_VARIANTS), "states": len(self.states),
                 "inputs": len(self.inputs), "outputs": len(self.outputs), "parameters": len(self.param_names),
-                "switched": ", ".join(self.switched) or None}
+                "switched": ", ".join(self.switched) or None, "connections": len(self.connections)}
+
+    def connections_text(self) -> str:
+        """The model's wiring as text: each port a part reads, its unit and who provides it."""
+        return connections_text(self.connections)
 
     def __getstate__(self):
         state = dict(self.__dict__)
@@ -208,7 +217,7 @@ class Model(Summarised, Contract):
         role : str
             A state role (see :class:`~ema_casadi.model.components.State`).
         """
-        names = self.states_with(role)
+        names = self._lead(self.states_with, role)
         if len(names) != 1:
             raise AssemblyError(f"the model has {len(names)} states with role '{role}', expected one")
         return names[0]
@@ -242,9 +251,15 @@ class Model(Summarised, Contract):
         """
         if params is None and not overrides:  # the common case, cached (params are frozen)
             if self._p0 is None:
-                self._p0 = self.params.vector()
+                self._p0 = self.params.vector() if self.system is None else self.system.vector(self.params)
             return self._p0.copy()
+        if self.system is not None:
+            return self.system.vector(params or self.params, **overrides)
         return (params or self.params).vector(**overrides)
+
+    def param_units(self) -> dict[str, str]:
+        """SI unit of every entry of the parameter vector (``param_names``), by name."""
+        return Parameters.units() if self.system is None else self.system.units()
 
     def pdict(self, p=None) -> SimpleNamespace:
         """Parameter values by name (attribute access), from ``p`` or the model's set.
@@ -367,77 +382,6 @@ def _default(inp, P) -> float:
     return getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
 
 
-def _declarations(parts):
-    """Merge what the parts declare; a name declared twice must agree."""
-    states, inputs, outputs, providers = {}, {}, {}, {}
-    loops, holds, stored, loads, heat, masses = {}, [], [], [], {}, []
-    for part in parts:
-        for s in part.states:
-            if s.name in states:
-                raise AssemblyError(f"state '{s.name}' declared by two parts")
-            states[s.name] = s
-        for i in part.inputs:
-            if inputs.setdefault(i.name, i) != i:
-                raise AssemblyError(f"input '{i.name}' declared differently by two parts")
-        for o in part.outputs:
-            if outputs.setdefault(o.name, o) != o:
-                raise AssemblyError(f"output '{o.name}' declared differently by two parts")
-        for key, fn in part.signals().items():
-            for n in key if isinstance(key, tuple) else (key,):
-                if n in providers:
-                    raise AssemblyError(f"signal '{n}' provided by two parts ({part.family}={part.value})")
-                providers[n] = (key, fn)
-        loops.update({lp.name: lp for lp in part.loops})
-        holds += part.holds
-        stored += part.stored
-        loads += part.loads
-        masses += part.masses
-        heat.update(part.heat)
-    modify(parts, providers)
-    providers["E_stored"] = ("E_stored", lambda b: _sum(b, stored))
-    providers["F_load_rod"] = ("F_load_rod", lambda b: _sum(b, loads))
-    providers["M_load_rod"] = ("M_load_rod", lambda b: _sum(b, masses))
-    for node in HEAT_NODES:
-        providers[heat_signal(node)] = (heat_signal(node), lambda b, node=node: _heat(b, node, heat, outputs))
-    for o in _SUMS:
-        outputs[o.name] = o
-    # an input that a part provides as a signal is internal (the airframe's flight-control
-    # law provides the actuator's x_cmd); the model's inputs: signals first, injections last
-    inputs = {n: i for n, i in inputs.items() if n not in providers}
-    ordered = [i for i in inputs.values() if not i.injection] + [i for i in inputs.values() if i.injection]
-    return states, {i.name: i for i in ordered}, outputs, providers, loops, tuple(holds)
-
-
-def _heat(bus, node, heat, outputs):
-    """The losses routed to ``node``, summed; every loss output must be routed."""
-    unrouted = [n for n, o in outputs.items() if o.kind == "loss" and n not in heat]
-    wrong = {n: v for n, v in heat.items() if v not in HEAT_NODES}
-    if unrouted or wrong:
-        raise AssemblyError(f"losses {unrouted} heat no thermal node; nodes {wrong} unknown (expected one of "
-                            f"{', '.join(HEAT_NODES)}): declare each loss in its part's heat table")
-    return _sum(bus, [n for n, v in heat.items() if v == node])
-
-
-def _sum(bus, names):
-    terms = [bus[n] for n in names]
-    total = terms[0] if terms else 0
-    for t in terms[1:]:
-        total = total + t
-    return total
-
-
-def _check_tables(params: Parameters, parts) -> None:
-    """Refuse a model whose parts read a table the parameter file does not have."""
-    if not params.missing:
-        return
-    group_of = params.group_of()
-    for part in parts:
-        for name in part.params:
-            if group_of.get(name) in params.missing:
-                raise ParameterError(f"{params.source}: missing table [{group_of[name]}] (its key '{name}' is read "
-                                     f"by {part.family} = {part.value}); add the table or choose another variant")
-
-
 def build_model(params: Parameters, variants: dict | None = None) -> Model:
     """Assemble the EMA for a variant choice.
 
@@ -458,10 +402,21 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     v.update(variants or {})
     params = dataclasses.replace(params, variants=v)
     parts, ignored = parts_for(v)
-    _check_tables(params, parts)
-    states, inputs, outputs, providers, loops, holds = _declarations(parts)
+    check_tables(params, parts)
+    if params.system:  # several actuator instances on one surface
+        from ._system import instances
 
-    names = Parameters.names()
+        system, parts = instances(params, parts)
+        return _assemble(params, v, parts, ignored, list(system.names), system)
+    return _assemble(params, v, parts, ignored, Parameters.names(), None)
+
+
+def _assemble(params, v, parts, ignored, names, system) -> Model:
+    """The model of these parts on the parameter ``names`` (``system``: its instances)."""
+    d = declarations(parts)
+    states, inputs, outputs, providers, loops, holds = d.states, d.inputs, d.outputs, d.providers, d.loops, d.holds
+    if system is not None:
+        system.check_connections(parts, d)
     clash = sorted({n for part in parts for n in part.limits} & set(names))
     if clash:
         raise AssemblyError(f"envelope limits {clash} have the names of parameters")
@@ -472,6 +427,9 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     adjusted = {n: fn(P, U) for part in parts for n, fn in part.adjust().items()}
     if adjusted:  # parameters some part makes signals (Part.adjust)
         P = SimpleNamespace(**{**vars(P), **adjusted})
+    for part in parts:
+        if getattr(part, "instance", ""):  # its copies of the parameters (A.K_x as K_x)
+            part.bind(P, [n.split(".", 1)[1] for n in names if n.startswith(f"{part.instance}.")])
     X = {n: ca.SX.sym(n) for n in states}
     x = ca.vertcat(*X.values())
     roles: dict = {}
@@ -480,7 +438,7 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
             roles.setdefault(r, []).append(s.name)
 
     def bus(xs=X, **kw):
-        return Bus(providers, xs, U, P, roles, **kw)
+        return Bus(providers, xs, U, P, roles, guard=d.guard, **kw)
 
     def evaluate(b):
         return ca.vertcat(*[b[der(n)] for n in states]), ca.vertcat(*[b[n] for n in outputs])
@@ -495,5 +453,5 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
         variants=v, params=params, states=tuple(states), inputs=tuple(inputs), outputs=tuple(outputs),
         param_names=tuple(names), f=f, f_held=f_held, sample=sample, project=project, parts=tuple(parts),
         state_info=states, input_info=inputs, output_info=outputs, loops=loops, holds=holds,
-        ignored=tuple(ignored),
+        ignored=tuple(ignored), connections=d.connections, system=system,
     )

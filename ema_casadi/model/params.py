@@ -382,6 +382,9 @@ class Parameters(Summarised, FaultTables):
         Variant keys given by ``load_parameters(variants=...)`` (a wrong one is blamed there).
     missing : tuple of str
         Tables the file lacks (NaN values): ``build_model`` names one its variants read.
+    system : dict
+        The ``[instances]``, ``[surface]`` and ``[equaliser]`` tables of a model of several
+        actuators on one surface, as read ({} for one actuator): checked by ``build_model``.
     """
 
     actuator: Actuator
@@ -398,6 +401,9 @@ class Parameters(Summarised, FaultTables):
     source: str = "<memory>"
     missing: tuple = ()
     overrides: tuple = ()
+    #: The tables of a model of several actuators (``[instances]``, ``[surface]``,
+    #: ``[equaliser]``), as read: checked when the model is built (docs: dual actuators).
+    system: dict = field(default_factory=dict)
 
     def _facts(self) -> dict:
         return {"source": Path(self.source).name, "parameters": len(self.names()),
@@ -439,19 +445,36 @@ class Parameters(Summarised, FaultTables):
         return out
 
     def vector(self, **overrides: float) -> np.ndarray:
-        """Flat numeric vector for the model's ``p`` input.
+        """Flat numeric vector for the model's ``p`` input (with ``[instances]``: the model
+        of several actuators' vector, each instance's copies after the shared names).
 
         Parameters
         ----------
         **overrides : float
             Values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
+        if self.system:  # several actuator instances: the model's whole vector
+            from ._system import system_vector
+
+            return system_vector(self, **overrides)
         d = self.as_dict()
         for k, v in overrides.items():
             if k not in d:
                 raise UnknownParameterError(_unknown("Parameters.vector", k, d))
             d[k] = number(v, f"Parameters.vector: {k}", ParameterError, unit=self.units()[k])
         return np.array([d[n] for n in self.names()], dtype=float)
+
+    def scalars(self) -> dict[str, tuple]:
+        """Every scalar entry of the parameter vector of the model this set builds ->
+        (nominal value (SI), unit, check): the groups' fields, and with ``[instances]``
+        each instance's copies (``A.C``, ``B.x_rig``) and the surface's and equaliser's."""
+        if self.system:
+            from ._system import system_scalars
+
+            return system_scalars(self)
+        d = self.as_dict()
+        return {f.name: (d[f.name], f.metadata["unit"], f.metadata["check"]) for cls in GROUPS.values()
+                for f in fields(cls) if not f.metadata.get("table")}
 
     def replace(self, **values: float) -> Parameters:
         """A copy with some flat parameters changed (validated like a file).
@@ -464,11 +487,17 @@ class Parameters(Summarised, FaultTables):
         raw = {g: {f.name: getattr(getattr(self, g), f.name) for f in fields(cls)} for g, cls in GROUPS.items()
                if g not in self.missing}
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
+        system = self.system
+        if system:  # an instance's (A.C) or the surface's value goes into its table
+            from ._system import replace_system
+
+            system = replace_system(self, {k: v for k, v in values.items() if k not in flat_group})
+            values = {k: v for k, v in values.items() if k in flat_group}
         for k, v in values.items():
             if k not in flat_group:
                 raise UnknownParameterError(_unknown("Parameters.replace", k, flat_group))
             raw[flat_group[k]][k] = v
-        return _build(raw, self.variants, self.source, plain=True)
+        return replace(_build(raw, self.variants, self.source, plain=True), system=system)
 
     def to_toml(self, path: str | Path, header: str = "") -> Path:
         """Write the set as a parameter file (atomically: no half-written file).
@@ -559,8 +588,12 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
     return value
 
 
+#: Tables of a model of several actuators, read by the assembly (not flat parameters).
+SYSTEM_TABLES = ("instances", "surface", "equaliser")
+
+
 def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> Parameters:
-    unknown = set(data) - set(GROUPS) - {"model"}
+    unknown = set(data) - set(GROUPS) - {"model", *SYSTEM_TABLES}
     for g in sorted(unknown):
         raise ParameterError(f"{src}: unknown table [{g}]{_nearest(g, GROUPS)}; expected {', '.join(GROUPS)}")
     groups, missing = {}, []
@@ -643,7 +676,8 @@ def load_parameters(path: str | Path | None = None, variants: dict[str, str] | N
     given = _variant_table(variants or {}, "variants")
     merged.update(given)
     # the registry checks the names when a model is built, blaming the file or `variants`
-    return replace(_build(data, merged, src), overrides=tuple(given))
+    system = {k: data[k] for k in SYSTEM_TABLES if k in data}
+    return replace(_build(data, merged, src), overrides=tuple(given), system=system)
 
 
 # -- one flat value set from outside a file (a command-line flag) -----------------------

@@ -100,7 +100,8 @@ def trimmed_start(model: Model, sig: dict, pv: np.ndarray, x_base: np.ndarray | 
     try:
         with warnings.catch_warnings():  # "inside the backlash gap" concerns a linear model, not this start
             warnings.simplefilter("ignore")
-            role = {r: at0.get(model.input_with(r)) for r in ("command", "load", "efficiency")}
+            # a role the model lacks (no efficiency input: several actuators, each its own) is not given
+            role = {r: at0.get(next(iter(model.inputs_with(r)), None)) for r in ("command", "load", "efficiency")}
             op = operating_point(plant, role["command"] or 0.0, role["load"] or 0.0, eta=role["efficiency"],
                                  p=p_plant, backlash="keep")
     except LinearizationError as exc:

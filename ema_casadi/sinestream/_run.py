@@ -113,7 +113,8 @@ def _beyond_hold(vset: dict, pv, loads) -> dict:
     actuator holds at standstill: the envelope limit ``held_load`` its parts declare."""
     from ..model.components import parts_for
 
-    P = SimpleNamespace(**dict(zip(Parameters.names(), np.asarray(pv, float), strict=True)))
+    names = Parameters.names()  # the shared values lead the vector of a model of several actuators
+    P = SimpleNamespace(**dict(zip(names, np.asarray(pv, float)[:len(names)], strict=True)))
     out = {}
     for iv, v in enumerate(vset.values()):
         held = [float(part.limits["held_load"](P)) for part in parts_for(v)[0] if "held_load" in part.limits]
@@ -141,7 +142,7 @@ def _param_vector(params: Parameters, p) -> np.ndarray:
     """The raw parameter vector: ``p`` if given (checked), else the set's defaults."""
     if p is None:
         return params.vector()
-    return vector(p, "p", FreqRespError, len(Parameters.names()), " (the parameter vector)")
+    return vector(p, "p", FreqRespError, len(params.vector()), " (the parameter vector)")
 
 
 def _variant_set(params: Parameters, variants) -> dict:

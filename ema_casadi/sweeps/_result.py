@@ -84,7 +84,8 @@ class SweepResult(Summarised):
 
     def units(self) -> dict:
         """SI unit of every numeric column."""
-        u = {"run": "1", **{k: self.spec.params.units()[k] for k in self.parameters}}
+        units = {k: v[1] for k, v in self.spec.params.scalars().items()}
+        u = {"run": "1", **{k: units[k] for k in self.parameters}}
         u.update(dict(metric_columns(self.spec.metrics)))
         return u
 

@@ -311,12 +311,6 @@ def _variants(table, params, given, src) -> dict:
     return out
 
 
-def _scalar_fields() -> dict:
-    """Flat scalar parameter -> (group, unit, check)."""
-    return {f.name: (g, f.metadata["unit"], f.metadata["check"]) for g, cls in GROUPS.items() for f in fields(cls)
-            if not f.metadata.get("table")}
-
-
 def _num(where, d, key, required=True):
     if key not in d:
         if required:
@@ -329,7 +323,7 @@ def _num(where, d, key, required=True):
 
 
 def _parameter(where, name, d, params) -> dict:
-    scalars = _scalar_fields()
+    scalars = params.scalars()  # name -> (nominal, unit, check); with instances A.C, B.x_rig, ...
     if name not in scalars:
         raise SweepError(f"{where}: no parameter '{name}'{nearest(name, scalars)} (the flat names of the "
                          "parameter file, e.g. B, F_seal, C, K_i_x)")
@@ -342,7 +336,7 @@ def _parameter(where, name, d, params) -> dict:
     relative = d.get("relative", False)
     if not isinstance(relative, bool):
         raise SweepError(f"{where} relative: expected true or false, got {relative!r}")
-    nominal = params.as_dict()[name]
+    nominal = scalars[name][0]
     scale = nominal if relative else 1.0
     if "distribution" in d:
         return _distribution(where, d, scale) | {"relative": relative}

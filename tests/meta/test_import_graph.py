@@ -195,10 +195,11 @@ LONG_MODULES = {
                                         "and airframe tables with them, one field helper and one set of checks), "
                                         "their fields' rules, reading a file and checking one value by the same "
                                         "rules"),
-    "ema_casadi/model/components/_part.py": (580, "the part contract: what every part declares (states, inputs, "
+    "ema_casadi/model/components/_part.py": (610, "the part contract: what every part declares (states, inputs, "
                                                   "outputs with their roles, loops, holds, bounds, ratings, the parts "
                                                   "it brings) and the Part and "
-                                                  "Bus they meet through"),
+                                                  "Bus they meet through (which checks each read against the "
+                                                  "reader's ports)"),
     "ema_casadi/linearisation/_trim.py": (540, "the operating point: the request (by name or role, checked "
                                                "against the envelope), the Newton trim and the point it returns"),
     "ema_casadi/sweeps/_spec.py": (540, "the sweep description, read from a file or built from objects and "

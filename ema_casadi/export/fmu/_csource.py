@@ -13,7 +13,6 @@ from pathlib import Path
 import casadi as ca
 
 from ...model.assembly import Model
-from ...model.params import Parameters
 from ._functions import augmented_names, fixed_step_functions
 from ._layout import layout
 
@@ -78,7 +77,7 @@ def layout_doc(model: Model, dt: float | None = None) -> dict:
     lay = layout(model)
     exposed = {v.index for v in lay.parameters}
     units = model.units
-    punits = Parameters.units()
+    punits = model.param_units()
     extra = [{"name": model.output_with("stuck"), "unit": "1",
               "description": "friction mode after the step: 1 stuck, 0 sliding"},
              {"name": "mode_switches", "unit": "1", "description": "stick/slip switches counted since the start"}]

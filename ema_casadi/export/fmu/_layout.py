@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from ...model.assembly import Model
-from ...model.params import GROUPS, LOOP_FLAGS, Parameters
+from ...model.params import GROUPS, LOOP_FLAGS
 from .._errors import ExportError
 
 __all__ = ["Var", "Layout", "layout"]
@@ -136,7 +136,7 @@ def layout(model: Model) -> Layout:
         name = f"{n}_y" if n in model.states else n
         outputs.append(Var(name, j, o.unit, o.doc))
     taken = {v.name for v in (*states, *inputs, *outputs)}
-    units, docs = Parameters.units(), _param_docs()
+    units, docs = model.param_units(), _param_docs()
     parameters = []
     for i in _used_parameters(model):
         n = model.param_names[i]

@@ -54,6 +54,7 @@ from ._part import (
     heat_signal,
     node_outflow,
 )
+from ._ports import Connection, Port
 from ._registry import (
     DEFAULT_VARIANTS,
     OPTIONS,
@@ -73,7 +74,7 @@ __all__ = [
     "INPUT_KINDS", "OUTPUT_KINDS", "INPUT_ROLES", "OUTPUT_ROLES", "SIGNAL_KEYS",
     "MARGIN", "POLICIES", "AssemblyError", "Bound", "Fault", "Freeze", "Gain", "Limit", "Rating", "RATING_SENSES",
     "Seed", "Bus", "Hold", "Input", "Loop", "Output",
-    "Part", "State", "der",
+    "Part", "State", "der", "Port", "Connection",
     "HEAT_NODES", "heat_signal", "Node", "node_outflow",
     "DEFAULT_VARIANTS", "OPTIONS", "REGISTRY", "VARIANTS", "VariantError", "parts_for", "validate_variants",
     "PART_CLASSES", "served_by",

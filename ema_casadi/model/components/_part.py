@@ -63,12 +63,14 @@ INPUT_ROLES = ("command", "load", "efficiency", "ambient_temperature", "attitude
 #: ambient) and energies (stored mechanically and magnetically, stored as heat); the
 #: temperature-dependent winding resistance, magnet flux and screw efficiency; behind an
 #: airframe the rod command it gives, its law's rod and elevator commands, the elevator, the
-#: surface load on the rod and the normal load factor.
+#: surface load on the rod and the normal load factor; a surface driven by several
+#: actuators: its angle, each attachment's force and the force fight between two channels.
 OUTPUT_ROLES = ("rod_position", "rod_velocity", "motor_speed", "motor_current", "screw_force",
                 "nut_position", "current_command", "d_voltage", "q_voltage", "stuck",
                 "load_power", "electrical_power", "ambient_heat", "stored_energy", "thermal_energy",
                 "winding_resistance", "magnet_flux", "screw_efficiency",
-                "rod_command", "law_command", "elevator_command", "elevator", "surface_load", "load_factor")
+                "rod_command", "law_command", "elevator_command", "elevator", "surface_load", "load_factor",
+                "surface_angle", "attachment_force", "force_fight")
 
 #: The key under which a role's signal is written in files, flags and reports (the CLI
 #: contract: a mission segment's ``x_cmd``, a sweep scenario's ``f_ext``, a trim's JSON
@@ -348,6 +350,8 @@ class Part:
     doc: ClassVar[str] = ""
     states: ClassVar[tuple] = ()
     inputs: ClassVar[tuple] = ()
+    #: Signals it reads that other parts provide (:class:`~ema_casadi.model.components._ports.Port`)
+    reads: ClassVar[tuple] = ()
     outputs: ClassVar[tuple] = ()
     params: ClassVar[tuple] = ()
     loops: ClassVar[tuple] = ()
@@ -493,21 +497,54 @@ class Bus:
         Signals replaced by the given expressions.
     wrap : dict, optional
         Signal name -> ``fn(bus, value)`` applied to the provider's value.
+    guard : tuple, optional
+        ``(owner, allowed)``: signal name -> the part providing it, and ``id(part)`` -> the
+        names it may read (:func:`~ema_casadi.model.components._ports.allowed_reads`);
+        a provider reading a name outside its set is an AssemblyError (an undeclared port).
     """
 
     def __init__(self, providers: dict, x: dict, u: dict, P: SimpleNamespace,
-                 roles: dict, overrides: dict | None = None, wrap: dict | None = None):
+                 roles: dict, overrides: dict | None = None, wrap: dict | None = None, guard: tuple | None = None):
         self._providers = providers
         self.x, self.u, self.P = x, u, P
         self._roles = roles
         self._cache = dict(overrides or {})
         self._wrap = wrap or {}
         self._busy: list = []
+        self._owner, self._allowed = guard or ({}, None)
+        self._who: list = []
+
+    def _check(self, name: str) -> None:
+        part = self._who[-1] if self._who else None
+        if part is not None and self._allowed is not None and name not in self._allowed[id(part)]:
+            inst = getattr(part, "instance", "")
+            raise AssemblyError(f"{inst + '.' if inst else ''}{part.family} = {part.value} reads '{name}' without "
+                                f"declaring it: add Port('{name}', ...) to its reads")
+
+    def acting(self, part, fn, *args):
+        """``fn(self, *args)`` with the reads checked against ``part``'s ports (a modifier).
+
+        Parameters
+        ----------
+        part : Part
+            The part whose ports the reads are checked against.
+        fn : callable
+            ``fn(bus, *args)``.
+        *args
+            Passed on to ``fn``.
+        """
+        self._who.append(part)
+        try:
+            return fn(self, *args)
+        finally:
+            self._who.pop()
 
     def __contains__(self, name: str) -> bool:
         return name in self._cache or name in self.x or name in self.u or name in self._providers
 
     def __getitem__(self, name: str):
+        if self._who:
+            self._check(name)
         if name in self._cache:
             return self._cache[name]
         if name in self.x:
@@ -520,11 +557,13 @@ class Bus:
         if name in self._busy:
             raise AssemblyError("algebraic loop: " + " -> ".join([*self._busy, name]))
         self._busy.append(name)
+        self._who.append(self._owner.get(name))
         try:
             key, fn = key
             val = fn(self)
         finally:
             self._busy.pop()
+            self._who.pop()
         names = key if isinstance(key, tuple) else (key,)
         vals = val if isinstance(key, tuple) else (val,)
         for n, v in zip(names, vals, strict=True):
@@ -552,7 +591,10 @@ class Bus:
         role : str
             A state role (see :class:`State`).
         """
-        return self.x[self.state_name(role)]
+        name = self.state_name(role)
+        if self._who:
+            self._check(name)
+        return self.x[name]
 
     def feedback(self, loop: Loop):
         """``flag * measured + injection`` of a loop.

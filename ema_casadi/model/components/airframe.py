@@ -33,6 +33,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Hold, Input, Loop, Output, Part, State, der
+from ._ports import Port
 
 __all__ = [
     "atmosphere", "crank", "hinge_moment", "pitch_law", "transport_rates",
@@ -191,6 +192,10 @@ class _Airframe(Part):
     a subclass provides ``_rates(b, delta)`` -> (state rates by name, qbar, alpha_aero, n_z)."""
 
     family = "airframe"
+    reads = (
+        Port("v_rod_mech", "m/s", "the rod's mechanical velocity"),
+        Port("x_rod_mech", "m", "the rod's mechanical position"),
+    )
     conditions = CONDITIONS
     inputs = _INPUTS
     outputs = _OUTPUTS

@@ -7,6 +7,7 @@ import math
 import casadi as ca
 
 from ._part import MARGIN, Bound, Input, Output, Part, Rating, Seed, State, der
+from ._ports import Port
 from .motor import no_load_speed, shaft
 
 __all__ = [
@@ -314,6 +315,15 @@ class Elastic(Part):
     with contact damping; the rod carries the friction contact."""
 
     family, value = "screw", "elastic"
+    reads = (
+        Port("F_load_rod", "N", "the load on the rod (the assembly's sum)"),
+        Port("F_net", "N", "the force accelerating the contact, friction taken"),
+        Port("M_load_rod", "kg", "masses moving with the rod (the assembly's sum)"),
+        Port("T_m", "N*m", "the motor torque"),
+        Port("eta_screw", "1", "the screw-nut direct efficiency"),
+        Port("eta_inv_screw", "1", "the screw-nut inverse efficiency"),
+        Port("stick", "1", "the friction's stuck flag"),
+    )
     doc = "two-mass: dead-zone spring with contact damping between nut and rod"
     states = _shaft_states(contact=False) + (
         State("x_rod", "m", "rod position", roles=("rod_position",), scale=lambda P: P.stroke, travel=lambda P: 1.0,
@@ -400,6 +410,15 @@ class Rigid(Part):
     the position signal only, as a play operator; friction acts on the shaft."""
 
     family, value = "screw", "rigid"
+    reads = (
+        Port("F_friction", "N", "the friction force"),
+        Port("F_load_rod", "N", "the load on the rod (the assembly's sum)"),
+        Port("M_load_rod", "kg", "masses moving with the rod (the assembly's sum)"),
+        Port("T_m", "N*m", "the motor torque"),
+        Port("eta_screw", "1", "the screw-nut direct efficiency"),
+        Port("eta_inv_screw", "1", "the screw-nut inverse efficiency"),
+        Port("stick", "1", "the friction's stuck flag"),
+    )
     doc = "one-mass: rod rigid on the shaft, backlash as a play on the position signal"
     states = _shaft_states(contact=True) + (
         # without backlash the play rests anywhere: held exactly at the nut, where both edges

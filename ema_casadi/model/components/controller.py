@@ -47,6 +47,7 @@ import math
 import casadi as ca
 
 from ._part import Gain, Hold, Input, Limit, Loop, Output, Part, State, der
+from ._ports import Port
 
 __all__ = [
     "clamp", "soft_clip", "limit", "clamping_rate", "clamping_band", "integral_rate", "pi_law", "position_law",
@@ -416,6 +417,7 @@ class PositionP(Loops):
     """ECU outer loops: P position loop (rate-limited) and PI speed loop (docs: physics)."""
 
     family, value = "controller", "P"
+    reads = (Port("x_s", "m", "the measured rod position"), Port("omega_s", "rad/s", "the measured motor speed"),)
     doc = "position P loop -> speed PI loop -> current command"
     inputs = (
         Input("x_cmd", "m", "length", "commanded rod position", roles=("command",)),
@@ -492,6 +494,13 @@ class FocCurrent(Loops):
     circle; its references held between current-loop samples. Brought by the PMSM part."""
 
     family, value = "controller", "foc"
+    reads = (
+        Port("i_cmd", "A", "the current command"),
+        Port("i_d_s", "A", "the measured d current"),
+        Port("i_q_s", "A", "the measured q current"),
+        Port("omega_s", "rad/s", "the measured motor speed"),
+        Port("v_dc", "V", "the DC-link voltage"),
+    )
     doc = "FOC current loop: dq PI with decoupling, voltage circle"
     inputs = (_D_I,)
     params = ("L_d", "L_q", *_CURRENT_PARAMS)
@@ -520,6 +529,12 @@ class PiCurrent(Loops):
     by the dc motor part."""
 
     family, value = "controller", "pi"
+    reads = (
+        Port("i_cmd", "A", "the current command"),
+        Port("i_q_s", "A", "the measured q current"),
+        Port("omega_s", "rad/s", "the measured motor speed"),
+        Port("v_dc", "V", "the DC-link voltage"),
+    )
     doc = "current PI of the dc equivalent, back-EMF feed-forward"
     inputs = (_D_I,)
     params = _CURRENT_PARAMS

@@ -25,6 +25,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import MARGIN, Output, Part
+from ._ports import Port
 from .ballscrew import OVERTRAVEL, held_force
 
 __all__ = ["stop_force", "Elastic"]
@@ -60,6 +61,10 @@ class Elastic(Part):
     """Elastic, damped, non-pulling stops at both ends of the stroke."""
 
     family, value = "endstop", "elastic"
+    reads = (
+        Port("x_rod_mech", "m", "the rod's mechanical position"),
+        Port("v_rod_mech", "m/s", "the rod's mechanical velocity"),
+    )
     doc = "ElastoGap stops at +-stroke: k_stop, d_stop, no pulling force"
     outputs = (
         Output("F_stop", "N", "end-stop force on the rod (>= 0, pushes it back into the stroke)"),

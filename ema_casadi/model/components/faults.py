@@ -45,6 +45,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Fault, Input, Output, Part, State, der
+from ._ports import Port
 
 __all__ = ["On", "SENSOR_TARGETS"]
 
@@ -102,6 +103,15 @@ class On(Part):
     """Every fault kind, each behind its own input (module docstring)."""
 
     family, value = "faults", "on"
+    reads = (
+        Port("x_rod_mech", "m", "the rod's mechanical position"),
+        Port("v_rod_mech", "m/s", "the rod's mechanical velocity"),
+        Port("x_s", "m", "the measured rod position"),
+        Port("omega_s", "rad/s", "the measured motor speed"),
+        Port("i_q_s", "A", "the measured q current"),
+        Port("v_d_open", "V", "the winding d voltage with the bridge on"),
+        Port("v_q_open", "V", "the winding q voltage with the bridge on"),
+    )
     doc = "fault injection: jam, free-run (bridge off), disconnect, supply loss, sensor bias/drift/stuck/loss/noise"
     states = (
         State("x_jam", "m", "jam anchor: follows the rod while healthy, stands at the onset position",

@@ -38,6 +38,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Output, Part, State, der
+from ._ports import Port
 from .ballscrew import F_EXT
 
 __all__ = ["sliding_level", "smooth", "hybrid", "stick_entry", "stribeck_curve", "lugre_rate", "x_over_tanh",
@@ -183,6 +184,12 @@ class Smooth(Part):
     """Simplified friction (eq. 3), continuous: any ODE solver, linearisable."""
 
     family, value = "friction", "smooth"
+    reads = (
+        Port("v_contact", "m/s", "the velocity at the friction contact"),
+        Port("F_drive", "N", "the force driving the friction contact"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("v_rod", "m/s", "the rod velocity"),
+    )
     doc = "smooth Coulomb law F_r s(v) (+ Stribeck hump) + viscous"
     inputs = (F_EXT,)
     outputs = _OUT
@@ -206,6 +213,12 @@ class Hybrid(Part):
     stick-entry map :meth:`project` applied by the integrators after each step."""
 
     family, value = "friction", "hybrid"
+    reads = (
+        Port("v_contact", "m/s", "the velocity at the friction contact"),
+        Port("F_drive", "N", "the force driving the friction contact"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("v_rod", "m/s", "the rod velocity"),
+    )
     doc = "Karnopp stick-slip: dead band eps, breakaway F_start = r_start F_r"
     inputs = (F_EXT,)
     outputs = _OUT
@@ -283,6 +296,12 @@ class LuGre(Part):
     deflection F/sigma_0."""
 
     family, value = "friction", "lugre"
+    reads = (
+        Port("v_contact", "m/s", "the velocity at the friction contact"),
+        Port("F_drive", "N", "the force driving the friction contact"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("v_rod", "m/s", "the rod velocity"),
+    )
     doc = "LuGre: bristle state z, sigma_0 z + sigma_1 dz/dt + c_v v, Stribeck curve F_r..r_start F_r"
     # at rest nothing restores z (dz/dt = v): the trim holds it at its steady state z_ss(v)
     states = (State("z", "m", "LuGre bristle deflection", scale=lambda P: 1e-5, rest="z_ss"),)
@@ -378,6 +397,12 @@ class LuGreSmooth(Part):
     law; at rest the bristles relax (time constant F_r/(sigma_0 v_s))."""
 
     family, value = "friction", "lugre_smooth"
+    reads = (
+        Port("v_contact", "m/s", "the velocity at the friction contact"),
+        Port("F_drive", "N", "the force driving the friction contact"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("v_rod", "m/s", "the rod velocity"),
+    )
     doc = "LuGre on the smooth law's curve: bristle state z, steady state F_r s(v) (+ hump) + viscous"
     # the trim holds z at its steady state (with sigma_0 = 0 nothing else determines it)
     states = (State("z", "m", "LuGre bristle deflection", scale=lambda P: 1e-5, rest="z_ss"),)

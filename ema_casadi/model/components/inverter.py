@@ -10,6 +10,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Output, Part
+from ._ports import Port
 
 __all__ = ["ideal", "averaged_losses", "current_amplitude", "open_bridge", "Ideal"]
 
@@ -108,6 +109,17 @@ class Ideal(Part):
     conduction and switching losses of the bridge carrying the motor currents."""
 
     family, value = "inverter", "ideal"
+    reads = (
+        Port("v_d_ref", "V", "the controller's d voltage"),
+        Port("v_q_ref", "V", "the controller's q voltage"),
+        Port("v_dc", "V", "the DC-link voltage"),
+        Port("i_d", "A", "the d current"),
+        Port("i_q", "A", "the q current"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("R_w", "Ohm", "the winding resistance"),
+        Port("psi_m", "Wb", "the magnet flux linkage"),
+        Port("P_elec", "W", "the electrical power into the windings"),
+    )
     doc = "averaged bridge: winding voltage = controller voltage, averaged losses"
     outputs = (
         Output("v_d", "V", "d-axis winding voltage (0 for the dc motor)", roles=("d_voltage",)),
@@ -278,6 +290,18 @@ class Pwm(Part):
     """
 
     family, value = "inverter", "pwm"
+    reads = (
+        Port("v_d_ref", "V", "the controller's d voltage"),
+        Port("v_q_ref", "V", "the controller's q voltage"),
+        Port("v_dc", "V", "the DC-link voltage"),
+        Port("i_d", "A", "the d current"),
+        Port("i_q", "A", "the q current"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("phi", "rad", "the shaft angle"),
+        Port("R_w", "Ohm", "the winding resistance"),
+        Port("psi_m", "Wb", "the magnet flux linkage"),
+        Port("P_elec", "W", "the electrical power into the windings"),
+    )
     smooth = {"inverter": "ideal"}
     doc = "switched 2-level bridge, SVPWM at f_sw, exact switching instants"
     requires = {"motor": ("pmsm",)}

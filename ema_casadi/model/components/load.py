@@ -16,6 +16,7 @@ K_aero(jw) = K(jw) + k_aero.
 from __future__ import annotations
 
 from ._part import Output, Part
+from ._ports import Port
 
 __all__ = ["Constant", "AeroSpring"]
 
@@ -31,6 +32,7 @@ class AeroSpring(Part):
     """The surface's hinge moment as a spring in rod position, plus ``f_ext``."""
 
     family, value = "load", "aero_spring"
+    reads = (Port("x_rod_mech", "m", "the rod's mechanical position"),)
     doc = "hinge-moment spring k_aero x_rod on the rod, plus f_ext"
     outputs = (Output("F_aero", "N", "hinge-moment spring on the rod, k_aero x_rod (positive pushes it in)"),)
     params = ("k_aero",)

@@ -43,6 +43,7 @@ import math
 import casadi as ca
 
 from ._part import Output, Part, State, der
+from ._ports import Port
 
 __all__ = ["On", "MONITORS", "THRESHOLDS", "TAU_RESET", "TAU_LATCH"]
 
@@ -107,6 +108,17 @@ class On(Part):
     """The ECU's monitors, each a confirmation timer and a latch (module docstring)."""
 
     family, value = "monitors", "on"
+    reads = (
+        Port("x_cmd", "m", "the rod command"),
+        Port("x_s", "m", "the measured rod position"),
+        Port("x_in_s", "m", "the measured nut position"),
+        Port("omega_s", "rad/s", "the measured motor speed"),
+        Port("i_d_s", "A", "the measured d current"),
+        Port("i_q_s", "A", "the measured q current"),
+        Port("v_d_open", "V", "the winding d voltage with the bridge on"),
+        Port("v_q_open", "V", "the winding q voltage with the bridge on"),
+        Port("T_w", "degC", "the winding temperature", optional=True),
+    )
     doc = "ECU monitors: tracking, jam, rod-motor cross-check, over-current, over-temperature; latched"
     states = (
         State("x_ref", "m", "monitor: the command through the nominal closed loop", scale=lambda P: P.stroke,

@@ -19,6 +19,7 @@ import math
 import casadi as ca
 
 from ._part import MARGIN, Bound, Fault, Input, Output, Part, Rating, State, der
+from ._ports import Port
 from .controller import CURRENT_LOOP, FocCurrent, PiCurrent
 
 __all__ = ["dc", "pmsm", "shaft", "no_load_speed", "iron_loss", "winding_short", "OMEGA_FE", "MU_MIN", "Pmsm",
@@ -268,6 +269,13 @@ class Pmsm(Part):
     """
 
     family, value = "motor", "pmsm"
+    reads = (
+        Port("v_d", "V", "the winding d voltage"),
+        Port("v_q", "V", "the winding q voltage"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("R_w", "Ohm", "the winding resistance"),
+        Port("psi_m", "Wb", "the magnet flux linkage"),
+    )
     doc = "3-phase PMSM, rotor dq frame, FOC current loop"
     brings = (FocCurrent,)
     outputs = _COMMON_OUT
@@ -304,6 +312,7 @@ class ShortedPmsm(Pmsm):
     ``winding_short = "on"``): the state ``i_f``, the fault input ``mu_short`` and the
     loss ``P_short`` into the winding node."""
 
+    reads = Pmsm.reads + (Port("phi", "rad", "the shaft angle"),)
     states = Pmsm.states + (State("i_f", "A", "current in the shorted turns' short", scale=_amps),)
     inputs = (Input("mu_short", "1", "dimensionless", "fault: shorted fraction of phase a's turns (0 healthy)"),)
     outputs = Pmsm.outputs + (Output("P_short", "W", "extra copper loss of the turn-to-turn short", kind="loss"),)
@@ -331,6 +340,12 @@ class Dc(Part):
     (:class:`~ema_casadi.model.components.controller.PiCurrent`, brought)."""
 
     family, value = "motor", "dc"
+    reads = (
+        Port("v_q", "V", "the winding q voltage"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("R_w", "Ohm", "the winding resistance"),
+        Port("psi_m", "Wb", "the magnet flux linkage"),
+    )
     doc = "1-phase dc equivalent of the PMSM q axis, simple current PI"
     brings = (PiCurrent,)
     outputs = _COMMON_OUT

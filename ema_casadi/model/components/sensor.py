@@ -31,6 +31,7 @@ from __future__ import annotations
 import casadi as ca
 
 from ._part import Hold, Input, Output, Part, State, der
+from ._ports import Port
 from .inverter import inverse_park, park
 
 __all__ = ["quantise", "resolver_step", "Ideal", "Real", "SENSED"]
@@ -80,6 +81,13 @@ class Ideal(Part):
     """Perfect sensors: the ECU reads the true signals."""
 
     family, value = "sensor", "ideal"
+    reads = (
+        Port("x_rod", "m", "the rod position"),
+        Port("x_in", "m", "the nut position"),
+        Port("omega", "rad/s", "the motor speed"),
+        Port("i_d", "A", "the d current"),
+        Port("i_q", "A", "the q current"),
+    )
     doc = "perfect sensors: the ECU reads the true rod position, speed and currents"
     outputs = _sensed("signal")
 
@@ -101,6 +109,12 @@ class Real(Part):
     """LVDT, resolver and phase-current sensors with their errors (module docstring)."""
 
     family, value = "sensor", "real"
+    reads = (
+        Port("x_rod", "m", "the rod position"),
+        Port("phi", "rad", "the shaft angle"),
+        Port("i_d", "A", "the d current"),
+        Port("i_q", "A", "the q current"),
+    )
     smooth = {"sensor": "ideal"}  # quantisation steps and noise
     doc = "LVDT (gain, bias, noise, quantisation, lag), resolver (bits, noise, speed estimate), current sensors"
     states = (

@@ -24,6 +24,7 @@ anywhere in it (tests run 250 V).
 from __future__ import annotations
 
 from ._part import Bound, Output, Part, State, der
+from ._ports import Port
 
 __all__ = ["Ideal", "Line"]
 
@@ -35,6 +36,7 @@ class Ideal(Part):
     """The ideal 270 V source: the DC link at the parameter V_dc."""
 
     family, value = "supply", "ideal"
+    reads = (Port("P_bridge", "W", "the power the bridge draws"),)
     doc = "ideal source: DC-link voltage = V_dc"
     outputs = (_P_DC, _V_DC)
     params = ("V_dc",)
@@ -55,6 +57,7 @@ class Line(Part):
     """Source V_dc behind R_line, L_line feeding the DC-link capacitor C_dc."""
 
     family, value = "supply", "line"
+    reads = (Port("P_bridge", "W", "the power the bridge draws"),)
     doc = "source behind R_line, L_line feeding the DC-link capacitor C_dc"
     states = (
         State("i_line", "A", "supply-line current (source to DC link)", roles=("current",), scale=_amps,

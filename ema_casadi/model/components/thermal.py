@@ -45,6 +45,7 @@ import casadi as ca
 
 from ..params import TABLE_MAX
 from ._part import Bound, Freeze, Input, Node, Output, Part, State, der, heat_signal, node_outflow
+from ._ports import Port
 from .ballscrew import ETA
 
 __all__ = ["eta_table", "network", "Off", "Lumped", "T_AMB", "NODES"]
@@ -155,6 +156,12 @@ class Lumped(Part):
     """Lumped four-node thermal network with switchable R(T), psi(T), eta(T) feedback."""
 
     family, value = "thermal", "lumped"
+    reads = (
+        Port("P_heat_winding", "W", "the heat into the winding node"),
+        Port("P_heat_housing", "W", "the heat into the housing node"),
+        Port("P_heat_screw", "W", "the heat into the screw node"),
+        Port("P_heat_inverter", "W", "the heat into the inverter node"),
+    )
     doc = "winding, housing, screw, inverter nodes; R(T_w), psi(T_h), eta(T_s)"
     states = (
         _temperature("T_w", "winding temperature"),
