@@ -153,7 +153,8 @@ def _segment(s: dict) -> str:
     between -9.2 and +9.2 mm at constant speed, 30 % of each move reversing it, at 0 kN``."""
     from ..signals import format_quantity as q
 
-    load = ("+" if s["load"] > 0 else "") + q(s["load"], "N", unit="kN")
+    level = float(s["load"])  # N, + pushes the rod in
+    load = ("+" if level > 0 else "") + q(level, "N", unit="kN")
     if s["kind"] == "multisine":
         return f"multisine {s['band'][0]:g}-{s['band'][1]:g} Hz, {q(s['amplitude'], 'm', 3)} peak, at {load}"
     return (f"{int(s['band'][0])} slews between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)} at "

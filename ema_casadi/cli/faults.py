@@ -145,7 +145,6 @@ def run(args) -> dict:
 def _report_cases(r: dict) -> None:
     """The cases' table: each case's run, the rod's deviation and each monitor's delay,
     with the words defined under it."""
-    from ..model.components.monitors import MONITORS
     from ..signals import format_quantity as q
 
     mons = r["monitors"]
@@ -164,10 +163,8 @@ def _report_cases(r: dict) -> None:
           "largest |x_rod| difference from the no-fault run after the onset")
     print("monitor columns: the delay from the fault's onset to the monitor's latch (- : not latched; in the row "
           "none, a false alarm's time)")
-    for m in mons:
-        name = m.removeprefix("latch_")
-        if name in MONITORS:
-            print(f"  {name}: {MONITORS[name][2]}")
+    for m, doc in r.get("monitor_doc", {}).items():
+        print(f"  {m.removeprefix('latch_')}: {doc}")
 
 
 def report(r: dict) -> None:
