@@ -97,7 +97,7 @@ def _listing(params, variants) -> dict:
 
 
 def run(args) -> dict:
-    from ..faults import load_faults, run_faults
+    from ..faults import FaultError, load_faults, run_faults
     from ..model.params import load_parameters
 
     out = _check(args)
@@ -115,16 +115,19 @@ def run(args) -> dict:
     params = load_parameters(args.model)
     if args.list:
         return _listing(params, dict(args.variant))
-    spec = load_faults(args.faults, params, dict(args.variant))
-    res = run_faults(faults=spec, healthy=0 if args.thresholds else args.healthy_runs, jobs=args.jobs,
-                     seed=args.seed, progress=progress_of(args))
-    study = None
-    if args.thresholds:
-        from ..faults import threshold_study
+    try:
+        spec = load_faults(args.faults, params, dict(args.variant))
+        res = run_faults(faults=spec, healthy=0 if args.thresholds else args.healthy_runs, jobs=args.jobs,
+                         seed=args.seed, progress=progress_of(args))
+        study = None
+        if args.thresholds:
+            from ..faults import threshold_study
 
-        study = threshold_study(spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
-                                progress=progress_of(args), table=res)
-        res.healthy = study.healthy
+            study = threshold_study(spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
+                                    progress=progress_of(args), table=res)
+            res.healthy = study.healthy
+    except FaultError as exc:
+        raise UserError(str(exc)) from None
     with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names[0])
         if study is not None:
@@ -142,7 +145,6 @@ def run(args) -> dict:
 def _report_cases(r: dict) -> None:
     """The cases' table: each case's run, the rod's deviation and each monitor's delay,
     with the words defined under it."""
-    from ..model.components import MONITOR_MEANINGS
     from ..signals import format_quantity as q
 
     mons = r["monitors"]
@@ -161,10 +163,8 @@ def _report_cases(r: dict) -> None:
           "largest |x_rod| difference from the no-fault run after the onset")
     print("monitor columns: the delay from the fault's onset to the monitor's latch (- : not latched; in the row "
           "none, a false alarm's time)")
-    for m in mons:
-        name = m.removeprefix("latch_")
-        if name in MONITOR_MEANINGS:
-            print(f"  {name}: {MONITOR_MEANINGS[name]}")
+    for m, doc in r.get("monitor_doc", {}).items():
+        print(f"  {m.removeprefix('latch_')}: {doc}")
 
 
 def report(r: dict) -> None:

@@ -101,7 +101,9 @@ class FaultResult(Summarised):
             hits = {m: d for m, d in det.items() if d is not None}
             row["first_monitor"] = min(hits, key=hits.get) if hits else None
             rows.append(row)
-        return cls(spec=spec, monitors=monitors, rows=rows, runs=[r for r, _ in runs], info=info)
+        docs = {m: model.output_info[m].doc.removeprefix("latched monitor: ") for m in monitors}
+        return cls(spec=spec, monitors=monitors, rows=rows, runs=[r for r, _ in runs],
+                   info={**info, "monitor_doc": docs})
 
     @property
     def columns(self) -> list[str]:
@@ -135,7 +137,8 @@ class FaultResult(Summarised):
         return {"cases": len(self.rows), "monitors": list(self.monitors), "rows": self.rows,
                 "coverage_s": self.coverage(), "false_alarms_no_fault": self.false_alarms(),
                 "healthy_runs": healthy, "failed": [r["case"] for r in self.rows if r["status"] != "ok"],
-                "wall_time": self.info.get("wall_time"), "variants": self.info.get("model_variants")}
+                "wall_time": self.info.get("wall_time"), "variants": self.info.get("model_variants"),
+                "monitor_doc": self.info.get("monitor_doc", {})}
 
     def to_csv(self, path: str | Path) -> Path:
         """Write the table (one row per case, SI units in the header), atomically.
