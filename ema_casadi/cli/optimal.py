@@ -182,7 +182,8 @@ def run_envelope(args) -> dict:
             raise UserError(f"--temperatures {args.temperatures}: expected degC numbers, e.g. 20,120") from None
     out = Path(args.out) if args.out else None
     top = new_output_folder(out, ENVELOPE_FILES) if out else None
-    env = performance_envelope(model, loads, distances, temps, intervals=args.intervals or 30, jobs=cores())
+    intervals = 30 if args.intervals is None else args.intervals  # 0 is refused, not the default
+    env = performance_envelope(model, loads, distances, temps, intervals=intervals, jobs=cores())
     written = []
     if out is not None:
         with output_folder(out, top) as folder:

@@ -16,6 +16,7 @@ from ..model.assembly import Model, build_model
 from ..optimisation import solve_ipopt
 from ._errors import Infeasible, OptimalError
 from ._problem import Problem, _margins, solve
+from ._request import MAX_INTERVALS
 
 __all__ = ["performance_envelope", "Envelope", "check_capacity", "CREEP"]
 
@@ -240,6 +241,14 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         raise OptimalError("temperatures: the model has no ambient-temperature input (choose a thermal network)")
     if np.any(loads < 0) or np.any(np.abs(loads) > held):
         raise OptimalError(f"loads: between 0 and the {held / 1e3:.4g} kN the screw holds")
+    if not np.all(np.isfinite(distances)) or np.any(distances <= 0):
+        raise OptimalError(f"distances: finite and above 0 (m), got {distances.tolist()}")
+    bad = [t for t in temperatures if t is not None and not (np.isfinite(t) and t > -273.15)]
+    if bad:
+        raise OptimalError(f"temperatures: finite and above absolute zero (-273.15 degC), got {bad[0]}")
+    intervals = integer(intervals, "intervals", OptimalError, minimum=4)
+    if intervals > MAX_INTERVALS:
+        raise OptimalError(f"intervals {intervals}: above the limit of {MAX_INTERVALS}")
     jobs = integer(jobs, "jobs", OptimalError, minimum=1)
     amb = ambient[0] if ambient else None
     items = [("steady", (T, amb, loads)) for T in temperatures]

@@ -7,7 +7,15 @@ from .._util._checks import integer, number
 from ..model.assembly import Model
 from ._errors import OptimalError
 
-__all__ = ["OBJECTIVES", "LEVELS", "METHODS", "check_method", "check_request"]
+__all__ = ["OBJECTIVES", "LEVELS", "METHODS", "MAX_INTERVALS", "check_method", "check_request"]
+
+#: Most intervals of a move's NLP, checked before it is built: the NLP's memory grows
+#: about linearly with the intervals (16 GB were reached at 100000 intervals, about
+#: 160 kB an interval), so this bound keeps it under about 1 GB; the default is 40 and
+#: 2000 already resolves a move far finer than the ECU's sampling.
+MAX_INTERVALS = 5000
+#: Memory of the NLP per interval (bytes), for the refusal's estimate.
+_BYTES_PER_INTERVAL = 160e3
 
 #: What a move minimises: its duration, the energy drawn from the DC link, the heat in the winding.
 OBJECTIVES = ("time", "energy", "heat")
@@ -50,6 +58,9 @@ def check_request(model: Model, move, load, objective, duration, start, through,
     if through not in LEVELS:
         raise OptimalError(f"through '{through}' unknown; choose one of {', '.join(LEVELS)}")
     intervals = integer(intervals, "intervals", OptimalError, minimum=4)
+    if intervals > MAX_INTERVALS:  # before any NLP is built: its memory grows with them
+        raise OptimalError(f"intervals {intervals}: above the limit of {MAX_INTERVALS} (an NLP of about "
+                           f"{intervals * _BYTES_PER_INTERVAL / 1e9:.3g} GB); give at most {MAX_INTERVALS}")
     if through == "ecu" and objective != "time":
         raise OptimalError(f"through ecu: command shaping minimises the time to the 2 % band (objective time), "
                            f"not '{objective}'")

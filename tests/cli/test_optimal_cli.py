@@ -24,6 +24,11 @@ def _run(capsys, *args):
     (("--through", "cascade"), "--through cascade: unknown"),
     (("--method", "euler"), "--method euler: unknown"),
     (("--through", "ecu", "--objective", "energy", "--duration", "0.3"), "command shaping minimises the time"),
+    (("--move", "2mm", "--intervals", "100000"), "intervals 100000: above the limit of 5000"),  # before any NLP
+    (("--envelope", "--distances", "0"), "distances: finite and above 0"),
+    (("--envelope", "--intervals", "0"), "intervals: expected an integer >= 4, got 0"),  # not the default 30
+    (("--envelope", "--variant", "thermal=lumped", "--temperatures", "-300"), "above absolute zero"),
+    (("--envelope", "--variant", "thermal=lumped", "--temperatures", "nan"), "above absolute zero"),
 ])
 def test_bad_requests_exit_2_with_one_line(capsys, tmp_path, args, words):
     out = tmp_path / "out"

@@ -13,7 +13,14 @@ those of the healthy actuator.
   ``F_jam = a (k_jam (x_rod - x_jam) + d_jam v_rod)``, a load on the rod. The anchor
   follows the rod while healthy, ``dx_jam/dt = (1 - a)(v_rod + (x_rod - x_jam)/tau_hold)``
   (exactly the rod's own motion, plus a correction that keeps the linearisation
-  stable), and stands still from the onset (a = 1).
+  stable), and stands still from the onset (a = 1). The lock stores
+  ``E_jam = a k_jam (x_rod - x_jam)^2 / 2`` (in ``E_stored``) and dissipates
+  ``P_jam = F_jam v_rod - dE_jam/dt = a d_jam v_rod^2 + a k_jam (x_rod - x_jam) dx_jam/dt``
+  at constant severity (the damping, and the slip of a partial lock's anchor), a loss of
+  its own that heats the screw node, so the energy balance closes through a jam. A
+  severity that changes while the lock is stretched exchanges ``da/dt k_jam (x_rod -
+  x_jam)^2 / 2`` more, which no output carries; a step from healthy does not (the
+  anchor is at the rod then: the stretch is 0).
 - **free_run** (``a_open``, 0..1): the bridge is switched off, the winding voltages
   become those of the open bridge with its freewheeling diodes
   (``v_d_open``, ``v_q_open``: :func:`~ema_casadi.model.components.inverter.open_bridge`):
@@ -127,9 +134,12 @@ class On(Part):
         Input("wear_b", "1", "dimensionless", "fault: relative growth of the backlash B (0 healthy)"),
         *_sensor_inputs(),
     )
-    outputs = (Output("F_jam", "N", "force of the jam lock on the rod (positive pushes the rod in)"),)
+    outputs = (Output("F_jam", "N", "force of the jam lock on the rod (positive pushes the rod in)"),
+               Output("P_jam", "W", "jam lock loss: its damping and its anchor's slip", kind="loss"))
     params = ("k_jam", "d_jam", "tau_hold", "p", "stroke", "v_max", "I_max", "F_seal", "C_bear", "B")
     loads = ("F_jam",)
+    stored = ("E_jam",)
+    heat = {"P_jam": "screw"}  # the locked rod and nut: counted with the rod and screw
     faults = (
         Fault("jam", "a_jam", "1", 0.0, 1.0, "the rod locks at its onset position (1: fully)"),
         Fault("free_run", "a_open", "1", 0.0, 1.0, "the bridge is switched off (1): no drive, diodes only"),
@@ -145,14 +155,14 @@ class On(Part):
 
     def signals(self):
         def jam(b):
-            a = _unit(b["a_jam"])
-            return a * (b.P.k_jam * (b["x_rod_mech"] - b["x_jam"]) + b.P.d_jam * b["v_rod_mech"])
+            a, v = _unit(b["a_jam"]), b["v_rod_mech"]
+            stretch = b["x_rod_mech"] - b["x_jam"]
+            anchor = (1 - a) * (v + stretch / b.P.tau_hold)
+            spring = a * b.P.k_jam * stretch
+            return (spring + a * b.P.d_jam * v, anchor, 0.5 * spring * stretch,
+                    a * b.P.d_jam * v**2 + spring * anchor)
 
-        def anchor(b):
-            a = _unit(b["a_jam"])
-            return (1 - a) * (b["v_rod_mech"] + (b["x_rod_mech"] - b["x_jam"]) / b.P.tau_hold)
-
-        out = {"F_jam": jam, der("x_jam"): anchor}
+        out = {("F_jam", der("x_jam"), "E_jam", "P_jam"): jam}
         for target, (tag, *_rest) in SENSOR_TARGETS.items():
             out[der(f"m_{tag}")] = (lambda b, target=target, tag=tag:
                                     (1 - _unit(b[f"stuck_{tag}"])) * (b[target] - b[f"m_{tag}"]) / b.P.tau_hold)
