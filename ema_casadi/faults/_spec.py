@@ -178,18 +178,20 @@ def healthy_variants(params: Parameters, given: dict | None = None, chosen: dict
     return validate_variants({**params.variants, **(given or {}), **(chosen or {}), "monitors": "on"})
 
 
-def fault_kinds(variants: dict) -> dict:
-    """Fault kind -> {target or None: Fault} that a model of ``variants`` can inject
-    (from its parts' declarations).
+def fault_kinds(variants: dict, params: Parameters | None = None) -> dict:
+    """Fault kind -> {target or None: Fault} a model of ``variants`` (and ``params``) can inject.
 
     Parameters
     ----------
     variants : dict
         A variant choice (completed with the defaults).
+    params : Parameters, optional
+        The parameter set (with ``[instances]``: each channel's faults, its name their target).
     """
+    from ..model import build_model
     from ..model.components import parts_for, validate_variants
-
-    parts, _ = parts_for(validate_variants(variants))
+    v = validate_variants(variants)  # several actuators: each channel's faults, targets "A", "B"
+    parts = build_model(params, v).parts if getattr(params, "system", None) else parts_for(v)[0]
     out: dict = {}
     for part in parts:
         for f in part.faults:
@@ -242,7 +244,7 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
     params = _monitor(data.get("monitor", {}), params, src)
     try:
         v = fault_variants(params, variants, chosen)
-        kinds = fault_kinds(v)
+        kinds = fault_kinds(v, params)
         hv = healthy_variants(params, variants, chosen)
     except ParameterError as exc:
         raise FaultError(f"{src} [scenario]: {exc}") from None

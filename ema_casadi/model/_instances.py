@@ -167,8 +167,10 @@ class Instanced(Part):
             r, name=pre(r.name), signals=tuple(map(pre, r.signals)), limit=lambda P, r=r: r.limit(Local(P, inst)))
             for r in part.ratings if isinstance(r, Rating))
         self.gains = tuple(Gain(pre(g.name), pre(g.loop), g.kind, g.zero_scale) for g in part.gains)
-        self.faults = tuple(dataclasses.replace(f, input=pre(f.input), target=_opt(inst, f.target))
-                            for f in part.faults)
+        # a fault names its channel: ``jam`` of B is the kind jam with the target B, a
+        # sensor fault on B's rod sensor the target B.x_s
+        self.faults = tuple(dataclasses.replace(f, input=pre(f.input), target=inst if f.target is None else pre(
+            f.target)) for f in part.faults)
         self._P = None
         assert all(isinstance(lim, Limit) for lim in self.trim_limits)
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from .._util._checks import nearest
 from .components.surface import CHANNEL_PARAMS, EQUALISER_PARAMS, MODES, SURFACE_PARAMS, Channel, Equaliser, Hinge
-from .params import GROUPS, ParameterError, Parameters, UnknownParameterError, _check_value
+from .params import GROUPS, SYSTEM_HOOKS, ParameterError, Parameters, UnknownParameterError, _check_value
 
 __all__ = ["System", "read_system", "system_parts", "instances", "system_vector", "system_scalars", "replace_system"]
 
@@ -356,3 +356,6 @@ def replace_system(params: Parameters, values: dict) -> dict:
                                         f"parameter of that name")
     read_system(dataclasses.replace(params, system=system), parts_for(validate_variants(params.variants))[0])
     return system
+
+
+SYSTEM_HOOKS.update(vector=system_vector, scalars=system_scalars, replace=replace_system)

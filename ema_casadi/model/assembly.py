@@ -50,6 +50,7 @@ from .._util._notebook import Summarised, changed_variants
 from ._derived import Contract, switched_split
 from ._derived import projection as _projection
 from ._derived import zoh_split as _zoh
+from ._system import instances
 from ._wiring import check_tables, declarations
 from .components import AssemblyError, Bus, der, parts_for, validate_variants
 from .components._ports import connections_text
@@ -404,8 +405,6 @@ def build_model(params: Parameters, variants: dict | None = None) -> Model:
     parts, ignored = parts_for(v)
     check_tables(params, parts)
     if params.system:  # several actuator instances on one surface
-        from ._system import instances
-
         system, parts = instances(params, parts)
         return _assemble(params, v, parts, ignored, list(system.names), system)
     return _assemble(params, v, parts, ignored, Parameters.names(), None)

@@ -454,9 +454,7 @@ class Parameters(Summarised, FaultTables):
             Values by flat name (SI); an unknown name raises :class:`UnknownParameterError`.
         """
         if self.system:  # several actuator instances: the model's whole vector
-            from ._system import system_vector
-
-            return system_vector(self, **overrides)
+            return SYSTEM_HOOKS["vector"](self, **overrides)
         d = self.as_dict()
         for k, v in overrides.items():
             if k not in d:
@@ -469,9 +467,7 @@ class Parameters(Summarised, FaultTables):
         (nominal value (SI), unit, check): the groups' fields, and with ``[instances]``
         each instance's copies (``A.C``, ``B.x_rig``) and the surface's and equaliser's."""
         if self.system:
-            from ._system import system_scalars
-
-            return system_scalars(self)
+            return SYSTEM_HOOKS["scalars"](self)
         d = self.as_dict()
         return {f.name: (d[f.name], f.metadata["unit"], f.metadata["check"]) for cls in GROUPS.values()
                 for f in fields(cls) if not f.metadata.get("table")}
@@ -489,9 +485,7 @@ class Parameters(Summarised, FaultTables):
         flat_group = {f.name: g for g, cls in GROUPS.items() for f in fields(cls)}
         system = self.system
         if system:  # an instance's (A.C) or the surface's value goes into its table
-            from ._system import replace_system
-
-            system = replace_system(self, {k: v for k, v in values.items() if k not in flat_group})
+            system = SYSTEM_HOOKS["replace"](self, {k: v for k, v in values.items() if k not in flat_group})
             values = {k: v for k, v in values.items() if k in flat_group}
         for k, v in values.items():
             if k not in flat_group:
@@ -590,6 +584,9 @@ def _check_value(src: str, group: str, name: str, meta: dict, raw: Any, plain: b
 
 #: Tables of a model of several actuators, read by the assembly (not flat parameters).
 SYSTEM_TABLES = ("instances", "surface", "equaliser")
+#: What a set with those tables delegates to the model layer's ``_system`` (which
+#: registers ``vector``, ``scalars``, ``replace`` when it loads, with the assembly).
+SYSTEM_HOOKS: dict = {}
 
 
 def _build(data: dict, variants: dict | None, src: str, plain: bool = False) -> Parameters:

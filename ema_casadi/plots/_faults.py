@@ -48,13 +48,15 @@ def plot_coverage(result, path=None):
         ax.set_xticks(range(len(mons)), labels, fontsize=8)
         ax.set_xlabel(f"largest healthy statistic / threshold over {result.healthy['runs']} healthy runs")
     ref = result.runs[0]
+    # the output that plays the rod position (x_rod; a surface's x_surf with several actuators)
+    rod = next((k for k, r in getattr(ref, "roles", {}).items() if "rod_position" in r), "x_rod")
     for label, res in zip(cases[1:], result.runs[1:], strict=True):
         if res is None:
             continue
         n = min(len(res.t), len(ref.t))
-        bx.plot(res.t[:n], 1e3 * (res["x_rod"][:n] - ref["x_rod"][:n]), lw=1, label=label)
+        bx.plot(res.t[:n], 1e3 * (res[rod][:n] - ref[rod][:n]), lw=1, label=label)
     bx.set_xlabel("time (s)")
-    bx.set_ylabel("x_rod - x_rod without fault (mm)")
+    bx.set_ylabel(f"{rod} - {rod} without fault (mm)")
     bx.set_title("rod transient")
     bx.grid(True, alpha=0.3)
     bx.legend(fontsize=7, ncol=2)

@@ -81,7 +81,8 @@ def test_ema_sweep_draws_an_instances_parameter(tmp_path, capsys):
     spec = tmp_path / "fight.toml"
     spec.write_text('[sweep]\nname = "fight over the rigging offset"\n[parameters]\n'
                     '"B.x_rig" = { values = [-1e-4, 0.0, 1e-4], unit = "m" }\n'
-                    '[scenario]\nduration = 0.2\nx_cmd = "step:5mm@0.01"\n[metrics]\npeak = { signals = ["F_fight"] }\n')
+                    '[scenario]\nduration = 0.2\nx_cmd = "step:5mm@0.01"\n'
+                    '[metrics]\npeak = { signals = ["F_fight"] }\n')
     out = tmp_path / "fight.csv"
     status, _, err = _run(["sweep", str(DUAL), str(spec), "--jobs", "1", "--out", str(out)], capsys)
     assert status == 0, err
@@ -89,3 +90,25 @@ def test_ema_sweep_draws_an_instances_parameter(tmp_path, capsys):
     peaks = {float(r[1]): float(r[2]) for r in rows}
     assert peaks[0.0] <= 1.0
     assert peaks[1e-4] == pytest.approx(1e8 * 1e-4 / 2, rel=1e-6) and peaks[-1e-4] == pytest.approx(peaks[1e-4])
+
+
+def test_ema_faults_strikes_one_channel(tmp_path, capsys):
+    """A fault names its channel as its target (``jam`` of B, ``disconnect`` of B): the
+    surface's transient (``x_surf``, the model's rod position) and B's own monitors."""
+    spec = tmp_path / "faults.toml"
+    spec.write_text('[scenario]\nduration = 0.25\nx_cmd = "step:5mm@0.02"\nf_ext = "15kN"\n'
+                    '[[fault]]\nkind = "jam"\ntarget = "B"\nonset = 0.1\n'
+                    '[[fault]]\nkind = "disconnect"\ntarget = "B"\nonset = 0.1\n')
+    status, out, err = _run(["faults", str(DUAL), str(spec), "--out", str(tmp_path / "out"), "--json"], capsys)
+    assert status == 0, err
+    rows = {r["case"]: r for r in json.loads(out)["rows"]}
+    assert set(rows) == {"none", "jam B", "disconnect B"}
+    assert all(r["status"] == "ok" for r in rows.values())
+    # B's rod-motor cross-check sees its drive train break; A's monitors see nothing
+    cut = rows["disconnect B"]
+    assert cut["first_monitor"] == "B.latch_cross" and 0 < cut["detected_B.latch_cross_s"] < 0.05  # 11 ms
+    assert all(cut[k] is None for k in cut if k.startswith("detected_A."))
+    assert cut["peak_deviation_m"] > rows["jam B"]["peak_deviation_m"]  # 0.38 mm against 0.04 mm
+    spec.write_text(spec.read_text().replace('target = "B"', 'target = "C"', 1))
+    status, _, err = _run(["faults", str(DUAL), str(spec), "--out", str(tmp_path / "bad")], capsys)
+    assert status == 2 and "unknown target 'C'" in err and len(err.strip().splitlines()) == 1, err

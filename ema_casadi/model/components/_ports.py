@@ -106,7 +106,8 @@ def _same(name: str) -> str:
 
 
 def wiring(parts, owner: dict, states: dict, inputs: dict, units: dict, resolve: dict | None = None) -> tuple:
-    """The connection table of a model, every port checked.
+    """The connection table of a model, every port checked: each port a part reads, then
+    each model input it declares (from outside, or provided by another part).
 
     Parameters
     ----------
@@ -146,6 +147,11 @@ def wiring(parts, owner: dict, states: dict, inputs: dict, units: dict, resolve:
                 raise AssemblyError(f"port '{port.name}' of {label(part)} reads {port.unit}, its provider "
                                     f"{provider} gives {declared}")
             rows.append(Connection(label(part), port.name, port.unit, name, provider))
+        for inp in part.inputs:  # its model inputs: from outside, or from a part that provides them
+            plain = inp.name.split(".", 1)[1] if getattr(part, "instance", "") else inp.name
+            who = owner.get(inp.name, False)
+            provider = "model input" if who is False else ("assembly" if who is None else label(who))
+            rows.append(Connection(label(part), plain, inp.unit, inp.name, provider))
     return tuple(rows)
 
 
