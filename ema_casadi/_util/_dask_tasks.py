@@ -14,7 +14,7 @@ from ._parallel import WORKERS_TIMEOUT, connect, timeout
 __all__ = ["run_on_dask"]
 
 
-def run_on_dask(address: str, function, payload, take, queue, plan, each, error: type) -> None:
+def run_on_dask(address: str, function, payload, take, queue, plan, each, error: type, task, token: str) -> None:
     """Tasks of ``queue`` (sized by ``take()``) on the Dask scheduler at ``address``.
 
     Parameters
@@ -35,10 +35,12 @@ def run_on_dask(address: str, function, payload, take, queue, plan, each, error:
         ``each(result)`` in this thread as each task finishes.
     error : type
         The exception for a scheduler that does not answer or has no worker.
+    task : callable
+        ``task(token, function, payload, chunk) -> (result, seconds, first)``, run on a worker.
+    token : str
+        Names this run's payload on the workers.
     """
     from dask.distributed import as_completed
-
-    from ._tasks import _dask_task, _token
 
     client = connect(address, error)
     pending = {}
@@ -50,13 +52,12 @@ def run_on_dask(address: str, function, payload, take, queue, plan, each, error:
             raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
         threads = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
         plan.workers = threads
-        token = _token()
         [shared] = client.scatter([payload], broadcast=True, hash=False)
         done = as_completed()
 
         def submit():
             chunk, cost = take()
-            fut = client.submit(_dask_task, token, function, shared, chunk, pure=False)
+            fut = client.submit(task, token, function, shared, chunk, pure=False)
             pending[fut] = cost
             done.add(fut)
 

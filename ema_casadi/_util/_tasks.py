@@ -179,7 +179,7 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
     if scheduler:
         from ._dask_tasks import run_on_dask
 
-        run_on_dask(scheduler, function, payload, take, queue, plan, each, error)
+        run_on_dask(scheduler, function, payload, take, queue, plan, each, error, _dask_task, _token())
     elif workers == 1:
         token = _token()
         _PAYLOADS[token] = payload
