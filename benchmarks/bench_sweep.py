@@ -11,7 +11,9 @@ C +-30 % drawn uniformly, on 2 cores:
 - the same sweep on a Dask ``LocalCluster`` (2 worker processes, 1 thread each): the
   overhead per run against the local processes (cluster start reported apart).
 
-The peak rod positions of both are compared (a check that the same runs were made).
+The parent's CPU per run (``getrusage(RUSAGE_SELF)``; it must not grow with the run
+count) and its peak memory are printed with the local sweep. The peak rod positions
+of both are compared (a check that the same runs were made).
 On a shared machine the wall times move with the other sessions' load, so the CPU time
 per run of both (serial, in this process, the first ``--cpu-runs`` runs, alternating
 blocks of 5) is reported too: the ratio that load does not move.
@@ -22,6 +24,7 @@ Usage: python benchmarks/bench_sweep.py [--runs 1000] [--quick] [--no-dask] [--n
 from __future__ import annotations
 
 import argparse
+import resource
 import sys
 import time
 from multiprocessing import get_context
@@ -69,6 +72,12 @@ def lsoda_run(P):
     return peak
 
 
+def _cpu(who) -> float:
+    """User + system CPU seconds of this process (RUSAGE_SELF) or its ended children."""
+    r = resource.getrusage(who)
+    return r.ru_utime + r.ru_stime
+
+
 def cpu_ratio(spec, params, n):
     """CPU time per run of the sweep's own worker and of LSODA, serial, alternating."""
     from ema_casadi.sweeps._run import _run_one, _worker_for
@@ -106,13 +115,14 @@ def main():
     t0 = time.perf_counter()
     sweep(parse_sweep(description(args.jobs), params), jobs=args.jobs)  # one run per worker
     t_start = time.perf_counter() - t0  # ~ starting the pool (spawn, imports, model build)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _cpu(resource.RUSAGE_SELF)
     ours = sweep(spec, jobs=args.jobs)
-    t_ours = time.perf_counter() - t0
+    t_ours, c_parent = time.perf_counter() - t0, _cpu(resource.RUSAGE_SELF) - c0
     assert ours.info["failed"] == 0, ours.failed()[:1]
     print(f"ema_casadi sweep, {args.runs} runs on {args.jobs} processes: {t_ours:.2f} s "
           f"({t_ours / args.runs * 1e3:.2f} ms per run, pool start included; a pool with one run per worker "
-          f"takes {t_start:.2f} s)", flush=True)
+          f"takes {t_start:.2f} s); the parent's CPU {c_parent / args.runs * 1e3:.3f} ms per run, peak memory "
+          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB (parent)", flush=True)
     if not args.no_lsoda:
         base = params.as_dict()
         Ps = [{**base, **r.values} for r in spec.runs]

@@ -249,7 +249,7 @@ def dask_map(address: str, function, chunks_of, each, error: type) -> None:
         client.close(timeout=2)
 
 
-def process_pool(jobs: int):
+def process_pool(jobs: int, initializer=None, initargs: tuple = ()):
     """A pool of ``jobs`` worker processes (spawn) whose workers leave Ctrl-C to this
     process and die with it (:func:`worker_init`: killed, no orphans).
 
@@ -257,12 +257,17 @@ def process_pool(jobs: int):
     ----------
     jobs : int
         Worker processes.
+    initializer : callable, optional
+        Called as ``initializer(parent_pid, *initargs)`` in each worker instead of
+        :func:`worker_init` (it calls that first).
+    initargs : tuple
+        Its further arguments.
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     return ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=worker_init, initargs=(os.getpid(),))
+                               initializer=initializer or worker_init, initargs=(os.getpid(), *initargs))
 
 
 def end_pool(pool) -> None:

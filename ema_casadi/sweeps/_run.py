@@ -9,11 +9,9 @@ rollouts and integrators across runs (the parameters are an input).
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,7 +19,8 @@ import numpy as np
 
 from .._util import _interrupts
 from .._util._files import after_commit, on_error
-from .._util._parallel import check_main_guard, cores, dask_map, end_pool, process_pool
+from .._util._parallel import check_main_guard, cores
+from .._util._tasks import run_tasks
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
 from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
@@ -33,8 +32,6 @@ if TYPE_CHECKING:
 __all__ = ["sweep", "BACKENDS", "PointFailed"]
 
 BACKENDS = ("processes", "threads")
-#: Most runs per batch (a batch is journaled when it finishes).
-BATCH_MAX = 25
 
 
 # -- one run ---------------------------------------------------------------------
@@ -104,15 +101,16 @@ def _worker_for(spec: SweepSpec) -> _Worker:
     return cache[key]
 
 
-def _run_batch(spec: SweepSpec, runs: list) -> list:
-    """Rows of a batch of runs (the task of a pool worker or a Dask worker)."""
+def _run_indices(spec: SweepSpec, indices: list) -> list:
+    """Rows of the runs ``indices`` (the task of a pool worker or a Dask worker: the spec
+    reached the worker once, the task carries only the run indices)."""
     worker = _worker_for(spec)
     out = []
-    for r in runs:
+    for i in indices:
         _interrupts.check()
         if _STOP.is_set():
             raise RuntimeError("sweep abandoned")
-        out.append(_run_one(worker, r))
+        out.append(_run_one(worker, spec.runs[i]))
     return out
 
 
@@ -251,49 +249,12 @@ def _execute(spec, todo, jobs, backend, scheduler, fresh, journal, progress, bef
     _progress(progress, before, 0, total, clock)
     if not todo:
         return
-    if scheduler:
-        def chunks_of(threads):
-            return _batches(todo, threads)
-
-        dask_map(scheduler, functools.partial(_run_batch, spec), chunks_of, finished, SweepError)
-    elif jobs == 1:
-        worker = _worker_for(spec)
-        for batch in _batches(todo, 1):
-            rows = []
-            for r in batch:
-                _interrupts.check()
-                rows.append(_run_one(worker, r))
-            finished(rows)
-    else:
-        _run_pool(spec, _batches(todo, jobs), jobs, backend, finished)
-
-
-def _batches(runs: list, workers: int) -> list:
-    """Consecutive batches, a few per worker, at most :data:`BATCH_MAX` runs each."""
-    size = max(1, min(BATCH_MAX, math.ceil(len(runs) / (4 * workers))))
-    return [runs[i : i + size] for i in range(0, len(runs), size)]
-
-
-def _run_pool(spec, batches, jobs, backend, finished) -> None:
-    """Batches on a local pool; on an interrupt (or any error) nothing more is started,
-    the pending batches are cancelled and a process pool's workers are ended."""
-    if backend == "threads":
-        _STOP.clear()
-        pool = ThreadPoolExecutor(max_workers=jobs)
-    else:
+    spec.fingerprint()  # computed once here: the workers' caches key on it
+    if not scheduler and jobs > 1 and backend == "processes":
         _quiet_resource_tracker()
-        pool = process_pool(jobs)  # the workers leave Ctrl-C to this process and die with it
-    try:
-        pending = {pool.submit(_run_batch, spec, b) for b in batches}
-        while pending:
-            ready, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            for fut in ready:
-                finished(fut.result())
-    except BaseException:
-        _STOP.set()
-        end_pool(pool)
-        raise
-    pool.shutdown(wait=True)
+    _STOP.clear()
+    run_tasks(_run_indices, spec, [r.index for r in todo], finished, jobs=jobs, backend=backend,
+              scheduler=scheduler, error=SweepError, on_abort=_STOP.set)
 
 
 def _quiet_resource_tracker() -> None:
