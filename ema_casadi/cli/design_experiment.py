@@ -21,7 +21,7 @@ from __future__ import annotations
 import sys
 
 from . import UserError, add_progress, check_output_dir, load, progress_of
-from ._flags import NoEffect
+from ._flags import NoEffect, check_bare
 
 COMMAND = "design-experiment"
 ORDER = 14
@@ -35,8 +35,9 @@ def add_arguments(p):
     p.add_argument("--free", default=FREE, metavar="NAME[,NAME...]",
                    help=f"parameters to pin down (flat names); default {FREE}")
     p.add_argument("--duration", default="10s", metavar="T", help="test length, whole seconds (10s, 8); default 10 s")
-    p.add_argument("--criterion", default="D", metavar="D|A|E",
-                   help="D (ellipsoid volume), A (sum of variances), E (largest variance); default D")
+    p.add_argument("--criterion", default="DC", metavar="DC|D|A|E",
+                   help="DC (D with no parameter's interval wider than the standard test's), D (ellipsoid "
+                        "volume), A (sum of variances), E (largest variance); default DC")
     p.add_argument("--weights", default=None, metavar="NAME=W[,NAME=W...]",
                    help="weights of the parameters in the criterion (default 1 each; 0 leaves one out)")
     p.add_argument("--stroke", default="10mm", metavar="X", help="the rod stays within +-X; default 10 mm")
@@ -116,11 +117,12 @@ def _sigma(items, model) -> dict:
         except (SignalError, ValueError):
             what = f"a number (SI) or a quantity in a {kind} unit" if kind else f"a number in {units[key]} (SI)"
             raise UserError(f"--sigma {key}={value}: expected {what}") from None
+        check_bare("--sigma", key, value, out[key], kind, units[key], model)
     return out
 
 
 def run(args) -> dict:
-    from ..design import DesignError, design_experiment, output_names
+    from ..design import design_experiment, output_names
 
     if args.verify < 0:
         raise UserError(f"--verify must be at least 0, got {args.verify}")
@@ -136,10 +138,7 @@ def run(args) -> dict:
           "weights": _weights(args.weights), "stroke": stroke, "max_load": max_load, "max_speed": max_speed,
           "sigma": _sigma(args.sigma, model), "channels": args.channels, "prior": args.prior, "draws": args.draws,
           "seed": args.seed, "variants": None, "progress": progress_of(args)}
-    try:
-        res = design_experiment(params, args.free, duration, **kw)
-    except DesignError as exc:
-        raise UserError(str(exc)) from None
+    res = design_experiment(params, args.free, duration, **kw)
     doc = res.to_json()
     if args.verify:
         doc["verification"] = res.verify(args.verify, seed=args.seed, progress=progress_of(args))
@@ -173,6 +172,12 @@ def report(result: dict) -> None:
         if s["count"]:
             w(f"  {s['count']} x {_segment(s)}\n")
     w(result["table"] + "\n")
+    ref = result["info"].get("reference")
+    if ref:
+        ok = ref["width_ratio_realised"] <= 1.0
+        w(f"{'every' if ok else 'NOT every'} parameter's predicted interval within the standard test's: the widest "
+          f"{ref['width_ratio_realised']:.3g} x it (target {ref['width_ratio_target']:g}; round "
+          f"{ref['chosen_round'] + 1} of {len(ref['rounds'])})\n")
     lc = c["largest_correlation"]
     w(f"largest correlation: designed {lc['designed']['pair'][0]}-{lc['designed']['pair'][1]} "
       f"{lc['designed']['corr']:+.3f}, standard {lc['standard']['pair'][0]}-{lc['standard']['pair'][1]} "
@@ -188,5 +193,8 @@ def report(result: dict) -> None:
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
+        for n, r in (v.get("against_standard") or {}).items():
+            w(f"  {n}: realised width / the standard test's predicted {100 * v['standard_width'][n]:.3g} % = "
+              f"{r:.3f}\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

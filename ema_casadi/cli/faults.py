@@ -97,7 +97,7 @@ def _listing(params, variants) -> dict:
 
 
 def run(args) -> dict:
-    from ..faults import FaultError, load_faults, run_faults
+    from ..faults import load_faults, run_faults
     from ..model.params import load_parameters
 
     out = _check(args)
@@ -115,19 +115,16 @@ def run(args) -> dict:
     params = load_parameters(args.model)
     if args.list:
         return _listing(params, dict(args.variant))
-    try:
-        spec = load_faults(args.faults, params, dict(args.variant))
-        res = run_faults(faults=spec, healthy=0 if args.thresholds else args.healthy_runs, jobs=args.jobs,
-                         seed=args.seed, progress=progress_of(args))
-        study = None
-        if args.thresholds:
-            from ..faults import threshold_study
+    spec = load_faults(args.faults, params, dict(args.variant))
+    res = run_faults(faults=spec, healthy=0 if args.thresholds else args.healthy_runs, jobs=args.jobs,
+                     seed=args.seed, progress=progress_of(args))
+    study = None
+    if args.thresholds:
+        from ..faults import threshold_study
 
-            study = threshold_study(spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
-                                    progress=progress_of(args), table=res)
-            res.healthy = study.healthy
-    except FaultError as exc:
-        raise UserError(str(exc)) from None
+        study = threshold_study(spec, healthy=args.healthy_runs, jobs=args.jobs, seed=args.seed,
+                                progress=progress_of(args), table=res)
+        res.healthy = study.healthy
     with output_folder(out, top) as folder:  # whole, or not at all
         res.to_csv(folder / names[0])
         if study is not None:

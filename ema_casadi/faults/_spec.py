@@ -51,7 +51,7 @@ from pathlib import Path
 
 from .._util._checks import nearest, read_toml
 from .._util._errors import InputError
-from ..model.components import REGISTRY, SIGNAL_KEYS, Fault
+from ..model.components import REGISTRY, SIGNAL_KEYS, Fault, parts_for, served_by, validate_variants
 from ..model.params import ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
 
@@ -149,8 +149,6 @@ def fault_variants(params: Parameters, given: dict | None = None, chosen: dict |
     chosen : dict, optional
         Variant choices of the fault file's ``[scenario]`` (``sensor``, ``airframe``).
     """
-    from ..model.components import REGISTRY, served_by, validate_variants
-
     v = validate_variants({**params.variants, **(given or {}), **(chosen or {}), "faults": "on", "monitors": "on"})
     for key, values in REGISTRY.items():
         for cls in served_by(values[v[key]]):  # an option whose form of the part brings faults is turned on
@@ -173,8 +171,6 @@ def healthy_variants(params: Parameters, given: dict | None = None, chosen: dict
     given, chosen : dict, optional
         Variant choices on top (``--variant``, the fault file's ``[scenario]``).
     """
-    from ..model.components import validate_variants
-
     return validate_variants({**params.variants, **(given or {}), **(chosen or {}), "monitors": "on"})
 
 
@@ -189,7 +185,6 @@ def fault_kinds(variants: dict, params: Parameters | None = None) -> dict:
         The parameter set (with ``[instances]``: each channel's faults, its name their target).
     """
     from ..model import build_model
-    from ..model.components import parts_for, validate_variants
     v = validate_variants(variants)  # several actuators: each channel's faults, targets "A", "B"
     parts = build_model(params, v).parts if getattr(params, "system", None) else parts_for(v)[0]
     out: dict = {}
@@ -287,7 +282,6 @@ def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) ->
     import numpy as np
 
     from .._util._checks import budget
-    from ..model.components import parts_for
     from ..simulation import MAX_STEPS
 
     budget(sc["duration"] / sc["dt"], MAX_STEPS, f"{where} duration {sc['duration']:g} s / dt {sc['dt']:g} s",
@@ -314,8 +308,6 @@ def _check_envelope(where: str, sc: dict, params: Parameters, variants: dict) ->
 
 def _aircraft(variants: dict) -> bool:
     """Whether the model flies: an input of its parts is the attitude command."""
-    from ..model.components import parts_for
-
     parts, _ = parts_for(variants)
     return any("attitude_command" in i.roles for part in parts for i in part.inputs)
 

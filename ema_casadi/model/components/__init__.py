@@ -66,7 +66,7 @@ from ._registry import (
     served_by,
     validate_variants,
 )
-from .monitors import MONITORS, TAU_LATCH, TAU_RESET
+from .monitors import TAU_LATCH, TAU_RESET
 
 __all__ = [
     "airframe", "ballscrew", "controller", "endstop", "faults", "friction", "inverter", "load", "monitors", "motor",
@@ -80,9 +80,4 @@ __all__ = [
     "PART_CLASSES", "served_by",
     # the monitors' timer reset and latch time constants (s): what a statistic's detection obeys
     "TAU_RESET", "TAU_LATCH",
-    # each monitor's meaning, in words (the reports' legend)
-    "MONITOR_MEANINGS",
 ]
-
-#: Monitor -> what its condition watches, in words (``"oc"`` -> ``"over-current"``).
-MONITOR_MEANINGS = {name: m[2] for name, m in MONITORS.items()}
