@@ -9,7 +9,7 @@ submitted futures are cancelled.
 
 from __future__ import annotations
 
-from ._parallel import WORKERS_TIMEOUT, connect, timeout
+from ._parallel import connect, worker_threads
 
 __all__ = ["run_on_dask"]
 
@@ -45,12 +45,7 @@ def run_on_dask(address: str, function, payload, take, queue, plan, each, error:
     client = connect(address, error)
     pending = {}
     try:
-        wait_workers = timeout("EMA_CASADI_WORKERS_TIMEOUT", WORKERS_TIMEOUT, error)
-        try:
-            client.wait_for_workers(1, timeout=wait_workers)
-        except TimeoutError:
-            raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
-        threads = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
+        threads = worker_threads(client, address, error)
         plan.workers = threads
         [shared] = client.scatter([payload], broadcast=True, hash=False)
         done = as_completed()

@@ -14,8 +14,8 @@ from __future__ import annotations
 import os
 import threading
 
-__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "dask_map", "check_main_guard",
-           "die_with_parent", "worker_init", "process_pool", "end_pool", "process_map"]
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "worker_threads", "dask_map",
+           "check_main_guard", "die_with_parent", "worker_init", "process_pool", "end_pool", "process_map"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -210,6 +210,17 @@ def connect(address: str, error: type, wait: float | None = None):
     return box["client"]
 
 
+def worker_threads(client, address: str, error: type) -> int:
+    """The threads of the cluster's workers, once at least one has joined (``error``
+    when none joins within ``EMA_CASADI_WORKERS_TIMEOUT``)."""
+    wait_workers = timeout("EMA_CASADI_WORKERS_TIMEOUT", WORKERS_TIMEOUT, error)
+    try:
+        client.wait_for_workers(1, timeout=wait_workers)
+    except TimeoutError:
+        raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
+    return max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
+
+
 def dask_map(address: str, function, chunks_of, each, error: type) -> None:
     """Run ``function(*args, chunk)`` for every chunk on the Dask scheduler at ``address``.
 
@@ -232,12 +243,7 @@ def dask_map(address: str, function, chunks_of, each, error: type) -> None:
     client = connect(address, error)
     futures = []
     try:
-        wait_workers = timeout("EMA_CASADI_WORKERS_TIMEOUT", WORKERS_TIMEOUT, error)
-        try:
-            client.wait_for_workers(1, timeout=wait_workers)
-        except TimeoutError:
-            raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
-        threads = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
+        threads = worker_threads(client, address, error)
         futures = [client.submit(function, c, pure=False) for c in chunks_of(threads)]
         for fut in as_completed(futures):
             each(fut.result())
