@@ -104,12 +104,9 @@ _P_BRIDGE = Output("P_bridge", "W", "power the bridge draws from the DC link: wi
                    kind="power")
 
 
-class Ideal(Part):
-    """Averaged inverter: the controller's voltage reaches the windings; averaged
-    conduction and switching losses of the bridge carrying the motor currents."""
-
-    family, value = "inverter", "ideal"
-    reads = (
+#: What both bridges read: the controller's voltages, the DC link, the currents, the speed and
+#: the winding's constants (the losses' and the power balance's inputs).
+_BRIDGE_READS = (
         Port("v_d_ref", "V", "the controller's d voltage"),
         Port("v_q_ref", "V", "the controller's q voltage"),
         Port("v_dc", "V", "the DC-link voltage"),
@@ -120,6 +117,13 @@ class Ideal(Part):
         Port("psi_m", "Wb", "the magnet flux linkage"),
         Port("P_elec", "W", "the electrical power into the windings"),
     )
+
+class Ideal(Part):
+    """Averaged inverter: the controller's voltage reaches the windings; averaged
+    conduction and switching losses of the bridge carrying the motor currents."""
+
+    family, value = "inverter", "ideal"
+    reads = _BRIDGE_READS
     doc = "averaged bridge: winding voltage = controller voltage, averaged losses"
     outputs = (
         Output("v_d", "V", "d-axis winding voltage (0 for the dc motor)", roles=("d_voltage",)),
@@ -290,18 +294,7 @@ class Pwm(Part):
     """
 
     family, value = "inverter", "pwm"
-    reads = (
-        Port("v_d_ref", "V", "the controller's d voltage"),
-        Port("v_q_ref", "V", "the controller's q voltage"),
-        Port("v_dc", "V", "the DC-link voltage"),
-        Port("i_d", "A", "the d current"),
-        Port("i_q", "A", "the q current"),
-        Port("omega", "rad/s", "the motor speed"),
-        Port("phi", "rad", "the shaft angle"),
-        Port("R_w", "Ohm", "the winding resistance"),
-        Port("psi_m", "Wb", "the magnet flux linkage"),
-        Port("P_elec", "W", "the electrical power into the windings"),
-    )
+    reads = (*_BRIDGE_READS, Port("phi", "rad", "the shaft angle"))
     smooth = {"inverter": "ideal"}
     doc = "switched 2-level bridge, SVPWM at f_sw, exact switching instants"
     requires = {"motor": ("pmsm",)}
