@@ -57,8 +57,8 @@ def _source(model, extra=(), defines: dict | None = None, tail: str = "") -> str
     ud = ca.SX.sym("ud", model.nu)
     p = ca.SX.sym("p", len(model.param_names))
     xdot = model.f(x, u, p)[0]
-    fj = ca.Function("ros_fj", [x, u, ud, p], [xdot, ca.densify(ca.jacobian(xdot, x)), ca.jtimes(xdot, u, ud)],
-                     {"cse": True})
+    jac = ca.jacobian(xdot, x)
+    fj = ca.Function("ros_fj", [x, u, ud, p], [xdot, ca.densify(jac), ca.jtimes(xdot, u, ud)], {"cse": True})
     gen = ca.CodeGenerator("ros_model.c", {"with_header": False, "casadi_int": "int"})
     gen.add(ca.Function("ros_f", [x, u, p], [xdot]))
     gen.add(fj)
@@ -66,7 +66,56 @@ def _source(model, extra=(), defines: dict | None = None, tail: str = "") -> str
         gen.add(make(x, u, p, xdot))
     macros = "".join(f"#define {k} {v}\n" for k, v in {"EMA_NX": model.nx, "EMA_NU": model.nu,
                                                        **(defines or {})}.items())
+    split = blocks(model, *jac.sparsity().get_triplet())
+    if split is not None:  # several actuators: the bordered block-diagonal LU of the driver
+        perm, lo, hi, border = split
+        at = {k: i for i, k in enumerate(perm)}
+        rows, cols = jac.sparsity().get_triplet()
+        src = [i + j * model.nx for i, j in zip(rows, cols, strict=True)]  # J's entries (column-major)
+        dst = [at[i] + at[j] * model.nx for i, j in zip(rows, cols, strict=True)]  # their place in G
+        macros += f"#define EMA_BORDER {border}\nstatic const int ros_jnz = {len(src)};\n" + "".join(
+            f"static const int ros_{name}[{len(v)}] = {{{', '.join(map(str, v))}}};\n"
+            for name, v in (("perm", perm), ("lo", lo), ("hi", hi), ("jsrc", src), ("jdst", dst)))
     return f"{inline_min_max(gen.dump())}\n{macros}#line 1 \"rosenbrock.c\"\n{_DRIVER.read_text()}\n{tail}"
+
+
+def blocks(model, rows, cols) -> tuple[list, list, list, int] | None:
+    """The driver's bordered block-diagonal order of the states of a model with several
+    actuator instances (None for one actuator, or where no two instances stay apart).
+
+    Each instance's states (``A.``, ``B.``, ...) form a diagonal block of the Jacobian
+    with the sparsity ``(rows, cols)``; a state that shares a Jacobian entry with another
+    instance's block (the torsion between the attachments, the equaliser reading both
+    forces) moves to the border, the most connected one first, until no entry joins two
+    blocks. Returns (perm, lo, hi, border): position k of the order holds state
+    ``perm[k]``, its block spans positions [lo[k], hi[k]) ([0, nx) on the border), and
+    the border starts at position ``border``."""
+    system = getattr(model, "system", None)
+    if system is None or len(system.channels) < 2:
+        return None
+    group = [next((c for c in system.channels if n.startswith(f"{c}.")), None) for n in model.states]
+    pairs = [(i, j) for i, j in zip(rows, cols, strict=True) if i != j]
+    while True:
+        cross = [0] * model.nx
+        for i, j in pairs:
+            if group[i] is not None and group[j] is not None and group[i] != group[j]:
+                cross[i] += 1
+                cross[j] += 1
+        if not any(cross):
+            break
+        group[max(range(model.nx), key=lambda k: (cross[k], -k))] = None
+    parts = [[k for k in range(model.nx) if group[k] == c] for c in system.channels]
+    parts = [b for b in parts if b]
+    if len(parts) < 2:
+        return None
+    perm = [k for b in parts for k in b]
+    border = len(perm)
+    perm += [k for k in range(model.nx) if group[k] is None]
+    lo, hi, at = [0] * model.nx, [model.nx] * model.nx, 0
+    for b in parts:
+        lo[at : at + len(b)], hi[at : at + len(b)] = [at] * len(b), [at + len(b)] * len(b)
+        at += len(b)
+    return perm, lo, hi, border
 
 
 def library(model):

@@ -86,6 +86,11 @@ typedef struct {
   /* the last attempted step: its matrix' LU (G, pivots, reciprocal pivots) and stages */
   double G[NX * NX], dinv[NX], K[ROS_S][NX];
   int piv[NX];
+#ifdef EMA_BORDER
+  /* the factors' entries that are not zero, by column (the solves run over these) */
+  int Lp[NX + 1], Li[NX * NX], Up[NX + 1], Ui[NX * NX];
+  double Lx[NX * NX], Ux[NX * NX];
+#endif
   const double* p;
   const double* terms;
   int n_terms;
@@ -186,6 +191,7 @@ static int ros_jac(ros_ctx* c, double t, double seg, const double* x, double* f,
   return ros_fj(c->arg, c->res, c->iw, c->w, 0);
 }
 
+#ifndef EMA_BORDER
 /* LU with partial pivoting of the column-major NX x NX matrix G, in place, with the
    reciprocals of the pivots in dinv (the solves multiply: no division on their critical
    path); 1 if singular. */
@@ -226,18 +232,114 @@ static void ros_solve(const double* G, const int* piv, const double* dinv, doubl
   }
 }
 
+#else
+/* Several actuators on one structure (EMA_BORDER defined, with ros_perm, ros_lo, ros_hi
+   and the Jacobian's structure ros_jnz, ros_jsrc, ros_jdst, by simulation/_rosenbrock.py):
+   the Jacobian is bordered block-diagonal. In the order ros_perm (position k holds state
+   ros_perm[k]) the states of each actuator instance form a diagonal block [ros_lo[k],
+   ros_hi[k]) that no other block's state enters, and the states that couple them (the
+   surface, the equaliser) the border [EMA_BORDER, NX), for which ros_lo = 0 and ros_hi =
+   NX. G is kept in that order. The LU pivots within each block (then within the border's
+   Schur complement) and runs its loops over the rows and columns that can be non-zero:
+   those of k's block after k and the border. Entries between two blocks are zero in G and
+   stay zero in L and U, so this is the LU of G with the pivot search confined to the
+   blocks; a block singular on its own is reported as a singular G (the step is rejected
+   and retried shorter, as for a singular G). The factors' non-zero entries are then
+   listed by column: the six solves of a step run over those alone (about a quarter of
+   the dense triangles on two actuators). */
+static int ros_lu_blocks(ros_ctx* c) {
+  double *G = c->G, *dinv = c->dinv, m, s;
+  int *piv = c->piv, i, j, k, r, hi, b0, nl = 0, nu = 0;
+  for (k = 0; k < NX; ++k) {
+    hi = ros_hi[k];
+    b0 = hi < NX ? EMA_BORDER : NX; /* rows and columns [k + 1, hi) and [b0, NX) */
+    r = k;
+    m = fabs(G[k + k * NX]);
+    for (i = k + 1; i < hi; ++i)
+      if (fabs(G[i + k * NX]) > m) { m = fabs(G[i + k * NX]); r = i; }
+    piv[k] = r;
+    if (!(m > 0.0)) return 1;
+    if (r != k)
+      for (j = 0; j < NX; ++j) { s = G[k + j * NX]; G[k + j * NX] = G[r + j * NX]; G[r + j * NX] = s; }
+    s = dinv[k] = 1.0 / G[k + k * NX];
+    for (i = k + 1; i < hi; ++i) G[i + k * NX] *= s;
+    for (i = b0; i < NX; ++i) G[i + k * NX] *= s;
+    for (j = k + 1; j < NX; ++j) {
+      if (j == hi) j = b0;
+      if (j >= NX) break;
+      s = G[k + j * NX];
+      if (s != 0.0) {
+        for (i = k + 1; i < hi; ++i) G[i + j * NX] -= G[i + k * NX] * s;
+        for (i = b0; i < NX; ++i) G[i + j * NX] -= G[i + k * NX] * s;
+      }
+    }
+  }
+  for (j = 0; j < NX; ++j) {
+    c->Lp[j] = nl;
+    c->Up[j] = nu;
+    for (i = ros_lo[j]; i < j; ++i)
+      if (G[i + j * NX] != 0.0) { c->Ui[nu] = i; c->Ux[nu++] = G[i + j * NX]; }
+    hi = ros_hi[j];
+    b0 = hi < NX ? EMA_BORDER : NX;
+    for (i = j + 1; i < NX; ++i) {
+      if (i == hi) i = b0;
+      if (i >= NX) break;
+      if (G[i + j * NX] != 0.0) { c->Li[nl] = i; c->Lx[nl++] = G[i + j * NX]; }
+    }
+  }
+  c->Lp[NX] = nl;
+  c->Up[NX] = nu;
+  return 0;
+}
+
+/* Solves G z = b for b in the states' order (b overwritten by z). */
+static void ros_solve_blocks(const ros_ctx* c, double* b) {
+  const int *piv = c->piv, *Li = c->Li, *Ui = c->Ui;
+  const double *Lx = c->Lx, *Ux = c->Ux;
+  int i, j, q;
+  double y[NX], s;
+  for (i = 0; i < NX; ++i) y[i] = b[ros_perm[i]];
+  for (i = 0; i < NX; ++i) {
+    if (piv[i] != i) { s = y[i]; y[i] = y[piv[i]]; y[piv[i]] = s; }
+  }
+  for (j = 0; j < NX; ++j) {
+    s = y[j];
+    for (q = c->Lp[j]; q < c->Lp[j + 1]; ++q) y[Li[q]] -= Lx[q] * s;
+  }
+  for (j = NX - 1; j >= 0; --j) {
+    s = y[j] *= c->dinv[j];
+    for (q = c->Up[j]; q < c->Up[j + 1]; ++q) y[Ui[q]] -= Ux[q] * s;
+  }
+  for (i = 0; i < NX; ++i) b[ros_perm[i]] = y[i];
+}
+#endif
+
+/* The factorisation of c->G and a solve with it: dense, or by blocks (see above). */
+#ifndef EMA_BORDER
+#define ROS_LU(c) ros_lu((c)->G, (c)->piv, (c)->dinv)
+#define ROS_SOLVE(c, b) ros_solve((c)->G, (c)->piv, (c)->dinv, (b))
+#else
+#define ROS_LU(c) ros_lu_blocks(c)
+#define ROS_SOLVE(c, b) ros_solve_blocks((c), (b))
+#endif
+
 /* One attempted step of size h from (t, x) with f0 = f(t, x), J, ft at (t, x).
    Writes x_new and returns the error norm (inf if the matrix is singular or a value
    is not finite). */
 static double ros_step(ros_ctx* c, double t, double seg, double h, const double* x, const double* f0,
                        const double* J, const double* ft, double rtol, double atol, double* xn) {
-  double *G = c->G, *dinv = c->dinv, (*K)[NX] = c->K, y[NX], fi[NX], err = 0.0, sc, e;
-  int *piv = c->piv, i, j, s, ok = 1;
+  double *G = c->G, (*K)[NX] = c->K, y[NX], fi[NX], err = 0.0, sc, e;
+  int i, j, s, ok = 1;
   double d = 1.0 / (h * ros_gamma[0]);
+#ifndef EMA_BORDER
   for (j = 0; j < NX * NX; ++j) G[j] = -J[j];
+#else
+  memset(G, 0, sizeof(double) * NX * NX); /* in the blocks' order: J's non-zero entries */
+  for (j = 0; j < ros_jnz; ++j) G[ros_jdst[j]] = -J[ros_jsrc[j]];
+#endif
   for (i = 0; i < NX; ++i) G[i + i * NX] += d;
   c->stats[N_LU] += 1;
-  if (ros_lu(G, piv, dinv)) return INFINITY;
+  if (ROS_LU(c)) return INFINITY;
   for (s = 0; s < ROS_S; ++s) {
     const double* a = ros_a + s * (s - 1) / 2;
     const double* cc = ros_c + s * (s - 1) / 2;
@@ -255,7 +357,7 @@ static double ros_step(ros_ctx* c, double t, double seg, double h, const double*
       e = cc[j] / h;
       for (i = 0; i < NX; ++i) K[s][i] += e * K[j][i];
     }
-    ros_solve(G, piv, dinv, K[s]);
+    ROS_SOLVE(c, K[s]);
   }
   for (i = 0; i < NX; ++i) {
     double xi = x[i], er = 0.0;

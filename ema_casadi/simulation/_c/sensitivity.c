@@ -79,7 +79,7 @@ static int ros_sens_step(ros_ctx* c, double t, double seg, double h, const doubl
       e = cc[j] / h;
       for (q = 0; q < NX * NS; ++q) R[q] += e * dK[j][q];
     }
-    for (q = 0; q < NS; ++q) ros_solve(c->G, c->piv, c->dinv, R + q * NX);
+    for (q = 0; q < NS; ++q) ROS_SOLVE(c, R + q * NX);
   }
   memcpy(Sn, c->S, sizeof(double) * NX * NS);
   for (s = 0; s < ROS_S; ++s)
