@@ -196,10 +196,9 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
     """
     key = ("outputs_map", jit)
     if key not in model.cache:
-        x = ca.MX.sym("x", model.nx, _MAP_CHUNK)
-        u = ca.MX.sym("u", model.nu, _MAP_CHUNK)
-        pp = ca.MX.sym("p", len(model.param_names))
-        F = ca.Function("outputs_map", [x, u, pp], [model.f.map(_MAP_CHUNK)(x, u, pp)[1]])
+        # the outputs alone, the parameters read in place (not repeated per column: on two
+        # actuators that copy was 4 MB per chunk)
+        F = _outputs_only(model.f).map("outputs_map", "serial", _MAP_CHUNK, [2], [])
         model.cache[key] = BufferCall(compile_function(F, jit)[0])
     call = model.cache[key]
     n = X.shape[1]
