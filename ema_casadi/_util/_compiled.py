@@ -430,6 +430,11 @@ class BufferCall:
         return mine
 
     def __call__(self, *args) -> list[np.ndarray]:
+        return [o.copy(order="F") for o in self.view(*args)]
+
+    def view(self, *args) -> list[np.ndarray]:
+        """Like calling it, but the results are this thread's buffers themselves (no
+        copy): read them before its next call."""
         buf, ev, out = self._mine()
         keep = []
         for i, a in enumerate(args):
@@ -437,7 +442,7 @@ class BufferCall:
             keep.append(a)
             buf.set_arg(i, memoryview(a.reshape(-1, order="F")))
         ev()
-        return [o.copy(order="F") for o in out]
+        return out
 
     def stats(self) -> dict:
         """Statistics of this thread's last call (e.g. CVODES ``nsteps``)."""

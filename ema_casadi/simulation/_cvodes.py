@@ -83,7 +83,7 @@ def _check(monitor, model, sig, pv, grid, X, Y, U, i0, i1):
 def _outputs(monitor, model, sig, pv, grid, X, Y, U, n):
     """Outputs of the first n samples into Y (one mapped call), checked against the
     envelope; RunFailed at the first violation."""
-    Y[:, :n] = outputs_at(model, X[:, :n], U[:, :n], pv)
+    outputs_at(model, X[:, :n], U[:, :n], pv, out=Y[:, :n])
     bad = monitor.first(grid[:n], None, Y[:, :n])  # the states were checked as they came
     if bad is not None:
         raise RunFailed(bad.what, bad.time, _partial(model, sig, grid, X, Y, bad.index + 1))

@@ -178,7 +178,8 @@ _MAP_CHUNK = 1024
 _FEW = 8
 
 
-def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True) -> np.ndarray:
+def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: bool = True,
+               out: np.ndarray | None = None) -> np.ndarray:
     """Model outputs y (ny x n) at states X (nx x n) and inputs U (nu x n).
 
     Parameters
@@ -193,6 +194,8 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
         Parameter vector (SI).
     jit : bool
         Compile the mapped output function to native code (cached on disk).
+    out : ndarray, optional
+        Where to write y (ny x n; returned); a new array by default.
     """
     key = ("outputs_map", jit)
     if key not in model.cache:
@@ -202,15 +205,18 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
         model.cache[key] = BufferCall(compile_function(F, jit)[0])
     call = model.cache[key]
     n = X.shape[1]
+    Y = np.empty((model.ny, n)) if out is None else out
     if n <= _FEW:  # a few samples: the plain call beats a compiled 4096-column map
-        return np.column_stack([np.asarray(model.f(X[:, i], U[:, i], p)[1]).ravel() for i in range(n)])
-    Y = np.empty((model.ny, n))
+        for i in range(n):
+            Y[:, i] = np.asarray(model.f(X[:, i], U[:, i], p)[1]).ravel()
+        return Y
+    Xc = np.empty((model.nx, _MAP_CHUNK), order="F")  # column-major, as the compiled map reads them
+    Uc = np.empty((model.nu, _MAP_CHUNK), order="F")
     for c in range(0, n, _MAP_CHUNK):
         m = min(_MAP_CHUNK, n - c)
-        Xc = np.zeros((model.nx, _MAP_CHUNK))
-        Uc = np.zeros((model.nu, _MAP_CHUNK))
         Xc[:, :m], Uc[:, :m] = X[:, c : c + m], U[:, c : c + m]
-        Y[:, c : c + m] = call(Xc, Uc, p)[0][:, :m]
+        Xc[:, m:], Uc[:, m:] = 0.0, 0.0  # the last chunk's spare columns (their outputs unused)
+        Y[:, c : c + m] = call.view(Xc, Uc, p)[0][:, :m]
     return Y
 
 
