@@ -21,7 +21,7 @@ import numpy as np
 
 from .._util._compiled import compile_source, inline_min_max
 
-__all__ = ["NativeRollout", "native_rollout"]
+__all__ = ["NativeRollout", "native_rollout", "native_outputs"]
 
 _DRIVER = r"""
 #include <stdlib.h>
@@ -169,3 +169,76 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
     if path is None:
         return None, info
     return NativeRollout(path, nxa, nu, nl, model.ny, k, M, nc), info
+
+
+_OUTPUTS = r"""
+#include <stdlib.h>
+
+/* y at n samples: column k of X (NX states) and of U (NU inputs), each read through its
+   strides (in doubles), p the parameters; y_i of sample k written to Y[i * ys0 + k * ys1].
+   Returns 0, 1 when the generated function fails, 2 when memory is refused. */
+CASADI_SYMBOL_EXPORT int ema_outputs(const double* X, long xs0, long xs1, const double* U, long us0, long us1,
+                                     const double* p, long n, double* Y, long ys0, long ys1) {{
+  casadi_int sa, sr, si, sw;
+  double x[{nx} + 1], u[{nu} + 1], y[{ny} + 1];
+  long i, k;
+  int rc = 0;
+  {y}_work(&sa, &sr, &si, &sw);
+  const double** arg = (const double**)malloc(sizeof(double*) * (sa + 3));
+  double** res = (double**)malloc(sizeof(double*) * (sr + 1));
+  casadi_int* iw = (casadi_int*)malloc(sizeof(casadi_int) * (si + 1));
+  double* w = (double*)malloc(sizeof(double) * (sw + 1));
+  if (!arg || !res || !iw || !w) {{ free(arg); free(res); free(iw); free(w); return 2; }}
+  for (k = 0; k < n && !rc; ++k) {{
+    for (i = 0; i < {nx}; ++i) x[i] = X[i * xs0 + k * xs1];
+    for (i = 0; i < {nu}; ++i) u[i] = U[i * us0 + k * us1];
+    arg[0] = x; arg[1] = u; arg[2] = p; res[0] = y;
+    if ({y}(arg, res, iw, w, 0)) {{ rc = 1; break; }}
+    for (i = 0; i < {ny}; ++i) Y[i * ys0 + k * ys1] = y[i];
+  }}
+  free(arg); free(res); free(iw); free(w);
+  return rc;
+}}
+"""
+
+
+def native_outputs(model, y: ca.Function):
+    """``(X, U, p, out)``: the outputs ``y(x, u, p)`` of every column of X and U written
+    into ``out`` (ny x n) by a C loop that reads the arrays in place (any strides; the
+    parameters once, not repeated per column as CasADi's map does), or None without a
+    working C compiler. Plain ``-O2`` like the compiled map: the same numbers.
+
+    Parameters
+    ----------
+    model : Model
+        The assembled model (sizes).
+    y : casadi.Function
+        ``(x, u, p) -> y``, the model's outputs alone.
+    """
+
+    def source() -> str:
+        gen = ca.CodeGenerator("ema_outputs.c", {"with_header": False})
+        gen.add(y)
+        return inline_min_max(gen.dump()) + _OUTPUTS.format(nx=model.nx, nu=model.nu, ny=model.ny, y=y.name())
+
+    path, _ = compile_source("outputs_c", [y.serialize(), _OUTPUTS], source)
+    if path is None:
+        return None
+    fn = ctypes.CDLL(str(path)).ema_outputs
+    fn.restype = ctypes.c_int
+    ptr, n = ctypes.c_void_p, ctypes.c_long
+    fn.argtypes = [ptr, n, n, ptr, n, n, ptr, n, ptr, n, n]
+
+    def call(X: np.ndarray, U: np.ndarray, p: np.ndarray, out: np.ndarray) -> np.ndarray:
+        p = np.ascontiguousarray(p, dtype=float).ravel()
+        X, U = np.asarray(X, dtype=float), np.asarray(U, dtype=float)
+        st = [a.strides[i] // 8 for a in (X, U, out) for i in (0, 1)]
+        if X.shape[1] != out.shape[1] or U.shape[1] != out.shape[1] or any(a.strides[0] % 8 or a.strides[1] % 8
+                                                                            for a in (X, U, out)):
+            raise ValueError("native outputs: arrays of other sizes or strides")
+        if fn(X.ctypes.data, st[0], st[1], U.ctypes.data, st[2], st[3], p.ctypes.data, out.shape[1], out.ctypes.data,
+              st[4], st[5]):
+            raise RuntimeError("native outputs: the generated function failed")
+        return out
+
+    return call

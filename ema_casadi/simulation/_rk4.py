@@ -16,7 +16,7 @@ from .._util._interrupts import check as check_interrupt
 from ..model.assembly import Model
 from ._envelope import RunFailed, monitor_for
 from ._inputs import _initial_projection, input_matrix
-from ._native import native_rollout
+from ._native import native_outputs, native_rollout
 from ._result import _result, progress_bar
 
 STEPS_PER_CALL = 20000
@@ -199,10 +199,12 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
     """
     key = ("outputs_map", jit)
     if key not in model.cache:
-        # the outputs alone, the parameters read in place (not repeated per column: on two
-        # actuators that copy was 4 MB per chunk)
-        F = _outputs_only(model.f).map("outputs_map", "serial", _MAP_CHUNK, [2], [])
-        model.cache[key] = BufferCall(compile_function(F, jit)[0])
+        # the outputs alone, by a C loop over the arrays in place (CasADi's map repeats the
+        # parameters per column: on two actuators 4 MB per 1024 columns)
+        y = _outputs_only(model.f)
+        native = native_outputs(model, y) if jit else None
+        model.cache[key] = native or BufferCall(compile_function(y.map("outputs_map", "serial", _MAP_CHUNK, [2], []),
+                                                                 jit)[0])
     call = model.cache[key]
     n = X.shape[1]
     Y = np.empty((model.ny, n)) if out is None else out
@@ -210,6 +212,8 @@ def outputs_at(model: Model, X: np.ndarray, U: np.ndarray, p: np.ndarray, jit: b
         for i in range(n):
             Y[:, i] = np.asarray(model.f(X[:, i], U[:, i], p)[1]).ravel()
         return Y
+    if not isinstance(call, BufferCall):
+        return call(X, U, p, Y)
     Xc = np.empty((model.nx, _MAP_CHUNK), order="F")  # column-major, as the compiled map reads them
     Uc = np.empty((model.nu, _MAP_CHUNK), order="F")
     for c in range(0, n, _MAP_CHUNK):
