@@ -19,8 +19,10 @@ def _unwrap_deg(H: np.ndarray) -> np.ndarray:
 
 
 def _gain_crossovers(H, f, Hg) -> list[dict]:
-    """|L| = 1: log|L| changes sign between grid points; each root refined by Brent."""
-    lf, lm = np.log10(f), np.log10(np.abs(Hg))
+    """|L| = 1: log|L| changes sign between grid points; each root refined by Brent (a
+    loop of no gain, a channel in standby, has none)."""
+    with np.errstate(divide="ignore"):
+        lf, lm = np.log10(f), np.log10(np.abs(Hg))
     out = []
     for i in np.nonzero(lm[:-1] * lm[1:] <= 0)[0]:
         if lm[i] == 0 and i > 0 and lm[i - 1] * lm[i + 1] > 0:

@@ -158,6 +158,25 @@ def test_the_equaliser_removes_the_static_fight_and_keeps_the_loop_margins(dual,
         assert m.stable and m.gm_db >= 6.0 and m.pm_deg >= 45.0, m
 
 
+def test_channel_a_keeps_its_margins_with_b_in_standby(dual, dual_params):
+    """Channel A's loops with B active and with B in standby damping (bridge off, windings
+    shorted through R_damp: 67 kN s/m at B's rod, a load on A): each >= 6 dB / 45 deg.
+    Measured: A's position loop GM 18.3 dB / PM 96.5 deg with B active, 17.7 dB / 47.4 deg
+    with B in standby (the damper's phase lag), speed 75.0 / 73.9 deg, current 64.1 / 61.3
+    deg; B's loops in standby have no loop gain (no crossover: reported as inf)."""
+    standby = ema.build_model(_with(dual_params, B="standby"))
+    both = {"active": loop_margins(dual, op=operating_point(dual)),
+            "standby": loop_margins(standby, op=operating_point(standby))}
+    for margins in both.values():
+        for loop in ("A.position", "A.velocity", "A.current"):
+            m = margins[loop]
+            assert m.stable and m.gm_db >= 6.0 and m.pm_deg >= 45.0, (loop, m)
+    # the damper's lag: A's position loop loses phase margin to it (96.5 -> 47.4 deg measured)
+    assert both["standby"]["A.position"].pm_deg < both["active"]["A.position"].pm_deg - 20.0
+    for loop in ("B.position", "B.velocity", "B.current"):
+        assert both["standby"][loop].pm_deg == np.inf and both["standby"][loop].gm_db == np.inf
+
+
 def test_the_fight_decays_with_the_equalisers_time_constant(dual):
     """d F_fight/dt = -2 K_chain K_eq F_fight once the servos have settled: the fight
     falls to 1/e in 1/(2 K_chain K_eq) (0.3125 s; 0.303 s measured from 0.1 s on)."""
