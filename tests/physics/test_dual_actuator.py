@@ -75,6 +75,22 @@ def test_the_dual_model_has_each_channels_signals_states_and_loops(dual):
     assert "A.F_seal" in dual.param_names and "B.k_att" in dual.param_names
 
 
+def test_a_role_no_shared_part_plays_is_the_first_instances(dual, dual_params):
+    """The lead channel is the first instance of [instances]: its signals play the roles
+    the surface and the equaliser do not (the motor current the sine stream records, the
+    current limit under its plain name); listing B first makes B the lead. Roles a shared
+    part plays (the surface's position) do not move."""
+    assert dual.output_with("motor_current") == "A.i_q"
+    system = dict(dual_params.system)
+    system["instances"] = {"B": system["instances"]["B"], "A": system["instances"]["A"]}
+    b_first = ema.build_model(dataclasses.replace(dual_params, system=system))
+    assert b_first.output_with("motor_current") == "B.i_q" and b_first.input_with("command") == "x_cmd"
+    assert b_first.output_with("rod_position") == dual.output_with("rod_position") == "x_surf"
+    p = b_first.p(**{"B.I_max": 20.0})  # B's own current limit is the plain one now
+    assert b_first.operating_limits(p)["current"] == 20.0 and dual.operating_limits(dual.p(**{"B.I_max": 20.0}))[
+        "current"] == 24.0
+
+
 def test_matched_channels_do_not_fight(dual):
     step = ema.simulate(dual, 0.3, x_cmd=ema.Signal.step(0.005, 0.01))
     sine = ema.simulate(dual, 1.5, x_cmd=ema.Signal.sine(0.005, 1.0))
