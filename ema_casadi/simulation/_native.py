@@ -174,14 +174,18 @@ def native_rollout(model, step: ca.Function, out: ca.Function, k: int, M: int, k
 _OUTPUTS = r"""
 #include <stdlib.h>
 
+#define EMA_BLOCK 64 /* samples per block: y kept by sample, then written out row by row */
+
 /* y at n samples: column k of X (NX states) and of U (NU inputs), each read through its
-   strides (in doubles), p the parameters; y_i of sample k written to Y[i * ys0 + k * ys1].
+   strides (in doubles), p the parameters; y_i of sample k written to Y[i * ys0 + k * ys1],
+   a block of samples at a time (one row of Y after the other: a C-ordered Y of many
+   outputs is not written across all its rows at every sample).
    Returns 0, 1 when the generated function fails, 2 when memory is refused. */
 CASADI_SYMBOL_EXPORT int ema_outputs(const double* X, long xs0, long xs1, const double* U, long us0, long us1,
                                      const double* p, long n, double* Y, long ys0, long ys1) {{
   casadi_int sa, sr, si, sw;
-  double x[{nx} + 1], u[{nu} + 1], y[{ny} + 1];
-  long i, k;
+  double x[{nx} + 1], u[{nu} + 1], yb[EMA_BLOCK * {ny} + 1];
+  long i, j, k, k0, m;
   int rc = 0;
   {y}_work(&sa, &sr, &si, &sw);
   const double** arg = (const double**)malloc(sizeof(double*) * (sa + 3));
@@ -189,12 +193,18 @@ CASADI_SYMBOL_EXPORT int ema_outputs(const double* X, long xs0, long xs1, const 
   casadi_int* iw = (casadi_int*)malloc(sizeof(casadi_int) * (si + 1));
   double* w = (double*)malloc(sizeof(double) * (sw + 1));
   if (!arg || !res || !iw || !w) {{ free(arg); free(res); free(iw); free(w); return 2; }}
-  for (k = 0; k < n && !rc; ++k) {{
-    for (i = 0; i < {nx}; ++i) x[i] = X[i * xs0 + k * xs1];
-    for (i = 0; i < {nu}; ++i) u[i] = U[i * us0 + k * us1];
-    arg[0] = x; arg[1] = u; arg[2] = p; res[0] = y;
-    if ({y}(arg, res, iw, w, 0)) {{ rc = 1; break; }}
-    for (i = 0; i < {ny}; ++i) Y[i * ys0 + k * ys1] = y[i];
+  for (k0 = 0; k0 < n && !rc; k0 += EMA_BLOCK) {{
+    m = n - k0 < EMA_BLOCK ? n - k0 : EMA_BLOCK;
+    for (j = 0; j < m; ++j) {{
+      k = k0 + j;
+      for (i = 0; i < {nx}; ++i) x[i] = X[i * xs0 + k * xs1];
+      for (i = 0; i < {nu}; ++i) u[i] = U[i * us0 + k * us1];
+      arg[0] = x; arg[1] = u; arg[2] = p; res[0] = yb + j * {ny};
+      if ({y}(arg, res, iw, w, 0)) {{ rc = 1; break; }}
+    }}
+    if (rc) break;
+    for (i = 0; i < {ny}; ++i)
+      for (j = 0; j < m; ++j) Y[i * ys0 + (k0 + j) * ys1] = yb[j * {ny} + i];
   }}
   free(arg); free(res); free(iw); free(w);
   return rc;
