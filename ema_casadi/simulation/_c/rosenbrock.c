@@ -90,6 +90,7 @@ typedef struct {
   /* the factors' entries that are not zero, by column (the solves run over these) */
   int Lp[NX + 1], Li[NX * NX], Up[NX + 1], Ui[NX * NX];
   double Lx[NX * NX], Ux[NX * NX];
+  int src[NX]; /* the state whose right-hand side is row k of the permuted, pivoted system */
 #endif
   const double* p;
   const double* terms;
@@ -260,8 +261,14 @@ static int ros_lu_blocks(ros_ctx* c) {
       if (fabs(G[i + k * NX]) > m) { m = fabs(G[i + k * NX]); r = i; }
     piv[k] = r;
     if (!(m > 0.0)) return 1;
-    if (r != k)
-      for (j = 0; j < NX; ++j) { s = G[k + j * NX]; G[k + j * NX] = G[r + j * NX]; G[r + j * NX] = s; }
+    if (r != k) /* two rows of k's block: zero in the other blocks' columns */
+      for (j = ros_lo[k]; j < NX; ++j) {
+        if (j == hi) j = b0;
+        if (j >= NX) break;
+        s = G[k + j * NX];
+        G[k + j * NX] = G[r + j * NX];
+        G[r + j * NX] = s;
+      }
     s = dinv[k] = 1.0 / G[k + k * NX];
     nr = 0; /* the rows of column k below the pivot that are not zero, scaled */
     for (i = k + 1; i < NX; ++i) {
@@ -292,19 +299,19 @@ static int ros_lu_blocks(ros_ctx* c) {
   }
   c->Lp[NX] = nl;
   c->Up[NX] = nu;
+  for (i = 0; i < NX; ++i) c->src[i] = ros_perm[i]; /* the row swaps applied to the order */
+  for (k = 0; k < NX; ++k)
+    if (piv[k] != k) { r = c->src[k]; c->src[k] = c->src[piv[k]]; c->src[piv[k]] = r; }
   return 0;
 }
 
 /* Solves G z = b for b in the states' order (b overwritten by z). */
 static void ros_solve_blocks(const ros_ctx* c, double* b) {
-  const int *piv = c->piv, *Li = c->Li, *Ui = c->Ui;
+  const int *Li = c->Li, *Ui = c->Ui;
   const double *Lx = c->Lx, *Ux = c->Ux;
   int i, j, q;
   double y[NX], s;
-  for (i = 0; i < NX; ++i) y[i] = b[ros_perm[i]];
-  for (i = 0; i < NX; ++i) {
-    if (piv[i] != i) { s = y[i]; y[i] = y[piv[i]]; y[piv[i]] = s; }
-  }
+  for (i = 0; i < NX; ++i) y[i] = b[c->src[i]];
   for (j = 0; j < NX; ++j) {
     s = y[j];
     for (q = c->Lp[j]; q < c->Lp[j + 1]; ++q) y[Li[q]] -= Lx[q] * s;
