@@ -141,7 +141,7 @@ def _named(exc, model) -> Exception:
     the chosen solver's sampling (``x_cmd ...`` -> ``--x-cmd ...``), an argument
     (``from_trim: ...`` -> ``--from-trim: ...``); any other error as it is."""
     if isinstance(exc, SignalError):
-        name = str(exc).split(" ", 1)[0]
+        name = str(exc).split(" ", 1)[0].rstrip(":")
         flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
         return UserError(flag + str(exc)[len(name):])
     name = str(exc).split(":", 1)[0]

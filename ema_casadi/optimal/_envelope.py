@@ -227,6 +227,8 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         on it: each item is the same computation on the same model.
     """
     t0 = time.perf_counter()
+    for role in ("command", "load"):  # the envelope's moves command the rod against its load
+        model.needs_input(role, "the performance envelope of the rod", OptimalError)
     held = model.envelope_limits().get("held_load", np.inf)
     loads = np.linspace(0.0, 0.9 * held, 10) if loads is None else np.asarray(loads, float)
     distances = np.array([1e-3, 2e-3, 5e-3, 10e-3, 20e-3]) if distances is None else np.asarray(distances, float)

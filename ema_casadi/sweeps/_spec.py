@@ -52,6 +52,7 @@ from .._util._errors import InputError
 from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
+from ..simulation._inputs import check_value_range
 from ._metrics import METRICS, check_metrics
 
 __all__ = ["SweepError", "SweepSpec", "Run", "load_sweep", "parse_sweep", "DISTRIBUTIONS"]
@@ -491,14 +492,17 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
     from ..model.components import parts_for
 
     # the inputs of the swept models' parts (a fault input with faults = on, ...)
-    info = {}
+    info, faults = {}, {}
     for combo in itertools.product(*(variants or {k: [v] for k, v in params.variants.items()}).values()):
         parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
         info.update({i.name: i for part in parts for i in part.inputs})
+        faults.update({f.kind: f for part in parts for f in part.faults})
     for name, value in inputs.items():
         if name not in info or {r for r, _, _ in _DRIVEN} & set(info[name].roles):  # those have their own keys
             raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
         sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
+        check_value_range(info[name], [f for f in faults.values() if f.input == name], sig[name], T,
+                          f"{where} inputs {name}", SweepError)
     out["signals"] = sig
     return out
 
