@@ -282,6 +282,9 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
         channels = (model.output_with("rod_position"), model.output_with("motor_current"))
     elif isinstance(channels, str):
         channels = [c.strip() for c in channels.split(",") if c.strip()]
+    if isinstance(channels, str) or not channels:
+        raise DesignError("--channels: none given; give at least one measured "
+                          "channel (a state or output, e.g. x_rod,i_q)")
     sig = _sigma(model, list(channels), sigma)
     label = f"--prior {prior}" if isinstance(prior, (str, Path)) else "--prior"
     if isinstance(prior, (str, Path)):
@@ -294,7 +297,7 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
     draws = integer(draws if draws is not None else (4 if prior is not None else 1), "--draws", DesignError,
                     minimum=1)
     spread = number(spread, "--spread", DesignError, nonneg=True)
-    seed = integer(seed, "--seed", DesignError)
+    seed = integer(seed, "--seed", DesignError, minimum=0)  # numpy's generators take whole numbers >= 0
     if library is not None:
         from ._excitation import Segment
 

@@ -198,8 +198,6 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
     head = _table(data, "sweep", src)
     _known(f"{src} [sweep]", head, ("name", "seed", "samples"), "key")
     seed = head.get("seed")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
-        raise SweepError(f"{src} [sweep] seed: expected a non-negative integer, got {seed!r}")
     samples = head.get("samples", 1)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise SweepError(f"{src} [sweep] samples: expected a positive integer, got {samples!r}")
@@ -262,6 +260,9 @@ def make_sweep(params: Parameters, scenario: dict, metrics: dict, *, parameters:
 def _assembled(name, src, params, vspec, pspec, seed, samples, metrics, scenario) -> SweepSpec:
     """The checked sweep: its runs expanded and checked, then its scenario (``scenario()``)
     and its metrics."""
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
+                             or seed < 0):
+        raise SweepError(f"{src} [sweep] seed: expected a non-negative integer, got {seed!r}")
     if any("distribution" in d for d in pspec.values()) and seed is None:
         raise SweepError(f"{src} [sweep] seed: needed when a parameter is drawn from a distribution")
     if not any("distribution" in d for d in pspec.values()) and samples > 1:
