@@ -53,7 +53,7 @@ from ..simulation import (
 from . import UserError, add_progress, check_output_path, load, progress_of
 from ._flags import NoEffect, no_effect, refuse_dt
 from ._flags import given as flag_given
-from ._options import seconds
+from ._options import key_values, seconds
 
 #: The roles whose signals' final values a model of several actuators reports.
 _FINAL_ROLES = ("rod_position", "rod_velocity", "attachment_force", "force_fight")
@@ -325,11 +325,7 @@ def _checked(args, model, dt_out, given) -> dict:
 def _named_inputs(items, model, stroke, t_end) -> dict:
     """``--input NAME=SIGNAL`` flags -> {name: Signal}, each parsed with its input's kind."""
     out = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        name = name.strip()
-        if not sep or not text.strip():
-            raise UserError(f"--input '{item}': expected NAME=SIGNAL")
+    for name, text in key_values(items, "--input", "NAME=SIGNAL").items():
         if name in ("x_cmd", "f_ext"):
             raise UserError(f"--input {name}: use --{name.replace('_', '-')}")
         if name not in model.input_info:
