@@ -37,7 +37,7 @@ from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..optimisation import newton_step
 from ..simulation import RunFailed
-from ._df import cycle_of
+from ._df import cycle_of, switched_why
 from ._flow import Flow, OrbitNotFound
 from ._setup import setup
 
@@ -330,6 +330,8 @@ def unsupported(model: Model) -> str | None:
     ----------
     model : Model
     """
+    if (why := switched_why(model)) is not None:
+        return why
     if model.states_with("hysteresis"):
         return (f"screw_lock = memory: the hysteresis state {', '.join(model.states_with('hysteresis'))} is not "
                 "supported by shooting (Newton diverges on it); use screw_lock = blend")
