@@ -36,7 +36,7 @@ import numpy as np
 from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..optimisation import newton_step
-from ..simulation import RunFailed
+from ..simulation import RunFailed, SimulationError
 from ._df import cycle_of, switched_why
 from ._flow import Flow, OrbitNotFound
 from ._setup import setup
@@ -457,7 +457,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
         raise ValueError(f"method: {method!r}; have auto, sensitivities, rk4")
     why = unsupported(model)
     if why is not None:
-        raise ValueError(why)
+        raise SimulationError(why)  # an InputError (and a ValueError, as before)
     switching = bool(model.switched) or bool(getattr(model, "hybrid", False)) or zoh
     if method == "auto":
         method = "rk4" if switching else "sensitivities"
