@@ -224,7 +224,9 @@ def check_effect(model: Model, names, pv, labels: dict | None = None, error: typ
 
     from ..model.components import DEFAULT_VARIANTS
 
-    names = [n for n in names if not model.input_info[n].injection]
+    # a loop-break injection and the rod's command and load are read by construction
+    read = {"command", "load"}
+    names = [n for n in names if not model.input_info[n].injection and not read & set(model.input_info[n].roles)]
     if not names:
         return
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
