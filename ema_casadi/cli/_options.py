@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["add_progress", "progress_of", "stage", "model_path", "seconds", "key_values"]
+__all__ = ["add_progress", "progress_of", "stage", "model_path", "seconds"]
 
 #: The packaged reference parameter set: the model of every command run without a MODEL.toml.
 DEFAULT_MODEL = "cesa_ema.toml"
@@ -107,31 +107,3 @@ def seconds(text: str) -> float:
                                          f"({', '.join(TIME_UNITS)}), e.g. 0.5, 500ms, 2min")
     return float(m.group(1)) * TIME_UNITS[m.group(2) or "s"]
 
-
-def key_values(items, flag: str, form: str = "NAME=VALUE") -> dict:
-    """``NAME=VALUE`` items of a repeatable flag (``--sigma x_rod=1um --sigma i_q=0.05A``)
-    or of a list (``--weights a=1,b=2``) as name -> value text, in order; UserError
-    naming ``flag`` for an item without a name or a value, and for a name given twice
-    (the last would silently win).
-
-    Parameters
-    ----------
-    items : iterable of str
-        The items as given.
-    flag : str
-        The flag, for the messages (``"--sigma"``).
-    form : str
-        The item's form, for the message (``"CHANNEL=VALUE"``).
-    """
-    from ._common import UserError
-
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        key, value = key.strip(), value.strip()
-        if not sep or not key or not value:
-            raise UserError(f"{flag} '{item}': expected {form}")
-        if key in out:
-            raise UserError(f"{flag} {key}: given twice ({key}={out[key]}, then {key}={value}); give it once")
-        out[key] = value
-    return out

@@ -21,8 +21,8 @@ from __future__ import annotations
 import sys
 
 from . import UserError, add_progress, check_output_dir, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, check_bare
-from ._options import key_values
 
 COMMAND = "design-experiment"
 ORDER = 14

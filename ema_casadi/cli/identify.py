@@ -36,9 +36,9 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, check_bare, no_effect
 from ._identify_text import failure_text, fit_text
-from ._options import key_values
 
 COMMAND = "identify"
 ORDER = 12

@@ -51,9 +51,10 @@ from ..simulation import (
     simulate,
 )
 from . import UserError, add_progress, check_output_path, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, no_effect, refuse_dt
 from ._flags import given as flag_given
-from ._options import key_values, seconds
+from ._options import seconds
 
 #: The roles whose signals' final values a model of several actuators reports.
 _FINAL_ROLES = ("rod_position", "rod_velocity", "attachment_force", "force_fight")

@@ -706,7 +706,15 @@ def checked(name: str, value, where: str | None = None) -> float:
 
 
 def checked_rule(rule: str, value, where: str) -> float:
-    """``value`` (SI) checked by the parameter rule ``rule`` (:data:`TEMP`: a temperature
-    above absolute zero, :data:`FRAC` ...) as a file's value is, else ParameterError
-    naming ``where`` (how to name it in the message)."""
+    """``value`` checked by a parameter rule as a file's value is, else ParameterError.
+
+    Parameters
+    ----------
+    rule : str
+        The rule (:data:`TEMP`: a temperature above absolute zero, :data:`FRAC` ...).
+    value : float
+        The value (SI).
+    where : str
+        How to name it in the message.
+    """
     return _check_value(where, "", "", {"unit": "", "check": rule}, value, plain=True, bare=True)

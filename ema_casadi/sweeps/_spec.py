@@ -52,7 +52,7 @@ from .._util._errors import InputError
 from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
-from ..simulation._inputs import check_value_range
+from ..simulation import check_value_range
 from ._metrics import METRICS, check_metrics
 
 __all__ = ["SweepError", "SweepSpec", "Run", "load_sweep", "parse_sweep", "DISTRIBUTIONS"]
