@@ -73,6 +73,9 @@ CASES["sweep-inputs-eta"] = Case(["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "
 CASES["sweep-inputs-a_jam"] = Case(["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"],
                                    ["inputs a_jam", "jam fault"],
                                    {"s.toml": '[variants]\nfaults = "on"\n' + SWEEP.format(inputs="a_jam = 2")})
+CASES["sweep-inputs-eta-read-by-no-one"] = Case(
+    ["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"], ["inputs eta", "has no effect"],
+    {"s.toml": '[variants]\nthermal = "lumped"\n' + SWEEP.format(inputs="eta = 0.8")})
 CASES["mission-T_amb-signal"] = Case(["mission", REF, "{tmp}/m.toml", "--out", "{tmp}/out"],
                                      ["m.toml", "T_amb 'step:-400@1'", "-400 degC"], {"m.toml": MISSION})
 # -- design-experiment --prior ------------------------------------------------------------------
@@ -194,6 +197,9 @@ def _api_cases():
         "eta-no-effect": (lambda c: sim(c["m"]["thermal=lumped"], 0.001, eta=0.8), S, "has no effect"),
         "sweep-eta": (lambda c: E.load_sweep(_write(c["tmp"], "s.toml", SWEEP.format(inputs="eta = 1.5")),
                                              c["params"]), E.SweepError, "inputs eta"),
+        "sweep-eta-no-effect": (lambda c: E.load_sweep(_write(c["tmp"], "s.toml", '[variants]\nthermal = "lumped"\n'
+                                                       + SWEEP.format(inputs="eta = 0.8")), c["params"]),
+                                E.SweepError, "has no effect"),
         "mission-T_amb": (lambda c: load_mission(_write(c["tmp"], "m.toml", MISSION), c["params"]), MissionError,
                           "T_amb"),
         "prior-latin-1": (lambda c: E.design_experiment(c["params"], "F_seal", 2.0, prior=_write(
