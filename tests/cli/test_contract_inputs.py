@@ -253,3 +253,18 @@ def test_the_api_refuses_the_same_values(case_id, params, models, tmp_path):
     msg = str(exc.value)
     assert "\n" not in msg and offender in msg, msg
     assert not any(p.name not in ("s.toml", "m.toml", "p.toml", "r.csv") for p in tmp_path.iterdir())
+
+
+def test_a_refusal_as_a_process_prints_one_line(tmp_path):
+    """As the ``ema`` process: the one line and nothing else reaches stderr (no
+    traceback of a decoding error)."""
+    import subprocess
+    import sys
+
+    case = CASES["prior-latin-1"]
+    (tmp_path / "p.toml").write_bytes(case.files["p.toml"])
+    proc = subprocess.run([sys.executable, "-m", "ema_casadi.cli", *(a.format(tmp=tmp_path) for a in case.argv)],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert len(proc.stderr.splitlines()) == 1 and "--prior" in proc.stderr, proc.stderr
+    assert proc.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["p.toml"]
