@@ -32,7 +32,7 @@ from ._param_units import raw_value
 from ._relations import check_relations
 
 __all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked",
-           "checked_rule", "TEMP"]
+           "checked_rule", "TEMP", "FLAG"]
 
 
 class ParameterError(InputError, ValueError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 
 import numpy as np
@@ -223,6 +224,9 @@ def check_effect(model: Model, names, pv, labels: dict | None = None, error: typ
     import casadi as ca
 
     from ..model.components import DEFAULT_VARIANTS
+    from ..model.params import FLAG, GROUPS
+
+    FLAGS = {f.name for cls in GROUPS.values() for f in dataclasses.fields(cls) if f.metadata.get("check") == FLAG}
 
     # a loop-break injection and the rod's command and load are read by construction
     read = {"command", "load"}
@@ -230,14 +234,20 @@ def check_effect(model: Model, names, pv, labels: dict | None = None, error: typ
     if not names:
         return
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
-    xdot, y = model.f(x, u, ca.DM(np.asarray(pv, float)))
-    out = ca.vertcat(xdot, y)
+    pv = np.asarray(pv, float)
+
+    def reads(name, p) -> bool:
+        return ca.depends_on(ca.vertcat(*model.f(x, u, ca.DM(p))), u[model.inputs.index(name)])
+
     for name in names:
-        if not ca.depends_on(out, u[model.inputs.index(name)]):
+        if not reads(name, pv):
             chosen = ", ".join(f"{k}={v}" for k, v in model.variants.items() if DEFAULT_VARIANTS.get(k) != v)
+            switches = [n for k, n in enumerate(model.param_names) if n in FLAGS and pv[k] in (0.0, 1.0)
+                        and reads(name, np.where(np.arange(len(pv)) == k, 1.0 - pv[k], pv))]
+            how = "; it does with " + " or ".join(f"{n} = {1 - pv[model.param_names.index(n)]:g}"
+                                                  for n in switches) if switches else ""
             raise error(f"{(labels or {}).get(name, name)}: has no effect: the model ({chosen or 'default variants'})"
-                        f" does not read the input {name} with these parameters ({name}: "
-                        f"{model.input_info[name].doc})")
+                        f" does not read the input {name} ({model.input_info[name].doc}) with these parameters{how}")
 
 
 def input_matrix(model, sig, t):

@@ -66,7 +66,7 @@ CASES["input-a_jam-2"] = Case([*SIM, "--variant", "faults=on", "--input", "a_jam
 CASES["input-a_shear-1.5"] = Case([*SIM, "--variant", "faults=on", "--input", "a_shear=1.5"],
                                   ["--input a_shear", "disconnect fault [0, 1]"])
 CASES["input-eta-read-by-no-one"] = Case([*SIM, "--variant", "thermal=lumped", "--input", "eta=0.8"],
-                                         ["--input eta", "has no effect", "thermal=lumped"])
+                                         ["--input eta", "has no effect", "thermal=lumped", "feedback_eta = 0"])
 CASES["sweep-inputs-eta"] = Case(["sweep", REF, "{tmp}/s.toml", "--jobs", "1", "--out", "{tmp}/s.csv"],
                                  ["s.toml [scenario] inputs eta", "(0, 1]"],
                                  {"s.toml": SWEEP.format(inputs="eta = 1.5")})
