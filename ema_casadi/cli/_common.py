@@ -13,7 +13,7 @@ if TYPE_CHECKING:
     from pathlib import Path
 
 __all__ = ["EXIT_FAILED", "UserError", "second_file", "load", "jsonable", "check_output_path",
-           "check_output_dir"]
+           "check_output_dir", "key_values"]
 
 
 #: Exit status of a failed run (and of ``ema freqresp`` with a failed point).
@@ -155,3 +155,30 @@ def check_output_dir(path: str | None, names, flag: str) -> Path | None:
     if path is None:
         return None
     return _files.check_folder(path, names, f"{flag} {path}")
+
+
+def key_values(items, flag: str, form: str = "NAME=VALUE") -> dict:
+    """``NAME=VALUE`` items of a repeatable flag (``--sigma x_rod=1um --sigma i_q=0.05A``)
+    or of a list (``--weights a=1,b=2``) as name -> value text, in order; UserError
+    naming ``flag`` for an item without a name or a value, and for a name given twice
+    (the last would silently win).
+
+    Parameters
+    ----------
+    items : iterable of str
+        The items as given.
+    flag : str
+        The flag, for the messages (``"--sigma"``).
+    form : str
+        The item's form, for the message (``"CHANNEL=VALUE"``).
+    """
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            raise UserError(f"{flag} '{item}': expected {form}")
+        if key in out:
+            raise UserError(f"{flag} {key}: given twice ({key}={out[key]}, then {key}={value}); give it once")
+        out[key] = value
+    return out

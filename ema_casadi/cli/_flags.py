@@ -103,7 +103,7 @@ def refuse_no_effect(args, table: dict) -> None:
                 no_effect(args, flag, rule.why.format(**vars(args)))
 
 
-def new_output_folder(out: Path, names, flag: str = "--out") -> Path | None:
+def new_output_folder(out: str | Path, names, flag: str = "--out") -> Path | None:
     """Check an output folder of the files ``names`` before any work; return the highest
     folder of ``out`` that does not exist yet (assembled aside with what lies below it
     and moved in at the end by :func:`output_folder`: a failure leaves no empty folder),
@@ -114,7 +114,9 @@ def new_output_folder(out: Path, names, flag: str = "--out") -> Path | None:
     UserError
         The outputs cannot be written there (one line naming ``flag``).
     """
-    names = list(names)
+    if not str(out).strip() or Path(out).name in ("", ".", ".."):  # '' would be the working folder
+        raise UserError(f"{flag} '{out}': names no folder of its own; name the output folder")
+    names, out = list(names), Path(out)
     missing = [p for p in (out, *out.parents) if not p.exists()]
     if not missing:
         for name in names:

@@ -106,3 +106,4 @@ def seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"'{text}' is not a time: give seconds, or a number with a unit "
                                          f"({', '.join(TIME_UNITS)}), e.g. 0.5, 500ms, 2min")
     return float(m.group(1)) * TIME_UNITS[m.group(2) or "s"]
+

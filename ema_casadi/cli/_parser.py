@@ -12,7 +12,7 @@ import sys
 from ._options import DEFAULT_MODEL
 
 __all__ = ["VariantHelpFormatter", "variant_help", "add_common", "build_parser", "get_parser",
-           "join_values", "unknown_flag", "given_flags", "flag_name"]
+           "join_values", "unknown_flag", "given_flags", "flag_name", "once_only"]
 
 #: The ``--variant`` help as declared; :class:`VariantHelpFormatter` shows the registry's keys and
 #: values in its place (another formatter shows this sentence).
@@ -23,6 +23,47 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, not usage + message
         sys.stderr.write(f"{self.prog}: error: {message}\n")
         sys.exit(2)
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, rest = super().parse_known_args(args, namespace)
+        ns.__dict__.pop(_SEEN, None)  # what once_only() kept while parsing
+        return ns, rest
+
+
+#: The namespace attribute in which :func:`once_only` keeps the flags seen while parsing.
+_SEEN = "_ema_flags_seen"
+
+
+def once_only(p) -> None:
+    """Make every single-valued flag of the parser ``p`` refuse a second occurrence
+    (``--weights a=1 --weights b=2``: argparse keeps the last one silently): a flag that
+    takes one value, and a ``--x/--no-x`` switch. Flags meant to repeat (``append``:
+    ``--variant``, ``--input``, ``--sigma``), plain switches (``--json`` twice means
+    the same) and help are left as they are.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A command's parser, its arguments added.
+    """
+    for action in p._actions:
+        kind = type(action)
+        if not action.option_strings or not (kind is argparse._StoreAction
+                                             or kind is argparse.BooleanOptionalAction):
+            continue
+
+        class Once(kind):
+            def __call__(self, parser, namespace, values, option_string=None):
+                seen = namespace.__dict__.setdefault(_SEEN, {})
+                given = option_string if values is None or values == [] else f"{option_string} {values}"
+                if self.dest in seen:
+                    raise argparse.ArgumentError(self, f"given twice ({seen[self.dest]}, then {given}); it takes "
+                                                       "one value: give it once")
+                seen[self.dest] = given
+                super().__call__(parser, namespace, values, option_string)
+
+        Once.__name__ = Once.__qualname__ = f"Once{kind.__name__}"
+        action.__class__ = Once
 
 
 def variant_help() -> str:
@@ -93,6 +134,7 @@ def build_parser():
         p.prog = f"ema {mod.COMMAND}"
         add_common(p)
         mod.add_arguments(p)
+        once_only(p)
         mods[mod.COMMAND] = mod
     return parser, mods
 

@@ -12,7 +12,7 @@ from .._util import _interrupts
 from .._util._errors import EmaError, InputError
 from ._common import EXIT_FAILED, jsonable
 from ._options import model_path
-from ._parser import _subparsers, build_parser, given_flags, join_values, unknown_flag
+from ._parser import _subparsers, build_parser, flag_name, given_flags, join_values, unknown_flag
 
 
 def _reader_gone() -> int:
@@ -101,12 +101,18 @@ def one_line_warnings(command: str):
         warnings.showwarning = before
 
 
-def _refused(command: str, exc: EmaError) -> int:
+def _refused(command: str, exc: EmaError, flags: dict | None = None) -> int:
     """An error of the family as the contract's one line on stderr; its exit status: a
-    mistake in the input ``error:``, exit 2; an infeasible request or a failed run
-    ``failed:``, exit 3."""
+    mistake in the input ``error:``, exit 2, the API's argument it starts with named by
+    its flag (``flags``: argument -> flag; ``distances: ...`` -> ``--distances: ...``);
+    an infeasible request or a failed run ``failed:``, exit 3."""
+    import re
+
     text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
     if isinstance(exc, InputError):
+        word = re.match(r"[A-Za-z_]\w*(?=[: ])", text)
+        if word and word.group() in (flags or {}):
+            text = flags[word.group()] + text[word.end():]
         sys.stderr.write(f"ema {command}: error: {text}\n")
         return 2
     sys.stderr.write(f"ema {command}: failed: {text}\n")
@@ -145,7 +151,9 @@ def _run(argv, stop) -> int:
             _interrupts.check()
     except EmaError as exc:  # the one place the family becomes an exit status and one line
         _interrupts.check()
-        return _refused(args.command, exc)
+        sub = _subparsers(parser).choices[args.command]
+        return _refused(args.command, exc, {a.dest: flag_name(a) for a in sub._actions
+                                            if any(o.startswith("--") for o in a.option_strings)})
     if args.json:
         json.dump(jsonable(result), sys.stdout, indent=1)
         sys.stdout.write("\n")

@@ -21,6 +21,7 @@ from __future__ import annotations
 import sys
 
 from . import UserError, add_progress, check_output_dir, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, check_bare
 
 COMMAND = "design-experiment"
@@ -86,14 +87,11 @@ def _weights(text):
     if text is None:
         return None
     out = {}
-    for item in text.split(","):
-        key, sep, value = item.partition("=")
+    for key, value in key_values(text.split(","), "--weights", "NAME=W").items():
         try:
-            out[key.strip()] = float(value)
+            out[key] = float(value)
         except ValueError:
-            raise UserError(f"--weights {item}: expected NAME=W, W a number") from None
-        if not sep or not key.strip():
-            raise UserError(f"--weights {item}: expected NAME=W")
+            raise UserError(f"--weights {key}={value}: expected NAME=W, W a number") from None
     return out
 
 
@@ -102,11 +100,7 @@ def _sigma(items, model) -> dict:
 
     units = model.units
     out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        key = key.strip()
-        if not sep or not key or not value.strip():
-            raise UserError(f"--sigma expects CHANNEL=VALUE, got '{item}'")
+    for key, value in key_values(items, "--sigma", "CHANNEL=VALUE").items():
         if key not in units:
             from .._util._checks import nearest
 

@@ -64,7 +64,7 @@ def _model_export(args) -> bool:
 def _run_model_export(args) -> dict:
     from ..export import ExportError, export_model, fmu
 
-    out = args.out or fmu.DEFAULTS[args.format]
+    out = fmu.DEFAULTS[args.format] if args.out is None else args.out
     try:
         fmu.check_output(out, args.format)
     except ExportError as exc:
@@ -128,7 +128,7 @@ def run(args) -> dict:
 
     linear = args.format in LINEAR_FORMATS
     default = ("ema_lin" if linear else "ema_f") + SUFFIX[args.format]
-    out = check_output_path(args.out or default, (SUFFIX[args.format],), "--out")
+    out = check_output_path(default if args.out is None else args.out, (SUFFIX[args.format],), "--out")
     if not linear:  # the header and the sidecar beside it must be writable too
         from ..export import sidecar_path
 

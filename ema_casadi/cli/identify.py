@@ -36,6 +36,7 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, check_bare, no_effect
 from ._identify_text import failure_text, fit_text
 
@@ -103,19 +104,9 @@ def add_arguments(p):
     add_progress(p)
 
 
-def _pairs(items, flag) -> dict:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip() or not value.strip():
-            raise UserError(f"{flag} expects NAME=VALUE, got '{item}'")
-        out[key.strip()] = value.strip()
-    return out
-
-
 def _bounds(items, flag="--bounds") -> dict:
     out = {}
-    for name, text in _pairs(items, flag).items():
+    for name, text in key_values(items, flag).items():
         lo, sep, hi = text.partition(":")
         try:
             a, b = float(lo), float(hi)
@@ -135,7 +126,7 @@ def _quantities(items, flag, model) -> dict:
 
     units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
     out = {}
-    for name, text in _pairs(items, flag).items():
+    for name, text in key_values(items, flag).items():
         if name not in units:
             from .._util._checks import nearest
 

@@ -153,7 +153,7 @@ def _continuation(args, params, model):
     from ..limitcycle import checked_inputs
     from ..model import checked
     from ..model.params import ParameterError
-    from ..signals import SignalError, parse_quantity
+    from ..signals import KIND_OF_UNIT, SignalError, parse_quantity
 
     if args.cont is None:
         return None
@@ -172,10 +172,10 @@ def _continuation(args, params, model):
             lo, hi = (parse_quantity(v, info.kind, info.unit) for v in (lo_txt, hi_txt))
             for v in (lo, hi):
                 checked_inputs(model, {name: v}, model.p())
-        elif name == "B":
-            lo, hi = parse_quantity(lo_txt, "length", "mm"), parse_quantity(hi_txt, "length", "mm")
-        else:
-            lo, hi = float(lo_txt), float(hi_txt)
+        else:  # a parameter: a number in its SI unit, or a quantity of its kind (B: bare mm)
+            unit = model.param_units().get(name, "")
+            kind = "length" if name == "B" else KIND_OF_UNIT.get(unit)
+            lo, hi = (_bound(v, name, kind, "mm" if name == "B" else unit, args.cont) for v in (lo_txt, hi_txt))
         for v in (lo, hi) if not driven else ():
             checked(name, v, f"--continue {name}={v:g}")
     except (SignalError, ValueError, ParameterError) as exc:
@@ -184,6 +184,17 @@ def _continuation(args, params, model):
     if not lo < hi:
         raise UserError(f"--continue {args.cont}: need LO < HI")
     return name, lo, hi
+
+
+def _bound(text: str, name: str, kind: str | None, unit: str, given: str) -> float:
+    """One end of --continue's parameter range: a number (SI) or a quantity of ``kind``."""
+    from ..signals import SignalError, parse_quantity
+
+    try:
+        return parse_quantity(text, kind, unit) if kind else float(text)
+    except (SignalError, ValueError):
+        what = f"a {kind} (a number in {unit}, or with a unit)" if kind else f"a number in {unit or '1'} (SI)"
+        raise UserError(f"--continue {given}: {text.strip()!r} is not {what}") from None
 
 
 def _shooting(args, model, s, over, cycles, t_end, t0, plot, csv, cont):

@@ -140,8 +140,8 @@ def run(args) -> dict:
     # every value checked before the solve (and before the output folder is made)
     check_request(model, req["move"], req["load"], req["objective"], req["duration"], req["start"],
                   req["through"], req["intervals"], req["method"])
-    out = Path(args.out) if args.out else None
-    top = new_output_folder(out, MOVE_FILES) if out else None
+    out = Path(args.out) if args.out is not None else None
+    top = new_output_folder(args.out, MOVE_FILES) if out else None
     stage(args, "optimal move", 0.1, f"{req['objective']}, through {req['through']}")
     try:
         res = optimal_move(model, zoh=args.zoh, **req)
@@ -180,8 +180,8 @@ def run_envelope(args) -> dict:
             temps = [float(t) for t in args.temperatures.split(",")]
         except ValueError:
             raise UserError(f"--temperatures {args.temperatures}: expected degC numbers, e.g. 20,120") from None
-    out = Path(args.out) if args.out else None
-    top = new_output_folder(out, ENVELOPE_FILES) if out else None
+    out = Path(args.out) if args.out is not None else None
+    top = new_output_folder(args.out, ENVELOPE_FILES) if out else None
     intervals = 30 if args.intervals is None else args.intervals  # 0 is refused, not the default
     env = performance_envelope(model, loads, distances, temps, intervals=intervals, jobs=cores())
     written = []

@@ -51,6 +51,7 @@ from ..simulation import (
     simulate,
 )
 from . import UserError, add_progress, check_output_path, load, progress_of
+from ._common import key_values
 from ._flags import NoEffect, no_effect, refuse_dt
 from ._flags import given as flag_given
 from ._options import seconds
@@ -141,7 +142,7 @@ def _named(exc, model) -> Exception:
     the chosen solver's sampling (``x_cmd ...`` -> ``--x-cmd ...``), an argument
     (``from_trim: ...`` -> ``--from-trim: ...``); any other error as it is."""
     if isinstance(exc, SignalError):
-        name = str(exc).split(" ", 1)[0]
+        name = str(exc).split(" ", 1)[0].rstrip(":")
         flag = _FLAG_OF.get(name, f"--input {name}" if name in model.inputs else name)
         return UserError(flag + str(exc)[len(name):])
     name = str(exc).split(":", 1)[0]
@@ -325,11 +326,7 @@ def _checked(args, model, dt_out, given) -> dict:
 def _named_inputs(items, model, stroke, t_end) -> dict:
     """``--input NAME=SIGNAL`` flags -> {name: Signal}, each parsed with its input's kind."""
     out = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        name = name.strip()
-        if not sep or not text.strip():
-            raise UserError(f"--input '{item}': expected NAME=SIGNAL")
+    for name, text in key_values(items, "--input", "NAME=SIGNAL").items():
         if name in ("x_cmd", "f_ext"):
             raise UserError(f"--input {name}: use --{name.replace('_', '-')}")
         if name not in model.input_info:

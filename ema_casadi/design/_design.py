@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .._util._checks import integer, nearest, number
+from .._util._checks import integer, nearest, number, read_text_file
 from .._util._errors import InputError
 from ..identification import SENSOR_NOISE, IdentificationError, free_parameters
 from ..model.assembly import build_model
@@ -69,8 +69,12 @@ def read_prior(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise DesignError(f"--prior {path}: no such file")
+    try:
+        text = read_text_file(path, "fitted parameter file", DesignError)
+    except DesignError as exc:
+        raise DesignError(f"--prior {exc}") from None
     out = {}
-    for line in path.read_text(encoding="utf-8-sig").splitlines():
+    for line in text.splitlines():
         if not line.startswith("#"):
             break
         m = _PRIOR.match(line)
@@ -82,6 +86,28 @@ def read_prior(path) -> dict:
     if not out:
         raise DesignError(f"--prior {path}: no fitted intervals in its header (a file written by ema identify --out)")
     return out
+
+
+def _check_prior(prior: dict, fr, label: str) -> None:
+    """A prior's entries for the free parameters: finite numbers, a non-empty interval
+    around the estimate, a positive estimate where the parameter is fitted in logs."""
+    for k, n in enumerate(fr.names):
+        if n not in prior:
+            continue
+        try:
+            est, lo, hi = (float(v) for v in prior[n])
+        except (TypeError, ValueError):
+            raise DesignError(f"{label}: {n}: expected (estimate, lo, hi), three numbers, got {prior[n]!r}") from None
+        if not all(math.isfinite(v) for v in (est, lo, hi)):
+            raise DesignError(f"{label}: {n} {est:g} (95 %: {lo:g} .. {hi:g}): not finite; the draws need a finite "
+                              "interval (a parameter the records did not determine: leave it out of the prior)")
+        if not lo < hi:
+            raise DesignError(f"{label}: interval of {n} is empty ({lo:g} .. {hi:g})")
+        if not lo <= est <= hi:
+            raise DesignError(f"{label}: {n} estimate {est:g} outside its interval ({lo:g} .. {hi:g})")
+        if fr.log[k] and not est > 0:
+            raise DesignError(f"{label}: {n} estimate {est:g}: must be positive ({n} is a positive parameter, "
+                              "drawn on a log scale)")
 
 
 def _thetas(fr, prior: dict | None, draws: int, spread: float, seed: int) -> tuple[list, np.ndarray]:
@@ -209,6 +235,8 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
     if not isinstance(params, Parameters):
         raise DesignError("params: a Parameters object (from load_parameters)")
     model = build_model(params, variants)
+    for role in ("command", "load"):  # the test commands the rod against its load
+        model.needs_input(role, "a designed test of the rod", DesignError)
     if isinstance(free, str):
         free = [s.strip() for s in free.split(",") if s.strip()]
     try:
@@ -254,17 +282,22 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
         channels = (model.output_with("rod_position"), model.output_with("motor_current"))
     elif isinstance(channels, str):
         channels = [c.strip() for c in channels.split(",") if c.strip()]
+    if isinstance(channels, str) or not channels:
+        raise DesignError("--channels: none given; give at least one measured "
+                          "channel (a state or output, e.g. x_rod,i_q)")
     sig = _sigma(model, list(channels), sigma)
+    label = f"--prior {prior}" if isinstance(prior, (str, Path)) else "--prior"
     if isinstance(prior, (str, Path)):
         prior = read_prior(prior)
+    if prior is not None and not isinstance(prior, dict):
+        raise DesignError(f"prior: expected a fitted file's path or a dict name -> (estimate, lo, hi), got "
+                          f"{type(prior).__name__}")
     if prior is not None:
-        unknown = [n for n in prior if n in fr.names and not prior[n][1] < prior[n][2]]
-        if unknown:
-            raise DesignError(f"--prior: interval of {unknown[0]} is empty")
+        _check_prior(prior, fr, label)
     draws = integer(draws if draws is not None else (4 if prior is not None else 1), "--draws", DesignError,
                     minimum=1)
     spread = number(spread, "--spread", DesignError, nonneg=True)
-    seed = integer(seed, "--seed", DesignError)
+    seed = integer(seed, "--seed", DesignError, minimum=0)  # numpy's generators take whole numbers >= 0
     if library is not None:
         from ._excitation import Segment
 

@@ -104,6 +104,7 @@ def run_faults(params: Parameters | None = None, faults=None, *, variants: dict 
 
     spec = _spec(params, faults, variants)
     healthy = integer(healthy, "healthy", FaultError, minimum=0)
+    seed = integer(seed, "seed", FaultError, minimum=0)
     t0 = time.perf_counter()
     from ..simulation import sampling_split
 
@@ -157,6 +158,7 @@ def healthy_runs(spec: FaultSpec, n: int, *, jobs: int | None = None, seed: int 
     from ..sweeps import make_sweep, sweep
 
     n = integer(n, "n", FaultError, minimum=1)
+    seed = integer(seed, "seed", FaultError, minimum=0)  # numpy's generators take whole numbers >= 0
     h = spec.healthy or {"duration": spec.scenario["duration"], "dt": spec.scenario["dt"],
                          "dt_out": spec.scenario["dt_out"], "tolerance": HEALTHY_TOLERANCE, "vary": []}
     tolerance = h["tolerance"] if tolerance is None else tolerance

@@ -483,9 +483,7 @@ def _cases(where: str, entry: dict, kinds: dict, duration: float) -> list[FaultC
     whole = fault.unit == "1" and fault.hi == 1.0  # 0..1 faults default to 1 (the full fault)
     sev = _axis(f"{where} severity", entry.get("severity"), 1.0 if whole else None)
     for s in sev:
-        if not fault.lo <= s <= fault.hi:
-            raise FaultError(f"{where} severity: {s:g} {fault.unit} is outside the range of a {kind} fault "
-                             f"[{fault.lo:g}, {fault.hi:g}] {fault.unit}")
+        fault.check(s, f"{where} severity", FaultError)
     ramp = entry.get("ramp", 0.0)
     if isinstance(ramp, bool) or not isinstance(ramp, (int, float)) or not math.isfinite(ramp) or ramp < 0:
         raise FaultError(f"{where} ramp: expected a non-negative number of seconds, got {ramp!r}")

@@ -292,7 +292,20 @@ def _record(path, model, names, units, data, fields, extra) -> Record:
     if not channels:
         raise IdentificationError(f"{path}: no measured channel (a column named after a model state or output, "
                                   f"e.g. {', '.join(model.states[-2:])})")
+    _within_travel(path, model, inputs)
     return Record(str(path), t - t[0], inputs, channels, fields, float(t[0]))
+
+
+def _within_travel(path, model, inputs: dict) -> None:
+    """A rod command beyond the rod's travel (stroke and overtravel, the envelope of its
+    position) is refused: the rod cannot follow it, a fit would explain the end stop."""
+    for name in model.inputs_with("command"):
+        pos = model.outputs_with("rod_position")
+        reach = model.envelope().get(pos[0], math.inf) if pos else math.inf
+        peak = float(np.max(np.abs(inputs[name]))) if name in inputs and len(inputs[name]) else 0.0
+        if peak > reach:
+            raise IdentificationError(f"{path}: column '{name}' reaches {peak * 1e3:.4g} mm, beyond the rod's travel "
+                                      f"+-{reach * 1e3:.4g} mm (stroke and overtravel): the rod cannot follow it")
 
 
 #: A unitless time column spanning more than this (s) is not in seconds: refused.

@@ -14,6 +14,7 @@ from .._util._files import write_text
 from ..model.assembly import build_model
 from ..signals import Signal, parse_signal
 from ..simulation import as_signal, simulate
+from ._records import IdentificationError
 
 __all__ = ["SENSOR_NOISE", "synthetic_record", "example_records", "EXAMPLE_TRUTH", "recovery_records",
            "RECOVERY_TRUTH", "guide_records", "TREND_TRUTH", "GUIDE_FILES"]
@@ -73,6 +74,8 @@ def synthetic_record(params, path, *, t_end: float, x_cmd=0.0, f_ext=0.0, channe
         File-level fields written as ``# NAME: VALUE`` lines (a time stamp).
     """
     model = build_model(params, variants)
+    for role in ("command", "load"):  # a record holds the rod's command and load
+        model.needs_input(role, "a record of the rod (synthetic_record)", IdentificationError)
     pv = params.vector(**(truth or {}))
     n = int(round(t_end * rate))
     t = np.arange(n + 1) / rate

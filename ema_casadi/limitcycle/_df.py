@@ -27,7 +27,7 @@ import numpy as np
 from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..signals import Signal, constant
-from ..simulation import simulate
+from ..simulation import SimulationError, simulate
 from ..sinestream import coefficients
 
 __all__ = ["answered", "NO_ANSWER", "break_response", "describing_function", "predict", "refine",
@@ -47,13 +47,31 @@ def _injection(meas0: float, f: float, coeffs: dict):
     return inj
 
 
+def switched_why(model: Model) -> str | None:
+    """Why a switched model (the PWM bridge) has no limit-cycle analysis (one line), or
+    None: it steps whole carrier periods, and the periods of an excitation or of an
+    orbit are not whole carrier periods.
+
+    Parameters
+    ----------
+    model : Model
+    """
+    if not model.switched:
+        return None
+    return (f"variant inverter={model.variants.get('inverter')}: the limit-cycle analyses run the averaged bridge "
+            "(a switched model steps whole carrier periods, which an excitation's or an orbit's period is not); "
+            "use inverter=ideal")
+
+
 def _periodic_runner(model: Model, loop: str, p, x0, inputs: dict, meas0: float, dt: float, periods: int,
                      settle: int, extra: tuple = ()):
     """``run(f, coeffs) -> (Y, D, amplitudes)``: the open loop driven at the break by a
     periodic injection (harmonic k of frequency f with complex amplitude coeffs[k]);
     Y and D the harmonic coefficients 0..SAMPLES/2 of the measurement and the injection
     over the kept whole periods (detrended: Y[0] = 0), ``amplitudes`` the first-harmonic
-    amplitudes of the ``extra`` signals."""
+    amplitudes of the ``extra`` signals. A switched model is refused (:func:`switched_why`)."""
+    if (why := switched_why(model)) is not None:
+        raise SimulationError(why)
     lp = model.loops[loop]
     names = list(model.param_names)
     p_open = np.array(p, float).copy()

@@ -36,8 +36,8 @@ import numpy as np
 from .._util._notebook import Summarised
 from ..model.assembly import Model
 from ..optimisation import newton_step
-from ..simulation import RunFailed
-from ._df import cycle_of
+from ..simulation import RunFailed, SimulationError
+from ._df import cycle_of, switched_why
 from ._flow import Flow, OrbitNotFound
 from ._setup import setup
 
@@ -330,6 +330,8 @@ def unsupported(model: Model) -> str | None:
     ----------
     model : Model
     """
+    if (why := switched_why(model)) is not None:
+        return why
     if model.states_with("hysteresis"):
         return (f"screw_lock = memory: the hysteresis state {', '.join(model.states_with('hysteresis'))} is not "
                 "supported by shooting (Newton diverges on it); use screw_lock = blend")
@@ -455,7 +457,7 @@ def periodic_orbit(model: Model, loop: str = "position", *, p=None, condition: s
         raise ValueError(f"method: {method!r}; have auto, sensitivities, rk4")
     why = unsupported(model)
     if why is not None:
-        raise ValueError(why)
+        raise SimulationError(why)  # an InputError (and a ValueError, as before)
     switching = bool(model.switched) or bool(getattr(model, "hybrid", False)) or zoh
     if method == "auto":
         method = "rk4" if switching else "sensitivities"

@@ -334,7 +334,10 @@ def _cavity(where: str, value, duration: float) -> Signal:
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         T = _temperature(where, value)
         return Ramp(terms=(), text=f"{T:g}", a=T, b=T, T=duration)
-    return _signal(where, value, "temperature", "degC", None, duration)
+    sig = _signal(where, value, "temperature", "degC", None, duration)
+    for T in sig.span(duration):  # a signal's extremes by the numbers' rule
+        _temperature(f"{where} '{sig.text}'", T)
+    return sig
 
 
 def _held_load(source: str, params: Parameters, variants: dict) -> float:

@@ -107,6 +107,31 @@ class Contract:
         """
         return _one(self._lead(self.inputs_with, role), role, "inputs")
 
+    def needs_input(self, role: str, what: str, error: type) -> str:
+        """The name of the one input with ``role``, else ``error`` (one line): ``what``
+        needs it, and the variant choice that took it away (``airframe=transport``: the
+        pitch law commands the rod, the model takes ``theta_cmd``).
+
+        Parameters
+        ----------
+        role : str
+            An input role (``command``, ``load``).
+        what : str
+            What needs it, for the message (``"optimal_move"``).
+        error : type
+            The exception raised (the caller's, of the InputError family).
+        """
+        names = self._lead(self.inputs_with, role)
+        if len(names) == 1:
+            return names[0]
+        from .components import DEFAULT_VARIANTS, SIGNAL_KEYS
+
+        chosen = ", ".join(f"{k}={v}" for k, v in self.variants.items() if DEFAULT_VARIANTS.get(k) != v)
+        others = [n for n in self.inputs if n.endswith("_cmd")] if role == "command" else []
+        by = f" (it takes {', '.join(others)})" if others else ""
+        raise error(f"variant {chosen or 'choice'}: {what} needs the {role} input {SIGNAL_KEYS.get(role, role)}; "
+                    f"this model has {', '.join(names) or 'none'}{by}")
+
     def outputs_with(self, role: str) -> tuple[str, ...]:
         """Names of the outputs that declare ``role``.
 

@@ -31,7 +31,8 @@ from ._param_units import absent as _absent
 from ._param_units import raw_value
 from ._relations import check_relations
 
-__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked"]
+__all__ = ["ParameterError", "UnknownParameterError", "Parameters", "load_parameters", "GROUPS", "checked",
+           "checked_rule", "TEMP", "FLAG"]
 
 
 class ParameterError(InputError, ValueError):
@@ -702,3 +703,18 @@ def checked(name: str, value, where: str | None = None) -> float:
         raise UnknownParameterError(_unknown("checked", name, rules))
     value = value.item() if isinstance(value, np.generic) else value
     return _check_value(where, "", "", rules[name], value, plain=True, bare=True)
+
+
+def checked_rule(rule: str, value, where: str) -> float:
+    """``value`` checked by a parameter rule as a file's value is, else ParameterError.
+
+    Parameters
+    ----------
+    rule : str
+        The rule (:data:`TEMP`: a temperature above absolute zero, :data:`FRAC` ...).
+    value : float
+        The value (SI).
+    where : str
+        How to name it in the message.
+    """
+    return _check_value(where, "", "", {"unit": "", "check": rule}, value, plain=True, bare=True)

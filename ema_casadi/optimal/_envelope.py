@@ -227,6 +227,8 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         on it: each item is the same computation on the same model.
     """
     t0 = time.perf_counter()
+    for role in ("command", "load"):  # the envelope's moves command the rod against its load
+        model.needs_input(role, "the performance envelope of the rod", OptimalError)
     held = model.envelope_limits().get("held_load", np.inf)
     loads = np.linspace(0.0, 0.9 * held, 10) if loads is None else np.asarray(loads, float)
     distances = np.array([1e-3, 2e-3, 5e-3, 10e-3, 20e-3]) if distances is None else np.asarray(distances, float)
@@ -243,6 +245,9 @@ def performance_envelope(model: Model, loads=None, distances=None, temperatures=
         raise OptimalError(f"loads: between 0 and the {held / 1e3:.4g} kN the screw holds")
     if not np.all(np.isfinite(distances)) or np.any(distances <= 0):
         raise OptimalError(f"distances: finite and above 0 (m), got {distances.tolist()}")
+    stroke = model.operating_limits().get("stroke", np.inf)  # each move starts at 0
+    if np.any(distances > stroke):
+        raise OptimalError(f"distances: {distances.max() * 1e3:g} mm from 0 is beyond the stroke +-{stroke * 1e3:g} mm")
     bad = [t for t in temperatures if t is not None and not (np.isfinite(t) and t > -273.15)]
     if bad:
         raise OptimalError(f"temperatures: finite and above absolute zero (-273.15 degC), got {bad[0]}")

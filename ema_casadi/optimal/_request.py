@@ -50,6 +50,8 @@ def check_request(model: Model, move, load, objective, duration, start, through,
                            "it has no transcription")
     if not isinstance(model, Model):
         raise OptimalError(f"model: expected a Model (from build_model), got {type(model).__name__}")
+    for role in ("command", "load"):  # the move commands the rod and holds its load
+        model.needs_input(role, "an optimal move of the rod", OptimalError)
     move = number(move, "move", OptimalError)
     load = number(load, "load", OptimalError)
     start = number(start, "start", OptimalError)

@@ -313,9 +313,10 @@ class Signal:
                 terms.append(_Term(term.kind, a=term.a, f0=term.f0, f1=term.f1, t0=at(term.t0), T=term.T))
         return Signal(tuple(terms), self.text)
 
-    def peak(self, t_end: float) -> float:
-        """An upper bound of |u(t)| over [0, t_end], cheap whatever t_end: steps, ramps
-        and tables at every breakpoint and the ends (exact), plus every sine's amplitude.
+    def span(self, t_end: float) -> tuple[float, float]:
+        """Bounds (lo, hi) of u(t) over [0, t_end], cheap whatever t_end: steps, ramps
+        and tables at every breakpoint and the ends (exact), widened by every sine's
+        amplitude.
 
         Parameters
         ----------
@@ -324,8 +325,21 @@ class Signal:
         """
         t = np.array(sorted({0.0, float(t_end), *(b for b in self.breakpoints() if 0 <= b <= t_end)}))
         rest = Signal(tuple(term for term in self.terms if term.kind not in ("sine", "chirp")))
+        wave = sum(abs(u.a) for u in self.terms if u.kind in ("sine", "chirp"))
         with np.errstate(all="ignore"):
-            return float(np.max(np.abs(rest(t)))) + sum(abs(u.a) for u in self.terms if u.kind in ("sine", "chirp"))
+            v = rest(t)
+            return float(np.min(v)) - wave, float(np.max(v)) + wave
+
+    def peak(self, t_end: float) -> float:
+        """An upper bound of |u(t)| over [0, t_end] (from :meth:`span`).
+
+        Parameters
+        ----------
+        t_end : float
+            End of the interval (s).
+        """
+        lo, hi = self.span(t_end)
+        return max(abs(lo), abs(hi)) if lo == lo and hi == hi else math.nan
 
     def top_frequency(self, t_end: float) -> float:
         """The highest frequency of a sine or chirp term over [0, t_end] (Hz); 0 without.

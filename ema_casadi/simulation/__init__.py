@@ -65,7 +65,15 @@ from ._api import DT_OUT, MAX_STEPS, SOLVERS, check_run, simulate
 from ._choice import AUTO_ATOL, AUTO_RTOL, choose_solver, trimmed_start
 from ._cvodes import BDF_MAX_ORDER
 from ._envelope import AnalysisFailed, GaveUp, Monitor, RunFailed, captured_stderr, integrator_failure
-from ._inputs import as_signal, check_inputs, input_matrix, input_signals, noise_signal
+from ._inputs import (
+    as_signal,
+    check_effect,
+    check_inputs,
+    check_value_range,
+    input_matrix,
+    input_signals,
+    noise_signal,
+)
 from ._interval import interval_function
 from ._pwm import check_switched
 from ._result import SimResult, SimulationError, hunting_metrics, progress_bar, step_response_metrics
@@ -95,7 +103,8 @@ __all__ = [
     "step_response_metrics", "hunting_metrics",
     "progress_bar", "outputs_at", "STEPS_PER_CALL", "BDF_MAX_ORDER", "noise_signal", "interval_function",
     # the interfaces other packages build on: request checks, inputs, the start, integrator failures
-    "check_run", "check_inputs", "check_switched", "trimmed_start", "as_signal", "input_signals", "input_matrix",
+    "check_run", "check_inputs", "check_value_range", "check_effect", "check_switched", "trimmed_start",
+    "as_signal", "input_signals", "input_matrix",
     "GaveUp", "captured_stderr", "integrator_failure",
     "forward_sensitivities", "sensitivity_library", "REPLAY_LIMIT",
     # RK4's stability limit and the ECU's sample instants

@@ -39,7 +39,7 @@ from ..model.params import Parameters
 from ._choice import ATOL, RTOL, _chosen, choose_solver, tolerances, trimmed_start
 from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
-from ._inputs import check_inputs, input_signals
+from ._inputs import check_effect, check_inputs, input_signals
 from ._pwm import simulate_pwm
 from ._result import SimResult, SimulationError
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
@@ -151,7 +151,9 @@ def simulate(
     plan = check_run(model, t_end, dt=dt, dt_out=dt_out, decimate=decimate, solver=solver, zoh=zoh,
                      event_tol=event_tol, rtol=rtol, atol=atol)
     pv, x0 = _values(model, params, p, x0)
-    sig = _checked_inputs(model, _given(model, x_cmd, f_ext, eta, inputs, signals), pv, plan, solver)
+    step = plan.dt if solver == "rk4" else plan.spacing
+    sig = _checked_inputs(model, _given(model, x_cmd, f_ext, eta, inputs, signals), pv, plan.t_end,
+                          {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
     split, limit = fixed_step(model, plan.dt, sig, pv, zoh, plan.t_end, check_step) if solver == "rk4" else (0, 0)
     if from_trim:
         x0 = trimmed_start(model, sig, pv)
@@ -163,18 +165,17 @@ def simulate(
     return res
 
 
-def _checked_inputs(model, given, pv, plan, solver) -> dict:
-    """The run's input signals, checked against the envelope and the Nyquist rate of
-    what samples them (the rk4 step; the output spacing of a variable-step solver)."""
-    sig = input_signals(model, given, pv, plan.t_end)
-    step = plan.dt if solver == "rk4" else plan.spacing
-    check_inputs(model, _driven(model, sig), plan.t_end, {f"{'dt' if solver == 'rk4' else 'dt_out'} {step:g} s": step})
+def _checked_inputs(model, given, pv, t_end, sampling) -> dict:
+    """The run's input signals, checked: each given one read by the model, in its range,
+    within the envelope, below the Nyquist rate of ``sampling`` (label -> interval, s)."""
+    sig = input_signals(model, given, pv, t_end)
+    check_effect(model, given, pv)
+    check_inputs(model, _driven(model, sig), t_end, sampling)
     return sig
 
 
 def _driven(model, sig) -> dict:
-    """The signals a user drives: the seeded noise sequences (held at their loop's rate,
-    which the run samples by construction) are not checked against the sampling."""
+    """The signals a user drives (not the seeded noise, held at its loop's rate)."""
     return {n: s for n, s in sig.items() if model.input_info[n].noise is None}
 
 
@@ -242,8 +243,7 @@ def _run_switched(model, t_end, given, dt, solver, params, p, x0, dt_out, decima
     dt_out = None if decimate == 1 else (DT_OUT if dt_out is None else dt_out)
     check_run(model, t_end, dt=dt, dt_out=dt_out, solver="cvodes")  # types, values, result size
     pv, x0 = _values(model, params, p, x0)
-    sig = input_signals(model, given, pv, float(t_end))
-    check_inputs(model, _driven(model, sig), float(t_end), {f"dt {float(dt):g} s": float(dt)})
+    sig = _checked_inputs(model, given, pv, float(t_end), {f"dt {float(dt):g} s": float(dt)})
     step_check(model, float(dt), sig, pv, True, float(t_end))
     if from_trim:
         x0 = trimmed_start(model, sig, pv)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 
 import numpy as np
@@ -107,10 +108,10 @@ def input_signals(model: Model, given: dict, pv: np.ndarray, t_end: float | None
 
 def check_inputs(model: Model, sig: dict, t_end: float, sampling: dict, labels: dict | None = None,
                  error: type = SignalError, limits: dict | None = None) -> None:
-    """Every driving signal against the Nyquist frequency of the run's sampling and,
-    for the inputs in ``limits``, against the largest value it can mean, before the
-    run. (A signal beyond its input's declared bound is left to the run's envelope
-    monitor: a failed run at once.)
+    """Every driving signal against the Nyquist frequency of the run's sampling, for
+    the inputs in ``limits`` against the largest value it can mean, and by the rule of
+    what it is (:func:`check_range`), before the run. (A signal beyond its input's
+    declared bound is left to the run's envelope monitor: a failed run at once.)
 
     Parameters
     ----------
@@ -137,6 +138,116 @@ def check_inputs(model: Model, sig: dict, t_end: float, sampling: dict, labels: 
                          unit=model.input_info[name].unit, sampling=sampling)
         except SignalError as exc:
             raise error(f"{exc} ({why})" if why and "beyond the" in str(exc) else str(exc)) from None
+        check_range(model, name, s, t_end, labels.get(name, name), error)
+
+
+def check_range(model: Model, name: str, sig: Signal, t_end: float, where: str, error: type = SignalError) -> None:
+    """A driving signal of ``model``'s input ``name`` by the rule of what it is
+    (:func:`check_value_range`).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    name : str
+        The input.
+    sig : Signal
+        Its signal.
+    t_end : float
+        The run's length (s).
+    where : str
+        How to name it in the message (``"--input eta"``).
+    error : type
+        The exception raised.
+    """
+    faults = [f for part in model.parts for f in part.faults if f.input == name]
+    check_value_range(model.input_info[name], faults, sig, t_end, where, error)
+
+
+def check_value_range(inp, faults, sig: Signal, t_end: float, where: str, error: type = SignalError) -> None:
+    """A driving signal's values over [0, t_end] (:meth:`Signal.span`) by the rule of
+    what the input is, the same rule that checks that value in a file: an input that
+    stands for a parameter (``eta``) by the parameter's rule; a temperature above
+    absolute zero; a fault's severity within the fault's range (or 0, healthy; a
+    drift's input, which grows with time, not). ``error`` naming ``where`` otherwise.
+
+    Parameters
+    ----------
+    inp : Input
+        The input's declaration.
+    faults : list of Fault
+        The faults that drive it (none: not a fault input).
+    sig : Signal
+        Its signal.
+    t_end : float
+        The run's length (s).
+    where : str
+        How to name it in the message (``"--input eta"``).
+    error : type
+        The exception raised.
+    """
+    from ..model.params import TEMP, ParameterError, UnknownParameterError, checked, checked_rule
+
+    label = f"{where} '{sig.text}'" if sig.text else where
+    for value in sig.span(t_end):
+        try:
+            if isinstance(inp.default, str):
+                checked(inp.default, value, label)
+            elif inp.kind == "temperature":
+                checked_rule(TEMP, value, label)
+            elif faults and not any(f.rate for f in faults):
+                faults[0].check(value, label, error, healthy=True)
+        except UnknownParameterError:  # an instance's own name (A_eta): its value is checked as finite only
+            pass
+        except ParameterError as exc:
+            raise error(str(exc)) from None
+
+
+def check_effect(model: Model, names, pv, labels: dict | None = None, error: type = SignalError) -> None:
+    """Refuse a driven input the model does not read at the parameters ``pv`` (its
+    rates and outputs do not depend on it: ``eta`` where the thermal network computes
+    the screw efficiency from its table), naming it by ``labels``.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    names : iterable of str
+        The inputs driven.
+    pv : ndarray
+        The numeric parameter vector.
+    labels : dict, optional
+        Input name -> how to name it (``{"eta": "--input eta"}``).
+    error : type
+        The exception raised.
+    """
+    import casadi as ca
+
+    from ..model.components import DEFAULT_VARIANTS
+    from ..model.params import FLAG, GROUPS
+
+    FLAGS = {f.name for cls in GROUPS.values() for f in dataclasses.fields(cls) if f.metadata.get("check") == FLAG}
+
+    # a loop-break injection and the rod's command and load are read by construction
+    read = {"command", "load"}
+    names = [n for n in names if not model.input_info[n].injection and not read & set(model.input_info[n].roles)]
+    if not names:
+        return
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    pv = np.asarray(pv, float)
+
+    def reads(name, p) -> bool:
+        return ca.depends_on(ca.vertcat(*model.f(x, u, ca.DM(p))), u[model.inputs.index(name)])
+
+    for name in names:
+        if not reads(name, pv):
+            chosen = ", ".join(f"{k}={v}" for k, v in model.variants.items() if DEFAULT_VARIANTS.get(k) != v)
+            switches = [n for k, n in enumerate(model.param_names) if n in FLAGS and pv[k] in (0.0, 1.0)
+                        and reads(name, np.where(np.arange(len(pv)) == k, 1.0 - pv[k], pv))]
+            how = "; it does with " + " or ".join(f"{n} = {1 - pv[model.param_names.index(n)]:g}"
+                                                  for n in switches) if switches else ""
+            raise error(f"{(labels or {}).get(name, name)}: has no effect: the model ({chosen or 'default variants'})"
+                        f" does not read the input {name} ({model.input_info[name].doc}) with these parameters{how}")
 
 
 def input_matrix(model, sig, t):

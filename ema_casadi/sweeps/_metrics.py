@@ -206,7 +206,7 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
         The exception raised.
     """
     from ..model.assembly import build_model
-    from ..simulation import check_run
+    from ..simulation import check_effect, check_run
 
     models = [build_model(spec.params, dict(v)) for v in sorted({r.variant for r in spec.runs})]
     if spec.scenario.get("dt") is None:  # not in the file
@@ -227,6 +227,8 @@ def check_metrics(spec, metrics: dict, src: str, error: type) -> dict:
                       rtol=sc.get("rtol", 1e-8), atol=sc.get("atol", 1e-11), event_tol=sc.get("event_tol", 1e-7),
                       zoh=bool(sc.get("zoh")), labels=labels, error=error)
             _check_step(m, sc, labels["dt"], error)
+            names = [m.input_name(k) for k in sc["signals"]]  # each read by the model (its nominal parameters)
+            check_effect(m, names, m.p(), {n: f"{src} [scenario] inputs {n}" for n in names}, error)
     return out
 
 

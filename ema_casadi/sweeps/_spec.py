@@ -52,6 +52,7 @@ from .._util._errors import InputError
 from ..model.components import SIGNAL_KEYS, VARIANTS, validate_variants
 from ..model.params import GROUPS, ParameterError, Parameters
 from ..signals import Signal, SignalError, parse_signal
+from ..simulation import check_value_range
 from ._metrics import METRICS, check_metrics
 
 __all__ = ["SweepError", "SweepSpec", "Run", "load_sweep", "parse_sweep", "DISTRIBUTIONS"]
@@ -197,8 +198,6 @@ def parse_sweep(data: dict, params: Parameters, src: str = "<sweep>", variants: 
     head = _table(data, "sweep", src)
     _known(f"{src} [sweep]", head, ("name", "seed", "samples"), "key")
     seed = head.get("seed")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
-        raise SweepError(f"{src} [sweep] seed: expected a non-negative integer, got {seed!r}")
     samples = head.get("samples", 1)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise SweepError(f"{src} [sweep] samples: expected a positive integer, got {samples!r}")
@@ -261,6 +260,9 @@ def make_sweep(params: Parameters, scenario: dict, metrics: dict, *, parameters:
 def _assembled(name, src, params, vspec, pspec, seed, samples, metrics, scenario) -> SweepSpec:
     """The checked sweep: its runs expanded and checked, then its scenario (``scenario()``)
     and its metrics."""
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
+                             or seed < 0):
+        raise SweepError(f"{src} [sweep] seed: expected a non-negative integer, got {seed!r}")
     if any("distribution" in d for d in pspec.values()) and seed is None:
         raise SweepError(f"{src} [sweep] seed: needed when a parameter is drawn from a distribution")
     if not any("distribution" in d for d in pspec.values()) and samples > 1:
@@ -491,14 +493,17 @@ def _scenario(table: dict, params: Parameters, src: str, variants: dict | None =
     from ..model.components import parts_for
 
     # the inputs of the swept models' parts (a fault input with faults = on, ...)
-    info = {}
+    info, faults = {}, {}
     for combo in itertools.product(*(variants or {k: [v] for k, v in params.variants.items()}).values()):
         parts, _ = parts_for(validate_variants(dict(zip(variants or params.variants, combo, strict=True))))
         info.update({i.name: i for part in parts for i in part.inputs})
+        faults.update({f.kind: f for part in parts for f in part.faults})
     for name, value in inputs.items():
         if name not in info or {r for r, _, _ in _DRIVEN} & set(info[name].roles):  # those have their own keys
             raise SweepError(f"{where} inputs: '{name}' is not another model input{nearest(name, info)}")
         sig[name] = _signal(f"{where} inputs {name}", value, info[name].kind, None, stroke, T)
+        check_value_range(info[name], [f for f in faults.values() if f.input == name], sig[name], T,
+                          f"{where} inputs {name}", SweepError)
     out["signals"] = sig
     return out
 

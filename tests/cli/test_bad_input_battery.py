@@ -58,7 +58,21 @@ class Case:
         if self.raw is not None:
             return list(self.raw)
         base = [a.format(model=self.model.format(tmp=tmp), tmp=tmp) for a in BASE[self.command]]
-        return base + [a.format(tmp=tmp) for a in self.args]
+        return _without(base, self.args) + [a.format(tmp=tmp) for a in self.args]
+
+
+def _without(base: list, args: list) -> list:
+    """``base`` without the flags (and their values) that ``args`` gives again: a
+    single-valued flag is given once (a second occurrence is refused)."""
+    given = {a.split("=", 1)[0] for a in args if a.startswith("--")}
+    out, i = [], 0
+    while i < len(base):
+        if base[i] in given:
+            i += 2 if i + 1 < len(base) and not base[i + 1].startswith("--") else 1
+            continue
+        out.append(base[i])
+        i += 1
+    return out
 
 
 def edit(old: str, new: str) -> str:

@@ -28,7 +28,7 @@ def _run(argv, capsys):
     (["--max-load", "60kN"], ["--max-load", "current limit holds"]),
     (["--stroke", "200mm"], ["--stroke", "travel"]),
     (["--weights", "psi_x=1"], ["--weights psi_x", "did you mean 'psi'"]),
-    (["--weights", "psi"], ["--weights psi", "NAME=W"]),
+    (["--weights", "psi"], ["--weights 'psi'", "NAME=W"]),
     (["--sigma", "omega=0.1"], ["--sigma omega", "not a measured channel"]),
     (["--sigma", "x_rd=1um"], ["--sigma x_rd", "did you mean 'x_rod'"]),
     (["--sigma", "v_d=abc"], ["--sigma v_d=abc", "expected a number in V (SI)"]),

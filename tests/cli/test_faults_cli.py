@@ -76,7 +76,7 @@ def test_run_faults_api_returns_rows_and_a_figure(params):
     ('[[fault]]\nkind = "jamm"\n', "unknown fault kind 'jamm' (did you mean 'jam'?)"),
     ('[[fault]]\nkind = "stuck"\ntarget = "x_rodd"\n', "unknown target 'x_rodd' (did you mean 'x_s'?)"),
     ('[scenario]\nduration = 0.5\n[[fault]]\nkind = "jam"\nonset = 0.7\n', "onset: 0.7 s is outside the run"),
-    ('[[fault]]\nkind = "supply"\nseverity = 1.5\n', "severity: 1.5 1 is outside the range"),
+    ('[[fault]]\nkind = "supply"\nseverity = 1.5\n', "severity: 1.5 is outside the range"),
     ('[monitor]\nt_jam = { value = 20, unit = "m" }\n', "t_jam: unit 'm' is not the expected SI unit 's'"),
     ('[[fault]]\nkind = "jam"\nonst = 0.1\n', "unknown key 'onst' (did you mean 'onset'?)"),
     ('[scenario]\nairframe = "transport"\nx_cmd = "1mm"\n', "x_cmd: in the aircraft loop the flight-control law"),

@@ -252,3 +252,25 @@ class Fault:
     doc: str
     target: str | None = None
     rate: bool = False
+
+    def check(self, value: float, where: str, error: type, healthy: bool = False) -> float:
+        """``value`` as a severity of this fault: within [lo, hi] (``healthy``: or 0, the
+        input undriven), else ``error`` naming ``where``; the one range check of a
+        severity, for a fault file's and a driven input's.
+
+        Parameters
+        ----------
+        value : float
+            The severity (SI, :attr:`unit`).
+        where : str
+            How to name it in the message (``"[[fault]] 1 severity"``, ``"a_jam"``).
+        error : type
+            The exception raised.
+        healthy : bool
+            Also accept 0 (the input's healthy value).
+        """
+        if not (self.lo <= value <= self.hi or (healthy and value == 0)):
+            unit = "" if self.unit == "1" else f" {self.unit}"
+            raise error(f"{where}: {value:g}{unit} is outside the range of a {self.kind} fault "
+                        f"[{self.lo:g}, {self.hi:g}]{unit}")
+        return value
