@@ -156,6 +156,9 @@ def _segment(s: dict) -> str:
     load = ("+" if level > 0 else "") + q(level, "N", unit="kN")
     if s["kind"] == "multisine":
         return f"multisine {s['band'][0]:g}-{s['band'][1]:g} Hz, {q(s['amplitude'], 'm', 3)} peak, at {load}"
+    if s["kind"] == "steps":
+        return (f"{int(s['band'][0])} moves between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)}, "
+                f"at rest {100 * s['band'][1]:.3g} % of the time, at {load}")
     return (f"{int(s['band'][0])} slews between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)} at "
             f"constant speed, {100 * s['band'][1]:.3g} % of each move reversing it, at {load}")
 
