@@ -196,8 +196,14 @@ def report(result: dict) -> None:
         for n, r in v["width_ratio"].items():
             w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
-        for n, r in (v.get("against_standard") or {}).items():
-            w(f"  {n}: realised width / the standard test's predicted {100 * v['standard_width'][n]:.3g} % = "
-              f"{r:.3f}\n")
+        st = v.get("standard")
+        if st:
+            w(f"verify, the standard test: {st['converged']} of {v['n']} fits converged, {st['adequate']} adequate; "
+              f"coverage {100 * st['coverage']:.3g} %\n")
+            w("| parameter | realised width: designed | standard | designed / standard (<= 1: the design is "
+              "narrower) |\n|---|---|---|---|\n")
+            for n, r in v["against_standard"].items():
+                w(f"| {n} | {100 * v['realised_width'][n]:.3g} % | {100 * v['standard_width'][n]:.3g} % | {r:.3f} |\n")
+            w(f"| geometric mean, standard / designed | | | {v['geometric_mean_ratio']:.3g} |\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")
