@@ -6,13 +6,14 @@ relative variances, E: the largest; --weights NAME=W,... weights them, 0 leaves 
 out), within +-stroke, the rig's load capability and the limits the parts declare
 (motor current, rod speed (--max-speed), voltage, temperatures), from the Fisher information of the exact
 forward sensitivities identify fits with. The test is a sequence of 1 s segments
-(multisines of 1-50 Hz and constant-speed slews at five load levels); IPOPT chooses
-their shares (a convex problem), --prior FITTED.toml averages the information over
-draws from an earlier fit's intervals. --out DIR writes design.csv (time, x_cmd,
+(multisines of 1-50 Hz, constant-speed slews and stop-and-go steps at five load
+levels); IPOPT chooses their shares (a convex problem), --prior FITTED.toml averages
+the information over draws from an earlier fit's intervals. --out DIR writes design.csv (time, x_cmd,
 f_ext: what the rig plays; ema simulate plays it as design.csv:x_cmd), the standard
 test's records, summary.json, comparison.md and design.png. --verify N simulates
-the designed test N times with the noise, fits each with identify and reports the
-realised intervals and their coverage against the predicted ones.
+the designed and the standard test N times each with the noise, fits each with
+identify and reports the realised intervals and their coverage against the predicted
+ones, and the designed test's realised widths against the standard test's.
 Example: ema design-experiment --free F_seal,c_v,J_m,psi --duration 10s --stroke 10mm --max-load 15kN --out test
 """
 
@@ -56,7 +57,8 @@ def add_arguments(p):
                    help="parameter draws the information is averaged over; default 1, 4 with --prior")
     p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of the draws and of --verify; default 0")
     p.add_argument("--verify", type=int, default=0, metavar="N",
-                   help="simulate the designed test N times with the noise and fit each (identify)")
+                   help="simulate the designed and the standard test N times each with the noise, fit each "
+                        "(identify) and compare their realised widths")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="folder for design.csv, the standard test, summary.json, comparison.md, design.png")
     add_progress(p)

@@ -183,7 +183,8 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         Sample rate of the test's tables (Hz).
     library : sequence of Segment, optional
         The candidate segments to choose from (default :func:`~ema_casadi.design.candidates`:
-        multisines and slews at five load levels and three amplitudes).
+        multisines, slews and stop-and-go steps at five load levels and three
+        amplitudes, each counted after a lead-in of itself).
     variants : dict, optional
         Variant overrides of the model.
     seed : int
