@@ -196,16 +196,19 @@ def report(result: dict) -> None:
           f"{v['intervals_checked']} intervals ({100 * v['coverage_adequate']:.3g} % over the adequate fits), "
           f"limits {'respected' if v['limits_respected'] else 'LEFT'}\n")
         for n, r in v["width_ratio"].items():
-            w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
+            w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % (median of the fits) / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
         st = v.get("standard")
         if st:
             w(f"verify, the standard test: {st['converged']} of {v['n']} fits converged, {st['adequate']} adequate; "
-              f"coverage {100 * st['coverage']:.3g} %\n")
-            w("| parameter | realised width: designed | standard | designed / standard (<= 1: the design is "
-              "narrower) |\n|---|---|---|---|\n")
+              f"coverage {100 * st['coverage']:.3g} %; robust scale factor above 1 in {st['scale_factor_above_1']} "
+              f"fits (designed test: {v['scale_factor_above_1']})\n")
+            w("| parameter | realised width (median): designed | standard | designed / standard (<= 1: the design "
+              "is narrower) | the same of the means |\n|---|---|---|---|---|\n")
             for n, r in v["against_standard"].items():
-                w(f"| {n} | {100 * v['realised_width'][n]:.3g} % | {100 * v['standard_width'][n]:.3g} % | {r:.3f} |\n")
-            w(f"| geometric mean, standard / designed | | | {v['geometric_mean_ratio']:.3g} |\n")
+                w(f"| {n} | {100 * v['realised_width'][n]:.3g} % | {100 * v['standard_width'][n]:.3g} % | {r:.3f} | "
+                  f"{v['against_standard_mean'][n]:.3f} |\n")
+            w(f"| geometric mean, standard / designed | | | {v['geometric_mean_ratio']:.3g} | "
+              f"{v['geometric_mean_ratio_mean']:.3g} |\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

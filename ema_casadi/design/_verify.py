@@ -19,7 +19,8 @@ test of the acceptance case, 2 of 20 fits from a start 5 % away end in a local m
 of the cost (the friction parameters tens of standard deviations from the truth, at
 1.8-2.3 times the noise's cost), which identify reports inadequate. Realised widths and
 coverage are over every converged fit after that (the headline, robust intervals and
-the textbook ones beside; per parameter too), and over the adequate ones beside them.
+the textbook ones beside; per parameter too), and over the adequate ones beside them;
+a width is the median over the fits, the mean beside it (:func:`_summary`).
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
                    "interval_textbook": {m: list(v) for m, v in res.interval_textbook.items()},
                    "cost": float(res.info["cost"]), "adequate": bool(res.adequacy["adequate"]),
                    "message": res.info["optimizer_message"], "prediction_rtol": res.info.get("prediction_rtol"),
-                   "restarted": restarted}
+                   "scale_factor": float(res.robust.get("scale_factor", 1.0)), "restarted": restarted}
         done[0] += 1
         progress_bar(done[0] / (2 * n), progress, "verify", f"fit {done[0]} of {2 * n}")
         return out
@@ -116,6 +117,8 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     std_pred = {m: float(result.standard_predicted["width"][k]) for k, m in enumerate(names)}
     real, real_std = designed["realised_width"], standard["realised_width"]
     against = {m: real[m] / real_std[m] for m in names}
+    mean, mean_std = designed["realised_width_mean"], standard["realised_width_mean"]
+    against_mean = {m: mean[m] / mean_std[m] for m in names}
     return {"n": n, **designed, "truth": truth, "predicted_width": pred,
             "width_ratio": {m: real[m] / pred[m] for m in names},
             "standard": {**standard, "predicted_width": std_pred,
@@ -123,6 +126,8 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
             "standard_width": real_std, "against_standard": against,
             "against_standard_predicted": {m: real[m] / std_pred[m] for m in names},
             "geometric_mean_ratio": float(np.exp(-np.mean(np.log(list(against.values()))))),
+            "against_standard_mean": against_mean,
+            "geometric_mean_ratio_mean": float(np.exp(-np.mean(np.log(list(against_mean.values()))))),
             "limits_used": usage, "limits_respected": bool(admissible(usage)), "seed": seed}
 
 
@@ -137,15 +142,23 @@ def _record(result, rec, path, truth, sigma, rate, seed, variants) -> Path:
 
 
 def _summary(fits, names, truth) -> dict:
-    """Realised widths (robust and textbook, mean over the converged fits, relative to
-    the truth), the estimates' scatter, the coverage of the truth (over every converged
-    fit, per parameter, textbook, over the adequate fits)."""
+    """Realised widths relative to the truth over the converged fits: the median (the
+    headline; robust and textbook) and the mean of the robust ones; the fits whose
+    robust scale factor exceeds 1; the estimates' scatter; the coverage of the truth
+    (over every converged fit, per parameter, textbook, over the adequate fits).
+
+    Why the median: a fit's robust interval is its sandwich interval times the scale
+    factor S of the records' parts (identification: model error), from a 5 % test: on
+    the right model about one fit in twenty has S > 1, and then S is large (on the
+    acceptance case's one-record 10 s designed test of four parts, S = 2.2-2.4 in 3 of
+    20 realisations, the others 0.92-1.14 of the textbook width), so the mean is the
+    false alarms' as much as the test's (1.18x the predicted width there)."""
     converged = [f for f in fits if "failed" not in f]
     adequate = [f for f in converged if f["adequate"]]
     good = converged  # the headline: every converged fit (after the restarts)
 
-    def width(kind):
-        return {m: float(np.mean([(f[kind][m][1] - f[kind][m][0]) / truth[m] for f in good])) if good
+    def width(kind, average=np.median):
+        return {m: float(average([(f[kind][m][1] - f[kind][m][0]) / truth[m] for f in good])) if good
                 else float("nan") for m in names}
 
     logs = {m: np.log([f["estimate"][m] / truth[m] for f in good]) for m in names}
@@ -165,10 +178,13 @@ def _summary(fits, names, truth) -> dict:
             "coverage": float(np.mean(covered)) if covered else float("nan"),
             "coverage_textbook": float(np.mean(textbook)) if textbook else float("nan"),
             "coverage_adequate": float(np.mean(every)) if every else float("nan"),
-            "realised_width": width("interval"), "realised_width_textbook": width("interval_textbook"),
-            "scatter_width": scatter,
-            "fits": [{k: f.get(k) for k in ("estimate", "failed", "cost", "adequate", "message", "prediction_rtol",
-                                            "restarted")} for f in fits]}
+            "realised_width": width("interval"), "realised_width_mean": width("interval", np.mean),
+            "realised_width_textbook": width("interval_textbook"), "scatter_width": scatter,
+            "scale_factor_above_1": sum(f["scale_factor"] > 1.0 for f in good),
+            "fits": [{**{k: f.get(k) for k in ("estimate", "failed", "cost", "adequate", "message", "prediction_rtol",
+                                               "scale_factor", "restarted")},
+                      **({"width": {m: (f["interval"][m][1] - f["interval"][m][0]) / truth[m] for m in names}}
+                         if "failed" not in f else {})} for f in fits]}
 
 
 def _fit_with_restarts(fit):
