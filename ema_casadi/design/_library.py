@@ -3,9 +3,9 @@
 Candidates: multisines in :data:`BANDS`, slews of :data:`SLEWS` and steps of
 :data:`STEPS`, at every load
 level of :data:`LOAD_LEVELS` (fractions of the load capability) and every amplitude of
-:data:`AMPLITUDES` (fractions of the stroke). Each is run once alone from rest with
-forward sensitivities (:func:`~ema_casadi.design.information`), after a lead-in of
-:data:`LEAD_IN` copies of itself: its information per segment counted on the last copy,
+:data:`AMPLITUDES` (fractions of the stroke). Each is run alone from rest with
+forward sensitivities (:func:`~ema_casadi.design.information`), first
+:data:`LEAD_IN` copies of itself, then once more: its information per segment counted on the last copy,
 which starts where a test's segment starts (moving, at its load level) rather than at
 rest at zero load, and the largest use of every limit along the whole run. A
 candidate is admissible when its rod stays within :data:`STROKE_MARGIN` of the stroke

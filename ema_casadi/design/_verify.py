@@ -14,10 +14,11 @@ fitted together from the same start as the designed test's k-th fit: the realise
 widths of the two tests, per parameter, and their geometric mean.
 A fit that ``identify`` calls inadequate is refitted as the identification guide
 advises, from :data:`RESTARTS` further starts (``identify(starts=...)``: the same start,
-then points drawn log-normally around it, seeded), the lowest cost kept: on the designed
-test of the acceptance case, 2 of 20 fits from a start 5 % away end in a local minimum
-of the cost (the friction parameters tens of standard deviations from the truth, at
-1.8-2.3 times the noise's cost), which identify reports inadequate. Realised widths and
+then points drawn log-normally around it, seeded), the lowest cost kept: on a designed
+test of the acceptance case made from the library before its stop-and-go steps, 2 of 20
+fits from a start 5 % away ended in a local minimum of the cost (the friction
+parameters tens of standard deviations from the truth, at 1.8-2.3 times the noise's
+cost), which identify reports inadequate (none of the 20 on today's design). Realised widths and
 coverage are over every converged fit after that (the headline, robust intervals and
 the textbook ones beside; per parameter too), and over the adequate ones beside them;
 a width is the median over the fits, the mean beside it (:func:`_summary`).
