@@ -4,7 +4,7 @@ finite-difference one pyomo.DoE computes by default.
 
 The problem: the reference set, the seven parameters F_seal, C_bear, c_v, B, C, J_m,
 psi, a 10 s test within +-10 mm and a 15 kN load capability, rod position and motor
-current with 0.3 um / 0.05 A noise, the D criterion (``ema.design_experiment`` with its
+current with 0.3 um / 0.05 A noise, the default DC criterion (``ema.design_experiment`` with its
 defaults). Reported: the wall and CPU time of the design, its parts (the candidates'
 sensitivity runs, IPOPT), the geometric-mean ratio of the predicted 95 % interval widths
 against chirp + steps + loaded slews of the same length, and |corr(J_m, psi)|.

@@ -6,13 +6,14 @@ relative variances, E: the largest; --weights NAME=W,... weights them, 0 leaves 
 out), within +-stroke, the rig's load capability and the limits the parts declare
 (motor current, rod speed (--max-speed), voltage, temperatures), from the Fisher information of the exact
 forward sensitivities identify fits with. The test is a sequence of 1 s segments
-(multisines of 1-50 Hz and constant-speed slews at five load levels); IPOPT chooses
-their shares (a convex problem), --prior FITTED.toml averages the information over
-draws from an earlier fit's intervals. --out DIR writes design.csv (time, x_cmd,
+(multisines of 1-50 Hz, constant-speed slews and stop-and-go steps at five load
+levels); IPOPT chooses their shares (a convex problem), --prior FITTED.toml averages
+the information over draws from an earlier fit's intervals. --out DIR writes design.csv (time, x_cmd,
 f_ext: what the rig plays; ema simulate plays it as design.csv:x_cmd), the standard
 test's records, summary.json, comparison.md and design.png. --verify N simulates
-the designed test N times with the noise, fits each with identify and reports the
-realised intervals and their coverage against the predicted ones.
+the designed and the standard test N times each with the noise, fits each with
+identify and reports the realised intervals and their coverage against the predicted
+ones, and the designed test's realised widths against the standard test's.
 Example: ema design-experiment --free F_seal,c_v,J_m,psi --duration 10s --stroke 10mm --max-load 15kN --out test
 """
 
@@ -57,7 +58,8 @@ def add_arguments(p):
                    help="parameter draws the information is averaged over; default 1, 4 with --prior")
     p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of the draws and of --verify; default 0")
     p.add_argument("--verify", type=int, default=0, metavar="N",
-                   help="simulate the designed test N times with the noise and fit each (identify)")
+                   help="simulate the designed and the standard test N times each with the noise, fit each "
+                        "(identify) and compare their realised widths")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="folder for design.csv, the standard test, summary.json, comparison.md, design.png")
     add_progress(p)
@@ -150,6 +152,9 @@ def _segment(s: dict) -> str:
     load = ("+" if level > 0 else "") + q(level, "N", unit="kN")
     if s["kind"] == "multisine":
         return f"multisine {s['band'][0]:g}-{s['band'][1]:g} Hz, {q(s['amplitude'], 'm', 3)} peak, at {load}"
+    if s["kind"] == "steps":
+        return (f"{int(s['band'][0])} moves between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)}, "
+                f"at rest {100 * s['band'][1]:.3g} % of the time, at {load}")
     return (f"{int(s['band'][0])} slews between -{q(s['amplitude'], 'm', 3)} and +{q(s['amplitude'], 'm', 3)} at "
             f"constant speed, {100 * s['band'][1]:.3g} % of each move reversing it, at {load}")
 
@@ -185,10 +190,19 @@ def report(result: dict) -> None:
           f"{v['intervals_checked']} intervals ({100 * v['coverage_adequate']:.3g} % over the adequate fits), "
           f"limits {'respected' if v['limits_respected'] else 'LEFT'}\n")
         for n, r in v["width_ratio"].items():
-            w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % / predicted "
+            w(f"  {n}: realised width {100 * v['realised_width'][n]:.3g} % (median of the fits) / predicted "
               f"{100 * v['predicted_width'][n]:.3g} % = {r:.3f}\n")
-        for n, r in (v.get("against_standard") or {}).items():
-            w(f"  {n}: realised width / the standard test's predicted {100 * v['standard_width'][n]:.3g} % = "
-              f"{r:.3f}\n")
+        st = v.get("standard")
+        if st:
+            w(f"verify, the standard test: {st['converged']} of {v['n']} fits converged, {st['adequate']} adequate; "
+              f"coverage {100 * st['coverage']:.3g} %; robust scale factor above 1 in {st['scale_factor_above_1']} "
+              f"fits (designed test: {v['scale_factor_above_1']})\n")
+            w("| parameter | realised width (median): designed | standard | designed / standard (<= 1: the design "
+              "is narrower) | the same of the means |\n|---|---|---|---|---|\n")
+            for n, r in v["against_standard"].items():
+                w(f"| {n} | {100 * v['realised_width'][n]:.3g} % | {100 * v['standard_width'][n]:.3g} % | {r:.3f} | "
+                  f"{v['against_standard_mean'][n]:.3f} |\n")
+            w(f"| geometric mean, standard / designed | | | {v['geometric_mean_ratio']:.3g} | "
+              f"{v['geometric_mean_ratio_mean']:.3g} |\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

@@ -5,7 +5,7 @@ the test's stroke, the rig's load capability and the limits the parts declare, t
 makes the 95 % intervals of named parameters smallest by a D-, A- or E-optimal (or
 weighted) criterion, from the Fisher information of the exact forward sensitivities
 ``identify`` fits with (:mod:`._fisher`); over a library of segments (multisines, slews,
-load levels: :mod:`._excitation`, :mod:`._library`) by IPOPT on the convex
+stop-and-go steps, load levels: :mod:`._excitation`, :mod:`._library`) by IPOPT on the convex
 approximate-design problem (:mod:`._optimise`); compares it with the standard tests
 (chirp, steps, loaded slews) of the same length; ``DesignResult.verify()`` simulates
 and fits it (:mod:`._verify`).
@@ -29,9 +29,11 @@ from ._library import (
            AIM,
            AMPLITUDES,
            BANDS,
+           LEAD_IN,
            LIMIT_TOLERANCE,
            LOAD_LEVELS,
            SLEWS,
+           STEPS,
            STROKE_MARGIN,
            admissible,
            at_limits,
@@ -45,6 +47,7 @@ __all__ = ["design_experiment", "DesignResult", "DesignError", "DesignFailed", "
            "Segment", "Test", "STANDARD_PARTS", "STANDARD_SPEED", "output_names", "realise", "segment_command",
            "standard_test", "RAMP", "TAPER",
            "Information", "information", "intervals", "limit_usage", "PHYSICAL",
-           "candidates", "admissible", "at_limits", "AIM", "BANDS", "SLEWS", "LOAD_LEVELS", "AMPLITUDES",
+           "candidates", "admissible", "at_limits", "AIM", "BANDS", "SLEWS", "STEPS", "LEAD_IN", "LOAD_LEVELS",
+           "AMPLITUDES",
            "STROKE_MARGIN", "LIMIT_TOLERANCE", "CRITERIA", "criterion", "optimal_weights", "efficient_rounding",
            "START_SPREAD"]

@@ -209,7 +209,8 @@ def design_experiment(params: Parameters, free=DEFAULT_FREE, duration: float = 1
         Sample rate of the test's tables (Hz).
     library : sequence of Segment, optional
         The candidate segments to choose from (default :func:`~ema_casadi.design.candidates`:
-        multisines and slews at five load levels and three amplitudes).
+        multisines, slews and stop-and-go steps at five load levels and three
+        amplitudes, each counted after a lead-in of itself).
     variants : dict, optional
         Variant overrides of the model.
     seed : int
@@ -308,10 +309,9 @@ def _request(params, free, duration, criterion, weights, stroke, max_load, max_s
     return SimpleNamespace(**{k: v for k, v in locals().items() if k != 'exc'})
 
 
-def _realise(req, segs, w, thetas, lim):
-    """The shares ``w`` rounded to whole segments, the test realised, its information
-    per draw: (counts, test, infos)."""
-    counts = efficient_rounding(w, req.n_seg)
+def _realise(req, segs, counts, thetas, lim):
+    """The test of ``counts`` whole segments realised, its information per draw:
+    (counts, test, infos)."""
     order = sorted([k for k in range(len(segs)) for _ in range(counts[k])],
                    key=lambda k: (segs[k].load, segs[k].kind, segs[k].band, segs[k].amplitude))
     test = realise([segs[k] for k in order], req.segment, req.rate, *req.names)
@@ -328,7 +328,10 @@ def _rounds(req, segs, Ms, M_std, thetas, lim):
         opt = optimal_weights(Ms, criterion, pw, n_seg, reference=M_std, factor=factor)
         if not opt["success"]:
             raise DesignFailed(f"IPOPT did not converge on the design weights ({opt['status']})")
-        counts, test, infos = _realise(req, segs, opt["w"], thetas, lim)
+        counts = efficient_rounding(opt["w"], req.n_seg)
+        if any(np.array_equal(counts, r[3]) for r in tried):
+            break  # the same test as an earlier round: nothing more to learn
+        counts, test, infos = _realise(req, segs, counts, thetas, lim)
         M = np.mean([i.M for i in infos], axis=0)
         ratio = np.diag(np.linalg.inv(M)) / np.diag(np.linalg.inv(M_std))  # realised variances / the standard's
         worst = float(np.max(ratio[pw > 0]))

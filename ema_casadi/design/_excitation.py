@@ -14,7 +14,11 @@ command and rate:
 - ``slews``: ``n`` moves between ``-A`` and ``+A`` per segment at constant speed, the
   speed reversed over a share ``c`` of each move (a trapezoid velocity: the
   piecewise-smooth command; the constant speed loads the friction, the reversals
-  the inertia and the backlash).
+  the inertia and the backlash);
+- ``steps``: ``n`` moves between ``-A`` and ``+A`` per segment, the rod at rest at
+  either end for a share ``r`` of the time (stop and go: each move starts from rest,
+  breaking the friction away at a speed where the viscous term is nil: the seal
+  friction seen apart from the viscous one).
 
 Every array is sampled on the record's grid (the table the rig controller plays, and
 the very input ``identify`` interpolates).
@@ -31,6 +35,10 @@ import numpy as np
 RAMP = 0.1
 #: Fraction of a segment over which the command is tapered in, and again out.
 TAPER = 0.08
+
+#: ``steps``: the speed's rise from rest, a share of the excursion of |cos| of the
+#: move's phase above its rest threshold.
+STEP_RAMP = 0.1
 
 #: The standard test's commanded speed, a fraction of the rod speed bound (room for the
 #: speed loop's overshoot of a ramp: none measurable at 0.8 on the reference set).
@@ -50,10 +58,11 @@ class Segment:
     Attributes
     ----------
     kind : str
-        ``multisine`` or ``slews``.
+        ``multisine``, ``slews`` or ``steps``.
     band : tuple of float
         ``multisine``: lowest and highest frequency (Hz); ``slews``: (moves per
-        segment, the share of a move spent reversing the speed).
+        segment, the share of a move spent reversing the speed); ``steps``: (moves
+        per segment, the share of the time at rest).
     load : float
         The load level held (N, + pushes the rod in).
     amplitude : float
@@ -68,7 +77,8 @@ class Segment:
     def label(self) -> str:
         """A short name (``multisine 1-4 Hz @ +15 kN``)."""
         shape = (f"multisine {self.band[0]:g}-{self.band[1]:g} Hz" if self.kind == "multisine"
-                 else f"slews x{int(self.band[0])} ramp {self.band[1]:g}")
+                 else f"{self.kind} x{int(self.band[0])} {'ramp' if self.kind == 'slews' else 'rest'} "
+                      f"{self.band[1]:g}")
         return f"{shape} @ {self.load / 1e3:+g} kN, {self.amplitude * 1e3:.3g} mm"
 
     def with_amplitude(self, a: float) -> Segment:
@@ -145,13 +155,20 @@ def segment_command(seg: Segment, t: np.ndarray, tau: float) -> np.ndarray:
         grid = np.linspace(0, 1, 4001)
         peak = np.max(np.abs(np.sin(2 * np.pi * np.outer(grid, k) + phase).sum(axis=1)))
         shape = shape / peak
-    elif seg.kind == "slews":
+    elif seg.kind in ("slews", "steps"):
         n, c = int(seg.band[0]), float(seg.band[1])
         # n moves between -1 and +1 at constant speed, the velocity's reversals ramped
         # over the fraction c of each move (a trapezoid velocity: the acceleration
-        # phases load the inertia, the constant-speed ones the friction)
+        # phases load the inertia, the constant-speed ones the friction); steps: the
+        # speed nil where |cos| < d = sin(pi r / 2) (a share r of the time), ramped up
+        # over STEP_RAMP of the rest of |cos| beyond it
         grid = np.linspace(0.0, 1.0, 8001)
-        v = np.clip(np.cos(np.pi * n * grid) / max(c, 1e-3), -1.0, 1.0)
+        wave = np.cos(np.pi * n * grid)
+        if seg.kind == "slews":
+            v = np.clip(wave / max(c, 1e-3), -1.0, 1.0)
+        else:
+            d = math.sin(0.5 * math.pi * c)
+            v = np.sign(wave) * np.clip((np.abs(wave) - d) / (STEP_RAMP * (1 - d)), 0.0, 1.0)
         pos = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(grid))])
         pos -= 0.5 * (pos.max() + pos.min())
         shape = np.interp(s, grid, pos / np.max(np.abs(pos)))

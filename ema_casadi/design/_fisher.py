@@ -97,7 +97,7 @@ def _records(model, test, channels) -> list:
 
 
 def information(model, test, free, sigma: dict, theta=None, threads: int | None = None, stroke: float | None = None,
-                max_load: float | None = None, max_speed: float | None = None) -> Information:
+                max_load: float | None = None, max_speed: float | None = None, lead_in: float = 0.0) -> Information:
     """The Fisher information of ``test`` about ``free`` at ``theta``, and how close its
     predicted trajectory comes to the model's declared limits.
 
@@ -119,6 +119,10 @@ def information(model, test, free, sigma: dict, theta=None, threads: int | None 
         The test's stroke (m) and load capability (N), checked with the declared limits.
     max_speed : float, optional
         The rod speed bound (m/s); default the declared one.
+    lead_in : float
+        Time (s) at the start of each record that is run but whose samples are not
+        counted in ``M`` (a candidate's lead-in: the state it starts its counted part
+        from is the one a test reaches, not rest); the limits count every sample.
     """
     theta = free.theta0 if theta is None else np.asarray(theta, float)
     recs = _records(model, test, list(sigma))
@@ -126,9 +130,11 @@ def information(model, test, free, sigma: dict, theta=None, threads: int | None 
     out = pred.predict(theta, threads)
     n = len(free.names)
     M = np.zeros((n, n))
-    for pr in out:
+    for rec, pr in zip(recs, out, strict=True):
+        # the first sample fixes the start; with a lead-in, its last sample is its own
+        first = 1 + (int(np.searchsorted(rec.t, rec.t[0] + lead_in - 1e-9)) if lead_in > 0 else 0)
         for c, s in sigma.items():
-            d = pr["dy"][c][1:]
+            d = pr["dy"][c][first:]
             M += d.T @ d / s**2
     pv = pred.p(theta)
     usage, runs = {}, []

@@ -212,3 +212,44 @@ def test_a_robust_design_averages_the_information_over_the_prior_and_is_reproduc
     nominal = design_experiment(params, ["F_seal", "psi"], 2.0, library=lib, rate=1000.0, max_load=8e3)
     assert not np.allclose(a.M, nominal.M, rtol=1e-3)
 
+
+
+def test_a_candidate_counted_after_its_lead_in_adds_up_to_a_test_of_its_copies(model_cache):
+    """Three copies of a loaded segment in a row: the information of the test is the
+    first copy's (from rest, the load ramped from zero) plus twice the copy counted after
+    a lead-in of itself, to the integrator's tolerance (measured 1e-4 relative); three
+    copies each counted from rest overstate what the test holds: under a constant load
+    the backlash stays closed (only the ramp from zero crosses it: 3x, measured 3.000)
+    and the rod's deflection does not change (the stiffness 2.2x, measured 1/0.462)."""
+    model = model_cache()
+    fr = free_parameters(model, ["F_seal", "C", "B"])
+    seg = Segment("multisine", (4.0, 16.0), 15e3, 3e-3)
+
+    def info(n, lead_in=0.0):
+        return information(model, realise([seg] * n, 1.0, 2000.0, "x_cmd", "f_ext"), fr, SIGMA,
+                           lead_in=lead_in).M
+
+    first, counted, three = info(1), info(2, lead_in=1.0), info(3)
+    assert np.allclose(np.diag(three), np.diag(first + 2 * counted), rtol=1e-3), (np.diag(three),
+                                                                                  np.diag(first + 2 * counted))
+    over = np.diag(3 * first) / np.diag(three)
+    assert over[1] > 2.0 and over[2] == pytest.approx(3.0, rel=1e-3), over
+
+
+def test_a_steps_segment_rests_its_share_of_the_time_between_moves_at_constant_speed():
+    """``steps`` (n, r): n moves between -A and +A, the command at rest (speed 0) a share
+    r of the time, each move at one constant speed but for its rise from rest; the peak
+    is A (the taper at either end only lowers what lies within it)."""
+    from ema_casadi.design import TAPER, segment_command
+
+    t = np.arange(20001) / 20000.0
+    x = segment_command(Segment("steps", (4, 0.8), 0.0, 5e-3), t, 1.0)
+    inner = (t > TAPER) & (t < 1 - TAPER)
+    v = np.gradient(x, t)[inner]
+    rest = np.abs(v) < 1e-9
+    # the rests straddle the taper's ends, so the share inside is r to a few samples
+    assert np.mean(rest) == pytest.approx(0.8, abs=0.03)
+    speed = np.max(np.abs(v))
+    moving = np.abs(v[~rest])
+    assert np.mean(moving > 0.99 * speed) > 0.8  # constant speed but for the rises
+    assert np.max(np.abs(x)) == pytest.approx(5e-3, rel=1e-3)
