@@ -1,0 +1,275 @@
+"""Friction started from the records: the steady-state friction curve fitted first.
+
+A single-shooting fit over long, lightly damped, friction-switching records has many
+valleys; one that starts with the seal friction and the breakaway ratio wrong by 20 %
+trades one against the other and stops there. Where the records hold *steady
+segments* (the rod at a steady speed under a known load: slow ramps of the command,
+slews at the rate limit), the friction force there is the steady-state friction curve
+at that speed, read from the records without the dynamics:
+
+- windows of :data:`WINDOW_S` per record where the load ``f_ext`` is constant; a
+  quadratic fitted over the window to the rod position (``x_rod``, else the shaft
+  angle ``phi`` times p/(2 pi), else ``omega``'s mean and slope) gives the speed v and
+  acceleration a at its centre; the window is *steady* when the speed changes by at
+  most :data:`STEADY` of itself across it, |a| W <= STEADY |v|, and v is at least
+  :data:`MIN_Z` standard errors from 0 (the rod moves);
+- the friction force there: F = mean(F_in) - f_ext - M a with the load cell ``F_in``
+  measured; else from the q-current, T = 1.5 pp psi i_q less the inertia
+  (J_m + J_s) a 2 pi/p and b_m omega, through the screw's efficiency
+  (:func:`~ema_casadi.model.components.ballscrew.efficiency_factor`) to the nut force
+  (the start values of psi, J_m, ... : a current-based curve is as good as they are).
+  Its standard error is the window's spread over sqrt(samples);
+- the model's own steady-state law (:mod:`~ema_casadi.model.components.friction`:
+  ``smooth`` with its shape and optional hump, the same curve for ``lugre_smooth``,
+  the Stribeck curve with sign(v) for ``lugre``) is fitted to those forces by the
+  Levenberg-Marquardt of :mod:`ema_casadi.optimisation` in log-parameters: the free
+  ones of :data:`CURVE_PARAMS` (F_seal, C_bear, c_v, r_start, v_st). C_bear needs loads
+  of two sizes (|f_ext| :data:`LOAD_SPAN` apart), r_start and v_st need :data:`MIN_SLOW`
+  segments slower than :data:`SLOW` v_st; F_seal and c_v need speeds :data:`SPAN` apart.
+  A parameter the segments cannot tell keeps its start value.
+
+The curve's values are the dynamic fit's start. With ``starts`` > 1 the further starts
+are a Latin hypercube (space-filling, seeded) over the free friction parameters,
+within +-:data:`DESIGN_SPAN` (log) of the curve's values, the rest at the start; all
+are fitted (in parallel with ``jobs``), the lowest cost wins and every start's cost
+is reported (``info["friction_start"]``).
+
+Modes: ``auto`` (the default) uses the curve where the records hold slow segments and
+otherwise starts from the file's values, saying why; ``records`` requires them (an
+:class:`IdentificationError` otherwise); ``off`` starts from the file's values.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+
+from ..model.components.ballscrew import efficiency_factor
+from ..model.components.friction import sliding_level, smooth, stribeck_curve
+from ..optimisation import levenberg_marquardt
+from ._records import IdentificationError
+
+MODES = ("auto", "records", "off")
+#: The curve's parameters (those of them free are fitted).
+CURVE_PARAMS = ("F_seal", "C_bear", "c_v", "r_start", "v_st")
+#: Window length (s).
+WINDOW_S = 0.04
+#: A steady window: the speed changes by at most this share of itself across it.
+STEADY = 0.1
+#: ... and is this many standard errors from rest.
+MIN_Z = 10.0
+#: A window whose force spreads more than CHATTER times the QUIET quantile of the windows'
+#: spreads is not steady: the rod chatters on the screw's spring (a Stribeck slope steeper
+#: than the contact damping makes that mode unstable), and a chattering window's mean
+#: force is not the curve's at its mean speed.
+CHATTER, QUIET = 3.0, 0.2
+#: Slow: below this multiple of the start's Stribeck velocity v_st (the hump's range).
+SLOW = 10.0
+#: Slow segments needed for the hump (r_start, v_st) and for a ``records`` request.
+MIN_SLOW = 3
+#: Speeds (|v|, largest over smallest) needed to tell F_seal from c_v.
+SPAN = 4.0
+#: Loads (|f_ext|, N) needed apart to tell C_bear from F_seal.
+LOAD_SPAN = 1000.0
+#: A curve value whose standard error (log scale) exceeds this is not used (the start kept).
+WIDE_REL = 0.5
+#: Extra starts: within +-DESIGN_SPAN of the curve's values (log scale: e^0.3 = +35 %).
+DESIGN_SPAN = 0.3
+
+
+def check_mode(mode) -> str:
+    """The friction-start mode, checked."""
+    if mode not in MODES:
+        raise IdentificationError(f"friction_start: expected one of {', '.join(MODES)}, got {mode!r}")
+    return mode
+
+
+def _values(model, fr) -> dict:
+    """Every parameter's value (SI) at the fit's start."""
+    pv = np.array(model.p(), float).ravel()
+    pv[fr.index] = fr.theta0
+    return dict(zip(model.param_names, pv.tolist(), strict=True))
+
+
+def steady_segments(model, records, values: dict) -> list[dict]:
+    """The steady windows of ``records`` (module docstring): per window the record,
+    its time (s), speed ``v`` (m/s), load ``f_ext`` (N), friction force ``F`` and its
+    standard error ``sd`` (N). ``values``: parameter name -> value (SI)."""
+    P = values
+    r = P["p"] / (2 * np.pi)
+    out = []
+    for rec in records:
+        ch, n = rec.channels, max(3, int(round(WINDOW_S / np.median(np.diff(rec.t)))))
+        if "F_in" not in ch and not ("i_q" in ch and "psi" in model.used_params):
+            continue
+        pos = ch["x_rod"] if "x_rod" in ch else ch["phi"] * r if "phi" in ch else None
+        if pos is None and "omega" not in ch:
+            continue
+        f_all = rec.inputs.get("f_ext", np.zeros(rec.n))
+        eta_all = rec.inputs.get("eta", np.full(rec.n, P["eta"]))
+        for k in range(0, rec.n - n + 1, n):
+            sl = slice(k, k + n)
+            f_ext = f_all[sl]
+            if np.ptp(f_ext) > 1e-9 * max(1.0, abs(f_ext[0])):
+                continue
+            tau = rec.t[sl] - rec.t[sl].mean()
+            if pos is not None:
+                A = np.column_stack([np.ones(n), tau, tau**2])
+                coef, res, *_ = np.linalg.lstsq(A, pos[sl], rcond=None)
+                s2 = float(res[0]) / (n - 3) if len(res) else 0.0
+                v, a = coef[1], 2 * coef[2]
+                v_se = np.sqrt(s2 * np.linalg.inv(A.T @ A)[1, 1])
+            else:
+                w = ch["omega"][sl] * r
+                slope, mean = np.polyfit(tau, w, 1)
+                v, a, v_se = mean, slope, np.std(w) / np.sqrt(n)
+            if abs(a) * WINDOW_S > STEADY * abs(v) or abs(v) < MIN_Z * max(v_se, 1e-12):
+                continue
+            if "F_in" in ch:
+                push = ch["F_in"][sl]
+            else:
+                T = 1.5 * P["pp"] * P["psi"] * ch["i_q"][sl]
+                omega = v / r
+                T_net = T - (P["J_m"] + P["J_s"]) * a / r - P["b_m"] * omega
+                g = np.array([float(efficiency_factor(tn / r, omega, e, _Namespace(P))) for tn, e in
+                              zip(T_net, eta_all[sl], strict=True)])
+                push = T_net / (r * g)
+            F = push - f_ext[0] - P["M"] * a
+            out.append({"record": rec.path, "t": float(rec.t[sl].mean()), "v": float(v), "f_ext": float(f_ext[0]),
+                        "F": float(np.mean(F)), "sd": float(max(np.std(F) / np.sqrt(n), 1e-3))})
+    if out:  # stick-slip: a window whose force spreads more than CHATTER x the quiet ones' is not steady
+        quiet = np.quantile([s["sd"] for s in out], QUIET)
+        out = [s for s in out if s["sd"] <= CHATTER * quiet]
+    return out
+
+
+class _Namespace:
+    """Parameters by attribute: the dict's values, overridden by symbols."""
+
+    def __init__(self, values: dict, symbols: dict | None = None):
+        self._v, self._s = values, symbols or {}
+
+    def __getattr__(self, name):
+        return self._s[name] if name in self._s else self._v[name]
+
+
+def _law(model, values: dict, names) -> ca.Function:
+    """The model's steady-state friction law F(v, f_ext; log theta of ``names``) (N)."""
+    v, f, z = ca.SX.sym("v"), ca.SX.sym("f_ext"), ca.SX.sym("z", len(names))
+    P = _Namespace(values, {n: ca.exp(z[k]) for k, n in enumerate(names)})
+    F_r = sliding_level(f, P)
+    opt = model.variants
+    if opt.get("friction") == "lugre":
+        F = stribeck_curve(v, F_r, P) * ca.sign(v) + P.c_v * v
+    else:  # smooth and lugre_smooth: the smooth law (its shape, its optional hump)
+        F = smooth(v, F_r, P, opt.get("friction_shape", "tanh"), opt.get("stribeck", "off") == "on")[0]
+    return ca.Function("law", [v, f, z], [F, ca.jacobian(F, z)])
+
+
+def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
+    """The steady-state law fitted to ``segments`` (:func:`steady_segments`) for the
+    parameters ``names`` the segments can tell (module docstring); the others keep
+    ``values``. Returns ``values`` (name -> SI), ``sd_rel`` (log-scale standard
+    errors), ``fitted``, ``kept`` (name -> why), ``cost``, ``segments`` and ``speeds``."""
+    speed = np.abs([s["v"] for s in segments])
+    loads = np.abs([s["f_ext"] for s in segments])
+    slow = int(np.sum(speed < SLOW * values["v_st"]))
+    law_params = ("F_seal", "C_bear", "c_v") + (("r_start", "v_st") if _hump(model) else ())
+    kept = {}
+    for n in names:
+        if n not in law_params:
+            continue
+        if n == "C_bear" and np.ptp(loads) < LOAD_SPAN:
+            kept[n] = f"the steady segments' loads span {np.ptp(loads):.0f} N (< {LOAD_SPAN:.0f} N)"
+        elif n in ("r_start", "v_st") and slow < MIN_SLOW:
+            kept[n] = f"{slow} steady segments slower than {SLOW:g} v_st (< {MIN_SLOW})"
+        elif n in ("F_seal", "c_v") and speed.max() < SPAN * speed.min():
+            kept[n] = f"the steady speeds span a factor {speed.max() / speed.min():.1f} (< {SPAN:g})"
+        elif values[n] <= 0:
+            kept[n] = "its start value is 0 (a log-scaled fit needs it positive)"
+    fit = [n for n in names if n in law_params and n not in kept]
+    doc = {"segments": len(segments), "slow_segments": slow, "speeds": [float(speed.min()), float(speed.max())],
+           "fitted": fit, "kept": kept, "values": {n: values[n] for n in fit}, "sd_rel": {}, "cost": None}
+    if not fit:
+        return doc
+    law = _law(model, values, fit)
+    v, f = np.array([s["v"] for s in segments]), np.array([s["f_ext"] for s in segments])
+    F, sd = np.array([s["F"] for s in segments]), np.array([s["sd"] for s in segments])
+    # the spread of a window is the noise's plus the loop's ripple; 1 % of the force bounds what
+    # a window's mean can tell (the ripple is not white), so no window outweighs the others
+    sd = np.hypot(sd, 0.01 * np.abs(F))
+
+    def evaluate(z):
+        Fm, J = law.map(len(v))(v, f, z)
+        return (np.asarray(Fm).ravel() - F) / sd, np.asarray(J).reshape(len(v), len(fit)) / sd[:, None]
+
+    z0 = np.log([values[n] for n in fit])
+    sol = levenberg_marquardt(evaluate, z0, z0 - 4.0, z0 + 4.0, 200)
+    J = sol["J"]
+    cov = np.linalg.pinv(J.T @ J) * max(1.0, 2 * sol["cost"] / max(len(v) - len(fit), 1))
+    sd_rel = dict(zip(fit, np.sqrt(np.diag(cov)).tolist(), strict=True))
+    for n in fit:
+        if sd_rel[n] > WIDE_REL:
+            kept[n] = f"the curve tells it to +-{100 * sd_rel[n]:.0f} % only"
+    use = [k for k, n in enumerate(fit) if n not in kept]
+    doc.update(values={fit[k]: float(np.exp(sol["z"][k])) for k in use}, cost=float(sol["cost"]), sd_rel=sd_rel,
+               fitted=[fit[k] for k in use])
+    return doc
+
+
+def _hump(model) -> bool:
+    """Whether the model's steady law has a breakaway hump (r_start, v_st)."""
+    return model.variants.get("friction") == "lugre" or model.variants.get("stribeck") == "on"
+
+
+def friction_start(model, records, fr, mode: str):
+    """(free set with the curve's start values, the report) for ``mode`` (module
+    docstring); the free set unchanged where the curve is not used."""
+    mode = check_mode(mode)
+    if mode == "off":
+        return fr, {"mode": mode, "used": False, "why": "off"}
+    names = [n for n in fr.names if n in CURVE_PARAMS]
+    values = _values(model, fr)
+    segs = steady_segments(model, records, values)
+    slow = sum(abs(s["v"]) < SLOW * values["v_st"] for s in segs)
+    why = ("no free friction parameter (F_seal, C_bear, c_v, r_start, v_st)" if not names else
+           f"the records hold {len(segs)} steady segments, {slow} slow (below {SLOW:g} v_st = "
+           f"{SLOW * values['v_st'] * 1e3:g} mm/s; {MIN_SLOW} needed): record slow ramps of the command "
+           "under a known load" if slow < MIN_SLOW else "")
+    if why:
+        if mode == "records":
+            raise IdentificationError(f"friction_start records: {why}")
+        return fr, {"mode": mode, "used": False, "why": why}
+    doc = curve_fit(model, segs, names, values)
+    theta0 = fr.theta0.copy()
+    for n, val in doc["values"].items():
+        k = fr.names.index(n)
+        theta0[k] = min(max(val, fr.lo[k] * (1 + 1e-9)), fr.hi[k] * (1 - 1e-9))
+    return dataclasses.replace(fr, theta0=theta0), {"mode": mode, "used": bool(doc["fitted"]), **doc}
+
+
+def start_points(fr, starts: int, seed: int, design: dict | None = None) -> list:
+    """The fit's starts in optimiser coordinates: the start values first; then, with a
+    friction ``design`` (:func:`friction_start`'s report, used), a Latin hypercube over
+    its fitted parameters (module docstring), else points drawn log-normally around
+    the start (seeded)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = fr.z_bounds()
+    z0 = fr.z(fr.theta0)
+    out = [z0]
+    over = [fr.names.index(n) for n in (design or {}).get("fitted", ()) if fr.log[fr.names.index(n)]]
+    if over and starts > 1:
+        from scipy.stats import qmc
+
+        u = qmc.LatinHypercube(d=len(over), seed=rng).random(starts - 1)
+        for row in u:
+            z = z0.copy()
+            z[over] += DESIGN_SPAN * (2 * row - 1)
+            out.append(np.clip(z, lo + 1e-9, hi - 1e-9))
+        return out
+    for _ in range(1, starts):
+        out.append(np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                           lo + 1e-9, hi - 1e-9))
+    return out
