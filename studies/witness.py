@@ -18,7 +18,7 @@ actuator is the independently transcribed one. The true parameters (:data:`TRUTH
 10-30 % away from the reference set, the breakaway 1.4 x the sliding level and the
 Stribeck velocity 1.5 mm/s. Four records at 2 kHz (:func:`commands`): ``steps`` and
 ``chirp`` as the benchmark's (``studies/ecu_records.py``, durations x 0.25), and
-loaded ``push`` (+8 kN) and ``pull`` (-15 kN): a staircase of rod speeds 1, 2, 4, ...,
+loaded ``push`` (+8 kN) and ``pull`` (-15 kN): a staircase of rod speeds 1, 2, 3, 4, 6, 8, 12, 16, 32,
 64 mm/s (80 ms each: the slow segments a friction start reads), then a slew back at
 the rate limit. Five channels with the benchmark's sensor noise (:data:`NOISE`). The
 inputs are the sampled tables the fit is driven by (linear between samples). The
@@ -74,7 +74,7 @@ NOISE = {"x_rod": 0.3e-6, "phi": 2e-4, "omega": 0.2, "i_q": 0.05, "F_in": 10.0}
 RATE = 2000.0
 T_SCALE = 0.25
 #: The loaded records' speed staircase (m/s) and dwell per speed (s).
-SPEEDS = (1e-3, 2e-3, 4e-3, 8e-3, 16e-3, 32e-3, 64e-3)
+SPEEDS = (1e-3, 2e-3, 3e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3, 32e-3, 64e-3)
 DWELL = 0.08
 #: The structure each rig is fitted with (matching), and its parameters beyond the file's.
 STRUCTURE = {"hump": ({"stribeck": "on"}, {}),

@@ -34,9 +34,11 @@ within +-:data:`DESIGN_SPAN` (log) of the curve's values, the rest at the start;
 are fitted (in parallel with ``jobs``), the lowest cost wins and every start's cost
 is reported (``info["friction_start"]``).
 
-Modes: ``auto`` (the default) uses the curve where the records hold slow segments and
-otherwise starts from the file's values, saying why; ``records`` requires them (an
-:class:`IdentificationError` otherwise); ``off`` starts from the file's values.
+Modes: ``auto`` (the default) uses the curve where the records' steady segments tell
+at least one free friction parameter, and otherwise starts from the file's values,
+saying why (``info["friction_start"]["why"]``); ``records`` requires it (an
+:class:`IdentificationError` otherwise: records without steady segments under a known
+load); ``off`` starts from the file's values.
 """
 
 from __future__ import annotations
@@ -73,6 +75,8 @@ MIN_SLOW = 3
 SPAN = 4.0
 #: Loads (|f_ext|, N) needed apart to tell C_bear from F_seal.
 LOAD_SPAN = 1000.0
+#: Relative floor of a window's standard error (the loop's ripple is not white noise).
+FLOOR = 0.002
 #: A curve value whose standard error (log scale) exceeds this is not used (the start kept).
 WIDE_REL = 0.5
 #: Extra starts: within +-DESIGN_SPAN of the curve's values (log scale: e^0.3 = +35 %).
@@ -197,9 +201,9 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
     law = _law(model, values, fit)
     v, f = np.array([s["v"] for s in segments]), np.array([s["f_ext"] for s in segments])
     F, sd = np.array([s["F"] for s in segments]), np.array([s["sd"] for s in segments])
-    # the spread of a window is the noise's plus the loop's ripple; 1 % of the force bounds what
+    # the spread of a window is the noise's plus the loop's ripple; FLOOR of the force bounds what
     # a window's mean can tell (the ripple is not white), so no window outweighs the others
-    sd = np.hypot(sd, 0.01 * np.abs(F))
+    sd = np.hypot(sd, FLOOR * np.abs(F))
 
     def evaluate(z):
         Fm, J = law.map(len(v))(v, f, z)
@@ -232,17 +236,16 @@ def friction_start(model, records, fr, mode: str):
         return fr, {"mode": mode, "used": False, "why": "off"}
     names = [n for n in fr.names if n in CURVE_PARAMS]
     values = _values(model, fr)
-    segs = steady_segments(model, records, values)
-    slow = sum(abs(s["v"]) < SLOW * values["v_st"] for s in segs)
+    segs = steady_segments(model, records, values) if names else []
+    doc = curve_fit(model, segs, names, values) if segs else {}
     why = ("no free friction parameter (F_seal, C_bear, c_v, r_start, v_st)" if not names else
-           f"the records hold {len(segs)} steady segments, {slow} slow (below {SLOW:g} v_st = "
-           f"{SLOW * values['v_st'] * 1e3:g} mm/s; {MIN_SLOW} needed): record slow ramps of the command "
-           "under a known load" if slow < MIN_SLOW else "")
+           "the records hold no steady-speed segments under a known load (record slow ramps of the command)"
+           if not segs else "" if doc["fitted"] else
+           "the steady segments tell none of them: " + "; ".join(f"{k}: {v}" for k, v in doc["kept"].items()))
     if why:
         if mode == "records":
             raise IdentificationError(f"friction_start records: {why}")
         return fr, {"mode": mode, "used": False, "why": why}
-    doc = curve_fit(model, segs, names, values)
     theta0 = fr.theta0.copy()
     for n, val in doc["values"].items():
         k = fr.names.index(n)
