@@ -10,7 +10,10 @@ back-calculation, ideal inverter) with its friction replaced by one written here
   tanh(v/v_s), F_r = F_seal + |f_ext| (2 pi/p) C_bear, F_s = r_start F_r;
 - ``lugre``: LuGre (Canudas de Wit et al. 1995) with sign(v), no smoothing:
   dz/dt = v - sigma_0 |v| z/g(v), g(v) = F_r + (F_s - F_r) exp(-(v/v_st)^2),
-  F = sigma_0 z + c_v v, sigma_0 = 1e10 N/m, no bristle damping.
+  F = sigma_0 z + c_v v, sigma_0 = 1e10 N/m, no bristle damping;
+- ``gauss`` (the control): the model's own law with ``stribeck = on`` (a Gaussian hump
+  on tanh(v/v_s)), transcribed here: the records the matching structure can reproduce,
+  which checks the rig's transcription, integration and inputs (:func:`check`).
 
 The numpy model is run with its own friction set to zero (F_seal = C_bear = c_v = 0) and
 the rig's friction subtracted from the rod's force balance, so the rest of the
@@ -77,7 +80,7 @@ T_SCALE = 0.25
 SPEEDS = (1e-3, 2e-3, 3e-3, 4e-3, 6e-3, 8e-3, 12e-3, 16e-3, 32e-3, 64e-3)
 DWELL = 0.08
 #: The structure each rig is fitted with (matching), and its parameters beyond the file's.
-STRUCTURE = {"hump": ({"stribeck": "on"}, {}),
+STRUCTURE = {"hump": ({"stribeck": "on"}, {}), "gauss": ({"stribeck": "on"}, {}),
              "lugre": ({"friction": "lugre_smooth", "stribeck": "on"}, {"sigma_0": SIGMA_0, "sigma_1": 0.0})}
 
 
@@ -115,9 +118,10 @@ def friction(rig: str, v: float, z: float, f_ext: float, P: dict) -> tuple[float
     """The rig's friction force on the rod (N) and bristle rate dz/dt (m/s)."""
     F_r = P["F_seal"] + abs(f_ext) * 2 * math.pi / P["p"] * P["C_bear"]
     F_s = P["r_start"] * F_r
-    if rig == "hump":
+    if rig in ("hump", "gauss"):
         s = math.tanh(v / P["v_s"])
-        return F_r * s + (F_s - F_r) * math.exp(-abs(v) / P["v_st"]) * s + P["c_v"] * v, 0.0
+        hump = math.exp(-abs(v) / P["v_st"]) if rig == "hump" else math.exp(-((v / P["v_st"]) ** 2))
+        return F_r * s + (F_s - F_r) * hump * s + P["c_v"] * v, 0.0
     g = F_r + (F_s - F_r) * math.exp(-((v / P["v_st"]) ** 2))
     dz = v - SIGMA_0 * abs(v) * z / g
     return SIGMA_0 * z + P["c_v"] * v, dz
@@ -161,6 +165,25 @@ def clean_records(rig: str, params=None) -> list[dict]:
     return out
 
 
+def check(rig: str = "gauss") -> dict:
+    """Channel -> RMS difference between the rig's noise-free records and the toolkit's
+    simulation with the matching structure at the truth (compiled RODAS4, rtol 1e-10,
+    driven by the same tables), in noise levels (:data:`NOISE`)."""
+    from ema_casadi import Signal
+
+    params = ema.load_parameters()
+    variants, extra = STRUCTURE[rig]
+    model = ema.build_model(params, variants or None)
+    pv = params.vector(**TRUTH, **extra)
+    diff = {c: [] for c in NOISE}
+    for c in clean_records(rig, params):
+        res = ema.simulate(model, c["t"][-1], dt_out=1.0 / RATE, p=pv, solver="rosenbrock", rtol=1e-10, atol=1e-13,
+                           **{k: Signal.table(c["t"], v) for k, v in c["inputs"].items()})
+        for ch in NOISE:
+            diff[ch].append(np.asarray(res[ch], float) - c["channels"][ch])
+    return {ch: float(np.sqrt(np.mean(np.concatenate(d) ** 2)) / NOISE[ch]) for ch, d in diff.items()}
+
+
 def realisation(clean: list[dict], seed: int) -> list[Record]:
     """The records with seeded noise (record k: seed * 100 + k)."""
     recs = []
@@ -169,6 +192,24 @@ def realisation(clean: list[dict], seed: int) -> list[Record]:
         ch = {n: v + rng.normal(0.0, NOISE[n], len(v)) for n, v in c["channels"].items()}
         recs.append(Record(f"{c['name']}.csv", c["t"], dict(c["inputs"]), ch))
     return recs
+
+
+def write_records(rig: str, folder, seed: int = 0) -> list[Path]:
+    """Realisation ``seed`` of the rig's records as CSV files in ``folder`` (the project's
+    time-series layout: ``# sigma_<channel>`` fields, header, ``Unit:`` row)."""
+    from ema_casadi._util._files import write_text
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    units = {"x_cmd": "m", "f_ext": "N", "x_rod": "m", "phi": "rad", "omega": "rad/s", "i_q": "A", "F_in": "N"}
+    paths = []
+    for rec in realisation(clean_records(rig), seed):
+        cols = {**rec.inputs, **rec.channels}
+        lines = [f"# sigma_{c}: {s}" for c, s in NOISE.items()] + [f"# witness: {rig}"]
+        lines += ["time," + ",".join(cols), "Unit:," + ",".join(units[c] for c in cols)]
+        lines += [",".join(f"{float(v):.17g}" for v in row) for row in np.column_stack([rec.t, *cols.values()])]
+        paths.append(write_text(folder / rec.path, "\n".join(lines) + "\n"))
+    return paths
 
 
 def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: bool = False,
@@ -261,18 +302,27 @@ def table(doc: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rig", choices=("hump", "lugre"), default="hump")
+    ap.add_argument("--rig", choices=tuple(STRUCTURE), default="hump")
     ap.add_argument("--n", type=int, default=20, help="noise realisations (default 20)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1, help="fits at once (worker processes)")
     ap.add_argument("--friction-start", choices=("auto", "records", "off"), default="auto")
     ap.add_argument("--max-evaluations", type=int, default=60)
     ap.add_argument("--default", action="store_true", help="fit the default structure (no hump parameters)")
+    ap.add_argument("--write", default=None, metavar="DIR", help="only write realisation --seed as CSV into DIR")
+    ap.add_argument("--check", action="store_true", help="only the rig against the model at the truth (noise levels)")
     ap.add_argument("--json", default=None, metavar="FILE", help="also write the full document (every fit) here")
     args = ap.parse_args(argv)
     if args.n < 1:
         print("witness: --n must be >= 1", file=sys.stderr)
         return 2
+    if args.write:
+        for p in write_records(args.rig, args.write, args.seed):
+            print(p)
+        return 0
+    if args.check:
+        print(json.dumps(check(args.rig)))
+        return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
                 jobs=args.jobs, max_evaluations=args.max_evaluations)
     if args.json:

@@ -197,9 +197,9 @@ def _on(rule, *example, why=None) -> NoEffect:
 
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {
-    "--free": (), "--sigma": (), "--max-evaluations": (),
+    "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
     "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "off", why="with --track (each record is fitted "
-                             "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "off")), "--allow-misfit": (), "--report": (), "--example-records": (),
+                             "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "off")),
     "--track": (_on(_EXAMPLE, "--track"),),
     "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
                           "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),

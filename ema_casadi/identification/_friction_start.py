@@ -67,8 +67,9 @@ MIN_Z = 10.0
 #: than the contact damping makes that mode unstable), and a chattering window's mean
 #: force is not the curve's at its mean speed.
 CHATTER, QUIET = 3.0, 0.2
-#: Slow: below this multiple of the start's Stribeck velocity v_st (the hump's range).
-SLOW = 10.0
+#: Slow: below this multiple of the start's Stribeck velocity v_st (the hump's range:
+#: e^-9 of the Gaussian hump's height left there).
+SLOW = 3.0
 #: Slow segments needed for the hump (r_start, v_st) and for a ``records`` request.
 MIN_SLOW = 3
 #: Speeds (|v|, largest over smallest) needed to tell F_seal from c_v.
@@ -210,9 +211,11 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
         return (np.asarray(Fm).ravel() - F) / sd, np.asarray(J).reshape(len(v), len(fit)) / sd[:, None]
 
     z0 = np.log([values[n] for n in fit])
-    sol = levenberg_marquardt(evaluate, z0, z0 - 4.0, z0 + 4.0, 200)
+    lo = np.where([n == "r_start" for n in fit], 0.0, z0 - 4.0)  # a hump, not a dip: r_start >= 1
+    sol = levenberg_marquardt(evaluate, np.maximum(z0, lo), lo, z0 + 4.0, 200)
     J = sol["J"]
-    cov = np.linalg.pinv(J.T @ J) * max(1.0, 2 * sol["cost"] / max(len(v) - len(fit), 1))
+    # a column the segments do not see (a hump at speeds above it) gets a huge variance, not pinv's 0
+    cov = np.linalg.inv(J.T @ J + 1e-9 * np.eye(len(fit))) * max(1.0, 2 * sol["cost"] / max(len(v) - len(fit), 1))
     sd_rel = dict(zip(fit, np.sqrt(np.diag(cov)).tolist(), strict=True))
     for n in fit:
         if sd_rel[n] > WIDE_REL:

@@ -54,7 +54,7 @@ def test_curve_recovers_seal_and_viscous_friction(params, model_cache, stair_rec
     errors measured -0.1 %, +0.1 %, -0.7 %): 4 %, 1.5 %, 35 % (the viscous term is
     2-16 N of 540-880 N). The windows slower than ~4 mm/s chatter on the screw's spring
     (the hump's slope is steeper than the contact damping) and are left out, so the
-    hump's parameters keep their start (two windows below 10 v_st, three needed)."""
+    hump's parameters keep their start (no window below 3 v_st, three needed)."""
     model = model_cache(stribeck="on")
     recs = [idn.read_record(p, model) for p in stair_records]
     fr = idn.free_parameters(model, list(TRUTH))
