@@ -29,10 +29,11 @@ at that speed, read from the records without the dynamics:
   A parameter the segments cannot tell keeps its start value.
 
 The curve's values are the dynamic fit's start. With ``starts`` > 1 the further starts
-are a Latin hypercube (space-filling, seeded) over the free friction parameters,
-within +-:data:`DESIGN_SPAN` (log) of the curve's values, the rest at the start; all
-are fitted (in parallel with ``jobs``), the lowest cost wins and every start's cost
-is reported (``info["friction_start"]``).
+are a Latin hypercube (space-filling, seeded) over the free friction parameters: those
+the curve told within twice its standard error, the others (typically the hump's,
+which chattering slow windows hide) within +-:data:`DESIGN_SPAN` (log) of their start,
+the rest of the parameters at the start; all are fitted (in parallel with ``jobs``),
+the lowest cost wins and every start's cost is reported (``info["friction_start"]``).
 
 Modes: ``auto`` (the default) uses the curve where the records' steady segments tell
 at least one free friction parameter, and otherwise starts from the file's values,
@@ -80,8 +81,9 @@ LOAD_SPAN = 1000.0
 FLOOR = 0.002
 #: A curve value whose standard error (log scale) exceeds this is not used (the start kept).
 WIDE_REL = 0.5
-#: Extra starts: within +-DESIGN_SPAN of the curve's values (log scale: e^0.3 = +35 %).
-DESIGN_SPAN = 0.3
+#: Extra starts: the friction parameters the curve did not tell within +-DESIGN_SPAN of
+#: their start (log scale: e^0.5 = 1.65), those it told within twice its standard error.
+DESIGN_SPAN = 0.5
 
 
 def check_mode(mode) -> str:
@@ -259,20 +261,23 @@ def friction_start(model, records, fr, mode: str):
 def start_points(fr, starts: int, seed: int, design: dict | None = None) -> list:
     """The fit's starts in optimiser coordinates: the start values first; then, with a
     friction ``design`` (:func:`friction_start`'s report, used), a Latin hypercube over
-    its fitted parameters (module docstring), else points drawn log-normally around
-    the start (seeded)."""
+    the free friction parameters (module docstring), else points drawn log-normally
+    around the start (seeded)."""
     rng = np.random.default_rng(seed)
     lo, hi = fr.z_bounds()
     z0 = fr.z(fr.theta0)
     out = [z0]
-    over = [fr.names.index(n) for n in (design or {}).get("fitted", ()) if fr.log[fr.names.index(n)]]
-    if over and starts > 1:
+    names = [n for n in fr.names if n in CURVE_PARAMS and fr.log[fr.names.index(n)]] if design else []
+    if names and starts > 1:
         from scipy.stats import qmc
 
-        u = qmc.LatinHypercube(d=len(over), seed=rng).random(starts - 1)
-        for row in u:
+        over = [fr.names.index(n) for n in names]
+        # what the curve told: within twice its standard error; the rest over +-DESIGN_SPAN
+        span = np.array([min(DESIGN_SPAN, 2 * design["sd_rel"][n]) if n in design["fitted"] else DESIGN_SPAN
+                         for n in names])
+        for row in qmc.LatinHypercube(d=len(over), seed=rng).random(starts - 1):
             z = z0.copy()
-            z[over] += DESIGN_SPAN * (2 * row - 1)
+            z[over] += span * (2 * row - 1)
             out.append(np.clip(z, lo + 1e-9, hi - 1e-9))
         return out
     for _ in range(1, starts):
