@@ -16,10 +16,10 @@ at that speed, read from the records without the dynamics:
 - the friction force there: F = mean(F_in) - f_ext - M a with the load cell ``F_in``
   measured; else from the q-current, T = 1.5 pp psi i_q less the inertia
   (J_m + J_s) a 2 pi/p and b_m omega, through the screw's efficiency
-  (:func:`~ema_casadi.model.components.ballscrew.efficiency_factor`) to the nut force
+  (:func:`ema_casadi.model._steady.nut_force`) to the nut force
   (the start values of psi, J_m, ... : a current-based curve is as good as they are).
   Its standard error is the window's spread over sqrt(samples);
-- the model's own steady-state law (:mod:`~ema_casadi.model.components.friction`:
+- the model's own steady-state law (:func:`ema_casadi.model._steady.steady_friction`:
   ``smooth`` with its shape and optional hump, the same curve for ``lugre_smooth``,
   the Stribeck curve with sign(v) for ``lugre``) is fitted to those forces by the
   Levenberg-Marquardt of :mod:`ema_casadi.optimisation` in log-parameters: the free
@@ -49,8 +49,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ..model.components.ballscrew import efficiency_factor
-from ..model.components.friction import sliding_level, smooth, stribeck_curve
+from ..model._steady import has_hump, nut_force, steady_friction
 from ..optimisation import levenberg_marquardt
 from ._records import IdentificationError
 
@@ -140,9 +139,8 @@ def steady_segments(model, records, values: dict) -> list[dict]:
                 T = 1.5 * P["pp"] * P["psi"] * ch["i_q"][sl]
                 omega = v / r
                 T_net = T - (P["J_m"] + P["J_s"]) * a / r - P["b_m"] * omega
-                g = np.array([float(efficiency_factor(tn / r, omega, e, _Namespace(P))) for tn, e in
-                              zip(T_net, eta_all[sl], strict=True)])
-                push = T_net / (r * g)
+                push = np.array([nut_force(tn, omega, e, _Namespace(P)) for tn, e in
+                                 zip(T_net, eta_all[sl], strict=True)])
             F = push - f_ext[0] - P["M"] * a
             out.append({"record": rec.path, "t": float(rec.t[sl].mean()), "v": float(v), "f_ext": float(f_ext[0]),
                         "F": float(np.mean(F)), "sd": float(max(np.std(F) / np.sqrt(n), 1e-3))})
@@ -165,13 +163,7 @@ class _Namespace:
 def _law(model, values: dict, names) -> ca.Function:
     """The model's steady-state friction law F(v, f_ext; log theta of ``names``) (N)."""
     v, f, z = ca.SX.sym("v"), ca.SX.sym("f_ext"), ca.SX.sym("z", len(names))
-    P = _Namespace(values, {n: ca.exp(z[k]) for k, n in enumerate(names)})
-    F_r = sliding_level(f, P)
-    opt = model.variants
-    if opt.get("friction") == "lugre":
-        F = stribeck_curve(v, F_r, P) * ca.sign(v) + P.c_v * v
-    else:  # smooth and lugre_smooth: the smooth law (its shape, its optional hump)
-        F = smooth(v, F_r, P, opt.get("friction_shape", "tanh"), opt.get("stribeck", "off") == "on")[0]
+    F = steady_friction(model.variants, v, f, _Namespace(values, {n: ca.exp(z[k]) for k, n in enumerate(names)}))
     return ca.Function("law", [v, f, z], [F, ca.jacobian(F, z)])
 
 
@@ -183,7 +175,7 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
     speed = np.abs([s["v"] for s in segments])
     loads = np.abs([s["f_ext"] for s in segments])
     slow = int(np.sum(speed < SLOW * values["v_st"]))
-    law_params = ("F_seal", "C_bear", "c_v") + (("r_start", "v_st") if _hump(model) else ())
+    law_params = ("F_seal", "C_bear", "c_v") + (("r_start", "v_st") if has_hump(model.variants) else ())
     kept = {}
     for n in names:
         if n not in law_params:
@@ -226,11 +218,6 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
     doc.update(values={fit[k]: float(np.exp(sol["z"][k])) for k in use}, cost=float(sol["cost"]), sd_rel=sd_rel,
                fitted=[fit[k] for k in use])
     return doc
-
-
-def _hump(model) -> bool:
-    """Whether the model's steady law has a breakaway hump (r_start, v_st)."""
-    return model.variants.get("friction") == "lugre" or model.variants.get("stribeck") == "on"
 
 
 def friction_start(model, records, fr, mode: str):
