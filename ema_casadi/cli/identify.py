@@ -63,11 +63,11 @@ def add_arguments(p):
     p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
                    help="estimate each record's initial state instead of starting at rest (a record cut from "
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
-    p.add_argument("--friction-start", choices=("auto", "records", "off"), default="auto",
+    p.add_argument("--friction-start", choices=("off", "auto", "records"), default="off",
                    help="start the free friction parameters (F_seal, C_bear, c_v, r_start, v_st) at the steady-state "
-                        "friction curve fitted to the records' steady-speed segments: auto (default) where they hold "
-                        "slow ones, records requires them, off the file's values; with --starts N the other starts "
-                        "are a Latin hypercube over those parameters")
+                        "friction curve fitted to the records' steady-speed segments under a known load: auto where "
+                        "they tell one, records requires that (exit 2 otherwise), off (default) the file's values; "
+                        "with --starts N the other starts are a Latin hypercube over those parameters")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
@@ -198,8 +198,8 @@ def _on(rule, *example, why=None) -> NoEffect:
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
-    "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "off", why="with --track (each record is fitted "
-                             "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "off")),
+    "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "auto", why="with --track (each record is fitted "
+                             "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "auto")),
     "--track": (_on(_EXAMPLE, "--track"),),
     "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
                           "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),
@@ -234,7 +234,7 @@ _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "1
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
-           "--structural": "P_blend=0.05:0.2", "--friction-start": "off"}
+           "--structural": "P_blend=0.05:0.2", "--friction-start": "auto"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle

@@ -131,7 +131,7 @@ def bic(result) -> float:
 
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
             max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
-            estimate_x0=False, model_error: float | None = None, friction_start: str = "auto") -> Comparison:
+            estimate_x0=False, model_error: float | None = None, friction_start: str = "off") -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters

@@ -54,7 +54,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
              structural: dict | None = None, progress: bool = False, model: Model | None = None,
-             friction_start: str = "auto") -> IdentResult:
+             friction_start: str = "off") -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -116,10 +116,11 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         a parameter named in ``hold`` is that one's range.
     progress : bool
         One line of progress on stderr.
-    friction_start : {"auto", "records", "off"}
+    friction_start : {"off", "auto", "records"}
         Start the free friction parameters at the steady-state friction curve fitted to
-        the records' steady segments (:mod:`._friction_start`): ``auto`` where the
-        records hold slow ones, ``records`` requires them, ``off`` the file's values.
+        the records' steady segments (:mod:`._friction_start`): ``auto`` where they tell
+        one, ``records`` requires that (else an IdentificationError), ``off`` (default)
+        the file's values.
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller (the command
         line, :func:`~ema_casadi.identification.track`) and passed down; default built
