@@ -247,8 +247,9 @@ def _worker(item):
 
 
 def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto", default: bool = False,
-          jobs: int = 1, max_evaluations: int = 60, progress: bool = True) -> dict:
-    """The study of the module docstring for one rig."""
+          jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None) -> dict:
+    """The study of the module docstring for one rig; ``log``: a file each fit's
+    document is appended to as one JSON line (a partial study survives)."""
     clean = clean_records(RIG.get(rig, rig))
     items = [(rig, clean, seed + i, friction_start, default, max_evaluations) for i in range(n)]
     if jobs > 1:
@@ -259,6 +260,9 @@ def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto",
         outs = []
         for i, item in enumerate(items):
             outs.append(_worker(item))
+            if log:
+                with open(log, "a") as fh:
+                    fh.write(json.dumps(outs[-1], default=float) + "\n")
             if progress:
                 o = outs[-1]
                 print(f"{rig} {i + 1}/{n}: {o.get('verdict', o['status'])} in {o['wall_s']:.0f} s", file=sys.stderr,
@@ -318,10 +322,16 @@ def main(argv=None) -> int:
     ap.add_argument("--write", default=None, metavar="DIR", help="only write realisation --seed as CSV into DIR")
     ap.add_argument("--check", action="store_true", help="only the rig against the model at the truth (noise levels)")
     ap.add_argument("--json", default=None, metavar="FILE", help="also write the full document (every fit) here")
+    ap.add_argument("--log", default=None, metavar="FILE", help="append each fit as a JSON line (partial studies)")
+    ap.add_argument("--summarise", default=None, metavar="FILE", help="only the table of the fits in a --log FILE")
     args = ap.parse_args(argv)
     if args.n < 1:
         print("witness: --n must be >= 1", file=sys.stderr)
         return 2
+    if args.summarise:
+        outs = [json.loads(line) for line in Path(args.summarise).read_text().splitlines() if line.strip()]
+        print(table(summary(args.rig, outs, args.default)))
+        return 0
     if args.write:
         for p in write_records(args.rig, args.write, args.seed):
             print(p)
@@ -330,7 +340,7 @@ def main(argv=None) -> int:
         print(json.dumps(check(args.rig)))
         return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
-                jobs=args.jobs, max_evaluations=args.max_evaluations)
+                jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log)
     if args.json:
         Path(args.json).write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(table(doc))
