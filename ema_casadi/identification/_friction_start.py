@@ -55,7 +55,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ..model._steady import has_hump, nut_force, steady_friction
+from ..model import has_hump, nut_force, steady_friction
 from ..optimisation import levenberg_marquardt
 from ._records import IdentificationError
 

@@ -40,7 +40,13 @@ def steady_friction(variants: dict, v, f_ext, P):
 
 
 def has_hump(variants: dict) -> bool:
-    """Whether the steady-state friction law has a breakaway hump (r_start, v_st)."""
+    """Whether the steady-state friction law has a breakaway hump (r_start, v_st).
+
+    Parameters
+    ----------
+    variants : dict
+        The model's variants (``Model.variants``).
+    """
     return variants.get("friction") == "lugre" or (variants.get("friction") in ("smooth", "lugre_smooth", None)
                                                     and variants.get("stribeck") == "on")
 
