@@ -219,7 +219,7 @@ def write_records(rig: str, folder, seed: int = 0) -> list[Path]:
 
 
 def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: bool = False,
-            max_evaluations: int = 60) -> dict:
+            max_evaluations: int = 60, starts: int = 1) -> dict:
     """One realisation's fit: verdict, estimates, robust intervals, wall and CPU time."""
     params = ema.load_parameters()
     variants, extra = ({}, {}) if default else STRUCTURE[rig]
@@ -229,7 +229,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         res = identify(params, realisation(clean, seed), free, sigma=NOISE, variants=variants or None,
-                       friction_start=friction_start, max_evaluations=max_evaluations)
+                       friction_start=friction_start, max_evaluations=max_evaluations, starts=starts)
     except FitFailed as exc:
         return {"seed": seed, "status": exc.status, "reason": exc.reason, "hints": bool(getattr(exc, "hints", None)),
                 "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
@@ -238,7 +238,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
             "interval": {k: list(v) for k, v in res.interval.items()},
             "hints": res.info.get("hints"), "evaluations": res.info.get("evaluations"),
             "friction_start": {k: v for k, v in res.info.get("friction_start", {}).items()
-                               if k in ("used", "values", "fitted", "why")},
+                               if k in ("used", "values", "fitted", "why", "start_costs")}, "cost": res.info["cost"],
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
@@ -247,11 +247,11 @@ def _worker(item):
 
 
 def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto", default: bool = False,
-          jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None) -> dict:
+          jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None, starts: int = 1) -> dict:
     """The study of the module docstring for one rig; ``log``: a file each fit's
     document is appended to as one JSON line (a partial study survives)."""
     clean = clean_records(RIG.get(rig, rig))
-    items = [(rig, clean, seed + i, friction_start, default, max_evaluations) for i in range(n)]
+    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts) for i in range(n)]
     if jobs > 1:
         from ema_casadi._util._parallel import process_map
 
@@ -318,6 +318,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="fits at once (worker processes)")
     ap.add_argument("--friction-start", choices=("auto", "records", "off"), default="auto")
     ap.add_argument("--max-evaluations", type=int, default=60)
+    ap.add_argument("--starts", type=int, default=1, help="identify's starts per fit (a Latin hypercube after a "
+                    "friction start)")
     ap.add_argument("--default", action="store_true", help="fit the default structure (no hump parameters)")
     ap.add_argument("--write", default=None, metavar="DIR", help="only write realisation --seed as CSV into DIR")
     ap.add_argument("--check", action="store_true", help="only the rig against the model at the truth (noise levels)")
@@ -340,7 +342,7 @@ def main(argv=None) -> int:
         print(json.dumps(check(args.rig)))
         return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
-                jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log)
+                jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log, starts=args.starts)
     if args.json:
         Path(args.json).write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(table(doc))
