@@ -24,7 +24,8 @@ Stribeck velocity 1.5 mm/s. Four records at 2 kHz (:func:`commands`): ``steps`` 
 loaded ``push`` (+8 kN) and ``pull`` (-15 kN): a staircase of rod speeds 6, 8, 12, 16,
 32, 64 mm/s (80 ms each: the steady segments a friction start reads), then a slew back
 at the rate limit (slower stairs chatter: below ~4 mm/s under load the hump's slope is
-steeper than the screw's contact damping, and the rod chatters on its spring). Five channels with the benchmark's sensor noise (:data:`NOISE`). The
+steeper than the screw's contact damping, and the rod chatters on its spring). Five
+channels with the benchmark's sensor noise (:data:`NOISE`). The
 inputs are the sampled tables the fit is driven by (linear between samples). The
 noise-free records are integrated once per rig by SciPy's LSODA (rtol 1e-9, steps
 below a sample) and cached under ``out/witness``.
