@@ -99,3 +99,22 @@ def test_friction_start_without_slow_segments_is_refused(params, tmp_path, capsy
         assert not out.exists()
     with pytest.raises(idn.IdentificationError, match="friction_start"):
         idn.identify(params, [rec], ["F_seal"], friction_start="on")
+
+
+def test_identify_starts_from_the_curve(params, stair_records):
+    """identify(..., friction_start="records"): the fit starts at the curve's values (its
+    report in ``info["friction_start"]``, the start column) and ends adequate at the
+    truth (the hump's parameters held at their true values): F_seal, C_bear within
+    0.3 % and c_v within 7 % (measured +0.06 %, -0.01 %, -1.4 %: five times that; the
+    robust interval of F_seal, +-0.025 %, misses its truth by 4.5 of its standard
+    deviations here, so it is not the tolerance)."""
+    fit_params = params.replace(r_start=TRUTH["r_start"], v_st=TRUTH["v_st"])
+    res = idn.identify(fit_params, stair_records, ["F_seal", "C_bear", "c_v"], sigma=NOISE,
+                       variants={"stribeck": "on"}, friction_start="records", consistency=False)
+    rep = res.info["friction_start"]
+    assert rep["used"] and rep["start_costs"] == [pytest.approx(res.info["cost"], rel=1)]
+    for name in ("F_seal", "C_bear", "c_v"):
+        assert res.start[name] == pytest.approx(rep["values"][name])
+    assert res.adequacy["verdict"] == "adequate"
+    for name, tol in (("F_seal", 0.003), ("C_bear", 0.003), ("c_v", 0.07)):
+        assert res.estimate[name] == pytest.approx(TRUTH[name], rel=tol)
