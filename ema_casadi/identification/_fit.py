@@ -170,7 +170,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                   model_error, structural)
     res.info["variant_overrides"] = dict(variants or {})
-    res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
+    if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
+        res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
     return res
 
 
