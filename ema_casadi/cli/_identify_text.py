@@ -52,10 +52,10 @@ def fit_text(result: dict) -> str:
           f"{1e3 * fs['speeds'][0]:.3g}-{1e3 * fs['speeds'][1]:.3g} mm/s): "
           + ", ".join(f"{k} = {v:.4g}" for k, v in fs["values"].items())
           + "".join(f"; {k} kept ({why})" for k, why in fs["kept"].items()) + "\n")
-        costs = [c for c in fs.get("start_costs", []) if c is not None]
-        if len(fs.get("start_costs", [])) > 1:
-            w(f"  {len(fs['start_costs'])} starts (Latin hypercube over the friction parameters), costs "
-              + ", ".join(f"{c:.6g}" for c in costs) + "\n")
+        costs = fs.get("start_costs", [])
+        if len(costs) > 1:
+            w(f"  {len(costs)} starts (Latin hypercube over the friction parameters), costs "
+              + ", ".join("not converged" if c is None else f"{c:.6g}" for c in costs) + "\n")
     _parameters(result, w)
     units = result.get("channel_units", {})
     for c in result["channels"]:
