@@ -101,7 +101,7 @@ def test_friction_start_without_slow_segments_is_refused(params, tmp_path, capsy
         idn.identify(params, [rec], ["F_seal"], friction_start="on")
 
 
-def test_identify_starts_from_the_curve(params, stair_records):
+def test_identify_starts_from_the_curve(params, stair_records, capsys):
     """identify(..., friction_start="records"): the fit starts at the curve's values (its
     report in ``info["friction_start"]``, the start column) and ends adequate at the
     truth (the hump's parameters held at their true values): F_seal, C_bear within
@@ -118,3 +118,8 @@ def test_identify_starts_from_the_curve(params, stair_records):
     assert res.adequacy["verdict"] == "adequate"
     for name, tol in (("F_seal", 0.003), ("C_bear", 0.003), ("c_v", 0.07)):
         assert res.estimate[name] == pytest.approx(TRUTH[name], rel=tol)
+    # the command's text report says where the start came from, in one line
+    main([*map(str, stair_records), "--variant", "stribeck=on", "--free", "F_seal,c_v", "--friction-start", "records",
+          "--sigma", "x_rod=0.3um", "--sigma", "i_q=0.05A", "--sigma", "F_in=10N"])
+    (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("friction start:")]
+    assert f"on {rep['segments']} steady segments" in line and "F_seal = " in line
