@@ -54,7 +54,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ..model import has_hump, nut_force, steady_friction
+from ..model import AssemblyError, has_hump, nut_force, steady_friction
 from ..optimisation import levenberg_marquardt
 from ._records import IdentificationError
 
@@ -106,20 +106,24 @@ def _values(model, fr) -> dict:
 
 def steady_segments(model, records, values: dict) -> list[dict]:
     """The steady windows of ``records`` (module docstring): per window the record,
-    its time (s), speed ``v`` (m/s), load ``f_ext`` (N), friction force ``F`` and its
+    its time (s), speed ``v`` (m/s), load ``load`` (N), friction force ``F`` and its
     standard error ``sd`` (N). ``values``: parameter name -> value (SI)."""
     P = values
     r = P["p"] / (2 * np.pi)
+    name = _names(model)
+    eff = model.input_info.get(name["efficiency"])
+    eta0 = P[eff.default] if eff is not None and eff.default else 1.0  # the input's default: its parameter
     out = []
     for rec in records:
         ch, n = rec.channels, max(3, int(round(WINDOW_S / np.median(np.diff(rec.t)))))
-        if "F_in" not in ch and not ("i_q" in ch and "psi" in model.used_params):
+        got = {k: ch.get(v) for k, v in name.items() if v is not None and v in ch}
+        if "force" not in got and not ("current" in got and "psi" in model.used_params):
             continue
-        pos = ch["x_rod"] if "x_rod" in ch else ch["phi"] * r if "phi" in ch else None
-        if pos is None and "omega" not in ch:
+        pos = got["position"] if "position" in got else got["angle"] * r if "angle" in got else None
+        if pos is None and "speed" not in got:
             continue
-        f_all = rec.inputs.get("f_ext", np.zeros(rec.n))
-        eta_all = rec.inputs.get("eta", np.full(rec.n, P["eta"]))
+        f_all = rec.inputs.get(name["load"], np.zeros(rec.n))
+        eta_all = rec.inputs.get(name["efficiency"], np.full(rec.n, eta0))
         for k in range(0, rec.n - n + 1, n):
             sl = slice(k, k + n)
             f_ext = f_all[sl]
@@ -133,26 +137,40 @@ def steady_segments(model, records, values: dict) -> list[dict]:
                 v, a = coef[1], 2 * coef[2]
                 v_se = np.sqrt(s2 * np.linalg.inv(A.T @ A)[1, 1])
             else:
-                w = ch["omega"][sl] * r
+                w = got["speed"][sl] * r
                 slope, mean = np.polyfit(tau, w, 1)
                 v, a, v_se = mean, slope, np.std(w) / np.sqrt(n)
             if abs(a) * WINDOW_S > STEADY * abs(v) or abs(v) < MIN_Z * max(v_se, 1e-12):
                 continue
-            if "F_in" in ch:
-                push = ch["F_in"][sl]
+            if "force" in got:
+                push = got["force"][sl]
             else:
-                T = 1.5 * P["pp"] * P["psi"] * ch["i_q"][sl]
+                T = 1.5 * P["pp"] * P["psi"] * got["current"][sl]
                 omega = v / r
                 T_net = T - (P["J_m"] + P["J_s"]) * a / r - P["b_m"] * omega
                 push = np.array([nut_force(tn, omega, e, _Namespace(P)) for tn, e in
                                  zip(T_net, eta_all[sl], strict=True)])
             F = push - f_ext[0] - P["M"] * a
-            out.append({"record": rec.path, "t": float(rec.t[sl].mean()), "v": float(v), "f_ext": float(f_ext[0]),
+            out.append({"record": rec.path, "t": float(rec.t[sl].mean()), "v": float(v), "load": float(f_ext[0]),
                         "F": float(np.mean(F)), "sd": float(max(np.std(F) / np.sqrt(n), 1e-3))})
     if out:  # stick-slip: a window whose force spreads more than CHATTER x the quiet ones' is not steady
         quiet = np.quantile([s["sd"] for s in out], QUIET)
         out = [s for s in out if s["sd"] <= CHATTER * quiet]
     return out
+
+
+def _names(model) -> dict:
+    """The signals the segments are read from, by role (None where the model has none)."""
+    def one(get, role):
+        try:
+            return get(role)
+        except AssemblyError:
+            return None
+
+    return {"position": one(model.output_with, "rod_position"), "angle": one(model.state_with, "shaft_angle"),
+            "speed": one(model.output_with, "motor_speed"), "current": one(model.output_with, "motor_current"),
+            "force": one(model.output_with, "screw_force"), "load": one(model.input_with, "load"),
+            "efficiency": one(model.input_with, "efficiency")}
 
 
 class _Namespace:
@@ -167,7 +185,7 @@ class _Namespace:
 
 def _law(model, values: dict, names) -> ca.Function:
     """The model's steady-state friction law F(v, f_ext; log theta of ``names``) (N)."""
-    v, f, z = ca.SX.sym("v"), ca.SX.sym("f_ext"), ca.SX.sym("z", len(names))
+    v, f, z = ca.SX.sym("v"), ca.SX.sym("load"), ca.SX.sym("z", len(names))
     F = steady_friction(model.variants, v, f, _Namespace(values, {n: ca.exp(z[k]) for k, n in enumerate(names)}))
     return ca.Function("law", [v, f, z], [F, ca.jacobian(F, z)])
 
@@ -178,7 +196,7 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
     ``values``. Returns ``values`` (name -> SI), ``sd_rel`` (log-scale standard
     errors), ``fitted``, ``kept`` (name -> why), ``cost``, ``segments`` and ``speeds``."""
     speed = np.abs([s["v"] for s in segments])
-    loads = np.abs([s["f_ext"] for s in segments])
+    loads = np.abs([s["load"] for s in segments])
     slow = int(np.sum(speed < SLOW * values["v_st"]))
     law_params = ("F_seal", "C_bear", "c_v") + (("r_start", "v_st") if has_hump(model.variants) else ())
     kept = {}
@@ -199,7 +217,7 @@ def curve_fit(model, segments: list[dict], names, values: dict) -> dict:
     if not fit:
         return doc
     law = _law(model, values, fit)
-    v, f = np.array([s["v"] for s in segments]), np.array([s["f_ext"] for s in segments])
+    v, f = np.array([s["v"] for s in segments]), np.array([s["load"] for s in segments])
     F, sd = np.array([s["F"] for s in segments]), np.array([s["sd"] for s in segments])
     # the spread of a window is the noise's plus the loop's ripple; FLOOR of the force bounds what
     # a window's mean can tell (the ripple is not white), so no window outweighs the others
