@@ -46,6 +46,16 @@ def fit_text(result: dict) -> str:
     truth = result.get("example", {}).get("truth", {})
     if truth:
         w("example: records simulated with " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()) + "\n")
+    fs = result.get("friction_start") or {}
+    if fs.get("used"):
+        w(f"friction start: steady-state curve on {fs['segments']} steady segments ({fs['slow_segments']} slow, "
+          f"{1e3 * fs['speeds'][0]:.3g}-{1e3 * fs['speeds'][1]:.3g} mm/s): "
+          + ", ".join(f"{k} = {v:.4g}" for k, v in fs["values"].items())
+          + "".join(f"; {k} kept ({why})" for k, why in fs["kept"].items()) + "\n")
+        costs = fs.get("start_costs", [])
+        if len(costs) > 1:
+            w(f"  {len(costs)} starts (Latin hypercube over the friction parameters), costs "
+              + ", ".join("not converged" if c is None else f"{c:.6g}" for c in costs) + "\n")
     _parameters(result, w)
     units = result.get("channel_units", {})
     for c in result["channels"]:

@@ -64,6 +64,11 @@ def add_arguments(p):
     p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
                    help="estimate each record's initial state instead of starting at rest (a record cut from "
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
+    p.add_argument("--friction-start", choices=("off", "auto", "records"), default="off",
+                   help="start the free friction parameters (F_seal, C_bear, c_v, r_start, v_st) at the steady-state "
+                        "friction curve fitted to the records' steady-speed segments under a known load: auto where "
+                        "they tell one, records requires that (exit 2 otherwise), off (default) the file's values; "
+                        "with --starts N the other starts are a Latin hypercube over those parameters")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
@@ -184,6 +189,8 @@ def _on(rule, *example, why=None) -> NoEffect:
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
+    "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "auto", why="with --track (each record is fitted "
+                             "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "auto")),
     "--track": (_on(_EXAMPLE, "--track"),),
     "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
                           "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),
@@ -218,7 +225,7 @@ _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "1
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
-           "--structural": "P_blend=0.05:0.2"}
+           "--structural": "P_blend=0.05:0.2", "--friction-start": "auto"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
@@ -254,7 +261,7 @@ def run(args) -> dict:
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
-              "estimate_x0": args.estimate_x0,
+              "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
               **({} if args.model_error is None else {"model_error": args.model_error}),
               **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
@@ -350,7 +357,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
-                 "--structural"):  # none
+                 "--structural", "--friction-start"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -395,7 +402,8 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     report = check_output_dir(args.report, [*report_names(len(records), len(free)), "comparison.png"], "--report")
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
-                  estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"))
+                  estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"),
+                  friction_start=kw["friction_start"])
     best = cmp.best
     if best is None:  # every combination failed: their reasons, one document
         why = "no combination converged: " + "; ".join(f"{r['variants']}: {r['failed']}" for r in cmp.rows)
@@ -431,7 +439,7 @@ def _track(args, params, model, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:

@@ -17,6 +17,8 @@ from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
 from ._failed import FitFailed
+from ._friction_start import friction_start as friction_start_of
+from ._friction_start import start_points
 from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
 from ._problem import Predictor, free_parameters, given_model, marginal
@@ -51,7 +53,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
-             structural: dict | None = None, progress: bool = False, model: Model | None = None) -> IdentResult:
+             structural: dict | None = None, progress: bool = False, model: Model | None = None,
+             friction_start: str = "off") -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -75,7 +78,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         Name -> start value (SI) instead of the file's.
     starts : int
         Fits from different starts (the first the file's values, the others drawn
-        log-normally around it, seeded by ``seed``); the lowest cost wins.
+        log-normally around it, or a Latin hypercube over the friction parameters
+        after a friction start, seeded by ``seed``); the lowest cost wins.
     seed, jobs : int
         Seed of the extra starts; worker processes for them (a script needs a main
         guard for jobs > 1); the result is the same for any jobs.
@@ -112,6 +116,11 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         a parameter named in ``hold`` is that one's range.
     progress : bool
         One line of progress on stderr.
+    friction_start : {"off", "auto", "records"}
+        Start the free friction parameters at the steady-state friction curve fitted to
+        the records' steady segments (:mod:`._friction_start`): ``auto`` where they tell
+        one, ``records`` requires that (else an IdentificationError), ``off`` (default)
+        the file's values.
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller (the command
         line, :func:`~ema_casadi.identification.track`) and passed down; default built
@@ -140,7 +149,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     recs = [r if isinstance(r, Record) else read_record(r, model) for r in _as_list(records)]
     if not recs:
         raise IdentificationError("records: give at least one record")
-    fr = free_parameters(model, free, bounds, start)
+    fr, fstart = friction_start_of(model, recs, free_parameters(model, free, bounds, start), friction_start)
     given = _sigmas(recs, sigma)
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
@@ -151,7 +160,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     structural = check_structural(model, structural, fr.names)
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
     try:
-        fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec)
+        fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
+                                fstart)
     except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
         if exc.iterate and exc.status == "not converged":
             exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
@@ -160,6 +170,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                   model_error, structural)
     res.info["variant_overrides"] = dict(variants or {})
+    if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
+        res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
     return res
 
 
@@ -180,23 +192,11 @@ def x0_states(model, estimate_x0) -> tuple:
     return tuple(names)
 
 
-def _start_points(fr, starts: int, seed: int) -> list:
-    """The starts: the file's values, then points drawn log-normally around them (seeded)."""
-    rng = np.random.default_rng(seed)
-    lo, hi = fr.z_bounds()
-    out = [fr.z(fr.theta0)]
-    for _ in range(1, starts):
-        z0 = fr.z(fr.theta0)
-        out.append(np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
-                           lo + 1e-9, hi - 1e-9))
-    return out
-
-
-def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec):
+def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec, design=None):
     """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
     each from a fresh predictor, on ``jobs`` processes (the result does not depend on
     ``jobs``: a worker's fit is the same computation, its final state handed back)."""
-    points = _start_points(fr, starts, seed)
+    points = start_points(fr, starts, seed, design if design and design["used"] else None)
     results = []
     if jobs <= 1 or starts == 1:
         for z0 in points:
@@ -224,7 +224,7 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
             raise FitFailed(why, status=first.status, iterate=first.iterate, cost=first.cost, history=first.history)
         raise FitFailed(why, status="not converged")
     _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
-    return fit, out
+    return fit, {**out, "start_costs": [o["cost"] if f is not None else None for f, o in results]}
 
 
 def _start_in_worker(args) -> dict | str:
