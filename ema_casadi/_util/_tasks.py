@@ -105,22 +105,26 @@ def _init_process(parent: int, token: str, blob: bytes) -> None:
 
 
 def _task(token: str, function, chunk: list):
-    """One task on a local worker: ``function(payload, chunk)``, its seconds, and whether
-    it was this worker's first."""
-    t0 = time.perf_counter()
+    """One task on a local worker: ``function(payload, chunk)``, its CPU seconds, and
+    whether it was this worker's first."""
+    t0 = time.thread_time()
     cold = token not in _WARM
     _WARM.add(token)
     out = function(_PAYLOADS[token], chunk)
-    return out, time.perf_counter() - t0, cold
+    return out, time.thread_time() - t0, cold
 
 
 def _dask_task(token: str, function, payload, chunk: list):
     """One task on a Dask worker (the payload is the scattered one, resolved there)."""
-    t0 = time.perf_counter()
+    t0 = time.thread_time()
     cold = token not in _WARM
+    if cold:
+        from ._parallel import heap_for_large_buffers
+
+        heap_for_large_buffers()
     _WARM.add(token)
     out = function(payload, chunk)
-    return out, time.perf_counter() - t0, cold
+    return out, time.thread_time() - t0, cold
 
 
 def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "processes",
