@@ -15,7 +15,8 @@ import os
 import threading
 
 __all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "worker_threads", "dask_map",
-           "check_main_guard", "die_with_parent", "worker_init", "heap_for_large_buffers", "process_pool", "end_pool", "process_map"]
+           "check_main_guard", "die_with_parent", "worker_init", "heap_for_large_buffers", "process_pool", "end_pool",
+           "process_map"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
