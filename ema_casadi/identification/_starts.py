@@ -1,0 +1,36 @@
+"""The starts of a multi-start fit: where they begin, and a fit's final state handed from
+the worker process that ran it to the caller's fit (the result does not depend on where
+a start ran)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["start_points", "fit_state", "install_state"]
+
+
+def start_points(fr, starts: int, seed: int) -> list:
+    """The starts: the file's values, then points drawn log-normally around them (seeded)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = fr.z_bounds()
+    out = [fr.z(fr.theta0)]
+    for _ in range(1, starts):
+        z0 = fr.z(fr.theta0)
+        out.append(np.clip(z0 + np.where(fr.log, rng.normal(0, 0.4, len(z0)), rng.normal(0, 0.2, len(z0))),
+                           lo + 1e-9, hi - 1e-9))
+    return out
+
+
+def fit_state(fit) -> dict:
+    """What :func:`install_state` puts back: the fit's cache, grid and counts and its
+    predictor's."""
+    p = fit.pred
+    return {"cache": fit._cache, "z_grid": fit.z_grid, "evaluations": fit.evaluations, "steps": p.steps,
+            "rows": p.rows, "pred_evaluations": p.evaluations, "dx0": p.dx0}
+
+
+def install_state(fit, state: dict) -> None:
+    """A worker's final fit state in ``fit`` (the same model, records and free set)."""
+    fit._cache, fit.z_grid, fit.evaluations = state["cache"], state["z_grid"], state["evaluations"]
+    fit.pred.steps, fit.pred.rows = state["steps"], state["rows"]
+    fit.pred.evaluations, fit.pred.dx0 = state["pred_evaluations"], state["dx0"]
