@@ -322,9 +322,10 @@ def end_pool(pool) -> None:
 
 def process_map(function, items, jobs: int) -> list:
     """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
-    the items' order. On an interrupt (or any error) nothing more is started, the pending
-    items are cancelled and the workers are ended. The caller checks the main guard
-    (:func:`check_main_guard`) before any work.
+    the items' order, through :func:`~ema_casadi._util._tasks.run_tasks`: the items reach
+    each worker once, a task carries their indices. On an interrupt (or any error)
+    nothing more is started, the pending items are cancelled and the workers are ended.
+    The caller checks the main guard (:func:`check_main_guard`) before any work.
 
     Parameters
     ----------
@@ -333,15 +334,15 @@ def process_map(function, items, jobs: int) -> list:
     items : sequence
         Picklable arguments, one call each.
     jobs : int
-        Worker processes (at most ``len(items)``).
+        Worker processes (at most ``len(items)``; one runs in this thread).
     """
-    items = list(items)
-    pool = process_pool(max(1, min(jobs, len(items))))
-    try:
-        futures = [pool.submit(function, item) for item in items]
-        out = [f.result() for f in futures]
-    except BaseException:
-        end_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-    return out
+    from ._tasks import run_tasks
+
+    items, out = list(items), {}
+    run_tasks(_map_chunk, (function, items), range(len(items)), out.update, jobs=max(1, min(jobs, len(items))))
+    return [out[i] for i in range(len(items))]
+
+
+def _map_chunk(payload, chunk) -> dict:
+    function, items = payload
+    return {i: function(items[i]) for i in chunk}
