@@ -1,7 +1,7 @@
 """Many independent items on many workers at a cost per item that does not grow with
-their number: the engine under the sweeps, the sine stream's Dask path and
-:func:`~ema_casadi._util._parallel.process_map` (identification's multi-start, the
-performance envelope).
+their number: the engine under the sweeps (faults' healthy runs among them),
+identification's multi-start, design's verification (threads), the sine stream's Dask
+path and :func:`~ema_casadi._util._parallel.process_map` (the performance envelope).
 
 What the items share (a sweep's spec, a model's parameters: the *payload*) reaches each
 worker once: a local process gets it, pickled once, through the pool's initializer; a

@@ -19,13 +19,13 @@ the textbook ones beside; per parameter too), and over the adequate ones beside 
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from .._util._files import scratch_dir
 from .._util._parallel import cores
+from .._util._tasks import run_tasks
 from ..identification import FitFailed, identify, synthetic_record
 from ..signals import Signal
 from ..simulation import progress_bar, simulate
@@ -96,10 +96,10 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     # a private folder: its records are written at once, not staged to the end of the
     # command's transaction (the fits read them back at once)
     with scratch_dir() as folder:
-        fits = [one(0, folder)]  # the first alone: the compiled functions are built once
-        if n > 1:
-            with ThreadPoolExecutor(max(1, min(jobs or cores(), n - 1)), thread_name_prefix="ema-verify") as pool:
-                fits += list(pool.map(lambda k: one(k, folder), range(1, n)))
+        got = {0: one(0, folder)}  # the first alone: the compiled functions are built once
+        run_tasks(_fits, (one, folder), range(1, n), got.update, jobs=max(1, min(jobs or cores(), n - 1)),
+                  backend="threads")
+        fits = [got[k] for k in range(n)]
     converged = [f for f in fits if "failed" not in f]
     adequate = [f for f in converged if f["adequate"]]
     good = converged  # the headline: every converged fit (after the restarts)
@@ -133,6 +133,13 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
                                             "restarted")}
                      for f in fits],
             "limits_respected": bool(admissible(usage)), "seed": seed}
+
+
+def _fits(payload, chunk) -> dict:
+    """Simulated test index -> its fit, for the tests ``chunk`` (a task of the engine's
+    thread pool)."""
+    one, folder = payload
+    return {k: one(k, folder) for k in chunk}
 
 
 def _fit_with_restarts(fit):

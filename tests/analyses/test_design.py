@@ -212,3 +212,13 @@ def test_a_robust_design_averages_the_information_over_the_prior_and_is_reproduc
     nominal = design_experiment(params, ["F_seal", "psi"], 2.0, library=lib, rate=1000.0, max_load=8e3)
     assert not np.allclose(a.M, nominal.M, rtol=1e-3)
 
+
+
+@pytest.mark.slow
+def test_verification_is_the_same_on_one_and_on_two_workers(small):
+    """Each simulated test and its fit are computed from its index alone (its noise and
+    start seeded by it): the fits on two workers equal those on one, bit for bit (the
+    estimates, costs and messages the report derives from). ~90 s under load."""
+    one = small.verify(3, seed=4, jobs=1)
+    two = small.verify(3, seed=4, jobs=2)
+    assert one["fits"] == two["fits"] and one["converged"] == 3
