@@ -15,8 +15,7 @@ import os
 import threading
 
 __all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "worker_threads", "dask_map",
-           "check_main_guard", "die_with_parent", "worker_init", "heap_for_large_buffers", "process_pool", "end_pool",
-           "process_map"]
+           "check_main_guard", "die_with_parent", "worker_init", "heap_for_large_buffers", "process_pool", "end_pool"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
 SCHEDULER_TIMEOUT = 10.0
@@ -318,31 +317,3 @@ def end_pool(pool) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in procs:
         proc.terminate()
-
-
-def process_map(function, items, jobs: int) -> list:
-    """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
-    the items' order, through :func:`~ema_casadi._util._tasks.run_tasks`: the items reach
-    each worker once, a task carries their indices. On an interrupt (or any error)
-    nothing more is started, the pending items are cancelled and the workers are ended.
-    The caller checks the main guard (:func:`check_main_guard`) before any work.
-
-    Parameters
-    ----------
-    function : callable
-        Picklable (a module-level function).
-    items : sequence
-        Picklable arguments, one call each.
-    jobs : int
-        Worker processes (at most ``len(items)``; one runs in this thread).
-    """
-    from ._tasks import run_tasks
-
-    items, out = list(items), {}
-    run_tasks(_map_chunk, (function, items), range(len(items)), out.update, jobs=max(1, min(jobs, len(items))))
-    return [out[i] for i in range(len(items))]
-
-
-def _map_chunk(payload, chunk) -> dict:
-    function, items = payload
-    return {i: function(items[i]) for i in chunk}

@@ -1,7 +1,7 @@
 """Many independent items on many workers at a cost per item that does not grow with
 their number: the engine under the sweeps (faults' healthy runs among them),
 identification's multi-start, design's verification (threads), the sine stream's Dask
-path and :func:`~ema_casadi._util._parallel.process_map` (the performance envelope).
+path and :func:`process_map` (the performance envelope).
 
 What the items share (a sweep's spec, a model's parameters: the *payload*) reaches each
 worker once: a local process gets it, pickled once, through the pool's initializer; a
@@ -28,7 +28,7 @@ import pickle
 import time
 from collections import deque
 
-__all__ = ["TARGET_SECONDS", "Plan", "run_tasks", "worker_payload"]
+__all__ = ["TARGET_SECONDS", "Plan", "run_tasks", "worker_payload", "process_map"]
 
 #: Seconds of work a task aims at (the per-task cost of this process is amortised over
 #: them; an interrupted sweep loses at most one task per worker).
@@ -244,6 +244,33 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
     finally:
         _PAYLOADS.pop(token, None)
     pool.shutdown(wait=True)
+
+
+def process_map(function, items, jobs: int) -> list:
+    """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
+    the items' order, through :func:`run_tasks`: the items reach
+    each worker once, a task carries their indices. On an interrupt (or any error)
+    nothing more is started, the pending items are cancelled and the workers are ended.
+    The caller checks the main guard
+    (:func:`~ema_casadi._util._parallel.check_main_guard`) before any work.
+
+    Parameters
+    ----------
+    function : callable
+        Picklable (a module-level function).
+    items : sequence
+        Picklable arguments, one call each.
+    jobs : int
+        Worker processes (at most ``len(items)``; one runs in this thread).
+    """
+    items, out = list(items), {}
+    run_tasks(_map_chunk, (function, items), range(len(items)), out.update, jobs=max(1, min(jobs, len(items))))
+    return [out[i] for i in range(len(items))]
+
+
+def _map_chunk(payload, chunk) -> dict:
+    function, items = payload
+    return {i: function(items[i]) for i in chunk}
 
 
 class _blas_env:
