@@ -124,9 +124,10 @@ def main():
     lines = [f"Machine: {machine()}; Python {platform.python_version()}; {args.jobs} local processes; "
              f"{what}; table and journal written.", "",
              "| runs | wall per run | workers' CPU per run | parent's CPU per run | parent's peak memory | "
-             "peak memory, parent + workers | load average |", "|---|---|---|---|---|---|---|"]
+             "peak memory, parent + workers | load average at the end |", "|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['runs']:,} | {r['wall'] * 1e3:.2f} ms | {r['workers'] * 1e3:.2f} ms | "
+        runs = format(r["runs"], ",").replace(",", " ")
+        lines.append(f"| {runs} | {r['wall'] * 1e3:.2f} ms | {r['workers'] * 1e3:.2f} ms | "
                      f"{r['parent'] * 1e3:.3f} ms | {r['parent_mb']:.0f} MB | {r['total_mb']:.0f} MB"
                      f"{'' if r['sampled'] else ' (bound)'} | {r['load']:.1f} |")
     text = "\n".join(lines) + "\n"
