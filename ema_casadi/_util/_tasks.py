@@ -11,9 +11,11 @@ whatever the number of items.
 
 Tasks are sized from measured times: each worker's first task is a single item (it
 also pays the worker's start-up: imports, model build, compiled code), later tasks
-hold as many items as fill :data:`TARGET_SECONDS` at the measured seconds per unit of
-cost, and near the end at most a third of each worker's share of what is left, so that
-the workers end together. Items are taken in the caller's order (longest first where
+hold as many items as fill :data:`TARGET_SECONDS` at the measured CPU seconds per
+unit of cost (the CPU time of the thread that ran the task: the machine's other load
+does not shrink the tasks, and with them the cost of this process per item), and
+near the end at most a third of each worker's share of what is left, so that the
+workers end together. Items are taken in the caller's order (longest first where
 their costs differ). At most two tasks per worker are in flight: the waiting and the
 bookkeeping of this process do not grow with the number of items.
 
