@@ -1,6 +1,7 @@
 """Many independent items on many workers at a cost per item that does not grow with
-their number: the engine under the sweeps, the sine stream's Dask path and
-:func:`~ema_casadi._util._parallel.process_map`.
+their number: the engine under the sweeps (faults' healthy runs among them),
+identification's multi-start, design's verification (threads), the sine stream's Dask
+path and :func:`process_map` (the performance envelope).
 
 What the items share (a sweep's spec, a model's parameters: the *payload*) reaches each
 worker once: a local process gets it, pickled once, through the pool's initializer; a
@@ -10,9 +11,11 @@ whatever the number of items.
 
 Tasks are sized from measured times: each worker's first task is a single item (it
 also pays the worker's start-up: imports, model build, compiled code), later tasks
-hold as many items as fill :data:`TARGET_SECONDS` at the measured seconds per unit of
-cost, and near the end at most a third of each worker's share of what is left, so that
-the workers end together. Items are taken in the caller's order (longest first where
+hold as many items as fill :data:`TARGET_SECONDS` at the measured CPU seconds per
+unit of cost (the CPU time of the thread that ran the task: the machine's other load
+does not shrink the tasks, and with them the cost of this process per item), and
+near the end at most a third of each worker's share of what is left, so that the
+workers end together. Items are taken in the caller's order (longest first where
 their costs differ). At most two tasks per worker are in flight: the waiting and the
 bookkeeping of this process do not grow with the number of items.
 
@@ -27,7 +30,7 @@ import pickle
 import time
 from collections import deque
 
-__all__ = ["TARGET_SECONDS", "Plan", "run_tasks", "worker_payload"]
+__all__ = ["TARGET_SECONDS", "Plan", "run_tasks", "worker_payload", "process_map"]
 
 #: Seconds of work a task aims at (the per-task cost of this process is amortised over
 #: them; an interrupted sweep loses at most one task per worker).
@@ -105,22 +108,26 @@ def _init_process(parent: int, token: str, blob: bytes) -> None:
 
 
 def _task(token: str, function, chunk: list):
-    """One task on a local worker: ``function(payload, chunk)``, its seconds, and whether
-    it was this worker's first."""
-    t0 = time.perf_counter()
+    """One task on a local worker: ``function(payload, chunk)``, its CPU seconds, and
+    whether it was this worker's first."""
+    t0 = time.thread_time()
     cold = token not in _WARM
     _WARM.add(token)
     out = function(_PAYLOADS[token], chunk)
-    return out, time.perf_counter() - t0, cold
+    return out, time.thread_time() - t0, cold
 
 
 def _dask_task(token: str, function, payload, chunk: list):
     """One task on a Dask worker (the payload is the scattered one, resolved there)."""
-    t0 = time.perf_counter()
+    t0 = time.thread_time()
     cold = token not in _WARM
+    if cold:
+        from ._parallel import heap_for_large_buffers
+
+        heap_for_large_buffers()
     _WARM.add(token)
     out = function(payload, chunk)
-    return out, time.perf_counter() - t0, cold
+    return out, time.thread_time() - t0, cold
 
 
 def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "processes",
@@ -239,6 +246,33 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
     finally:
         _PAYLOADS.pop(token, None)
     pool.shutdown(wait=True)
+
+
+def process_map(function, items, jobs: int) -> list:
+    """``[function(item) for item in items]`` on ``jobs`` worker processes (spawn), in
+    the items' order, through :func:`run_tasks`: the items reach
+    each worker once, a task carries their indices. On an interrupt (or any error)
+    nothing more is started, the pending items are cancelled and the workers are ended.
+    The caller checks the main guard
+    (:func:`~ema_casadi._util._parallel.check_main_guard`) before any work.
+
+    Parameters
+    ----------
+    function : callable
+        Picklable (a module-level function).
+    items : sequence
+        Picklable arguments, one call each.
+    jobs : int
+        Worker processes (at most ``len(items)``; one runs in this thread).
+    """
+    items, out = list(items), {}
+    run_tasks(_map_chunk, (function, items), range(len(items)), out.update, jobs=max(1, min(jobs, len(items))))
+    return [out[i] for i in range(len(items))]
+
+
+def _map_chunk(payload, chunk) -> dict:
+    function, items = payload
+    return {i: function(items[i]) for i in chunk}
 
 
 class _blas_env:

@@ -26,13 +26,13 @@ a width is the median over the fits, the mean beside it (:func:`_summary`).
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from .._util._files import scratch_dir
 from .._util._parallel import cores
+from .._util._tasks import run_tasks
 from ..identification import FitFailed, identify, synthetic_record
 from ..signals import Signal
 from ..simulation import progress_bar, simulate
@@ -108,10 +108,10 @@ def verify(result, n: int, *, seed: int = 0, jobs: int | None = None, progress: 
     # a private folder: its records are written at once, not staged to the end of the
     # command's transaction (the fits read them back at once)
     with scratch_dir() as folder:
-        fits = [one(jobs_list[0], folder)]  # the first alone: the compiled functions are built once
-        with ThreadPoolExecutor(max(1, min(jobs or cores(), len(jobs_list) - 1)),
-                                thread_name_prefix="ema-verify") as pool:
-            fits += list(pool.map(lambda job: one(job, folder), jobs_list[1:]))
+        got = {0: one(jobs_list[0], folder)}  # the first alone: the compiled functions are built once
+        run_tasks(_fits, (one, folder, jobs_list), range(1, len(jobs_list)), got.update,
+                  jobs=max(1, min(jobs or cores(), len(jobs_list) - 1)), backend="threads")
+        fits = [got[k] for k in range(len(jobs_list))]
     designed = _summary([f for f, job in zip(fits, jobs_list, strict=True) if job[1] == "designed"], names, truth)
     standard = _summary([f for f, job in zip(fits, jobs_list, strict=True) if job[1] == "standard"], names, truth)
     pred = {m: float(result.predicted["width"][k]) for k, m in enumerate(names)}
@@ -186,6 +186,13 @@ def _summary(fits, names, truth) -> dict:
                                                "scale_factor", "restarted")},
                       **({"width": {m: (f["interval"][m][1] - f["interval"][m][0]) / truth[m] for m in names}}
                          if "failed" not in f else {})} for f in fits]}
+
+
+def _fits(payload, chunk) -> dict:
+    """Simulated test index -> its fit, for the tests ``chunk`` (a task of the engine's
+    thread pool)."""
+    one, folder, jobs_list = payload
+    return {k: one(jobs_list[k], folder) for k in chunk}
 
 
 def _fit_with_restarts(fit):

@@ -10,7 +10,8 @@ import time
 import numpy as np
 
 from .._util._checks import instance, integer, nearest, number
-from .._util._parallel import check_main_guard, process_map
+from .._util._parallel import check_main_guard
+from .._util._tasks import run_tasks
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
 from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
@@ -25,6 +26,7 @@ from ._problem import Predictor, free_parameters, given_model, marginal
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
+from ._starts import fit_state, install_state
 from ._structural import add_structural, check_structural, structural_covariance
 
 #: Relative change of the estimated noise levels below which their re-estimation stops.
@@ -209,12 +211,15 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
                 results.append((None, exc))
     else:
         check_main_guard(IdentificationError, f"identify(starts={starts}, jobs={jobs})")
-        for _z0, got in zip(points, process_map(_start_in_worker, [(*spec, z0) for z0 in points], jobs), strict=True):
+        outs = {}  # the records reach each worker once; a task carries start indices
+        run_tasks(_starts_in_worker, (*spec, points), range(starts), outs.update, jobs=min(jobs, starts),
+                  error=IdentificationError)
+        for got in (outs[k] for k in range(starts)):
             if isinstance(got, str):
                 results.append((None, got))
                 continue
             fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
-            _install(fit, got["state"])
+            install_state(fit, got["state"])
             results.append((fit, got["out"]))
     done = [(k, f, o) for k, (f, o) in enumerate(results) if f is not None]
     if not done:
@@ -227,27 +232,25 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
     return fit, {**out, "start_costs": [o["cost"] if f is not None else None for f, o in results]}
 
 
-def _start_in_worker(args) -> dict | str:
-    """One start in a worker process: the optimum and the fit's final state, or the
-    reason it failed."""
-    params, variants, recs, fr, xs, given, max_evaluations, z0 = args
-    model = build_model(params, variants)
-    fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, False)
-    try:
-        out = fit.run(z0)
-    except FitFailed as exc:
-        return exc.reason
-    pred = fit.pred
-    return {"out": out, "state": {"cache": fit._cache, "z_grid": fit.z_grid, "evaluations": fit.evaluations,
-                                  "steps": pred.steps, "rows": pred.rows, "pred_evaluations": pred.evaluations,
-                                  "dx0": pred.dx0}}
+_WORKER_MODEL = [None, None]  # (payload, its model) in a worker process
 
 
-def _install(fit, state: dict) -> None:
-    """A worker's final fit state in ``fit`` (the same model, records and free set)."""
-    fit._cache, fit.z_grid, fit.evaluations = state["cache"], state["z_grid"], state["evaluations"]
-    fit.pred.steps, fit.pred.rows = state["steps"], state["rows"]
-    fit.pred.evaluations, fit.pred.dx0 = state["pred_evaluations"], state["dx0"]
+def _starts_in_worker(payload, chunk) -> dict:
+    """Start index -> its optimum and the fit's final state, or the reason it failed, for
+    the starts ``chunk`` in a worker process (its model built once per identify)."""
+    params, variants, recs, fr, xs, given, max_evaluations, points = payload
+    if _WORKER_MODEL[0] is not payload:
+        _WORKER_MODEL[:] = [payload, build_model(params, variants)]
+    model, outs = _WORKER_MODEL[1], {}
+    for k in chunk:
+        fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, False)
+        try:
+            out = fit.run(points[k])
+        except FitFailed as exc:
+            outs[k] = exc.reason
+            continue
+        outs[k] = {"out": out, "state": fit_state(fit)}
+    return outs
 
 
 def _as_list(records) -> list:

@@ -11,7 +11,8 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import integer
-from .._util._parallel import check_main_guard, process_map
+from .._util._parallel import check_main_guard
+from .._util._tasks import process_map
 from ..model.assembly import Model, build_model
 from ..optimisation import solve_ipopt
 from ._errors import Infeasible, OptimalError

@@ -148,3 +148,16 @@ def test_cli_thresholds_writes_the_table_and_figure(tmp_path):
     for name in ("small_thresholds.csv", "small_thresholds.png", "small.json"):
         assert (out / name).is_file()
     assert np.isfinite(summary["thresholds"]["monitors"]["latch_cross"]["healthy_max"])
+
+
+@pytest.mark.slow  # ~30 s under load: worker processes start, a model is compiled
+def test_healthy_runs_are_the_same_on_one_and_on_two_workers(params):
+    """Healthy runs go through the sweep engine: each run from its index and its draw,
+    so the monitors' maxima on two worker processes equal one worker's, bit for bit."""
+    from ema_casadi.faults import healthy_runs
+
+    spec = parse_faults(SMALL, params, "<small>")
+    one = healthy_runs(spec, 4, jobs=1)
+    two = healthy_runs(spec, 4, jobs=2)
+    assert one["failed"] == 0 and two["jobs"] == 2
+    assert one["maxima"] == two["maxima"] and one["worst_latch"] == two["worst_latch"]
