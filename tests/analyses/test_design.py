@@ -253,6 +253,8 @@ def test_a_steps_segment_rests_its_share_of_the_time_between_moves_at_constant_s
     moving = np.abs(v[~rest])
     assert np.mean(moving > 0.99 * speed) > 0.8  # constant speed but for the rises
     assert np.max(np.abs(x)) == pytest.approx(5e-3, rel=1e-3)
+
+
 @pytest.mark.slow
 def test_verification_is_the_same_on_one_and_on_two_workers(small):
     """Each simulated test and its fit are computed from its index alone (its noise and
