@@ -87,7 +87,7 @@ def test_friction_start_without_slow_segments_is_refused(params, tmp_path, capsy
     unknown mode likewise."""
     rec = idn.synthetic_record(params, tmp_path / "step.csv", t_end=0.3, x_cmd="step:2mm@0.02", seed=1)
     out = tmp_path / "fit.toml"
-    for mode, words in (("records", ["friction_start records", "no steady-speed segments"]),
+    for mode, words in (("records", ["--friction-start records", "no steady-speed segments"]),
                         ("sometimes", ["--friction-start", "sometimes"])):
         with pytest.raises(SystemExit) if mode == "sometimes" else _no_raise() as exit_:
             code = main([str(rec), "--free", "F_seal,c_v", "--friction-start", mode, "--out", str(out), "--json"])
