@@ -104,3 +104,17 @@ def test_envelope_table(capsys, tmp_path):
     assert (out / "envelope.csv").read_text().startswith("load_N,v_top_m_s_at_ref\n")
     assert (out / "envelope.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert r["written"] == [str(out / "envelope.csv"), str(out / "envelope.png")]
+
+
+# the solve, the ECU's step and the replay, about 2 s each: the answers that would mean nothing
+@pytest.mark.parametrize("args, words", [
+    # 8 intervals: 1.524 s against the ECU's own step's 0.919 s (40 intervals: 0.775 s), Solve_Succeeded
+    (("--move", "75mm", "--intervals", "8"), "intervals 8: too coarse for a 75 mm move"),
+    # 1 um: the 2 % band (20 nm) within the LVDT's 0.5 um step; neither the ECU's step nor the replay settles
+    (("--move", "1um",), "give a move of at least 50 µm"),
+])
+def test_an_optimum_that_means_nothing_is_refused_exit_3(capsys, tmp_path, args, words):
+    out = tmp_path / "out"
+    status, _, err = _run(capsys, *args, "--out", out)
+    assert status == 3 and words in err and err.count("\n") == 1, err
+    assert not out.exists()
