@@ -134,3 +134,15 @@ def test_a_mission_segment_is_a_scenario(params):
                                   "fault": [{"kind": "stuck", "target": "x_s", "onset": 1.0}]})
     assert res.spec.scenario["text"]["x_cmd"] != 0 and res.rows[0]["first_monitor"] is None
     assert res.rows[1]["detected_latch_cross_s"] is not None
+
+
+@pytest.mark.parametrize("n", ["3", "0", "49"])  # 0 is no run (it was read as the default 1000)
+def test_a_threshold_study_below_its_minimum_of_runs_is_refused(tmp_path, n):
+    from ema_casadi.faults import MIN_STUDY_RUNS
+
+    out = tmp_path / "out"
+    proc = _ema("--thresholds", "--healthy-runs", n, "--out", out)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"healthy runs {n}:" in proc.stderr and f"give at least {MIN_STUDY_RUNS}" in proc.stderr
+    assert not out.exists()
+    assert f"at least {MIN_STUDY_RUNS}: the study's minimum" in " ".join(_ema("--help").stdout.split())
