@@ -50,8 +50,9 @@ X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
-             consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
-             structural: dict | None = None, progress: bool = False, model: Model | None = None) -> IdentResult:
+             consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, allow_misfit: bool = False,
+             jobs: int = 1, structural: dict | None = None, progress: bool = False,
+             model: Model | None = None) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -102,9 +103,11 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         The systematic misfit tolerated, in noise levels (:mod:`._misfit`): a fit whose
         statistical tests fail (chi-square, whiteness, consistency) is *adequate within
         model error* (robust intervals, the misfit named) when every record's and
-        channel's systematic misfit is at most this and no record's estimates shift
-        by more than 5 x this sandwich standard deviations against the others'; else
-        inadequate.
+        channel's systematic misfit is at most this and no record's estimates shift by
+        more than 5 x this sandwich sd against the others'; else inadequate. Above
+        :data:`~._misfit.MAX_MODEL_ERROR` (10) only with ``allow_misfit``.
+    allow_misfit : bool
+        Confirms a ``model_error`` above the ceiling (``--allow-misfit``).
     structural : dict, optional
         Name -> (lo, hi) (SI): constants of the structure held at their values whose
         plausible range adds a type-B component to the headline covariance, the
@@ -113,15 +116,13 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     progress : bool
         One line of progress on stderr.
     model : Model, optional
-        The model of ``params`` and ``variants``, built once by the caller (the command
-        line, :func:`~ema_casadi.identification.track`) and passed down; default built
-        here. A worker process of ``jobs`` builds its own.
+        The model of ``params`` and ``variants``, built once by the caller and passed
+        down; default built here (a worker process of ``jobs`` builds its own).
 
     Returns
     -------
     IdentResult
-        Estimates, intervals, correlation, identifiability, residual statistics,
-        fitted trajectories.
+        Estimates, intervals, correlation, identifiability, residuals, trajectories.
 
     Raises
     ------
@@ -144,7 +145,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     given = _sigmas(recs, sigma)
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
-    model_error = number(model_error, "model_error", IdentificationError, positive=True)
+    model_error = _misfit.check_model_error(model_error, allow_misfit)
     if not isinstance(hold_unidentifiable, bool):
         raise IdentificationError(f"hold_unidentifiable: expected True or False, got {hold_unidentifiable!r}")
     values, ranges, structural = check_hold(fr, hold, structural)
