@@ -334,3 +334,19 @@ def test_a_model_error_above_the_ceiling_needs_its_confirmation(tmp_path, capsys
     assert f"above {MAX_MODEL_ERROR:g} only with --allow-misfit" in " ".join(
         subprocess.run([sys.executable, "-m", "ema_casadi.cli", "identify", "--help"], capture_output=True,
                        text=True).stdout.split())
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--free", "w_aw"), "free parameter 'w_aw': anti_windup = backcalc does not use it (only clamping)"),
+    (("--free", "k_bc", "--variant", "anti_windup=clamping"),
+     "free parameter 'k_bc': anti_windup = clamping does not use it (only backcalc)"),
+    (("--free", "w_knee"), "free parameter 'w_knee': limit_shape = clip does not use it (only smooth)"),
+    (("--free", "F_seal", "--structural", "w_aw=0.005:0.02"),
+     "structural 'w_aw': anti_windup = backcalc does not use it (only clamping)"),
+])
+def test_a_parameter_the_chosen_law_does_not_use_is_refused(tmp_path, capsys, record, args, words):
+    # the fit printed "w_aw 0.01 -inf..inf" for a parameter no equation of back-calculation reads
+    out = tmp_path / "fit.toml"
+    code, _, err = _run(["identify", str(record), *args, "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and words in err, err
+    assert not list(tmp_path.iterdir())

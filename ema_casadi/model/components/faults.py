@@ -144,7 +144,8 @@ class On(Part):
         Fault("jam", "a_jam", "1", 0.0, 1.0, "the rod locks at its onset position (1: fully)"),
         Fault("free_run", "a_open", "1", 0.0, 1.0, "the bridge is switched off (1): no drive, diodes only"),
         Fault("disconnect", "a_shear", "1", 0.0, 1.0,
-              "the coupling shears (1): motor side free of the nut and rod (screw = elastic)"),
+              "the coupling shears (1): motor side free of the nut and rod (screw = elastic)",
+              requires=(("screw", ("elastic",)),)),  # the rigid screw has no coupling: its rod is the motor's
         Fault("supply", "a_supply", "1", 0.0, 1.0, "the DC link loses this fraction of its voltage"),
         Fault("wear_friction", "wear_f", "1/s", 0.0, 10.0, "F_seal and C_bear grow by this fraction per second",
               rate=True),
