@@ -19,10 +19,10 @@ def _run(capsys, *args):
 @pytest.mark.parametrize("args, words", [
     (("--move", "100mm"), "beyond the stroke"),
     (("--load", "80kN"), "the screw holds"),
-    (("--objective", "speed"), "--objective speed: unknown"),
+    (("--objective", "speed"), "objective 'speed' unknown"),
     (("--objective", "energy", "--duration", "0.01"), "below the minimum time"),
-    (("--through", "cascade"), "--through cascade: unknown"),
-    (("--method", "euler"), "--method euler: unknown"),
+    (("--through", "cascade"), "through 'cascade' unknown"),
+    (("--method", "euler"), "method 'euler' unknown"),
     (("--through", "ecu", "--objective", "energy", "--duration", "0.3"), "command shaping minimises the time"),
     (("--move", "2mm", "--intervals", "100000"), "intervals 100000: above the limit of 5000"),  # before any NLP
     (("--envelope", "--distances", "0"), "distances: finite and above 0"),
