@@ -204,6 +204,8 @@ def interruptible(fn, *args):
     ctx = multiprocessing.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
     child = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+    for stream in (sys.stdout, sys.stderr):  # nothing buffered here that the child would write again
+        stream.flush()
     child.start()
     send.close()
     try:
