@@ -137,7 +137,7 @@ def check_resolved(model: Model, res: OptimalMove) -> None:
 
     * The ECU's own step of the move never enters the 2 % band: the closed loop does
       not resolve a move this small (the rod position sensor's step, friction); the
-      message gives the sensor's step and the move whose band is two of its steps.
+      message gives where the loop leaves the rod and the move whose band is twice that.
     * A minimum-time move through the drive is slower than the ECU's own step (the
       drive with the voltages free can always do what its ECU does): the grid is too
       coarse for the move; the message asks for twice the intervals, at least the
@@ -156,14 +156,14 @@ def check_resolved(model: Model, res: OptimalMove) -> None:
     size = format_quantity(abs(res.move), "m")
     settle = res.ecu_step["settling_time_s"]
     if not math.isfinite(settle):
-        q = float(getattr(model.pdict(), "q_x", 0.0))
-        # the quantised loop rests within about a sensor's step of the command: a band of
-        # two steps is resolved (measured on the reference: 30 um moves settle, 25 um do not)
-        why = (f"; its 2 % band, {format_quantity(BAND * abs(res.move), 'm')}, is within the position sensor's "
-               f"step q_x = {format_quantity(q, 'm')}: give a move of at least {format_quantity(2 * q / BAND, 'm')} "
-               "(a band of two steps)") if q > BAND * abs(res.move) / 2 else "; give a larger move"
-        raise Unresolved(f"move {size}: below what the closed loop resolves: the ECU's own step of this size never "
-                         f"enters the 2 % band{why}")
+        # where the loop leaves the rod (friction, the position sensor's step): the last fifth of the step
+        step = res.ecu_step["result"]
+        rest = float(np.abs(step[model.output_with("rod_position")][step.t >= 0.8 * step.t[-1]]
+                            - (res.start + res.move)).max())
+        raise Unresolved(f"move {size}: below what the closed loop resolves: the ECU's own step of this size rests "
+                         f"{format_quantity(rest, 'm')} from the target, outside its 2 % band "
+                         f"({format_quantity(BAND * abs(res.move), 'm')}); give a move of at least "
+                         f"{format_quantity(2 * rest / BAND, 'm')} (a band of twice that)")
     if res.objective != "time":
         return
     N = res.ipopt["intervals"]

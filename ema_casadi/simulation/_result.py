@@ -373,9 +373,9 @@ def step_corrections(model, sig: dict, pv, res: SimResult, zoh: bool = False) ->
     for tb in steps:
         k = int(np.searchsorted(t, tb))  # t[k-1] < tb <= t[k]
         x = np.array([np.interp(tb, t, xi) for xi in X])
-        eps = 1e-9 * max(abs(tb), 1.0)
+        before = 1e-9 * max(abs(tb), 1.0)
         left, right = ([float(sig[n](np.array([tb + d]))[0]) if n in sig else 0.0 for n in model.inputs]
-                       for d in (-eps, 0.0))
+                       for d in (-before, 0.0))
         y_l, y_r = (np.asarray(model.f(x, u, pv)[1]).ravel()[rows] for u in (left, right))
         if np.allclose(y_l, y_r, rtol=0, atol=0):
             continue

@@ -110,8 +110,8 @@ def test_envelope_table(capsys, tmp_path):
 @pytest.mark.parametrize("args, words", [
     # 8 intervals: 1.524 s against the ECU's own step's 0.919 s (40 intervals: 0.775 s), Solve_Succeeded
     (("--move", "75mm", "--intervals", "8"), "intervals 8: too coarse for a 75 mm move"),
-    # 1 um: the 2 % band (20 nm) within the LVDT's 0.5 um step; neither the ECU's step nor the replay settles
-    (("--move", "1um",), "give a move of at least 50 µm"),
+    # 1 um: the 2 % band (20 nm) within the LVDT's 0.5 um step; the ECU's step never moves the rod
+    (("--move", "1um",), "rests 1 µm from the target, outside its 2 % band (0.02 µm); give a move of at least 100 µm"),
 ])
 def test_an_optimum_that_means_nothing_is_refused_exit_3(capsys, tmp_path, args, words):
     out = tmp_path / "out"
