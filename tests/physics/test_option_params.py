@@ -40,3 +40,15 @@ def test_a_tied_parameter_is_used_exactly_where_the_equations_read_it(params, aw
         if n not in read:
             with pytest.raises(IdentificationError, match=f"'{n}': .* = .* does not use it \\(only "):
                 free_parameters(model, [n])
+
+
+def test_each_instance_of_a_system_declares_its_laws_parameters():
+    # the dual actuator: each channel's loop parts carry their option_params, prefixed
+    from conftest import ROOT
+
+    model = ema.build_model(ema.load_parameters(ROOT / "models" / "elevator_dual.toml"))
+    read = _read(model)
+    for ch in ("A", "B"):
+        assert f"{ch}.k_bc" in model.used_params and f"{ch}.k_bc" in read
+        assert f"{ch}.w_aw" not in model.used_params and f"{ch}.w_aw" not in read
+        assert model.unused_reason(f"{ch}.w_aw") == "anti_windup = backcalc does not use it (only clamping)"
