@@ -254,7 +254,7 @@ def run(args) -> dict:
     if args.model_error is not None and args.track:
         raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
     if args.model_error is not None:  # the ceiling, before any work
-        from ..identification._misfit import check_model_error
+        from ..identification import check_model_error
 
         check_model_error(args.model_error, args.allow_misfit)
     params, model = load(args)  # built once here, passed down

@@ -231,8 +231,7 @@ class Model(Summarised, Contract):
 
     def unused_reason(self, name: str) -> str:
         """Why the model does not use the parameter ``name``: the option value whose law
-        leaves it out (``"anti_windup = backcalc does not use it (only clamping)"``),
-        else that no part declares it.
+        leaves it out (``"anti_windup = backcalc does not use it (only clamping)"``).
 
         Parameters
         ----------
@@ -246,9 +245,8 @@ class Model(Summarised, Contract):
         return f"the model's parts do not use it (variants {self.variants})"
 
     def unread(self, arg: str = "u") -> tuple[str, ...]:
-        """The inputs (``arg="u"``) or parameters (``"p"``) no equation of the model reads:
-        neither the dynamics, the held ECU, its sampling nor the projection depends on
-        them, structurally (the disconnect's ``a_shear`` on the rigid screw).
+        """The inputs (``arg="u"``) or parameters (``"p"``) no equation of the model reads
+        (the dynamics, the held ECU, its sampling, the projection), structurally.
 
         Parameters
         ----------
@@ -420,8 +418,7 @@ def _default(inp, P) -> float:
 
 
 def _left_out(part, name: str) -> str:
-    """Why ``part`` leaves out its parameter ``name`` with its options' values (its
-    ``option_params`` tie ``name`` to other values of an option), else ``""``."""
+    """Why ``part``'s options' values leave out its parameter ``name`` (else ``""``)."""
     for option, laws in part.option_params.items():
         chosen = part.opt.get(option, part.options[option][0])
         users = [v for v, names in laws.items() if name in names]

@@ -319,8 +319,7 @@ def test_a_structural_range_widens_the_intervals(tmp_path, capsys, record):
 @pytest.mark.parametrize("value", ["1e6", "10.5"])
 def test_a_model_error_above_the_ceiling_needs_its_confirmation(tmp_path, capsys, misfit_record, value):
     # 1e6 called a 61-sigma misfit adequate; the ceiling stops it before the fit, naming the confirmation
-    from ema_casadi.identification import IdentificationError, identify
-    from ema_casadi.identification._misfit import MAX_MODEL_ERROR, check_model_error
+    from ema_casadi.identification import MAX_MODEL_ERROR, IdentificationError, check_model_error, identify
 
     out = tmp_path / "fit.toml"
     code, _, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(out),
