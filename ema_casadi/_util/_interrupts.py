@@ -27,7 +27,8 @@ import signal
 import sys
 import threading
 
-__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early", "finished"]
+__all__ = ["Interrupted", "handling", "requested", "check", "exit_status", "record_early", "replay_early", "finished",
+           "interruptible"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -39,6 +40,7 @@ _on_signal = None
 _grace = 1.0
 _cancel = threading.Event()
 _finished = False
+_pid = None  # the process whose handling() has a watchdog (the ema process itself)
 
 
 class Interrupted(BaseException):
@@ -154,8 +156,10 @@ def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    global _pid
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     _received, _watchdog, _on_timeout, _on_signal, _grace = None, None, on_timeout, on_signal, grace
+    _pid = os.getpid() if on_timeout is not None else None
     _finished = False
     _cancel.clear()
     for s in SIGNALS:
@@ -167,4 +171,78 @@ def handling(on_timeout=None, grace: float = 1.0, on_signal=None):
         _cancel.set()
         for s, h in previous.items():
             signal.signal(s, signal.SIG_IGN if _finished else h)
-        _received, _on_timeout, _on_signal, _watchdog = None, None, None, None
+        _received, _on_timeout, _on_signal, _watchdog, _pid = None, None, None, None, None
+
+
+#: How often the parent of :func:`interruptible` looks for a signal and the answer (s).
+POLL_S = 0.05
+
+
+def interruptible(fn, *args):
+    """``fn(*args)`` where a signal ends it at once, even inside a long compiled call.
+
+    Python runs a signal handler only between bytecodes; CasADi's C++ (building an NLP's
+    derivatives: 22 s CPU before IPOPT's first iteration at 2000 collocation intervals)
+    holds the interpreter, and the watchdog thread cannot run either. In the ``ema``
+    process (under :func:`handling` with a watchdog) the call therefore runs in a forked
+    child whose answer (or error, the error family pickling whole) comes back through a
+    pipe, while this process polls its signal flag every :data:`POLL_S`: a signal kills
+    the child and raises :class:`Interrupted` here. Elsewhere (a script, a worker, a
+    test calling ``main()``) it is a plain call.
+
+    Parameters
+    ----------
+    fn : callable
+        The work; its answer and errors must pickle.
+    *args
+        Its arguments (inherited by the fork, not pickled).
+    """
+    if _pid != os.getpid() or threading.current_thread() is not threading.main_thread() or os.name != "posix":
+        return fn(*args)
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+    for stream in (sys.stdout, sys.stderr):  # nothing buffered here that the child would write again
+        stream.flush()
+    child.start()
+    send.close()
+    try:
+        while not recv.poll(POLL_S):
+            check()
+            if not child.is_alive() and not recv.poll(0):
+                from ._errors import RunError
+
+                raise RunError(f"the solver's process ended without an answer (exit status {child.exitcode})")
+        kind, value = recv.recv()
+    finally:
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if kind == "error":
+        raise value
+    return value
+
+
+def _child(send, fn, args):
+    """The forked child of :func:`interruptible`: the parent signals it by killing it."""
+    global _pid, _on_timeout
+    _pid, _on_timeout = None, None
+    for s in SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
+    with contextlib.suppress(Exception):  # Linux: killed with its parent
+        import ctypes
+
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    try:
+        answer = ("value", fn(*args))
+    except BaseException as exc:  # noqa: BLE001 - sent to the parent, raised there
+        answer = ("error", exc)
+    try:
+        send.send(answer)
+    except Exception as exc:  # noqa: BLE001 - an answer that does not pickle
+        from ._errors import RunError
+
+        send.send(("error", RunError(f"{type(exc).__name__}: {exc}")))
+    send.close()

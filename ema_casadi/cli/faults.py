@@ -43,7 +43,7 @@ HELP = "fault study: jam, free-run, shorts, supply, sensor faults, wear; detecti
 
 _LIST = NoEffect((), "with --list (it prints the fault kinds and monitors and stops)", lambda a: a.list)
 _HEALTHY = NoEffect((), "without --healthy-runs N or --thresholds (they run the healthy runs)",
-                    lambda a: a.healthy_runs == 0 and not a.thresholds)
+                    lambda a: not a.healthy_runs and not a.thresholds)
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {"--faults": (), "--list": (),
              "--thresholds": (NoEffect(("--list", "--thresholds"), _LIST.why, _LIST.when),),
@@ -59,8 +59,9 @@ def add_arguments(p):
                    help="the fault file by name (with or without MODEL.toml)")
     p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
                    help=f"folder for <file>.csv, <file>.json and <file>.png (created); default {DEFAULT_OUT}")
-    p.add_argument("--healthy-runs", type=int, default=0, metavar="N",
-                   help="false alarms over N healthy runs (noise, +-5 %% friction and stiffness); default 0")
+    p.add_argument("--healthy-runs", type=int, default=None, metavar="N",
+                   help="false alarms over N healthy runs (noise, +-5 %% friction and stiffness); default 0 "
+                        f"(with --thresholds {STUDY_RUNS}, at least 50: the study's minimum)")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="local workers of the healthy runs")
     p.add_argument("--seed", type=int, default=1, help="seed of the healthy runs' draws; default 1")
     p.add_argument("--thresholds", action="store_true",
@@ -74,6 +75,12 @@ def _check(args) -> Path:
     from ..model.components import validate_variants
     from ..sweeps import MAX_RUNS
 
+    if args.healthy_runs is None:  # not given: none, or the threshold study's default
+        args.healthy_runs = STUDY_RUNS if args.thresholds else 0
+    elif args.thresholds:
+        from ..faults import check_study_runs
+  # given: 0 is no healthy run, which a study cannot fit (not the default)
+        check_study_runs(args.healthy_runs)
     if args.healthy_runs < 0:
         raise UserError(f"--healthy-runs must be a non-negative integer, got {args.healthy_runs}")
     if args.healthy_runs > MAX_RUNS:
@@ -106,10 +113,6 @@ def run(args) -> dict:
     stem = Path(args.faults).stem
     names = [f"{stem}.csv", f"{stem}.json", f"{stem}.png"]
     if args.thresholds:
-        args.healthy_runs = args.healthy_runs or STUDY_RUNS
-        if args.healthy_runs < 3:
-            raise UserError(f"--healthy-runs {args.healthy_runs}: the threshold study fits the healthy maxima, "
-                            "give at least 3")
         names += [f"{stem}_thresholds.csv", f"{stem}_thresholds.png"]
     top = None if args.list else new_output_folder(out, names)  # the outputs checked before any work
     params = load_parameters(args.model)

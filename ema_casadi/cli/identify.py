@@ -73,10 +73,11 @@ def add_arguments(p):
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
                    help="systematic misfit tolerated, in noise levels (default 1: a model error below the sensor "
-                        "noise gives 'adequate within model error', exit 0)")
+                        "noise gives 'adequate within model error', exit 0); above 10 only with --allow-misfit")
     p.add_argument("--allow-misfit", action="store_true",
                    help="an inadequate fit (residuals not explained by the noise: chi-square or whiteness) "
-                        "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml")
+                        "ends with status 0 and a warning instead of status 3 and FILE.inadequate.toml; confirms "
+                        "a --model-error above 10")
     p.add_argument("--compare", action="append", default=[], metavar="KEY=V1,V2[,...]",
                    help="fit every combination of these variant/option values (repeatable: anti_windup=backcalc,"
                         "clamping) and rank them: adequate first, then by BIC; the best is written")
@@ -250,6 +251,10 @@ def run(args) -> dict:
         raise UserError(f"--model-error must be a positive number of noise levels, got {args.model_error}")
     if args.model_error is not None and args.track:
         raise UserError("--model-error with --track: a trend's fits are judged one by one (give it without --track)")
+    if args.model_error is not None:  # the ceiling, before any work
+        from ..identification import check_model_error
+
+        check_model_error(args.model_error, args.allow_misfit)
     params, model = load(args)  # built once here, passed down
     progress = progress_of(args)
     try:
@@ -263,7 +268,8 @@ def run(args) -> dict:
               "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
               "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
-              **({} if args.model_error is None else {"model_error": args.model_error}),
+              **({} if args.model_error is None else {"model_error": args.model_error,
+                                                      "allow_misfit": args.allow_misfit}),
               **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
         if args.track:
             return _track(args, params, model, records, free, kw)
@@ -403,7 +409,8 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
                   estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"),
-                  friction_start=kw["friction_start"])
+                  friction_start=kw["friction_start"],
+                  allow_misfit=kw.get("allow_misfit", False))
     best = cmp.best
     if best is None:  # every combination failed: their reasons, one document
         why = "no combination converged: " + "; ".join(f"{r['variants']}: {r['failed']}" for r in cmp.rows)

@@ -104,15 +104,9 @@ def _quantity(text: str, kind: str, bare: str, flag: str, stroke: float) -> floa
 
 
 def _request(args, params):
-    from ..optimal import INTERVALS, LEVELS, METHODS, OBJECTIVES
+    from ..optimal import INTERVALS
 
-    stroke = params.actuator.stroke
-    if args.objective not in OBJECTIVES:
-        raise UserError(f"--objective {args.objective}: unknown; choose one of {', '.join(OBJECTIVES)}")
-    if args.through not in LEVELS:
-        raise UserError(f"--through {args.through}: unknown; choose one of {', '.join(LEVELS)}")
-    if args.method not in METHODS:
-        raise UserError(f"--method {args.method}: unknown; choose one of {', '.join(METHODS)}")
+    stroke = params.actuator.stroke  # the names (objective, through, method): checked by the API's check_request
     duration = None
     if args.duration is not None:
         from ._options import seconds

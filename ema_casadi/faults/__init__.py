@@ -25,10 +25,10 @@ false-alarm rate per threshold, ``ema faults --thresholds``); the figures are dr
 from ._result import FaultResult
 from ._run import DEFAULT_FAULTS, HEALTHY_TOLERANCE, healthy_runs, run_faults
 from ._spec import FaultCase, FaultError, FaultSpec, fault_kinds, fault_variants, load_faults, parse_faults
-from ._thresholds import SCALES, ThresholdStudy, detection_time, threshold_study
+from ._thresholds import MIN_STUDY_RUNS, SCALES, ThresholdStudy, check_study_runs, detection_time, threshold_study
 
 __all__ = [
     "run_faults", "healthy_runs", "load_faults", "parse_faults", "fault_kinds", "fault_variants", "FaultSpec",
     "FaultCase", "FaultResult", "FaultError", "DEFAULT_FAULTS", "HEALTHY_TOLERANCE",
-    "threshold_study", "ThresholdStudy", "detection_time", "SCALES",
+    "threshold_study", "ThresholdStudy", "detection_time", "SCALES", "check_study_runs", "MIN_STUDY_RUNS",
 ]

@@ -149,6 +149,9 @@ def fault_variants(params: Parameters, given: dict | None = None, chosen: dict |
     chosen : dict, optional
         Variant choices of the fault file's ``[scenario]`` (``sensor``, ``airframe``).
     """
+    off = [f"{k}={c[k]}" for c in (given or {}, chosen or {}) for k in ("faults", "monitors") if c.get(k, "on") != "on"]
+    if off:  # switched off by the user: refused, not switched back on behind them
+        raise FaultError(f"variant {off[0]}: a fault study injects the faults and reads the monitors; leave them on")
     v = validate_variants({**params.variants, **(given or {}), **(chosen or {}), "faults": "on", "monitors": "on"})
     for key, values in REGISTRY.items():
         for cls in served_by(values[v[key]]):  # an option whose form of the part brings faults is turned on
@@ -261,7 +264,7 @@ def parse_faults(data: dict, params: Parameters, src: str = "<faults>", variants
         raise FaultError(f"{src}: no [[fault]] table; give at least one case (ema faults --list names the kinds)")
     cases, seen = [FaultCase("none")], {}
     for k, entry in enumerate(faults):
-        for case in _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"]):
+        for case in _cases(f"{src} [[fault]] {k + 1}", entry, kinds, sc["duration"], v):
             key = (case.label, case.onset, case.severity, case.ramp)
             if key in seen:  # every case is one row of the result: the same case twice is a slip
                 raise FaultError(f"{src} [[fault]] {k + 1}: {case.label} at onset {case.onset:g} s, severity "
@@ -460,7 +463,7 @@ def _axis(where, value, default=None) -> list[float]:
     return [float(v) for v in values]
 
 
-def _cases(where: str, entry: dict, kinds: dict, duration: float) -> list[FaultCase]:
+def _cases(where: str, entry: dict, kinds: dict, duration: float, variants: dict) -> list[FaultCase]:
     _known(where, entry, _FAULT, "key")
     kind = entry.get("kind")
     if not isinstance(kind, str):
@@ -476,6 +479,10 @@ def _cases(where: str, entry: dict, kinds: dict, duration: float) -> list[FaultC
         raise FaultError(f"{where} target: unknown target {target!r}{nearest(str(target), targets)} for a {kind} "
                          f"fault; choose one of {', '.join(targets)}")
     fault = targets[target]
+    for key, allowed in fault.requires:  # a case that would run and mean nothing
+        if variants.get(key) not in allowed:
+            raise FaultError(f"{where} kind: a {kind} fault needs {key} = {' or '.join(allowed)}, the model has "
+                             f"{key} = {variants.get(key)} ({fault.doc})")
     onsets = _axis(f"{where} onset", entry.get("onset"), duration / 4)
     for t in onsets:
         if not 0 < t < duration:

@@ -19,6 +19,7 @@ from ._compare import MAX_FITS, Comparison, bic, combinations, compare
 from ._diagnostics import CHI2_95, profile, validate
 from ._fit import FitFailed, identify
 from ._frequency import identify_frequency, is_frequency_record, read_frequency_record
+from ._misfit import MAX_MODEL_ERROR, check_model_error
 from ._plot import report_names
 from ._problem import Free, Predictor, free_parameters
 from ._records import MAX_BYTES, IdentificationError, Record, read_record
@@ -41,6 +42,7 @@ __all__ = ["identify", "IdentResult", "IdentificationError", "FitFailed", "Recor
            "EXAMPLE_TRUTH", "recovery_records", "RECOVERY_TRUTH", "guide_records", "TREND_TRUTH", "GUIDE_FILES",
            "profile", "validate", "CHI2_95", "track", "trend",
            "TrackResult", "identify_frequency", "read_frequency_record", "is_frequency_record",
+           "check_model_error", "MAX_MODEL_ERROR",
            "compare", "Comparison", "combinations", "bic", "MAX_FITS", "report_names", "report_text",
            # what experiment design builds on: the free-parameter set, the predictor with exact
            # sensitivities, the Fisher-information uncertainty

@@ -54,9 +54,9 @@ X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
-             consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, jobs: int = 1,
-             structural: dict | None = None, progress: bool = False, model: Model | None = None,
-             friction_start: str = "off") -> IdentResult:
+             consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, allow_misfit: bool = False,
+             jobs: int = 1, structural: dict | None = None, progress: bool = False,
+             model: Model | None = None, friction_start: str = "off") -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -108,9 +108,10 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         The systematic misfit tolerated, in noise levels (:mod:`._misfit`): a fit whose
         statistical tests fail (chi-square, whiteness, consistency) is *adequate within
         model error* (robust intervals, the misfit named) when every record's and
-        channel's systematic misfit is at most this and no record's estimates shift
-        by more than 5 x this sandwich standard deviations against the others'; else
-        inadequate.
+        channel's systematic misfit is at most this and no record's estimates shift by
+        more than 5 x this sandwich sd against the others'; else inadequate.
+    allow_misfit : bool
+        Confirms a ``model_error`` above :data:`~._misfit.MAX_MODEL_ERROR` (10).
     structural : dict, optional
         Name -> (lo, hi) (SI): constants of the structure held at their values whose
         plausible range adds a type-B component to the headline covariance, the
@@ -119,20 +120,17 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     progress : bool
         One line of progress on stderr.
     friction_start : {"off", "auto", "records"}
-        Start the free friction parameters at the steady-state friction curve fitted to
-        the records' steady segments (:mod:`._friction_start`): ``auto`` where they tell
-        one, ``records`` requires that (else an IdentificationError), ``off`` (default)
-        the file's values.
+        Free friction parameters started at the steady-state curve of the records' steady
+        segments (:mod:`._friction_start`): ``auto`` where they tell one, ``records``
+        requires that (else an IdentificationError), ``off`` (default) the file's values.
     model : Model, optional
-        The model of ``params`` and ``variants``, built once by the caller (the command
-        line, :func:`~ema_casadi.identification.track`) and passed down; default built
-        here. A worker process of ``jobs`` builds its own.
+        The model of ``params`` and ``variants``, built once by the caller and passed
+        down; default built here (a worker process of ``jobs`` builds its own).
 
     Returns
     -------
     IdentResult
-        Estimates, intervals, correlation, identifiability, residual statistics,
-        fitted trajectories.
+        Estimates, intervals, correlation, identifiability, residuals, trajectories.
 
     Raises
     ------
@@ -155,7 +153,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     given = _sigmas(recs, sigma)
     xs = x0_states(model, estimate_x0)
     jobs = integer(jobs, "jobs", IdentificationError, minimum=1)
-    model_error = number(model_error, "model_error", IdentificationError, positive=True)
+    model_error = _misfit.check_model_error(model_error, allow_misfit)
     if not isinstance(hold_unidentifiable, bool):
         raise IdentificationError(f"hold_unidentifiable: expected True or False, got {hold_unidentifiable!r}")
     values, ranges, structural = check_hold(fr, hold, structural)

@@ -41,6 +41,11 @@ WINDOW_S = 0.02
 #: The default tolerated systematic misfit, in noise levels (``--model-error``): a model
 #: error below the sensor noise passes.
 MODEL_ERROR = 1.0
+#: The largest ``model_error`` taken without ``allow_misfit`` (noise levels): a larger
+#: tolerance passes what a wrong structure leaves (the clamping rig's records fitted
+#: with the default structure: 35-80 noise levels, docs: inadequate fit), and at 1e6 a
+#: 61-sigma misfit was called adequate.
+MAX_MODEL_ERROR = 10.0
 #: A record's estimates may shift against the others' by up to SHIFT_SD x model_error
 #: sandwich standard deviations (per direction, RMS). On the coverage study's witness
 #: (a model error of 0.7 noise levels) the records' shifts reach 2-4.
@@ -53,6 +58,30 @@ HOLD_FRACTION = 0.01
 REVERSAL_S = 0.01
 #: A current or the rod speed at this fraction of its limit: saturated.
 SATURATION_FRACTION = 0.95
+
+
+def check_model_error(model_error, allow_misfit: bool = False) -> float:
+    """``model_error`` as a positive finite float, at most :data:`MAX_MODEL_ERROR` unless
+    ``allow_misfit`` confirms it (``IdentificationError`` naming it otherwise).
+
+    Parameters
+    ----------
+    model_error : float
+        The tolerated systematic misfit (noise levels).
+    allow_misfit : bool
+        The confirmation of a tolerance above the ceiling.
+    """
+    from .._util._checks import number
+    from ._records import IdentificationError
+
+    v = number(model_error, "model_error", IdentificationError, positive=True)
+    if not isinstance(allow_misfit, bool):
+        raise IdentificationError(f"allow_misfit: expected True or False, got {allow_misfit!r}")
+    if v > MAX_MODEL_ERROR and not allow_misfit:
+        raise IdentificationError(f"model error {v:g} noise levels: above the ceiling of {MAX_MODEL_ERROR:g}, where "
+                                  "a wrong structure passes as adequate; confirm it with allow_misfit "
+                                  f"(--allow-misfit) or give at most {MAX_MODEL_ERROR:g}")
+    return v
 
 
 def running_mean(e, w: int) -> np.ndarray:

@@ -147,8 +147,8 @@ def free_parameters(model, names, bounds: dict | None = None, start: dict | None
         if n not in model.param_names:
             raise IdentificationError(f"free parameter '{n}' is not a parameter{nearest(n, model.param_names)}")
         if n not in used:
-            raise IdentificationError(f"free parameter '{n}': the model's parts do not use it "
-                                      f"(variants {model.variants}); no record can tell its value")
+            raise IdentificationError(f"free parameter '{n}': {model.unused_reason(n)}; no record can tell its "
+                                      "value")
         if names.count(n) > 1:
             raise IdentificationError(f"free parameter '{n}' named twice")
     start = dict(start or {})

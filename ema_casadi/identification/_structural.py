@@ -61,8 +61,7 @@ def check_structural(model, structural, free_names) -> dict:
         if name in free_names:
             raise IdentificationError(f"structural '{name}' is free: a free parameter's uncertainty is its interval")
         if name not in model.used_params:
-            raise IdentificationError(f"structural '{name}': the model's parts do not use it (variants "
-                                      f"{model.variants})")
+            raise IdentificationError(f"structural '{name}': {model.unused_reason(name)}")
         try:
             lo, hi = (float(v) for v in rng)
         except (TypeError, ValueError):

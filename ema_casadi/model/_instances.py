@@ -146,6 +146,9 @@ class Instanced(Part):
             confirm=_opt(inst, o.confirm), alarm=_opt(inst, o.alarm)) for o in part.outputs)
         self.reads, self.limits, self.smooth, self.requires = part.reads, part.limits, part.smooth, part.requires
         self.params = tuple(map(pre, part.params))
+        self.options = part.options  # and the parameters each law uses, prefixed
+        self.option_params = {o: {v: tuple(map(pre, n)) for v, n in laws.items()}
+                              for o, laws in part.option_params.items()}
         self.loops = tuple(Loop(pre(lp.name), pre(lp.flag), pre(lp.injection), pre(lp.measured), pre(lp.rate))
                            for lp in part.loops)
         self.holds = tuple(Hold(pre(h.name), h.unit, pre(h.loop)) for h in part.holds)

@@ -225,8 +225,42 @@ class Model(Summarised, Contract):
 
     @property
     def used_params(self) -> frozenset:
-        """Names of the parameters the model's parts declare they use."""
-        return frozenset(n for part in self.parts for n in part.params)
+        """Names of the parameters the model's parts use with their options' values (each
+        part's ``params`` less those its ``option_params`` give to a law not chosen)."""
+        return frozenset(n for part in self.parts for n in part.params if not _left_out(part, n))
+
+    def unused_reason(self, name: str) -> str:
+        """Why the model does not use the parameter ``name``: the option value whose law
+        leaves it out (``"anti_windup = backcalc does not use it (only clamping)"``).
+
+        Parameters
+        ----------
+        name : str
+            A parameter's flat name.
+        """
+        for part in self.parts:
+            why = _left_out(part, name)
+            if why and name not in self.used_params:
+                return why
+        return f"the model's parts do not use it (variants {self.variants})"
+
+    def unread(self, arg: str = "u") -> tuple[str, ...]:
+        """The inputs (``arg="u"``) or parameters (``"p"``) no equation of the model reads
+        (the dynamics, the held ECU, its sampling, the projection), structurally.
+
+        Parameters
+        ----------
+        arg : {"u", "p"}
+            Inputs or parameters.
+        """
+        names = self.inputs if arg == "u" else self.param_names
+        sym, exprs = ca.SX.sym(arg, len(names)), []
+        for f in (self.f, self.f_held, self.sample, self.project, self.f_switched):
+            if f is not None:
+                call = {n: sym if n == arg else ca.SX.sym(n, f.size_in(n)) for n in f.name_in()}
+                exprs += [ca.vec(v) for v in f.call(call).values()]
+        e = ca.vertcat(*exprs)
+        return tuple(n for i, n in enumerate(names) if not ca.depends_on(e, sym[i]))
 
     def outputs_of(self, kind: str) -> tuple[str, ...]:
         """Names of the outputs of a kind.
@@ -381,6 +415,16 @@ class Model(Summarised, Contract):
 
 def _default(inp, P) -> float:
     return getattr(P, inp.default) if isinstance(inp.default, str) else inp.default
+
+
+def _left_out(part, name: str) -> str:
+    """Why ``part``'s options' values leave out its parameter ``name`` (else ``""``)."""
+    for option, laws in part.option_params.items():
+        chosen = part.opt.get(option, part.options[option][0])
+        users = [v for v, names in laws.items() if name in names]
+        if users and chosen not in users:
+            return f"{option} = {chosen} does not use it (only {' or '.join(users)})"
+    return ""
 
 
 def build_model(params: Parameters, variants: dict | None = None) -> Model:

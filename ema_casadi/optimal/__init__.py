@@ -16,10 +16,10 @@ the largest force held and the minimum move time over distance, at soak temperat
 
 from ._api import optimal_move, replay_window, settling_time
 from ._envelope import Envelope, performance_envelope
-from ._errors import Infeasible, OptimalError
+from ._errors import Infeasible, OptimalError, Unresolved
 from ._problem import INTERVALS, LEVELS, METHODS, OBJECTIVES, Problem, check_request, initial_guess, rk4_substeps, solve
 from ._result import STAIR, OptimalMove
 
 __all__ = ["optimal_move", "performance_envelope", "Envelope", "OptimalMove", "OptimalError", "Infeasible",
-           "OBJECTIVES", "LEVELS", "METHODS", "INTERVALS", "STAIR", "Problem", "check_request", "solve", "rk4_substeps",
-           "initial_guess", "replay_window", "settling_time"]
+           "Unresolved", "OBJECTIVES", "LEVELS", "METHODS", "INTERVALS", "STAIR", "Problem", "check_request", "solve",
+           "rk4_substeps", "initial_guess", "replay_window", "settling_time"]

@@ -10,7 +10,7 @@ from ..model.assembly import Model
 from ..signals import Signal
 from ..simulation import RunFailed, simulate, step_response_metrics
 from ._envelope import check_capacity
-from ._errors import Infeasible
+from ._errors import Infeasible, Unresolved
 from ._problem import BINDING, INTERVALS, Problem, _margins, check_request, solve
 from ._result import STAIR, OptimalMove
 from ._shaping import shape_command
@@ -85,6 +85,10 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
         A request that cannot be a move (checked before any work).
     Infeasible
         IPOPT found no move within the limits (the message names the binding one).
+    Unresolved
+        With ``replay``: an optimum that does not answer the question (a minimum time
+        slower than the ECU's own step: too few ``intervals``; a move the closed loop
+        does not resolve: too small a ``move``); the message names the fix.
     """
     move, load, objective, duration, start, through, intervals = check_request(
         model, move, load, objective, duration, start, through, intervals, method)
@@ -120,7 +124,57 @@ def optimal_move(model: Model, move: float, *, load: float = 0.0, objective: str
     )
     if replay:
         _replay(model, res, zoh)
+        check_resolved(model, res)
     return res
+
+
+#: The band of the settling times the checks compare (a fraction of the move).
+BAND = 0.02
+
+
+def check_resolved(model: Model, res: OptimalMove) -> None:
+    """:class:`Unresolved` where the replayed optimum does not answer the question.
+
+    * The ECU's own step of the move never enters the 2 % band: the closed loop does
+      not resolve a move this small (the rod position sensor's step, friction); the
+      message gives where the loop leaves the rod and the move whose band is twice that.
+    * A minimum-time move through the drive is slower than the ECU's own step (the
+      drive with the voltages free can always do what its ECU does): the grid is too
+      coarse for the move; the message asks for twice the intervals, at least the
+      default.
+    * A minimum-time move whose replay never enters the band: no answer to replay.
+
+    Parameters
+    ----------
+    model : Model
+        The model the move was solved and replayed on.
+    res : OptimalMove
+        The replayed optimum (:attr:`OptimalMove.replay_check` set).
+    """
+    from ..signals import format_quantity
+
+    size = format_quantity(abs(res.move), "m")
+    settle = res.ecu_step["settling_time_s"]
+    if not math.isfinite(settle):
+        # where the loop leaves the rod (friction, the position sensor's step): the last fifth of the step
+        step = res.ecu_step["result"]
+        rest = float(np.abs(step[model.output_with("rod_position")][step.t >= 0.8 * step.t[-1]]
+                            - (res.start + res.move)).max())
+        raise Unresolved(f"move {size}: below what the closed loop resolves: the ECU's own step of this size rests "
+                         f"{format_quantity(rest, 'm')} from the target, outside its 2 % band "
+                         f"({format_quantity(BAND * abs(res.move), 'm')}); give a move of at least "
+                         f"{format_quantity(2 * rest / BAND, 'm')} (a band of twice that)")
+    if res.objective != "time":
+        return
+    N = res.ipopt["intervals"]
+    if res.through == "drive" and res.duration > settle:
+        raise Unresolved(f"intervals {N}: too coarse for a {size} move: its minimum time {res.duration:.4g} s is "
+                         f"slower than the ECU's own step ({settle:.4g} s into the 2 % band); give intervals "
+                         f"{max(2 * N, INTERVALS)} or more")
+    replayed = (res.replay_check or {}).get("settling_time_s")
+    if replayed is not None and not math.isfinite(replayed):
+        raise Unresolved(f"move {size}: the optimum's command profile, replayed in the full model, never enters "
+                         f"the 2 % band (the ECU's own step does, after {settle:.4g} s)")
 
 
 def _check_duration(prob: Problem) -> None:

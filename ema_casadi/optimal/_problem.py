@@ -10,6 +10,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from .._util import _interrupts
 from ..linearisation import operating_point
 from ..model.assembly import Model
 from ..optimisation import continuity, multiple_shooting, solve_ipopt
@@ -354,6 +355,23 @@ def initial_guess(prob: Problem, x0: np.ndarray) -> dict:
 def solve(prob: Problem, *, max_iter: int = 500, tol: float = 1e-8) -> dict:
     """Solve the problem; returns the raw solution (grid, states, controls, outputs, IPOPT's
     statistics). Raises :class:`Infeasible` naming the limit that binds where IPOPT stops.
+    In the ``ema`` process it runs in a forked child, so that SIGINT/SIGTERM end it at
+    once even while CasADi builds the NLP's derivatives (``_interrupts.interruptible``).
+
+    Parameters
+    ----------
+    prob : Problem
+        The problem.
+    max_iter : int
+        IPOPT's iteration limit.
+    tol : float
+        IPOPT's convergence tolerance.
+    """
+    return _interrupts.interruptible(_solve, prob, max_iter, tol)
+
+
+def _solve(prob: Problem, max_iter: int, tol: float) -> dict:
+    """:func:`solve` in this process.
 
     Parameters
     ----------

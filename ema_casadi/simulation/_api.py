@@ -41,7 +41,7 @@ from ._cvodes import _simulate_cvodes, _simulate_cvodes_hybrid
 from ._envelope import RunFailed
 from ._inputs import check_effect, check_inputs, input_signals
 from ._pwm import simulate_pwm
-from ._result import SimResult, SimulationError
+from ._result import SimResult, SimulationError, step_corrections
 from ._rk4 import STEPS_PER_CALL, _simulate_rk4
 from ._rosenbrock import _simulate_rosenbrock, library
 from ._steplimit import default_step, fixed_step, step_check
@@ -162,7 +162,7 @@ def simulate(
     res = _chosen(_timed(model, solver, plan.t_end, run, used=used), requested, why, rtol, atol)
     if limit:
         res.info["tolerance"]["dt_max"] = limit.dt_max
-    return res
+    return step_corrections(model, sig, pv, res, zoh)
 
 
 def _checked_inputs(model, given, pv, t_end, sampling) -> dict:

@@ -69,12 +69,15 @@ class SimResult:
 
         A switched (PWM) run integrates them as quadratures in its own steps, exact at
         every switching instant (``info["energies"]``); other runs by the trapezoid rule
-        over the kept samples (keep them dense enough: ``dt_out``).
+        over the kept samples (keep them dense enough: ``dt_out``), each sample interval
+        holding an input's step integrated on both sides of it
+        (``info["step_corrections"]``, :func:`step_corrections`).
         """
         if "energies" in self.info:
             return dict(self.info["energies"])
         names = [n for n, k in self.kinds.items() if k in ("loss", "power")]
-        return {n: float(np.trapezoid(self.outputs[n], self.t)) for n in names}
+        at_steps = self.info.get("step_corrections", {})  # the trapezoid across an input's step
+        return {n: float(np.trapezoid(self.outputs[n], self.t)) + at_steps.get(n, 0.0) for n in names}
 
     def with_instantaneous(self) -> SimResult:
         """This result with the instantaneous samples of a switched run's power and loss
@@ -330,3 +333,55 @@ def _result(model, sig, t, X, Y, info):
     roles = {n: o.roles for n, o in model.output_info.items() if o.roles}
     return SimResult(t=t, inputs=inputs, outputs=outputs, states=states, info=info, unit_table=model.units, kinds=kinds,
                      roles=roles)
+
+
+def step_corrections(model, sig: dict, pv, res: SimResult, zoh: bool = False) -> SimResult:
+    """``res`` with ``info["step_corrections"]``: per power and loss output, what the
+    trapezoid rule misses (J) in the sample intervals that hold a step of an input.
+
+    An output jumps where an input steps (a fault switched on: the bridge off, the DC
+    link lost), and its samples show the value after the step: the trapezoid over the
+    interval before it ran to the wrong side (0.18 J of 8 J at a free-run's step, 1e-4 s
+    samples). Here each such interval is integrated as two trapezoids, to the output's
+    left limit at the step and from its right limit (the states interpolated there, the
+    inputs just before and at the step). Continuous-ECU runs (with ``zoh`` the held
+    values are not kept: none); a table's rows (noise sequences) are left as they are.
+
+    Parameters
+    ----------
+    model : Model
+        The model run.
+    sig : dict
+        Input name -> Signal of the run.
+    pv : array
+        The run's parameter vector.
+    res : SimResult
+        The run.
+    zoh : bool
+        The sampled ECU ran.
+    """
+    names = [n for n, k in res.kinds.items() if k in ("loss", "power")]
+    t = res.t
+    # steps, ramps, starts; not a table's rows (noise sequences: many, and small)
+    steps = sorted({b for s in sig.values() for term in s.terms if term.kind != "table" for b in term.breakpoints()
+                    if t[0] < b <= t[-1]})
+    if zoh or not names or not steps or model.switched:
+        return res
+    X = np.array([res.states[n] for n in model.states])
+    rows = [model.yindex(n) for n in names]
+    out = dict.fromkeys(names, 0.0)
+    for tb in steps:
+        k = int(np.searchsorted(t, tb))  # t[k-1] < tb <= t[k]
+        x = np.array([np.interp(tb, t, xi) for xi in X])
+        before = 1e-9 * max(abs(tb), 1.0)
+        left, right = ([float(sig[n](np.array([tb + d]))[0]) if n in sig else 0.0 for n in model.inputs]
+                       for d in (-before, 0.0))
+        y_l, y_r = (np.asarray(model.f(x, u, pv)[1]).ravel()[rows] for u in (left, right))
+        if np.allclose(y_l, y_r, rtol=0, atol=0):
+            continue
+        h1, h2 = tb - t[k - 1], t[k] - tb
+        for j, n in enumerate(names):
+            y0, y1 = res.outputs[n][k - 1], res.outputs[n][k]
+            out[n] += (y0 + y_l[j]) / 2 * h1 + (y_r[j] + y1) / 2 * h2 - (y0 + y1) / 2 * (h1 + h2)
+    res.info["step_corrections"] = {n: v for n, v in out.items() if v}
+    return res

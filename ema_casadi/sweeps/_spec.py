@@ -449,8 +449,8 @@ def _check_runs(spec: SweepSpec, src: str) -> None:
         model = build_model(spec.params, dict(variant))
         unused = [k for k in spec.parameters if k not in model.used_params]
         if unused:
-            raise SweepError(f"{src} [parameters] {unused[0]}: not read by the model "
-                             f"({', '.join(f'{k}={v}' for k, v in variant)}); sweeping it changes nothing")
+            raise SweepError(f"{src} [parameters] {unused[0]}: not read by the model: "
+                             f"{model.unused_reason(unused[0])}; sweeping it changes nothing")
     for r in spec.runs:
         try:
             spec.params.replace(**r.values)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import ema_casadi as ema
-from ema_casadi.faults import detection_time, parse_faults, threshold_study
+from ema_casadi.faults import MIN_STUDY_RUNS, check_study_runs, detection_time, parse_faults, threshold_study
+from ema_casadi.faults._thresholds import POISSON_ZERO_95
 from ema_casadi.model.components import TAU_LATCH, TAU_RESET
 
 SMALL = {
@@ -57,7 +58,7 @@ def test_the_extreme_value_fit_recovers_a_known_law():
 def study(params):
     spec = parse_faults(SMALL, params, "<small>")
     table = ema.run_faults(faults=spec)
-    return spec, table, threshold_study(spec, healthy=5, jobs=1, table=table, scales=(0.3, 0.5, 1.0, 1.5))
+    return spec, table, threshold_study(spec, healthy=MIN_STUDY_RUNS, jobs=1, table=table, scales=(0.3, 0.5, 1.0, 1.5))
 
 
 @pytest.mark.slow  # ~20-45 s: a fault table and healthy runs compiled and run
@@ -139,8 +140,8 @@ def test_cli_thresholds_writes_the_table_and_figure(tmp_path):
     faults.write_text(SMALL_TOML)
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, "-m", "ema_casadi.cli", "faults", "--faults", str(faults), "--thresholds",
-                        "--healthy-runs", "3", "--jobs", "1", "--out", str(out), "--json"], capture_output=True,
-                       text=True)
+                        "--healthy-runs", str(MIN_STUDY_RUNS), "--jobs", "1", "--out", str(out), "--json"],
+                       capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert set(summary["thresholds"]["monitors"]) == set(summary["monitors"])
@@ -161,3 +162,14 @@ def test_healthy_runs_are_the_same_on_one_and_on_two_workers(params):
     two = healthy_runs(spec, 4, jobs=2)
     assert one["failed"] == 0 and two["jobs"] == 2
     assert one["maxima"] == two["maxima"] and one["worst_latch"] == two["worst_latch"]
+
+
+def test_a_study_of_fewer_runs_than_its_minimum_is_refused_before_any_run(params):
+    # a three-parameter fit of 3 maxima is noise; at 50 runs of 0.3 s the data alone bound the rate at 720 per
+    # flight hour (the minimum's documented reason, recomputed here)
+    assert POISSON_ZERO_95 / (MIN_STUDY_RUNS * 0.3) * 3600 == pytest.approx(719.0, rel=1e-3)
+    spec = parse_faults(SMALL, params, "<small>")
+    for n in (0, 3, MIN_STUDY_RUNS - 1):
+        with pytest.raises(ema.faults.FaultError, match=f"healthy runs {n}: .* give at least {MIN_STUDY_RUNS}"):
+            threshold_study(spec, healthy=n, jobs=1)
+    assert check_study_runs(MIN_STUDY_RUNS) == MIN_STUDY_RUNS

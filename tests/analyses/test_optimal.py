@@ -203,3 +203,30 @@ def test_envelope_on_two_processes_is_the_same_computation(params):
     assert two.largest_force[None] == pytest.approx(one.largest_force[None], rel=1e-9)
     with pytest.raises(OptimalError, match="jobs"):
         performance_envelope(model, loads=[0.0], distances=[2e-3], jobs=0)
+
+
+def test_an_optimum_slower_than_the_ecus_own_step_asks_for_more_intervals(params):
+    # the drive with its voltages free can do whatever its ECU does, so a minimum time above the ECU's own
+    # step is the grid's (measured: 8 intervals 1.524 s, 20 intervals 1.17 s, 40 intervals 0.775 s, ECU 0.919 s)
+    from ema_casadi.optimal import Unresolved
+
+    model = ema.build_model(params)
+    with pytest.raises(Unresolved, match=r"intervals 8: too coarse .* slower than the ECU's own step \(0.919 s"
+                                         r".*give intervals 40 or more"):
+        optimal_move(model, 0.075, intervals=8)
+    r = optimal_move(model, 0.075)
+    assert r.duration < r.ecu_step["settling_time_s"] < r.replay_check["settling_time_s"]
+
+
+def test_a_move_within_the_sensors_step_is_refused_naming_the_smallest(params):
+    # the LVDT's step q_x = 0.5 um: the loop leaves the rod 0.52-0.57 um from its target (measured at 10, 25,
+    # 30 um), so a 25 um move (band 0.5 um) never settles, 30 um does; 10 um is refused with the move whose
+    # band is twice where the loop left it (57 um), which settles
+    from ema_casadi.optimal import Unresolved
+
+    model = ema.build_model(params)
+    assert model.pdict().q_x == 5e-7
+    with pytest.raises(Unresolved, match=r"move 10 µm: .* rests 0.5\d+ µm from the target.* at least (5\d.\d+) µm"):
+        optimal_move(model, 1e-5)
+    r = optimal_move(model, 57.1e-6)
+    assert r.replay_check["settling_time_s"] < 0.1 and r.ecu_step["settling_time_s"] < 0.1

@@ -90,6 +90,8 @@ def test_bad_descriptions_are_refused_before_any_run(params):
         ({"parameters": {"B": {"distribution": "uniform", "low": 0, "high": 1e-4}}}, "seed"),
         ({"parameters": {"B": {"values": [-1e-3]}}}, "run 0"),
         ({"parameters": {"v_s": {"values": [1e-4]}}, "variants": {"friction": "hybrid"}}, "not read by the model"),
+        ({"parameters": {"w_aw": {"values": [0.02]}}}, "w_aw: not read by the model: anti_windup = backcalc does not "
+                                                       r"use it \(only clamping\)"),
         ({"metrics": {"stepp": {}}}, "did you mean 'step'"),
         ({"metrics": {"peak_temperature": {}}}, "thermal"),
         ({"scenario": {**SCENARIO, "dt": 3e-4}}, "whole number"),

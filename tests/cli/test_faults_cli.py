@@ -134,3 +134,52 @@ def test_a_mission_segment_is_a_scenario(params):
                                   "fault": [{"kind": "stuck", "target": "x_s", "onset": 1.0}]})
     assert res.spec.scenario["text"]["x_cmd"] != 0 and res.rows[0]["first_monitor"] is None
     assert res.rows[1]["detected_latch_cross_s"] is not None
+
+
+@pytest.mark.parametrize("n", ["3", "0", "49"])  # 0 is no run (it was read as the default 1000)
+def test_a_threshold_study_below_its_minimum_of_runs_is_refused(tmp_path, n):
+    from ema_casadi.faults import MIN_STUDY_RUNS
+
+    out = tmp_path / "out"
+    proc = _ema("--thresholds", "--healthy-runs", n, "--out", out)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"healthy runs {n}:" in proc.stderr and f"give at least {MIN_STUDY_RUNS}" in proc.stderr
+    assert not out.exists()
+    assert f"at least {MIN_STUDY_RUNS}: the study's minimum" in " ".join(_ema("--help").stdout.split())
+
+
+DISCONNECT = """
+[scenario]
+duration = 0.1
+x_cmd = "ramp:40mm/s"
+
+[[fault]]
+kind = "disconnect"
+onset = 0.05
+"""
+
+
+@pytest.mark.parametrize("args, words", [
+    # the rigid screw has no coupling to shear: its rod is the motor's (it ran as a row "disconnect ok")
+    (("--variant", "screw=rigid"), "kind: a disconnect fault needs screw = elastic, the model has screw = rigid"),
+    # the study reads the monitors: switched off by the user, refused (it was switched back on)
+    (("--variant", "monitors=off"), "variant monitors=off: a fault study injects the faults and reads the monitors"),
+    (("--variant", "faults=off"), "variant faults=off:"),
+])
+def test_a_case_that_would_mean_nothing_is_refused(tmp_path, args, words):
+    from ema_casadi.faults import FaultError, parse_faults
+
+    out = tmp_path / "out"
+    proc = _ema("--faults", _write(tmp_path, DISCONNECT), *args, "--out", out)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and words in proc.stderr, proc.stderr
+    assert not out.exists()
+    import re
+    import tomllib
+
+    key, value = args[1].split("=")
+    params = ema.load_parameters(REFERENCE)
+    with pytest.raises(FaultError, match=re.escape(words)):  # the API: the same class and line
+        parse_faults(tomllib.loads(DISCONNECT), params, "<f>", {key: value})
+    own = tomllib.loads(DISCONNECT.replace("[scenario]", f"[scenario]\n{key} = \"{value}\""))
+    with pytest.raises(FaultError, match=re.escape(words)):  # the fault file's own choice
+        parse_faults(own, params, "<f>")

@@ -5,9 +5,12 @@ written; a fit that does not converge -> exit 3, one line, no fitted file; plain
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import pytest
 
+import ema_casadi as ema
 from conftest import REFERENCE
 from ema_casadi import identification as idn
 from ema_casadi.cli import main
@@ -167,10 +170,11 @@ def test_an_inadequate_fit_exits_3_and_says_so_in_the_file_name(tmp_path, capsys
 
 
 def test_a_tolerated_model_error_exits_0_and_names_it(tmp_path, capsys, misfit_record):
-    """--model-error above the misfit's 11.8 noise levels: adequate within model error,
-    status 0, the fitted file under its own name, the misfit named in the JSON."""
+    """--model-error above the misfit's 11.8 noise levels (above the ceiling of 10, so
+    confirmed by --allow-misfit): adequate within model error, status 0, the fitted file
+    under its own name, the misfit named in the JSON."""
     code, out, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(tmp_path / "fit.toml"),
-                           "--json", "--no-progress", "--model-error", "20"], capsys)
+                           "--json", "--no-progress", "--model-error", "20", "--allow-misfit"], capsys)
     doc = json.loads(out)
     assert code == 0 and doc["verdict"] == "adequate within model error" and doc["adequate"] is True, err
     assert doc["model_error"]["threshold_sigma"] == 20 and doc["model_error"]["misfits"][0]["channel"] == "x_rod"
@@ -310,3 +314,38 @@ def test_a_structural_range_widens_the_intervals(tmp_path, capsys, record):
         code, _, err = _run([*base, "--structural", bad], capsys)
         assert code == 2 and err.count("\n") == 1 and "structural" in err, (bad, err)
         assert words in err, (bad, err)
+
+
+@pytest.mark.parametrize("value", ["1e6", "10.5"])
+def test_a_model_error_above_the_ceiling_needs_its_confirmation(tmp_path, capsys, misfit_record, value):
+    # 1e6 called a 61-sigma misfit adequate; the ceiling stops it before the fit, naming the confirmation
+    from ema_casadi.identification import MAX_MODEL_ERROR, IdentificationError, check_model_error, identify
+
+    out = tmp_path / "fit.toml"
+    code, _, err = _run(["identify", str(misfit_record), "--free", "F_seal", "--out", str(out),
+                         "--model-error", value], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"above the ceiling of {MAX_MODEL_ERROR:g}" in err and "--allow-misfit" in err
+    assert not out.exists() and not list(tmp_path.iterdir())
+    with pytest.raises(IdentificationError, match="model error .* above the ceiling"):
+        identify(ema.load_parameters(REFERENCE), [misfit_record], ["F_seal"], model_error=float(value))
+    assert check_model_error(float(value), True) == float(value) and check_model_error(MAX_MODEL_ERROR) == 10
+    assert f"above {MAX_MODEL_ERROR:g} only with --allow-misfit" in " ".join(
+        subprocess.run([sys.executable, "-m", "ema_casadi.cli", "identify", "--help"], capture_output=True,
+                       text=True).stdout.split())
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--free", "w_aw"), "free parameter 'w_aw': anti_windup = backcalc does not use it (only clamping)"),
+    (("--free", "k_bc", "--variant", "anti_windup=clamping"),
+     "free parameter 'k_bc': anti_windup = clamping does not use it (only backcalc)"),
+    (("--free", "w_knee"), "free parameter 'w_knee': limit_shape = clip does not use it (only smooth)"),
+    (("--free", "F_seal", "--structural", "w_aw=0.005:0.02"),
+     "structural 'w_aw': anti_windup = backcalc does not use it (only clamping)"),
+])
+def test_a_parameter_the_chosen_law_does_not_use_is_refused(tmp_path, capsys, record, args, words):
+    # the fit printed "w_aw 0.01 -inf..inf" for a parameter no equation of back-calculation reads
+    out = tmp_path / "fit.toml"
+    code, _, err = _run(["identify", str(record), *args, "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and words in err, err
+    assert not list(tmp_path.iterdir())

@@ -65,3 +65,49 @@ def test_interrupt_ends_promptly_and_leaves_nothing(tmp_path, command, sig, dela
     assert err.startswith(f"ema {command}: "), err
     assert "Traceback" not in err
     assert not list(tmp_path.iterdir()), sorted(p.name for p in tmp_path.iterdir())
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (Linux /proc)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    stat = f.read()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(d))
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="the solver's process is found through /proc")
+@pytest.mark.parametrize("sig", list(SIGNALS))
+def test_interrupt_inside_casadis_nlp_build_ends_promptly(tmp_path, sig):
+    # 2000 collocation intervals: CasADi builds the NLP's derivatives for 22 s CPU before IPOPT's first
+    # iteration, holding the interpreter (no handler, no watchdog could run: 19 s to end). The solve runs in
+    # a forked child; the signal lands 1 s into it and the command ends at once, the child with it.
+    signum, status = SIGNALS[sig]
+    argv = ["optimal", str(REFERENCE), "--move", "2mm", "--intervals", "2000", "--out", "opt"]
+    proc = subprocess.Popen([sys.executable, "-m", "ema_casadi.cli", *argv], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (kids := _children(proc.pid)) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert kids, f"no solver process: {proc.poll()}"
+        time.sleep(1.0)
+        assert proc.poll() is None
+        t0 = time.perf_counter()
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=30)
+        took = time.perf_counter() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == status and err == "ema optimal: interrupted\n", err
+    assert took < LIMIT, f"took {took:.2f} s to end after {sig}"
+    assert not any(os.path.exists(f"/proc/{k}") for k in kids)  # the solver's process ended too
+    assert not list(tmp_path.iterdir())

@@ -19,10 +19,10 @@ def _run(capsys, *args):
 @pytest.mark.parametrize("args, words", [
     (("--move", "100mm"), "beyond the stroke"),
     (("--load", "80kN"), "the screw holds"),
-    (("--objective", "speed"), "--objective speed: unknown"),
+    (("--objective", "speed"), "objective 'speed' unknown"),
     (("--objective", "energy", "--duration", "0.01"), "below the minimum time"),
-    (("--through", "cascade"), "--through cascade: unknown"),
-    (("--method", "euler"), "--method euler: unknown"),
+    (("--through", "cascade"), "through 'cascade' unknown"),
+    (("--method", "euler"), "method 'euler' unknown"),
     (("--through", "ecu", "--objective", "energy", "--duration", "0.3"), "command shaping minimises the time"),
     (("--move", "2mm", "--intervals", "100000"), "intervals 100000: above the limit of 5000"),  # before any NLP
     (("--envelope", "--distances", "0"), "distances: finite and above 0"),
@@ -104,3 +104,17 @@ def test_envelope_table(capsys, tmp_path):
     assert (out / "envelope.csv").read_text().startswith("load_N,v_top_m_s_at_ref\n")
     assert (out / "envelope.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert r["written"] == [str(out / "envelope.csv"), str(out / "envelope.png")]
+
+
+# the solve, the ECU's step and the replay, about 2 s each: the answers that would mean nothing
+@pytest.mark.parametrize("args, words", [
+    # 8 intervals: 1.524 s against the ECU's own step's 0.919 s (40 intervals: 0.775 s), Solve_Succeeded
+    (("--move", "75mm", "--intervals", "8"), "intervals 8: too coarse for a 75 mm move"),
+    # 1 um: the 2 % band (20 nm) within the LVDT's 0.5 um step; the ECU's step never moves the rod
+    (("--move", "1um",), "rests 1 µm from the target, outside its 2 % band (0.02 µm); give a move of at least 100 µm"),
+])
+def test_an_optimum_that_means_nothing_is_refused_exit_3(capsys, tmp_path, args, words):
+    out = tmp_path / "out"
+    status, _, err = _run(capsys, *args, "--out", out)
+    assert status == 3 and words in err and err.count("\n") == 1, err
+    assert not out.exists()

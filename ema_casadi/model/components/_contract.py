@@ -242,6 +242,10 @@ class Fault:
     rate : bool
         The severity is a rate (``unit`` per second): the input ramps from the onset
         (a drift) instead of stepping to the severity.
+    requires : tuple
+        ``(variant key, allowed values)`` pairs the fault means something with (the
+        disconnect needs a screw with a coupling to shear: ``(("screw", ("elastic",)),)``);
+        a fault file's case under other variants is refused.
     """
 
     kind: str
@@ -252,6 +256,7 @@ class Fault:
     doc: str
     target: str | None = None
     rate: bool = False
+    requires: tuple = ()
 
     def check(self, value: float, where: str, error: type, healthy: bool = False) -> float:
         """``value`` as a severity of this fault: within [lo, hi] (``healthy``: or 0, the

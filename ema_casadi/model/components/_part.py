@@ -354,6 +354,9 @@ class Part:
     reads: ClassVar[tuple] = ()
     outputs: ClassVar[tuple] = ()
     params: ClassVar[tuple] = ()
+    #: option -> value -> the parameters only that value's law uses (a part's used
+    #: parameters: ``Model.used_params``; ``{"anti_windup": {"clamping": ("w_aw",)}}``)
+    option_params: ClassVar[dict] = {}
     loops: ClassVar[tuple] = ()
     holds: ClassVar[tuple] = ()
     options: ClassVar[dict] = {}

@@ -388,6 +388,7 @@ class Loops(Part):
     """The base of the ECU's loop parts: the option ``anti_windup``, declared here once."""
 
     options = {"anti_windup": ANTI_WINDUP}
+    option_params = {"anti_windup": {"backcalc": ("k_bc",), "clamping": ("w_aw",)}}  # the band: clamping's
 
     @property
     def anti_windup(self) -> str:
@@ -438,6 +439,7 @@ class PositionP(Loops):
               scale=lambda P: P.I_max, loop="velocity"),
     )
     options = {**Loops.options, "limit_shape": LIMIT_SHAPES}
+    option_params = {**Loops.option_params, "limit_shape": {"smooth": ("w_knee",)}}  # the clip has no knee
     integral = False
     smooth = {"limit_shape": "smooth"}  # the clip's corners
 

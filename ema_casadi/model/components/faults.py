@@ -31,8 +31,13 @@ those of the healthy actuator.
   ``(1 - a) F_in`` on both sides, so the rod moves under its load against its own
   friction and the motor side (shaft and screw) turns free as the loop drives it. It
   needs the two-mass screw (``screw = elastic``), where the rod is a body of its own;
-  the rigid screw has no coupling force to cut (there the fault changes the reported
-  F_in only, not the motion).
+  the rigid screw has no coupling force to cut (a fault file's disconnect case is
+  refused there: :attr:`~ema_casadi.model.components.Fault.requires`). The coupling
+  breaks over :data:`TAU_SHEAR` (its sheared fraction ``a_sh`` follows ``a``): the
+  sheared part holds no spring energy (``E_cut = -a_sh E_spring`` in ``E_stored``) and
+  damps nothing, and what it held is released as ``P_shear = da_sh/dt E_spring -
+  a_sh P_contact``, a loss of its own (the screw node), so the balance closes through
+  a shear.
 - **supply** (``a_supply``, 0..1): the DC link loses the fraction ``a`` of its voltage,
   ``v_dc -> (1 - a) v_dc`` (undervoltage; 1 is a supply loss).
 - **wear** (``wear_f``, ``wear_b``, relative growth, driven as a ramp from the onset at
@@ -106,6 +111,13 @@ def _unit(v):
     return ca.fmin(ca.fmax(v, 0), 1)
 
 
+#: The time constant over which a disconnect's coupling breaks (s): the sheared fraction
+#: ``a_sh`` follows ``a_shear`` with it, so that the spring energy the coupling held is
+#: released as a power of its own (``P_shear``); 20 time constants (1 ms) after the
+#: onset it is gone to 2e-9.
+TAU_SHEAR = 5e-5
+
+
 class On(Part):
     """Every fault kind, each behind its own input (module docstring)."""
 
@@ -114,6 +126,8 @@ class On(Part):
         Port("x_rod_mech", "m", "the rod's mechanical position"),
         Port("v_rod_mech", "m/s", "the rod's mechanical velocity"),
         Port("x_s", "m", "the measured rod position"),
+        Port("E_spring", "J", "the coupling's spring energy (the elastic screw), released by a shear", optional=True),
+        Port("P_contact", "W", "the coupling's contact damping (the elastic screw), cut by a shear", optional=True),
         Port("omega_s", "rad/s", "the measured motor speed"),
         Port("i_q_s", "A", "the measured q current"),
         Port("v_d_open", "V", "the winding d voltage with the bridge on"),
@@ -123,6 +137,7 @@ class On(Part):
     states = (
         State("x_jam", "m", "jam anchor: follows the rod while healthy, stands at the onset position",
               scale=lambda P: P.stroke, travel=lambda P: 1.0),
+        State("a_sh", "1", "the coupling's sheared fraction: follows a_shear within TAU_SHEAR", scale=lambda P: 1.0),
         *_sensor_states(),
     )
     inputs = (
@@ -135,16 +150,19 @@ class On(Part):
         *_sensor_inputs(),
     )
     outputs = (Output("F_jam", "N", "force of the jam lock on the rod (positive pushes the rod in)"),
-               Output("P_jam", "W", "jam lock loss: its damping and its anchor's slip", kind="loss"))
+               Output("P_jam", "W", "jam lock loss: its damping and its anchor's slip", kind="loss"),
+               Output("P_shear", "W", "a shearing coupling: the spring energy it releases, less the contact "
+                      "damping (P_contact) its sheared part no longer does", kind="loss"))
     params = ("k_jam", "d_jam", "tau_hold", "p", "stroke", "v_max", "I_max", "F_seal", "C_bear", "B")
     loads = ("F_jam",)
-    stored = ("E_jam",)
-    heat = {"P_jam": "screw"}  # the locked rod and nut: counted with the rod and screw
+    stored = ("E_jam", "E_cut")  # E_cut = -a_sh E_spring: the sheared part of the coupling holds none
+    heat = {"P_jam": "screw", "P_shear": "screw"}  # the locked rod and nut, the coupling: with the rod and screw
     faults = (
         Fault("jam", "a_jam", "1", 0.0, 1.0, "the rod locks at its onset position (1: fully)"),
         Fault("free_run", "a_open", "1", 0.0, 1.0, "the bridge is switched off (1): no drive, diodes only"),
         Fault("disconnect", "a_shear", "1", 0.0, 1.0,
-              "the coupling shears (1): motor side free of the nut and rod (screw = elastic)"),
+              "the coupling shears (1): motor side free of the nut and rod (screw = elastic)",
+              requires=(("screw", ("elastic",)),)),  # the rigid screw has no coupling: its rod is the motor's
         Fault("supply", "a_supply", "1", 0.0, 1.0, "the DC link loses this fraction of its voltage"),
         Fault("wear_friction", "wear_f", "1/s", 0.0, 10.0, "F_seal and C_bear grow by this fraction per second",
               rate=True),
@@ -162,7 +180,12 @@ class On(Part):
             return (spring + a * b.P.d_jam * v, anchor, 0.5 * spring * stretch,
                     a * b.P.d_jam * v**2 + spring * anchor)
 
-        out = {("F_jam", der("x_jam"), "E_jam", "P_jam"): jam}
+        def shear(b):  # the sheared part of the coupling holds no energy and damps nothing
+            rate = (_unit(b["a_shear"]) - b["a_sh"]) / TAU_SHEAR
+            spring, damping = (b[n] if n in b else 0.0 for n in ("E_spring", "P_contact"))
+            return rate, -b["a_sh"] * spring, rate * spring - b["a_sh"] * damping
+
+        out = {("F_jam", der("x_jam"), "E_jam", "P_jam"): jam, (der("a_sh"), "E_cut", "P_shear"): shear}
         for target, (tag, *_rest) in SENSOR_TARGETS.items():
             out[der(f"m_{tag}")] = (lambda b, target=target, tag=tag:
                                     (1 - _unit(b[f"stuck_{tag}"])) * (b[target] - b[f"m_{tag}"]) / b.P.tau_hold)
@@ -183,7 +206,7 @@ class On(Part):
             "v_d": lambda b, v: voltages(b, v, 0),
             "v_q": lambda b, v: voltages(b, v, 1),
             "v_dc": lambda b, v: (1 - _unit(b["a_supply"])) * v,
-            "F_in": lambda b, F: (1 - _unit(b["a_shear"])) * F,
+            "F_in": lambda b, F: (1 - b["a_sh"]) * F,
         }
         for target, (tag, *_rest) in SENSOR_TARGETS.items():
             out[target] = lambda b, y, tag=tag: _sensed(b, y, tag)
