@@ -16,6 +16,11 @@ the workers end together. Items are taken in the caller's order (longest first w
 their costs differ). At most two tasks per worker are in flight: the waiting and the
 bookkeeping of this process do not grow with the number of items.
 
+With ``parent=True`` this thread is one of the ``jobs`` workers: it runs tasks itself
+from the start (while the ``jobs - 1`` worker processes import and build their models)
+and between receiving results, so the start-up of one worker is not waited for and
+the others' is overlapped with work.
+
 On an interrupt (or any error) nothing more is submitted, the pending tasks are
 cancelled and a process pool's workers are ended.
 """
@@ -125,7 +130,8 @@ def _dask_task(token: str, function, payload, chunk: list):
 
 def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "processes",
               scheduler: str | None = None, error: type = RuntimeError, costs: dict | None = None,
-              on_abort=None, blas_threads: int | None = 1, target: float = TARGET_SECONDS) -> dict:
+              on_abort=None, blas_threads: int | None = 1, target: float = TARGET_SECONDS,
+              parent: bool = False) -> dict:
     """Run ``function(payload, chunk)`` over chunks of ``items``; ``each(result)`` in this
     thread as each chunk finishes (any order).
 
@@ -157,6 +163,9 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
         (None: the library's default).
     target : float
         Seconds a task aims at (s).
+    parent : bool
+        This thread is one of the ``jobs`` workers (module docstring); the items run in
+        this process must give the same results as in a worker.
 
     Returns
     -------
@@ -192,7 +201,7 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
         finally:
             _PAYLOADS.pop(token, None)
     else:
-        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads)
+        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent)
     return plan.summary()
 
 
@@ -200,37 +209,51 @@ def _token() -> str:
     return f"{os.getpid()}-{time.perf_counter_ns()}-{id(object())}"
 
 
-def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads) -> None:
+def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent) -> None:
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
     from ._parallel import end_pool, process_pool
 
     token = _token()
-    if backend == "threads":
+    helpers = jobs - 1 if parent else jobs
+    started = []  # seconds from the pool's creation to each worker process's start
+    if backend == "threads" or parent:
         _PAYLOADS[token] = payload
-        pool = ThreadPoolExecutor(max_workers=jobs)
+    if backend == "threads":
+        pool = ThreadPoolExecutor(max_workers=helpers)
+        started = [0.0] * helpers
     else:
         t0 = time.perf_counter()
         with _blas_env(blas_threads):
-            pool = process_pool(jobs, initializer=_init_process, initargs=(token, pickle.dumps(payload)))
-            for f in [pool.submit(int, 0) for _ in range(jobs)]:  # start every worker under that environment
-                f.result()
-        plan.pool_start = time.perf_counter() - t0
+            pool = process_pool(helpers, initializer=_init_process, initargs=(token, pickle.dumps(payload)))
+            starts = [pool.submit(int, 0) for _ in range(helpers)]  # every worker starts under that environment
+            for f in starts:
+                f.add_done_callback(lambda _: started.append(time.perf_counter() - t0))
+            if not parent:
+                wait(starts)
+                plan.pool_start = time.perf_counter() - t0
     pending = {}
-    try:
-        while queue and len(pending) < IN_FLIGHT * jobs:
+
+    def fill():  # with parent, tasks go only to workers that have started
+        while queue and len(pending) < IN_FLIGHT * (len(started) if parent else helpers):
             chunk, cost = take()
             pending[pool.submit(_task, token, function, chunk)] = cost
-        while pending:
-            ready, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+
+    try:
+        fill()
+        while pending or queue:
+            if parent and queue:  # this thread's own task, then whatever has finished meanwhile
+                chunk, cost = take()
+                out, seconds, cold = _task(token, function, chunk)
+                plan.record(cost, seconds, cold)
+                each(out)
+            ready, _ = wait(pending, timeout=0 if queue else 0.2, return_when=FIRST_COMPLETED)
             for fut in ready:
                 cost = pending.pop(fut)
                 out, seconds, cold = fut.result()
                 plan.record(cost, seconds, cold)
                 each(out)
-                if queue:
-                    chunk, cost = take()
-                    pending[pool.submit(_task, token, function, chunk)] = cost
+            fill()
     except BaseException:
         if on_abort is not None:
             on_abort()
@@ -238,6 +261,11 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
         raise
     finally:
         _PAYLOADS.pop(token, None)
+    if len(started) < helpers:  # workers still starting when this thread had done everything
+        end_pool(pool)
+        return
+    if parent and backend != "threads":
+        plan.pool_start = max(started)
     pool.shutdown(wait=True)
 
 
