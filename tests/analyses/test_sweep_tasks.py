@@ -55,3 +55,30 @@ def test_tasks_follow_the_callers_order_and_grow_to_the_measured_target():
     queue = deque(["long", "mid", "short", "last"])
     assert plan.take(queue, costs, 1e6) == ["long"]
     assert plan.take(queue, costs, 1e6) == ["mid", "short"]
+
+
+def _items_and_thread(payload, chunk):
+    import threading
+
+    return [(i, payload[i], threading.get_ident()) for i in chunk]
+
+
+def test_with_parent_this_thread_is_one_of_the_workers():
+    """parent=True: jobs - 1 pool workers and this thread share the items; every item
+    runs once, with the shared payload, and this thread runs some of them itself."""
+    import threading
+
+    got, threads = {}, []
+
+    def each(out):
+        for i, v, ident in out:
+            assert i not in got
+            got[i] = v
+            threads.append(ident)
+
+    payload = [float(i) for i in range(300)]
+    summary = run_tasks(_items_and_thread, payload, range(300), each, jobs=2, backend="threads", parent=True,
+                        costs={i: 1.0 for i in range(300)})
+    assert got == {i: float(i) for i in range(300)}
+    assert threading.get_ident() in threads and len(set(threads)) == 2  # this thread and the pool's
+    assert summary["tasks"] >= 2
