@@ -33,7 +33,7 @@ from ..simulation import progress_bar
 from ._kernels import _settle, _stepper
 from ._result import FreqRespError
 
-__all__ = ["_cores", "Grid", "run_points", "point_costs", "BACKENDS"]
+__all__ = ["_cores", "Grid", "run_points", "point_costs", "worth_processes", "BACKENDS"]
 
 #: Local pools: worker processes (started by spawn) or threads of this process.
 BACKENDS = ("processes", "threads")
@@ -46,6 +46,11 @@ PERIODS_PER_RATIO = 1.6
 #: model: 0.45 us a step against 5.4 ms a period on the reference model (2-core x86-64).
 RK4_STEPS_PER_PERIOD = 12000.0
 
+#: A worker process's start-up (interpreter, imports, the grid, its period map: 0.26 to
+#: 0.31 s of CPU measured on a 2-core x86-64) in CVODES periods of the reference model
+#: (5.4 to 6.3 ms each). Worker processes are started only for a grid whose estimated
+#: cost is at least twice that (:func:`worth_processes`).
+STARTUP_PERIODS = 50.0
 #: Seconds of work a task aims at: the longest task stays within 1/20 of the paper's
 #: Fig. 14a grid (4.5 s on one core), so that 16 workers can share it evenly.
 TARGET_SECONDS = 0.1
@@ -113,10 +118,18 @@ def point_costs(grid: Grid, rho: dict) -> dict:
 
 
 
+def worth_processes(costs: dict) -> bool:
+    """Whether worker processes pay for their start-up on a grid of these estimated
+    costs: with this process computing from the start, two workers take about
+    (W + S) / 2 of one's W (S the start-up), at most 3/4 of it where W >= 2 S."""
+    return math.fsum(costs.values()) >= 2 * STARTUP_PERIODS
+
+
 def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str, scheduler: str | None,
                progress: bool) -> tuple[dict, dict]:
     """Run the points ``items`` (indices, any order) -> (index -> point dict, timings:
-    ``point_seconds`` index -> CPU seconds, ``task_seconds`` the CPU seconds of each
+    ``point_seconds`` index -> CPU seconds, ``point_cost`` index -> estimated cost
+    (``costs``), ``task_seconds`` the CPU seconds of each
     task's points, ``build_seconds`` of the period maps, ``worker_cpu`` (CPU seconds of
     each worker process at its first task's start and its last task's end), the
     engine's plan summary)."""
@@ -151,5 +164,5 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
                      parent=True) if order else {}
     if serial:
         run_tasks(_points, grid, serial, each, jobs=1, costs=costs)
-    return results, {"point_seconds": seconds, "task_seconds": tasks, "build_seconds": build[0],
+    return results, {"point_seconds": seconds, "point_cost": costs, "task_seconds": tasks, "build_seconds": build[0],
                      "worker_cpu": sorted(workers.values()), **plan}

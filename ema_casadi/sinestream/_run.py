@@ -19,7 +19,7 @@ from ..model.assembly import Model
 from ..model.components import validate_variants
 from ..model.params import Parameters
 from ..simulation import Monitor
-from ._backends import BACKENDS, Grid, _cores, point_costs, run_points
+from ._backends import BACKENDS, Grid, _cores, point_costs, run_points, worth_processes
 from ._kernels import _failed, _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
@@ -67,11 +67,13 @@ def sine_stream(
     jobs : int, optional
         Local workers (default: the number of cores); 1 runs in this thread.
     backend : {"processes", "threads"}
-        The local pool. Processes scale with the cores; they are started by spawn and
-        import the main script again, so a script must call ``sine_stream`` under
+        The local pool. Processes scale with the cores: ``jobs - 1`` of them and this
+        process, which computes while they start; a grid too small to pay for their
+        start-up runs in this thread. They are started by spawn and import the main
+        script again, so a script must call ``sine_stream`` under
         ``if __name__ == "__main__":`` (refused with :class:`FreqRespError` otherwise,
-        before any work). Threads share this process (no start-up) but Python's lock
-        serialises the work between the integrator calls (about 8 % of it).
+        before any point runs). Threads share this process (no start-up) but Python's
+        lock serialises the work between the integrator calls (about 8 % of it).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:port``); needs the
         optional ``dask[distributed]`` and ema_casadi on the workers.
@@ -100,16 +102,20 @@ def sine_stream(
                max_periods, jobs or _cores())
     pv = _param_vector(params, p)
     n_jobs = 1 if scheduler else (jobs or _cores())
-    if backend == "processes" and n_jobs > 1:
-        check_main_guard(FreqRespError, f"sine_stream(jobs={n_jobs})")
     settle = _Settle(tol_db, tol_deg, max_periods)
     build = (samples, rtol, atol, hybrid_dt)
     x0s, rho = _starts(params, vset, build, pv, loads, amplitudes, freqs)
     grid = Grid(params, tuple(vset.values()), build, settle, keep, pv, loads, amplitudes, freqs, x0s)
     held = _beyond_hold(vset, pv, loads)  # no response to measure: failed points, not numbers
     todo = [i for i in x0s if i[:2] not in held]
-    results, timing = run_points(grid, todo, point_costs(grid, {i: rho[i] for i in todo}), jobs=n_jobs,
-                                 backend=backend, scheduler=scheduler, progress=progress) if todo else ({}, {})
+    costs = point_costs(grid, {i: rho[i] for i in todo})
+    if backend == "processes" and n_jobs > 1:
+        if not worth_processes(costs):  # a small grid: this thread ends it before a worker has started
+            n_jobs = 1
+        else:
+            check_main_guard(FreqRespError, f"sine_stream(jobs={n_jobs})")
+    results, timing = run_points(grid, todo, costs, jobs=n_jobs, backend=backend, scheduler=scheduler,
+                                 progress=progress) if todo else ({}, {})
     results.update({i: _failed(0, held[i[:2]]) for i in x0s if i[:2] in held})
     shape = (len(vset), len(loads), len(amplitudes), len(freqs))
     data, samples_out, failed = _collect(results, shape, keep)
@@ -291,16 +297,18 @@ def _info(settle: _Settle, build: tuple, jobs, scheduler, points: int, data: dic
 
 def _timing(timing: dict, shape: tuple) -> dict:
     """The run's timings: ``point_seconds`` (CPU seconds of each point's periods, NaN for
-    points not run, shaped like the data), ``task_seconds`` (of each task's points),
+    points not run, shaped like the data), ``point_cost`` (its estimated cost, in periods
+    of the CVODES map, the same shape), ``task_seconds`` (of each task's points),
     ``build_seconds`` (period maps built in the workers), ``worker_cpu`` (each worker
     process's CPU seconds at its first task's start, i.e. its start-up, and at its last
     task's end) and the task engine's plan
     (``tasks``, ``seconds_per_cost``, ``pool_start_seconds``, ``first_task_seconds``)."""
     out = dict(timing)
-    seconds = np.full(shape, np.nan)
-    for idx, s in timing.get("point_seconds", {}).items():
-        seconds[idx] = s
-    out["point_seconds"] = seconds
+    for key in ("point_seconds", "point_cost"):
+        values = np.full(shape, np.nan)
+        for idx, s in timing.get(key, {}).items():
+            values[idx] = s
+        out[key] = values
     out.setdefault("task_seconds", [])
     out.setdefault("worker_cpu", [])
     return out
