@@ -131,7 +131,8 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
     ``point_seconds`` index -> CPU seconds, ``point_cost`` index -> estimated cost
     (``costs``), ``task_seconds`` the CPU seconds of each
     task's points, ``build_seconds`` of the period maps, ``worker_cpu`` (CPU seconds of
-    each worker process at its first task's start and its last task's end), the
+    each worker process at its first task's start and its last task's end, and of its
+    points), ``points_here`` (CPU seconds of the points run in this process), the
     engine's plan summary)."""
     results, seconds, tasks, workers = {}, {}, [], {}
     build = [0.0]
@@ -142,13 +143,12 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
     def each(task):
         points, b, (pid, cpu0, cpu1) = task
         build[0] += b
-        if pid != os.getpid():
-            first = workers.get(pid, (cpu0, cpu1))
-            workers[pid] = (min(first[0], cpu0), max(first[1], cpu1))
+        tasks.append(math.fsum(s for _, _, s in points))
+        first = workers.get(pid, (cpu0, cpu1, 0.0))
+        workers[pid] = (min(first[0], cpu0), max(first[1], cpu1), first[2] + tasks[-1])
         for idx, r, s in points:
             results[tuple(idx)] = r
             seconds[tuple(idx)] = s
-        tasks.append(math.fsum(s for _, _, s in points))
         progress_bar(len(results) / n, progress, "freqresp")
 
     _STOP.clear()
@@ -164,5 +164,6 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
                      parent=True) if order else {}
     if serial:
         run_tasks(_points, grid, serial, each, jobs=1, costs=costs)
+    here = workers.pop(os.getpid(), (0.0, 0.0, 0.0))[2]
     return results, {"point_seconds": seconds, "point_cost": costs, "task_seconds": tasks, "build_seconds": build[0],
-                     "worker_cpu": sorted(workers.values()), **plan}
+                     "worker_cpu": sorted(workers.values()), "points_here": here, **plan}

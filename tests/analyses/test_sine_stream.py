@@ -173,6 +173,19 @@ def test_rigid_and_elastic_screw_agree_at_low_frequency(params):
     np.testing.assert_allclose(e["phase_deg"], g["phase_deg"], atol=0.06)
 
 
+@pytest.mark.slow
+def test_the_paper_fig14a_table_is_the_same_for_one_and_two_workers(params, tmp_path):
+    """The full Fig. 14a grid (200 points): the same CSV bytes in this thread and on two
+    workers, the longest point at most 1/20 of the one-core total (measured 2.2 %: 10 %
+    of the stroke at 30 Hz, 17 periods)."""
+    one, _ = fr.paper_fig14a(params, tmp_path / "one", jobs=1)
+    two, _ = fr.paper_fig14a(params, tmp_path / "two", jobs=2)
+    assert two.info["backend"] == "processes"
+    assert (tmp_path / "one" / "fig14a.csv").read_bytes() == (tmp_path / "two" / "fig14a.csv").read_bytes()
+    seconds = one.info["timing"]["point_seconds"]
+    assert seconds.max() <= seconds.sum() / 20
+
+
 def test_a_small_grid_runs_in_this_thread(params, tmp_path):
     """Four points (about 10 periods) cost less than a worker process's start-up: they
     run in this thread whatever ``jobs`` says (no pool, no main-script guard needed).
