@@ -150,19 +150,22 @@ def scaling(params, amps, freqs, workers, pairs):
           f"({amps[at[2]] / params.actuator.stroke:.1%} of the stroke, {freqs[at[3]]:.3g} Hz); "
           f"shortest {longest.min() * 1e3:.1f} ms; estimated cost against CPU: correlation "
           f"{np.corrcoef(cost, longest)[0, 1]:.3f}")
-    print("\n| workers | wall (s, median) | / 1 worker | this process CPU (s) | workers' CPU (s; start-up) "
-          "| busiest process CPU / 1-worker CPU | tasks | longest task (ms; of one-core total) | table |")
+    print("\n| workers | wall (s, median) | / 1 worker | this process CPU (s; its points) "
+          "| workers' CPU (s; start-up, points) | busiest process CPU / 1-worker CPU | tasks "
+          "| longest task (ms; of one-core total) | table |")
     print("|---|---|---|---|---|---|---|---|---|")
     for n in workers:
         rs = runs[n]
         wall, cpu = statistics.median(r[0] for r in rs), statistics.median(r[1] for r in rs)
         tm = rs[len(rs) // 2][2].info["timing"]
+        here = statistics.median(r[2].info["timing"]["points_here"] for r in rs)
         wcpu = tm["worker_cpu"]
         busiest = statistics.median(max([r[1]] + [c[1] for c in r[2].info["timing"]["worker_cpu"]]) for r in rs)
         longest_task = max(max(r[2].info["timing"]["task_seconds"]) for r in rs)
         same = all(r[3] == ref_table for r in rs)
-        print(f"| {n} | {wall:.2f} ({', '.join(f'{r[0]:.2f}' for r in rs)}) | {wall / wall1:.3f} | {cpu:.2f} | "
-              f"{sum(c[1] for c in wcpu):.2f} ({'; '.join(f'{c[0]:.2f}' for c in wcpu) or '-'}) | "
+        print(f"| {n} | {wall:.2f} ({', '.join(f'{r[0]:.2f}' for r in rs)}) | {wall / wall1:.3f} | {cpu:.2f} "
+              f"({here:.2f}) | {sum(c[1] for c in wcpu):.2f} "
+              f"({'; '.join(f'{c[0]:.2f}, {c[2]:.2f}' for c in wcpu) or '-'}) | "
               f"{busiest / cpu1:.3f} | {tm['tasks']} | {longest_task * 1e3:.0f} ({longest_task / total:.1%}) | "
               f"{'identical' if same else 'DIFFERS'} |")
     tasks = sorted(runs[workers[-1]][0][2].info["timing"]["task_seconds"], reverse=True)
