@@ -43,7 +43,8 @@ BACKENDS = ("processes", "threads")
 PERIODS_LINEAR = 2.5
 PERIODS_PER_RATIO = 1.6
 #: RK4 steps (hybrid friction, compiled) that cost one CVODES period of the smooth
-#: model: 0.45 us a step against 5.4 ms a period on the reference model (2-core x86-64).
+#: model: 0.45 us a step against 5.4 ms a period on the reference model (2-core x86-64;
+#: the switched bridge's steps cost 0.8 us: its points are underestimated by ~2x).
 RK4_STEPS_PER_PERIOD = 12000.0
 
 #: A worker process's start-up (interpreter, imports, the grid, its period map: 0.26 to
