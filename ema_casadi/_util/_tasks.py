@@ -247,7 +247,7 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
                 out, seconds, cold = _task(token, function, chunk)
                 plan.record(cost, seconds, cold)
                 each(out)
-            ready, _ = wait(pending, timeout=0 if queue else 0.2, return_when=FIRST_COMPLETED)
+            ready, _ = wait(pending, timeout=0 if parent and queue else 0.2, return_when=FIRST_COMPLETED)
             for fut in ready:
                 cost = pending.pop(fut)
                 out, seconds, cold = fut.result()
@@ -261,7 +261,7 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
         raise
     finally:
         _PAYLOADS.pop(token, None)
-    if len(started) < helpers:  # workers still starting when this thread had done everything
+    if parent and len(started) < helpers:  # workers still starting when this thread had done everything
         end_pool(pool)
         return
     if parent and backend != "threads":
