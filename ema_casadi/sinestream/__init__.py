@@ -47,7 +47,8 @@ smooth point costs about the same per period at every frequency and needs more
 periods the more the rate limit bends its response (2.5 + 1.6 (rho - 1) with rho the
 linear rod speed demand over the limit, fitted on the Fig. 14a grid: correlation 0.97
 with the measured CPU times); a fixed-step point costs its RK4 steps. Tasks are sized
-from the measured seconds per unit of cost (0.1 s each). ``backend="threads"`` uses
+from the measured seconds per unit of cost (0.1 s each); a grid whose estimated cost
+does not pay for a worker's start-up runs in this thread. ``backend="threads"`` uses
 threads instead (CasADi releases the GIL, but the Python between integrator calls,
 ~8 % of a point, does not); ``scheduler`` sends the tasks to a Dask distributed
 cluster (optional dependency). Every point is computed from the same inputs by the
