@@ -122,6 +122,23 @@ def _scaling_run(params, amps, freqs, jobs, out):
     return wall, cpu, resp, resp.to_csv(out / f"fig14a-{jobs}.csv").read_bytes()
 
 
+def predicted_wall(seconds, costs, n, startup):
+    """Wall time (s) of ``n`` workers on an idle machine from the measured CPU seconds of
+    the points, taken longest first by their estimated ``costs``: this process from
+    the start, ``n - 1`` worker processes from ``startup`` seconds on, each taking the
+    next point when free (the engine's order; its tasks are short against the grid)."""
+    import heapq
+
+    free = [(0.0, 0)] + [(startup, i) for i in range(1, n)]
+    heapq.heapify(free)
+    end = 0.0
+    for j in np.argsort(-costs, kind="stable"):
+        t, i = heapq.heappop(free)
+        end = max(end, t + seconds[j])
+        heapq.heappush(free, (t + seconds[j], i))
+    return end
+
+
 def scaling(params, amps, freqs, workers, pairs):
     """The scaling table (module docstring)."""
     import tempfile
@@ -168,6 +185,16 @@ def scaling(params, amps, freqs, workers, pairs):
               f"({'; '.join(f'{c[0]:.2f}, {c[2]:.2f}' for c in wcpu) or '-'}) | "
               f"{busiest / cpu1:.3f} | {tm['tasks']} | {longest_task * 1e3:.0f} ({longest_task / total:.1%}) | "
               f"{'identical' if same else 'DIFFERS'} |")
+    starts = [c[0] for n in workers[1:] for r in runs[n] for c in r[2].info["timing"]["worker_cpu"]]
+    startup = statistics.median(starts) if starts else 0.3
+    print(f"\npredicted on an idle machine from the per-point CPU times, longest first by the estimated cost "
+          f"(this process from the start, the workers after {startup:.2f} s of start-up; and without it):")
+    print("\n| workers | predicted wall (s) | / 1 worker | efficiency | without start-up: efficiency |")
+    print("|---|---|---|---|---|")
+    serial = longest.sum()  # the median seconds of each point, on one core
+    for n in sorted({*workers, 4, 8, 16}):
+        w, w0 = predicted_wall(longest, cost, n, startup), predicted_wall(longest, cost, n, 0.0)
+        print(f"| {n} | {w:.3f} | {w / serial:.3f} | {serial / w / n:.0%} | {serial / w0 / n:.0%} |")
     tasks = sorted(runs[workers[-1]][0][2].info["timing"]["task_seconds"], reverse=True)
     more = f", ... ({len(tasks)} tasks)" if len(tasks) > 12 else ""
     print(f"\ntasks of one {workers[-1]}-worker run, CPU ms, longest first: "
