@@ -55,4 +55,3 @@ def test_tasks_follow_the_callers_order_and_grow_to_the_measured_target():
     queue = deque(["long", "mid", "short", "last"])
     assert plan.take(queue, costs, 1e6) == ["long"]
     assert plan.take(queue, costs, 1e6) == ["mid", "short"]
-
