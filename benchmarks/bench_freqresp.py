@@ -21,7 +21,9 @@ runs the grid with each worker count in turn, ``--pairs`` times (interleaved, so
 change of the machine's load hits every count alike), and prints a Markdown table naming
 the machine: wall times, CPU times (this process; each worker process, its start-up
 included), the busiest process's CPU against the one-worker CPU (what the wall ratio is
-on an idle machine), the tasks and the longest task's share of the one-core total, with
+on an idle machine) for the first call (the worker processes start) and the later ones
+(the workers are kept between calls), the tasks and the longest task's share of the
+one-core total, the wall predicted for 1-16 workers, with
 the per-point CPU times (the longest point, the cost estimate's correlation with them)
 and whether every table equals the one-worker table byte for byte.
 """
@@ -167,25 +169,28 @@ def scaling(params, amps, freqs, workers, pairs):
           f"({amps[at[2]] / params.actuator.stroke:.1%} of the stroke, {freqs[at[3]]:.3g} Hz); "
           f"shortest {longest.min() * 1e3:.1f} ms; estimated cost against CPU: correlation "
           f"{np.corrcoef(cost, longest)[0, 1]:.3f}")
-    print("\n| workers | wall (s, median) | / 1 worker | this process CPU (s; its points) "
+    print("\n| workers | calls | wall (s, median) | / 1 worker | this process CPU (s; its points) "
           "| workers' CPU (s; start-up, points) | busiest process CPU / 1-worker CPU | tasks "
           "| longest task (ms; of one-core total) | table |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for n in workers:
-        rs = runs[n]
-        wall, cpu = statistics.median(r[0] for r in rs), statistics.median(r[1] for r in rs)
-        tm = rs[len(rs) // 2][2].info["timing"]
-        here = statistics.median(r[2].info["timing"]["points_here"] for r in rs)
-        wcpu = tm["worker_cpu"]
-        busiest = statistics.median(max([r[1]] + [c[1] for c in r[2].info["timing"]["worker_cpu"]]) for r in rs)
-        longest_task = max(max(r[2].info["timing"]["task_seconds"]) for r in rs)
-        same = all(r[3] == ref_table for r in rs)
-        print(f"| {n} | {wall:.2f} ({', '.join(f'{r[0]:.2f}' for r in rs)}) | {wall / wall1:.3f} | {cpu:.2f} "
-              f"({here:.2f}) | {sum(c[1] for c in wcpu):.2f} "
-              f"({'; '.join(f'{c[0]:.2f}, {c[2]:.2f}' for c in wcpu) or '-'}) | "
-              f"{busiest / cpu1:.3f} | {tm['tasks']} | {longest_task * 1e3:.0f} ({longest_task / total:.1%}) | "
-              f"{'identical' if same else 'DIFFERS'} |")
-    starts = [c[0] for n in workers[1:] for r in runs[n] for c in r[2].info["timing"]["worker_cpu"]]
+        groups = [("all", runs[n])] if n == 1 or pairs == 1 else [("first (workers start)", runs[n][:1]),
+                                                                   ("later (workers kept)", runs[n][1:])]
+        for label, rs in groups:
+            wall, cpu = statistics.median(r[0] for r in rs), statistics.median(r[1] for r in rs)
+            tm = rs[len(rs) // 2][2].info["timing"]
+            here = statistics.median(r[2].info["timing"]["points_here"] for r in rs)
+            wcpu = tm["worker_cpu"]
+            busiest = statistics.median(max([r[1]] + [c[1] for c in r[2].info["timing"]["worker_cpu"]])
+                                        for r in rs)
+            longest_task = max(max(r[2].info["timing"]["task_seconds"]) for r in rs)
+            same = all(r[3] == ref_table for r in rs)
+            print(f"| {n} | {label} | {wall:.2f} ({', '.join(f'{r[0]:.2f}' for r in rs)}) | {wall / wall1:.3f} "
+                  f"| {cpu:.2f} ({here:.2f}) | {sum(c[1] for c in wcpu):.2f} "
+                  f"({'; '.join(f'{c[0]:.2f}, {c[2]:.2f}' for c in wcpu) or '-'}) | "
+                  f"{busiest / cpu1:.3f} | {tm['tasks']} | {longest_task * 1e3:.0f} ({longest_task / total:.1%}) | "
+                  f"{'identical' if same else 'DIFFERS'} |")
+    starts = [c[0] for n in workers[1:] for r in runs[n] for c in r[2].info["timing"]["worker_cpu"] if c[0] > 0]
     startup = statistics.median(starts) if starts else 0.3
     print(f"\npredicted on an idle machine from the per-point CPU times, longest first by the estimated cost "
           f"(this process from the start, the workers after {startup:.2f} s of start-up; and without it):")

@@ -19,7 +19,8 @@ bookkeeping of this process do not grow with the number of items.
 With ``parent=True`` this thread is one of the ``jobs`` workers: it runs tasks itself
 from the start (while the ``jobs - 1`` worker processes import and build their models)
 and between receiving results, so the start-up of one worker is not waited for and
-the others' is overlapped with work.
+the others' is overlapped with work. With ``keep_workers=True`` the worker processes
+stay for the next call (their imports and models are not paid again).
 
 On an interrupt (or any error) nothing more is submitted, the pending tasks are
 cancelled and a process pool's workers are ended.
@@ -131,7 +132,7 @@ def _dask_task(token: str, function, payload, chunk: list):
 def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "processes",
               scheduler: str | None = None, error: type = RuntimeError, costs: dict | None = None,
               on_abort=None, blas_threads: int | None = 1, target: float = TARGET_SECONDS,
-              parent: bool = False) -> dict:
+              parent: bool = False, keep_workers: bool = False) -> dict:
     """Run ``function(payload, chunk)`` over chunks of ``items``; ``each(result)`` in this
     thread as each chunk finishes (any order).
 
@@ -166,6 +167,10 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
     parent : bool
         This thread is one of the ``jobs`` workers (module docstring); the items run in
         this process must give the same results as in a worker.
+    keep_workers : bool
+        Local worker processes stay for the next call with the same number of workers
+        (their start-up paid once per session); its payload reaches each of them with
+        its first tasks. They end with this process, or on an interrupt or an error.
 
     Returns
     -------
@@ -201,7 +206,8 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
         finally:
             _PAYLOADS.pop(token, None)
     else:
-        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent)
+        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent,
+                  keep_workers)
     return plan.summary()
 
 
@@ -209,35 +215,36 @@ def _token() -> str:
     return f"{os.getpid()}-{time.perf_counter_ns()}-{id(object())}"
 
 
-def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent) -> None:
+def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent,
+              keep) -> None:
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    from ._parallel import end_pool, process_pool
+    from ._parallel import end_pool
 
     token = _token()
     helpers = jobs - 1 if parent else jobs
     started = []  # seconds from the pool's creation to each worker process's start
+    blob, acked = None, set()  # a kept pool: the payload travels with the tasks until every worker has it
     if backend == "threads" or parent:
         _PAYLOADS[token] = payload
     if backend == "threads":
         pool = ThreadPoolExecutor(max_workers=helpers)
         started = [0.0] * helpers
     else:
-        t0 = time.perf_counter()
-        with _blas_env(blas_threads):
-            pool = process_pool(helpers, initializer=_init_process, initargs=(token, pickle.dumps(payload)))
-            starts = [pool.submit(int, 0) for _ in range(helpers)]  # every worker starts under that environment
-            for f in starts:
-                f.add_done_callback(lambda _: started.append(time.perf_counter() - t0))
-            if not parent:
-                wait(starts)
-                plan.pool_start = time.perf_counter() - t0
+        pool, started = _process_pool(helpers, blas_threads, token, payload, keep, parent, plan)
+        if keep:
+            blob = pickle.dumps(payload)
     pending = {}
+
+    def submit(chunk):
+        if keep and backend != "threads":
+            return pool.submit(_kept_task, token, blob if len(acked) < helpers else None, function, chunk)
+        return pool.submit(_task, token, function, chunk)
 
     def fill():  # with parent, tasks go only to workers that have started
         while queue and len(pending) < IN_FLIGHT * (len(started) if parent else helpers):
             chunk, cost = take()
-            pending[pool.submit(_task, token, function, chunk)] = cost
+            pending[submit(chunk)] = cost
 
     try:
         fill()
@@ -250,23 +257,68 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
             ready, _ = wait(pending, timeout=0 if parent and queue else 0.2, return_when=FIRST_COMPLETED)
             for fut in ready:
                 cost = pending.pop(fut)
-                out, seconds, cold = fut.result()
+                out, seconds, cold, *pid = fut.result()
+                acked.update(pid)
                 plan.record(cost, seconds, cold)
                 each(out)
             fill()
     except BaseException:
         if on_abort is not None:
             on_abort()
+        _KEPT.pop((helpers, blas_threads), None)
         end_pool(pool)
         raise
     finally:
         _PAYLOADS.pop(token, None)
+    if parent and backend != "threads" and len(started) == helpers and plan.pool_start is None:
+        plan.pool_start = max(started)
+    if keep and backend != "threads":
+        return  # the workers wait for the next call
     if parent and len(started) < helpers:  # workers still starting when this thread had done everything
         end_pool(pool)
         return
-    if parent and backend != "threads":
-        plan.pool_start = max(started)
     pool.shutdown(wait=True)
+
+
+#: Process pools kept between calls (``keep_workers``): (workers, BLAS threads) -> pool.
+_KEPT: dict = {}
+
+
+def _process_pool(helpers, blas_threads, token, payload, keep, parent, plan):
+    """A process pool of ``helpers`` workers and the list its workers' start times go
+    into: a kept one (started, ``plan.pool_start`` 0) or a new one (its initializer
+    sets the payload unless the pool is kept)."""
+    from concurrent.futures import wait
+
+    from ._parallel import process_pool
+
+    pool = _KEPT.get((helpers, blas_threads)) if keep else None
+    if pool is not None and not getattr(pool, "_broken", False) and not getattr(pool, "_shutdown_thread", False):
+        plan.pool_start = 0.0
+        return pool, [0.0] * helpers
+    t0, started = time.perf_counter(), []
+    with _blas_env(blas_threads):
+        pool = (process_pool(helpers) if keep else
+                process_pool(helpers, initializer=_init_process, initargs=(token, pickle.dumps(payload))))
+        starts = [pool.submit(int, 0) for _ in range(helpers)]  # every worker starts under that environment
+        for f in starts:
+            f.add_done_callback(lambda _: started.append(time.perf_counter() - t0))
+        if not parent:
+            wait(starts)
+            plan.pool_start = time.perf_counter() - t0
+    if keep:
+        _KEPT[helpers, blas_threads] = pool
+    return pool, started
+
+
+def _kept_task(token: str, blob: bytes | None, function, chunk: list):
+    """A task on a kept worker: the payload from ``blob`` where this worker has not got
+    it (a kept worker holds the latest call's only), then :func:`_task`, and this
+    worker's pid (the caller stops sending the payload once every worker has it)."""
+    if token not in _PAYLOADS:
+        _PAYLOADS.clear()
+        _PAYLOADS[token] = pickle.loads(blob)
+    return (*_task(token, function, chunk), os.getpid())
 
 
 class _blas_env:

@@ -56,6 +56,7 @@ STARTUP_PERIODS = 50.0
 #: Fig. 14a grid (4.5 s on one core), so that 16 workers can share it evenly.
 TARGET_SECONDS = 0.1
 
+_RAN = False  # a task has run in this process (a kept worker's later calls pay no start-up)
 _STOP = threading.Event()  # set on an interrupt: threads stop at their next period
 
 
@@ -85,9 +86,12 @@ class Grid:
 def _points(grid: Grid, chunk: list) -> tuple:
     """The task: the points ``chunk`` (indices) in this worker -> (index, point dict,
     CPU seconds of its periods) for each, the seconds spent building period maps (once
-    per worker and variant), and this process's id and CPU seconds since it started,
-    at the task's start and end (its start-up: interpreter, imports, the payload)."""
-    out, build, cpu0 = [], 0.0, time.process_time()
+    per worker and variant), and this process's id, whether this is its first task ever
+    and its CPU seconds since it started at the task's start and end (a first task's
+    start: the process's start-up, interpreter, imports, the payload)."""
+    global _RAN
+    out, build, cpu0, fresh = [], 0.0, time.process_time(), not _RAN
+    _RAN = True
     for idx in chunk:
         t0 = time.perf_counter()
         _, step = _stepper(grid.variants[idx[0]], grid.params, *grid.build)
@@ -96,7 +100,7 @@ def _points(grid: Grid, chunk: list) -> tuple:
         c0 = time.thread_time()
         r = _settle(step, grid.x0[idx], pa, pa[-3], pa[-2], grid.settle, grid.keep, _STOP)
         out.append((idx, r, time.thread_time() - c0))
-    return out, build, (os.getpid(), cpu0, time.process_time())
+    return out, build, (os.getpid(), fresh, cpu0, time.process_time())
 
 
 def point_costs(grid: Grid, rho: dict) -> dict:
@@ -132,9 +136,9 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
     ``point_seconds`` index -> CPU seconds, ``point_cost`` index -> estimated cost
     (``costs``), ``task_seconds`` the CPU seconds of each
     task's points, ``build_seconds`` of the period maps, ``worker_cpu`` (CPU seconds of
-    each worker process at its first task's start and its last task's end, and of its
-    points), ``points_here`` (CPU seconds of the points run in this process), the
-    engine's plan summary)."""
+    each worker process: its start-up where it started for this call, what it spent on
+    this call, start-up included, and its points), ``points_here`` (CPU seconds of the
+    points run in this process), the engine's plan summary)."""
     results, seconds, tasks, workers = {}, {}, [], {}
     build = [0.0]
     order = sorted(items, key=lambda i: -costs[i])  # longest first: the pool ends with the short points
@@ -142,11 +146,12 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
     progress_bar(0.0, progress, "freqresp")
 
     def each(task):
-        points, b, (pid, cpu0, cpu1) = task
+        points, b, (pid, fresh, cpu0, cpu1) = task
         build[0] += b
         tasks.append(math.fsum(s for _, _, s in points))
-        first = workers.get(pid, (cpu0, cpu1, 0.0))
-        workers[pid] = (min(first[0], cpu0), max(first[1], cpu1), first[2] + tasks[-1])
+        # start-up, CPU from before it (fresh) or this call's first task, CPU at the last, points
+        first = workers.get(pid, (cpu0 if fresh else 0.0, 0.0 if fresh else cpu0, cpu1, 0.0))
+        workers[pid] = (first[0], min(first[1], cpu0), max(first[2], cpu1), first[3] + tasks[-1])
         for idx, r, s in points:
             results[tuple(idx)] = r
             seconds[tuple(idx)] = s
@@ -162,9 +167,10 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
         order, serial = [i for i in order if i not in rk4], [i for i in order if i in rk4]
     plan = run_tasks(_points, grid, order, each, jobs=jobs, backend=backend, scheduler=scheduler,
                      error=FreqRespError, costs=costs, on_abort=_STOP.set, target=TARGET_SECONDS,
-                     parent=True) if order else {}
+                     parent=True, keep_workers=True) if order else {}
     if serial:
         run_tasks(_points, grid, serial, each, jobs=1, costs=costs)
-    here = workers.pop(os.getpid(), (0.0, 0.0, 0.0))[2]
+    here = workers.pop(os.getpid(), (0.0, 0.0, 0.0, 0.0))[3]
+    used = sorted((w[0], w[2] - w[1], w[3]) for w in workers.values())
     return results, {"point_seconds": seconds, "point_cost": costs, "task_seconds": tasks, "build_seconds": build[0],
-                     "worker_cpu": sorted(workers.values()), "points_here": here, **plan}
+                     "worker_cpu": used, "points_here": here, **plan}

@@ -300,9 +300,9 @@ def _timing(timing: dict, shape: tuple) -> dict:
     points not run, shaped like the data), ``point_cost`` (its estimated cost, in periods
     of the CVODES map, the same shape), ``task_seconds`` (of each task's points),
     ``build_seconds`` (period maps built in the workers), ``worker_cpu`` (each worker
-    process's CPU seconds at its first task's start, i.e. its start-up, at its last
-    task's end, and of its points), ``points_here`` (CPU seconds of the points run in
-    this process) and the task engine's plan
+    process's CPU seconds: its start-up where it started for this call, what it spent
+    on this call, start-up included, and its points), ``points_here`` (CPU seconds of
+    the points run in this process) and the task engine's plan
     (``tasks``, ``seconds_per_cost``, ``pool_start_seconds``, ``first_task_seconds``)."""
     out = dict(timing)
     for key in ("point_seconds", "point_cost"):

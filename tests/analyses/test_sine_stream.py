@@ -148,7 +148,7 @@ def test_table_csv_and_samples(params, tmp_path):
 def test_the_table_is_the_same_to_the_last_digit_for_any_workers(params, tmp_path):
     """A reduced Fig. 14a grid (short and long points: 0.5, 5 and 10 % of the stroke, 0.3
     to 30 Hz; large enough for worker processes) gives the same CSV bytes in this
-    thread and on two processes."""
+    thread and on two processes; the worker process is kept for the next call."""
     kw = dict(amplitudes=[pct(0.5), pct(5), pct(10)], freqs=[0.3, 3.0, 8.0, 12.0, 20.0, 25.0, 30.0])
     tables = []
     for jobs, backend in ((1, "processes"), (2, "processes")):
@@ -157,6 +157,12 @@ def test_the_table_is_the_same_to_the_last_digit_for_any_workers(params, tmp_pat
         assert np.isfinite(r.info["timing"]["point_seconds"]).all()
         tables.append(r.to_csv(tmp_path / f"{jobs}-{backend}.csv").read_bytes())
     assert tables[0] == tables[1]
+    # the worker stays for the next call (no start-up again) and takes that call's grid:
+    # the amplitudes reversed, the same points in another order
+    again = fr.sine_stream(params, jobs=2, **{**kw, "amplitudes": kw["amplitudes"][::-1]})
+    assert [w[0] for w in again.info["timing"]["worker_cpu"]] == [0.0] and again.info["backend"] == "processes"
+    rows = again.to_csv(tmp_path / "again.csv").read_bytes().splitlines()
+    assert rows[0] == tables[0].splitlines()[0] and sorted(rows) == sorted(tables[0].splitlines())
     # the point the cost estimate puts first (10 %, 30 Hz: the most rate limited) took the most periods
     assert r.data["periods"][0, 0, 2, -1] == r.data["periods"].max() > r.data["periods"][0, 0, 0, -1]
 
