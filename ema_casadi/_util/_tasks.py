@@ -280,6 +280,26 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
     pool.shutdown(wait=True)
 
 
+class _blas_env:
+    """The BLAS thread variables set to ``n`` (where the environment leaves them unset)
+    while the worker processes start; restored after."""
+
+    def __init__(self, n):
+        self.n, self.set = n, []
+
+    def __enter__(self):
+        if self.n is not None:
+            self.set = [k for k in _BLAS_ENV if k not in os.environ]
+            for k in self.set:
+                os.environ[k] = str(int(self.n))
+        return self
+
+    def __exit__(self, *exc):
+        for k in self.set:
+            os.environ.pop(k, None)
+        return False
+
+
 #: Process pools kept between calls (``keep_workers``): (workers, BLAS threads) -> pool.
 _KEPT: dict = {}
 
@@ -319,23 +339,3 @@ def _kept_task(token: str, blob: bytes | None, function, chunk: list):
         _PAYLOADS.clear()
         _PAYLOADS[token] = pickle.loads(blob)
     return (*_task(token, function, chunk), os.getpid())
-
-
-class _blas_env:
-    """The BLAS thread variables set to ``n`` (where the environment leaves them unset)
-    while the worker processes start; restored after."""
-
-    def __init__(self, n):
-        self.n, self.set = n, []
-
-    def __enter__(self):
-        if self.n is not None:
-            self.set = [k for k in _BLAS_ENV if k not in os.environ]
-            for k in self.set:
-                os.environ[k] = str(int(self.n))
-        return self
-
-    def __exit__(self, *exc):
-        for k in self.set:
-            os.environ.pop(k, None)
-        return False
