@@ -41,8 +41,9 @@ exceed the rate limit). It is only a starting guess: the settling criterion deci
 *Parallelism and memory.* The points go to the task engine of the sweeps
 (:mod:`ema_casadi._util._tasks`): ``jobs - 1`` worker processes and this process, which
 computes from the start while the workers import and build their period maps (once
-each); the grid (parameters, options, starting states) reaches each worker once and a
-task carries point indices. Points are taken longest first by an estimated cost: a
+each; the workers stay for the next call with the same ``jobs``); the grid
+(parameters, options, starting states) reaches each worker once and a task carries
+point indices. Points are taken longest first by an estimated cost: a
 smooth point costs about the same per period at every frequency and needs more
 periods the more the rate limit bends its response (2.5 + 1.6 (rho - 1) with rho the
 linear rod speed demand over the limit, fitted on the Fig. 14a grid: correlation 0.97
