@@ -316,6 +316,11 @@ def _process_pool(helpers, blas_threads, token, payload, keep, parent, plan):
     if pool is not None and not getattr(pool, "_broken", False) and not getattr(pool, "_shutdown_thread", False):
         plan.pool_start = 0.0
         return pool, [0.0] * helpers
+    if keep and not _KEPT:
+        import atexit
+
+        atexit.register(_end_kept)
+    quiet_resource_tracker()
     t0, started = time.perf_counter(), []
     with _blas_env(blas_threads):
         pool = (process_pool(helpers) if keep else
@@ -339,3 +344,28 @@ def _kept_task(token: str, blob: bytes | None, function, chunk: list):
         _PAYLOADS.clear()
         _PAYLOADS[token] = pickle.loads(blob)
     return (*_task(token, function, chunk), os.getpid())
+
+
+def quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker without its warnings: after an interrupt
+    the ``ema`` process ends at once (the reliability contract, docs: reliability) and
+    the tracker would otherwise print "leaked semaphore objects" on the terminal after
+    the one line."""
+    from multiprocessing import resource_tracker
+
+    old = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [old, "ignore::UserWarning"]))
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        if old is None:
+            del os.environ["PYTHONWARNINGS"]
+        else:
+            os.environ["PYTHONWARNINGS"] = old
+
+
+def _end_kept() -> None:
+    """At exit: the kept pools shut down while the interpreter is whole."""
+    for pool in list(_KEPT.values()):
+        pool.shutdown(wait=True, cancel_futures=True)
+    _KEPT.clear()
