@@ -18,7 +18,8 @@ bookkeeping of this process do not grow with the number of items.
 
 With ``parent=True`` this thread is one of the ``jobs`` workers: it runs tasks itself
 from the start (while the ``jobs - 1`` worker processes import and build their models)
-and between receiving results, so the start-up of one worker is not waited for and
+and between receiving results, one item at a time so that the workers are not kept
+waiting for their next task, so the start-up of one worker is not waited for and
 the others' is overlapped with work. With ``keep_workers=True`` the worker processes
 stay for the next call (their imports and models are not paid again).
 
@@ -184,8 +185,8 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
     workers = 1 if (jobs == 1 and not scheduler) else jobs
     plan = Plan(workers, target)
 
-    def take():
-        chunk = plan.take(queue, costs, left[0])
+    def take(one=False):  # one: a single item (this thread's own, in the parent mode)
+        chunk = [queue.popleft()] if one else plan.take(queue, costs, left[0])
         cost = float(sum(_cost(costs, i) for i in chunk))
         left[0] -= cost
         return chunk, cost
@@ -249,8 +250,8 @@ def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abor
     try:
         fill()
         while pending or queue:
-            if parent and queue:  # this thread's own task, then whatever has finished meanwhile
-                chunk, cost = take()
+            if parent and queue:  # this thread's own item (one: the workers wait no longer), then theirs
+                chunk, cost = take(one=True)
                 out, seconds, cold = _task(token, function, chunk)
                 plan.record(cost, seconds, cold)
                 each(out)

@@ -149,9 +149,11 @@ def run_points(grid: Grid, items: list, costs: dict, *, jobs: int, backend: str,
         points, b, (pid, fresh, cpu0, cpu1) = task
         build[0] += b
         tasks.append(math.fsum(s for _, _, s in points))
-        # start-up, CPU from before it (fresh) or this call's first task, CPU at the last, points
-        first = workers.get(pid, (cpu0 if fresh else 0.0, 0.0 if fresh else cpu0, cpu1, 0.0))
-        workers[pid] = (first[0], min(first[1], cpu0), max(first[2], cpu1), first[3] + tasks[-1])
+        # start-up (its first task ever: the CPU before it), CPU from the process's start
+        # (fresh) or this call's first task, CPU at the last, points; tasks arrive in any order
+        seen = workers.get(pid, (0.0, cpu0, cpu1, 0.0))
+        workers[pid] = (cpu0 if fresh else seen[0], 0.0 if fresh else min(seen[1], cpu0), max(seen[2], cpu1),
+                        seen[3] + tasks[-1])
         for idx, r, s in points:
             results[tuple(idx)] = r
             seconds[tuple(idx)] = s
