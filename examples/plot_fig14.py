@@ -10,7 +10,10 @@ stroke at no load - flat at small amplitude, the 80 mm/s rate limit showing from
 degrees up to 5 Hz.
 
 This is a coarse version (10 frequencies, 0.1-10 Hz) of the full figure that
-``make demo`` draws (40 frequencies, 0.1-30 Hz, every amplitude and load).
+``make demo`` draws (40 frequencies, 0.1-30 Hz, every amplitude and load). It runs on
+threads (``backend="threads"``); worker processes, the default, scale further but
+import the script again, so a script that uses them needs the
+``if __name__ == "__main__":`` guard.
 """
 
 import matplotlib.pyplot as plt
@@ -23,8 +26,9 @@ params = ema.load_parameters()  # the packaged reference set (models/cesa_ema.to
 stroke = params.actuator.stroke                       # 0.075 m
 freqs = np.geomspace(0.1, 10.0, 10)
 
-amps = ema.sine_stream(params, amplitudes=[p / 100 * stroke for p in (0.5, 2, 5, 10)], freqs=freqs)
-loads = ema.sine_stream(params, amplitudes=[0.005 * stroke], freqs=freqs, loads=[0.0, 30e3])
+amps = ema.sine_stream(params, amplitudes=[p / 100 * stroke for p in (0.5, 2, 5, 10)], freqs=freqs,
+                       backend="threads")
+loads = ema.sine_stream(params, amplitudes=[0.005 * stroke], freqs=freqs, loads=[0.0, 30e3], backend="threads")
 
 fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
 for amp in amps.axes["amplitude"]:

@@ -19,6 +19,13 @@ workers end together. Items are taken in the caller's order (longest first where
 their costs differ). At most two tasks per worker are in flight: the waiting and the
 bookkeeping of this process do not grow with the number of items.
 
+With ``parent=True`` this thread is one of the ``jobs`` workers: it runs tasks itself
+from the start (while the ``jobs - 1`` worker processes import and build their models)
+and between receiving results, one item at a time so that the workers are not kept
+waiting for their next task, so the start-up of one worker is not waited for and
+the others' is overlapped with work. With ``keep_workers=True`` the worker processes
+stay for the next call (their imports and models are not paid again).
+
 On an interrupt (or any error) nothing more is submitted, the pending tasks are
 cancelled and a process pool's workers are ended.
 """
@@ -132,7 +139,8 @@ def _dask_task(token: str, function, payload, chunk: list):
 
 def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "processes",
               scheduler: str | None = None, error: type = RuntimeError, costs: dict | None = None,
-              on_abort=None, blas_threads: int | None = 1, target: float = TARGET_SECONDS) -> dict:
+              on_abort=None, blas_threads: int | None = 1, target: float = TARGET_SECONDS,
+              parent: bool = False, keep_workers: bool = False) -> dict:
     """Run ``function(payload, chunk)`` over chunks of ``items``; ``each(result)`` in this
     thread as each chunk finishes (any order).
 
@@ -164,6 +172,13 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
         (None: the library's default).
     target : float
         Seconds a task aims at (s).
+    parent : bool
+        This thread is one of the ``jobs`` workers (module docstring); the items run in
+        this process must give the same results as in a worker.
+    keep_workers : bool
+        Local worker processes stay for the next call with the same number of workers
+        (their start-up paid once per session); its payload reaches each of them with
+        its first tasks. They end with this process, or on an interrupt or an error.
 
     Returns
     -------
@@ -177,8 +192,8 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
     workers = 1 if (jobs == 1 and not scheduler) else jobs
     plan = Plan(workers, target)
 
-    def take():
-        chunk = plan.take(queue, costs, left[0])
+    def take(one=False):  # one: a single item (this thread's own, in the parent mode)
+        chunk = [queue.popleft()] if one else plan.take(queue, costs, left[0])
         cost = float(sum(_cost(costs, i) for i in chunk))
         left[0] -= cost
         return chunk, cost
@@ -199,7 +214,8 @@ def run_tasks(function, payload, items, each, *, jobs: int = 1, backend: str = "
         finally:
             _PAYLOADS.pop(token, None)
     else:
-        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads)
+        _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent,
+                  keep_workers)
     return plan.summary()
 
 
@@ -207,44 +223,68 @@ def _token() -> str:
     return f"{os.getpid()}-{time.perf_counter_ns()}-{id(object())}"
 
 
-def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads) -> None:
+def _run_pool(function, payload, take, queue, plan, each, jobs, backend, on_abort, blas_threads, parent,
+              keep) -> None:
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    from ._parallel import end_pool, process_pool
+    from ._parallel import end_pool
 
     token = _token()
-    if backend == "threads":
+    helpers = jobs - 1 if parent else jobs
+    started = []  # seconds from the pool's creation to each worker process's start
+    blob, acked = None, set()  # a kept pool: the payload travels with the tasks until every worker has it
+    if backend == "threads" or parent:
         _PAYLOADS[token] = payload
-        pool = ThreadPoolExecutor(max_workers=jobs)
+    if backend == "threads":
+        pool = ThreadPoolExecutor(max_workers=helpers)
+        started = [0.0] * helpers
     else:
-        t0 = time.perf_counter()
-        with _blas_env(blas_threads):
-            pool = process_pool(jobs, initializer=_init_process, initargs=(token, pickle.dumps(payload)))
-            for f in [pool.submit(int, 0) for _ in range(jobs)]:  # start every worker under that environment
-                f.result()
-        plan.pool_start = time.perf_counter() - t0
+        pool, started = _process_pool(helpers, blas_threads, token, payload, keep, parent, plan)
+        if keep:
+            blob = pickle.dumps(payload)
     pending = {}
-    try:
-        while queue and len(pending) < IN_FLIGHT * jobs:
+
+    def submit(chunk):
+        if keep and backend != "threads":
+            return pool.submit(_kept_task, token, blob if len(acked) < helpers else None, function, chunk)
+        return pool.submit(_task, token, function, chunk)
+
+    def fill():  # with parent, tasks go only to workers that have started
+        while queue and len(pending) < IN_FLIGHT * (len(started) if parent else helpers):
             chunk, cost = take()
-            pending[pool.submit(_task, token, function, chunk)] = cost
-        while pending:
-            ready, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            for fut in ready:
-                cost = pending.pop(fut)
-                out, seconds, cold = fut.result()
+            pending[submit(chunk)] = cost
+
+    try:
+        fill()
+        while pending or queue:
+            if parent and queue:  # this thread's own item (one: the workers wait no longer), then theirs
+                chunk, cost = take(one=True)
+                out, seconds, cold = _task(token, function, chunk)
                 plan.record(cost, seconds, cold)
                 each(out)
-                if queue:
-                    chunk, cost = take()
-                    pending[pool.submit(_task, token, function, chunk)] = cost
+            ready, _ = wait(pending, timeout=0 if parent and queue else 0.2, return_when=FIRST_COMPLETED)
+            for fut in ready:
+                cost = pending.pop(fut)
+                out, seconds, cold, *pid = fut.result()
+                acked.update(pid)
+                plan.record(cost, seconds, cold)
+                each(out)
+            fill()
     except BaseException:
         if on_abort is not None:
             on_abort()
+        _KEPT.pop((helpers, blas_threads), None)
         end_pool(pool)
         raise
     finally:
         _PAYLOADS.pop(token, None)
+    if parent and backend != "threads" and len(started) == helpers and plan.pool_start is None:
+        plan.pool_start = max(started)
+    if keep and backend != "threads":
+        return  # the workers wait for the next call
+    if parent and len(started) < helpers:  # workers still starting when this thread had done everything
+        end_pool(pool)
+        return
     pool.shutdown(wait=True)
 
 
@@ -293,3 +333,74 @@ class _blas_env:
         for k in self.set:
             os.environ.pop(k, None)
         return False
+
+
+#: Process pools kept between calls (``keep_workers``): (workers, BLAS threads) -> pool.
+_KEPT: dict = {}
+
+
+def _process_pool(helpers, blas_threads, token, payload, keep, parent, plan):
+    """A process pool of ``helpers`` workers and the list its workers' start times go
+    into: a kept one (started, ``plan.pool_start`` 0) or a new one (its initializer
+    sets the payload unless the pool is kept)."""
+    from concurrent.futures import wait
+
+    from ._parallel import process_pool
+
+    pool = _KEPT.get((helpers, blas_threads)) if keep else None
+    if pool is not None and not getattr(pool, "_broken", False) and not getattr(pool, "_shutdown_thread", False):
+        plan.pool_start = 0.0
+        return pool, [0.0] * helpers
+    if keep and not _KEPT:
+        import atexit
+
+        atexit.register(_end_kept)
+    quiet_resource_tracker()
+    t0, started = time.perf_counter(), []
+    with _blas_env(blas_threads):
+        pool = (process_pool(helpers) if keep else
+                process_pool(helpers, initializer=_init_process, initargs=(token, pickle.dumps(payload))))
+        starts = [pool.submit(int, 0) for _ in range(helpers)]  # every worker starts under that environment
+        for f in starts:
+            f.add_done_callback(lambda _: started.append(time.perf_counter() - t0))
+        if not parent:
+            wait(starts)
+            plan.pool_start = time.perf_counter() - t0
+    if keep:
+        _KEPT[helpers, blas_threads] = pool
+    return pool, started
+
+
+def _kept_task(token: str, blob: bytes | None, function, chunk: list):
+    """A task on a kept worker: the payload from ``blob`` where this worker has not got
+    it (a kept worker holds the latest call's only), then :func:`_task`, and this
+    worker's pid (the caller stops sending the payload once every worker has it)."""
+    if token not in _PAYLOADS:
+        _PAYLOADS.clear()
+        _PAYLOADS[token] = pickle.loads(blob)
+    return (*_task(token, function, chunk), os.getpid())
+
+
+def quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker without its warnings: after an interrupt
+    the ``ema`` process ends at once (the reliability contract, docs: reliability) and
+    the tracker would otherwise print "leaked semaphore objects" on the terminal after
+    the one line."""
+    from multiprocessing import resource_tracker
+
+    old = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [old, "ignore::UserWarning"]))
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        if old is None:
+            del os.environ["PYTHONWARNINGS"]
+        else:
+            os.environ["PYTHONWARNINGS"] = old
+
+
+def _end_kept() -> None:
+    """At exit: the kept pools shut down while the interpreter is whole."""
+    for pool in list(_KEPT.values()):
+        pool.shutdown(wait=True, cancel_futures=True)
+    _KEPT.clear()

@@ -12,6 +12,9 @@ LOADS: comma list 0,10kN,30kN; a bare number is N (positive pushes the rod in); 
 pulling load may follow its flag: --loads -30kN,0.
 Grids above 100000 points (or 1e7 periods in the worst case, points x --max-periods)
 are refused with the estimate.
+The points go to --jobs local workers (processes, or threads with --threads), longest
+first by an estimated cost, or to a Dask scheduler (--scheduler); the table is the same
+to the last digit whichever runs them.
 Every point has a status (converged, not_converged, failed) and a reason; a failed
 point (it left the physical envelope, went non-finite or its integrator gave up) has
 no values and makes the command exit with status 3 after writing the whole table.
@@ -37,7 +40,9 @@ HELP = "nonlinear frequency response (sine stream): gain, phase, distortion per 
 NO_EFFECT = {"--amplitudes": (), "--freqs": (), "--loads": (), "--scheduler": (), "--max-periods": (), "--tol-db": (),
              "--tol-deg": (), "--out": (), "--plot": (),
              "--jobs": (NoEffect(("--scheduler", "tcp://localhost:8786", "--jobs", "2"), "with --scheduler (the "
-                                 "cluster's workers run the points)", lambda a: a.scheduler is not None),)}
+                                 "cluster's workers run the points)", lambda a: a.scheduler is not None),),
+             "--threads": (NoEffect(("--scheduler", "tcp://localhost:8786", "--threads"), "with --scheduler (the "
+                                    "cluster's workers run the points)", lambda a: a.scheduler is not None),)}
 
 def add_arguments(p):
     p.add_argument("--amplitudes", default="0.5%,1%,2%,5%,10%", metavar="LIST",
@@ -47,7 +52,8 @@ def add_arguments(p):
     p.add_argument("--loads", default="0", metavar="LIST",
                    help="constant external forces (bare numbers in N); default 0")
     p.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="worker threads on this machine; default: all cores")
+                   help="local workers (processes; this process is one of them); default: all cores")
+    p.add_argument("--threads", action="store_true", help="local workers are threads (default: processes)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run on a Dask distributed scheduler instead (needs ema_casadi[dask] here and on the workers)")
     p.add_argument("--max-periods", type=int, default=60, metavar="N",
@@ -80,7 +86,8 @@ def run(args) -> dict:
                args.max_periods, args.jobs or 1, "--max-periods")
     progress = progress_of(args)
     resp = sine_stream(params, amplitudes, freqs, loads, variants=model.variants, jobs=args.jobs,
-                       scheduler=args.scheduler, max_periods=args.max_periods, tol_db=args.tol_db,
+                       backend="threads" if args.threads else "processes", scheduler=args.scheduler,
+                       max_periods=args.max_periods, tol_db=args.tol_db,
                        tol_deg=args.tol_deg, progress=progress)
     written = []
     if out is not None:
@@ -102,6 +109,7 @@ def run(args) -> dict:
         "simulated_time": resp.info["simulated_time"],
         "periods_total": resp.info["periods_total"],
         "jobs": resp.info["jobs"],
+        "backend": resp.info["backend"],
         "scheduler": resp.info["scheduler"],
         "written": written,
     }

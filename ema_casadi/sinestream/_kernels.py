@@ -136,6 +136,18 @@ class _HybridPeriods:
             self._caps[key] = inside_limit(self.model, {"load": float(f_ext)}, 1.0, zoh, self.dt_max, pv=p)
         return self._caps[key]
 
+    def samples(self, pa) -> int:
+        """Output samples of one period of the point ``pa`` = [p; A; f; F_ext] (even;
+        ``DECIMATE`` RK4 steps each)."""
+        p = pa[: self.npar]
+        _, freq, f_ext = pa[self.npar :]
+        n = max(self.k_min, math.ceil(1.0 / (freq * self.cap(p, f_ext) * self.DECIMATE) - 1e-9))
+        return n + n % 2
+
+    def steps_per_period(self, pa) -> int:
+        """RK4 steps of one period of the point ``pa`` (its cost)."""
+        return self.samples(pa) * self.DECIMATE
+
     def __call__(self, x0, pa):
         """One period from x0; returns (x at the period's end, samples), NaN if the run failed."""
         try:
@@ -148,8 +160,7 @@ class _HybridPeriods:
         envelope itself and raises RunFailed."""
         p = pa[: self.npar]
         A, freq, f_ext = pa[self.npar :]
-        n = max(self.k_min, math.ceil(1.0 / (freq * self.cap(p, f_ext) * self.DECIMATE) - 1e-9))
-        n += n % 2
+        n = self.samples(pa)
         res = simulate(self.model, 1.0 / freq, inputs={"command": Signal.sine(A, freq), "load": float(f_ext)}, p=p,
                        x0=x0, dt=1.0 / (freq * n * self.DECIMATE), decimate=self.DECIMATE, solver="rk4")
         x1 = np.array([res.states[name][-1] for name in self.model.states])
@@ -168,6 +179,13 @@ class _SwitchedPeriods(_HybridPeriods):
     def __init__(self, model: Model, samples: int, dt_max: float):
         super().__init__(model, samples, dt_max)
         self.i_carrier = model.param_names.index(model.carrier)
+
+    def steps_per_period(self, pa) -> int:
+        """RK4 steps of one period of the point ``pa`` = [p; A; f; F_ext] (its cost)."""
+        p = pa[: self.npar]
+        _, freq, f_ext = pa[self.npar :]
+        f_c = float(p[self.i_carrier])
+        return math.ceil(max(1, round(f_c / freq)) / f_c / min(self.cap(p, f_ext, True), 0.5 / f_c))
 
     def period(self, x0, pa):
         p = pa[: self.npar]

@@ -50,7 +50,8 @@ class FreqResponse(Summarised):
     variants : dict
         Label -> complete variant dict.
     info : dict
-        Options, wall time, counts.
+        Options, wall time, counts, ``backend`` and ``timing`` (each point's CPU seconds
+        and estimated cost, the tasks' CPU seconds, the workers' start-up).
     samples : dict, optional
         With ``keep=True``: (i_variant, i_load, i_amplitude, i_frequency) -> dict of
         ``t`` (s), ``x_cmd`` (m), ``x_rod`` (m), ``i_q`` (A) over all simulated periods.
@@ -204,9 +205,14 @@ class FreqResponse(Summarised):
             "axis_units": {"variant": "", "load": "N", "amplitude": "m", "frequency": "Hz"},
             "units": dict(FIELDS),
             "variants": self.variants,
-            "info": self.info,
+            "info": {k: _listed(v) if k == "timing" else v for k, v in self.info.items()},
             "points": self.rows(),
         }
+
+
+def _listed(timing: dict) -> dict:
+    """The timings with their arrays as (nested) lists."""
+    return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in timing.items()}
 
 
 def _fmt(v) -> str:

@@ -13,12 +13,13 @@ import casadi as ca
 import numpy as np
 
 from .._util._checks import describe, instance, vector
+from .._util._parallel import check_main_guard
 from ..linearisation import small_signal_point
 from ..model.assembly import Model
 from ..model.components import validate_variants
 from ..model.params import Parameters
 from ..simulation import Monitor
-from ._backends import _cores, _run_dask, _run_local
+from ._backends import BACKENDS, Grid, _cores, point_costs, run_points, worth_processes
 from ._kernels import _failed, _Settle, _stepper
 from ._parse import _as_axis, check_grid
 from ._result import FreqRespError, FreqResponse
@@ -32,7 +33,8 @@ def sine_stream(
     variants: dict | list | None = None, *,
     p: np.ndarray | None = None, samples: int = 64, tol_db: float = 0.01, tol_deg: float = 0.1,
     max_periods: int = 60, rtol: float = 1e-6, atol: float = 1e-9, hybrid_dt: float = 5e-5,
-    jobs: int | None = None, scheduler: str | None = None, progress: bool = False, keep: bool = False,
+    jobs: int | None = None, backend: str = "processes", scheduler: str | None = None, progress: bool = False,
+    keep: bool = False,
 ) -> FreqResponse:
     """Sine-stream frequency response of the nonlinear model x_rod / x_cmd.
 
@@ -63,7 +65,15 @@ def sine_stream(
         Largest RK4 step for hybrid-friction points (s); on the reference set 1e-4 s
         and 2e-5 s gave gains within 1e-3 dB of each other.
     jobs : int, optional
-        Worker threads (default: the number of cores).
+        Local workers (default: the number of cores); 1 runs in this thread.
+    backend : {"processes", "threads"}
+        The local pool. Processes scale with the cores: ``jobs - 1`` of them and this
+        process, which computes while they start; a grid too small to pay for their
+        start-up runs in this thread. They are started by spawn and import the main
+        script again, so a script must call ``sine_stream`` under
+        ``if __name__ == "__main__":`` (refused with :class:`FreqRespError` otherwise,
+        before any point runs). Threads share this process (no start-up) but Python's
+        lock serialises the work between the integrator calls (about 8 % of it).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:port``); needs the
         optional ``dask[distributed]`` and ema_casadi on the workers.
@@ -85,24 +95,33 @@ def sine_stream(
     _check_options(samples, max_periods, tol_db, tol_deg, rtol, atol, hybrid_dt, jobs)
     if scheduler is not None and not (isinstance(scheduler, str) and "://" in scheduler):
         raise FreqRespError(f"scheduler: expected an address like tcp://host:8786, got {describe(scheduler)}")
+    if backend not in BACKENDS:
+        raise FreqRespError(f"backend: expected one of {', '.join(BACKENDS)}, got {describe(backend)}")
     vset = _variant_set(params, variants)
     check_grid({"variants": len(vset), "loads": len(loads), "amplitudes": len(amplitudes), "freqs": len(freqs)},
                max_periods, jobs or _cores())
     pv = _param_vector(params, p)
+    n_jobs = 1 if scheduler else (jobs or _cores())
     settle = _Settle(tol_db, tol_deg, max_periods)
     build = (samples, rtol, atol, hybrid_dt)
-    tasks = _tasks(params, vset, build, pv, loads, amplitudes, freqs)
-    n_jobs = jobs or _cores()
+    x0s, rho = _starts(params, vset, build, pv, loads, amplitudes, freqs)
+    grid = Grid(params, tuple(vset.values()), build, settle, keep, pv, loads, amplitudes, freqs, x0s)
     held = _beyond_hold(vset, pv, loads)  # no response to measure: failed points, not numbers
-    tasks, beyond = [t for t in tasks if t[0][:2] not in held], [t for t in tasks if t[0][:2] in held]
-    if scheduler:
-        results = _run_dask(scheduler, tasks, params, build, settle, keep, progress) if tasks else {}
-    else:
-        results = _run_local(tasks, params, build, settle, keep, progress, n_jobs) if tasks else {}
-    results.update({t[0]: _failed(0, held[t[0][:2]]) for t in beyond})
+    todo = [i for i in x0s if i[:2] not in held]
+    costs = point_costs(grid, {i: rho[i] for i in todo})
+    if backend == "processes" and n_jobs > 1:
+        if not worth_processes(costs):  # a small grid: this thread ends it before a worker has started
+            n_jobs = 1
+        else:
+            check_main_guard(FreqRespError, f"sine_stream(jobs={n_jobs})")
+    results, timing = run_points(grid, todo, costs, jobs=n_jobs, backend=backend, scheduler=scheduler,
+                                 progress=progress) if todo else ({}, {})
+    results.update({i: _failed(0, held[i[:2]]) for i in x0s if i[:2] in held})
     shape = (len(vset), len(loads), len(amplitudes), len(freqs))
     data, samples_out, failed = _collect(results, shape, keep)
-    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(tasks) + len(beyond), data, failed, freqs)
+    info = _info(settle, build, None if scheduler else n_jobs, scheduler, len(x0s), data, failed, freqs)
+    info["backend"] = "dask" if scheduler else (backend if n_jobs > 1 else "serial")
+    info["timing"] = _timing(timing, shape)
     info["wall_time"] = time.perf_counter() - t_wall
     axes = {"variant": list(vset), "load": loads, "amplitude": amplitudes, "frequency": freqs}
     return FreqResponse(axes=axes, data=data, variants=vset, info=info, samples=samples_out)
@@ -168,21 +187,21 @@ def _variant_set(params: Parameters, variants) -> dict:
     raise FreqRespError("variants: expected a dict of variant choices or a dict label -> dict")
 
 
-def _tasks(params, vset, build, pv, loads, amplitudes, freqs) -> list:
-    """One task per point: ((variant, load, amplitude, frequency) indices, variant dict,
-    starting state, [p; A; f; F_ext])."""
-    tasks = []
+def _starts(params, vset, build, pv, loads, amplitudes, freqs) -> tuple[dict, dict]:
+    """Every point's starting state and its linear rod speed demand over the rate limit
+    (the cost estimate's input), each index (variant, load, amplitude, frequency) -> value."""
+    x0s, rho = {}, {}
     for iv, v in enumerate(vset.values()):
         model, step = _stepper(v, params, *build)
-        x0s = _initial_states(model, step, pv, loads, amplitudes, freqs)
+        x0, r = _initial_states(model, step, pv, loads, amplitudes, freqs)
         for il, ia, jf in itertools.product(range(len(loads)), range(len(amplitudes)), range(len(freqs))):
-            pa = np.r_[pv, amplitudes[ia], freqs[jf], loads[il]]
-            tasks.append(((iv, il, ia, jf), v, x0s[il, ia, jf], pa))
-    return tasks
+            x0s[iv, il, ia, jf], rho[iv, il, ia, jf] = x0[il, ia, jf], r[il, ia, jf]
+    return x0s, rho
 
 
-def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
-    """(i_load, i_amplitude, i_frequency) -> starting state (package docstring)."""
+def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> tuple[dict, dict]:
+    """(i_load, i_amplitude, i_frequency) -> starting state (package docstring), and ->
+    the linear response's rod speed amplitude over the rate limit (-)."""
     nx = model.nx
     x = ca.SX.sym("x", nx)
     u = ca.SX.sym("u", model.nu)
@@ -198,7 +217,7 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
     rod = rods[0] if rods else model.state_with("shaft_angle")
     j_rod, per_unit = model.index(rod), travel[rod]
     monitor = Monitor(model, p)
-    out = {}
+    out, rho = {}, {}
     for il, load in enumerate(loads):
         # at rest under the load: 1 s with the command held at zero
         x_rest, _ = step(np.zeros(nx), np.r_[p, 0.0, 1.0, load])
@@ -217,13 +236,14 @@ def _initial_states(model: Model, step, p, loads, amplitudes, freqs) -> dict:
             # rod speed amplitude of the linear response per unit command amplitude
             g_rod = abs(Xc[j_rod]) * per_unit
             for ia, A in enumerate(amplitudes):
+                rho[il, ia, jf] = w * g_rod * A / rate_limit
                 scale = A * min(1.0, rate_limit / max(w * g_rod * A, 1e-300))
                 guess = x_rest + scale * Xc.imag
                 # a guess outside the physical envelope (the linearised hybrid rod is
                 # stuck: its "response" drives the currents far beyond I_max) would
                 # start the run in garbage: start at rest instead
                 out[il, ia, jf] = x_rest if monitor.first([0.0], guess) is not None else guess
-    return out
+    return out, rho
 
 
 def _collect(results: dict, shape: tuple, keep: bool):
@@ -273,6 +293,26 @@ def _info(settle: _Settle, build: tuple, jobs, scheduler, points: int, data: dic
         "periods_total": int(periods.sum()),
         "simulated_time": float(np.sum(periods / freqs[None, None, None, :])),
     }
+
+
+def _timing(timing: dict, shape: tuple) -> dict:
+    """The run's timings: ``point_seconds`` (CPU seconds of each point's periods, NaN for
+    points not run, shaped like the data), ``point_cost`` (its estimated cost, in periods
+    of the CVODES map, the same shape), ``task_seconds`` (of each task's points),
+    ``build_seconds`` (period maps built in the workers), ``worker_cpu`` (each worker
+    process's CPU seconds: its start-up where it started for this call, what it spent
+    on this call, start-up included, and its points), ``points_here`` (CPU seconds of
+    the points run in this process) and the task engine's plan
+    (``tasks``, ``seconds_per_cost``, ``pool_start_seconds``, ``first_task_seconds``)."""
+    out = dict(timing)
+    for key in ("point_seconds", "point_cost"):
+        values = np.full(shape, np.nan)
+        for idx, s in timing.get(key, {}).items():
+            values[idx] = s
+        out[key] = values
+    out.setdefault("task_seconds", [])
+    out.setdefault("worker_cpu", [])
+    return out
 
 
 def _unwrap_deg(phase: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 from .._util import _interrupts
 from .._util._files import after_commit, on_error
 from .._util._parallel import check_main_guard, cores
-from .._util._tasks import run_tasks
+from .._util._tasks import quiet_resource_tracker, run_tasks
 from ..simulation import progress_bar
 from ._journal import Journal, journal_path, read_table, write_table
 from ._metrics import PointFailed, compute_metrics, metric_columns, needs_simulation, simulate_scenario
@@ -251,28 +251,10 @@ def _execute(spec, todo, jobs, backend, scheduler, fresh, journal, progress, bef
         return
     spec.fingerprint()  # computed once here: the workers' caches key on it
     if not scheduler and jobs > 1 and backend == "processes":
-        _quiet_resource_tracker()
+        quiet_resource_tracker()
     _STOP.clear()
     run_tasks(_run_indices, spec, [r.index for r in todo], finished, jobs=jobs, backend=backend,
               scheduler=scheduler, error=SweepError, on_abort=_STOP.set)
-
-
-def _quiet_resource_tracker() -> None:
-    """Start multiprocessing's resource tracker without its warnings: after an interrupt
-    the ``ema`` process ends at once (the reliability contract, docs: reliability) and the tracker would otherwise print
-    "leaked semaphore objects" on the terminal after the one line."""
-    import os
-    from multiprocessing import resource_tracker
-
-    old = os.environ.get("PYTHONWARNINGS")
-    os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [old, "ignore::UserWarning"]))
-    try:
-        resource_tracker.ensure_running()
-    finally:
-        if old is None:
-            del os.environ["PYTHONWARNINGS"]
-        else:
-            os.environ["PYTHONWARNINGS"] = old
 
 
 def _progress(enabled, before, fresh, total, clock) -> None:
