@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import threading
 
-__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "worker_threads", "dask_map",
+__all__ = ["SCHEDULER_TIMEOUT", "WORKERS_TIMEOUT", "cores", "connect", "timeout", "worker_threads",
            "check_main_guard", "die_with_parent", "worker_init", "heap_for_large_buffers", "process_pool", "end_pool"]
 
 #: Seconds to connect to a Dask scheduler, handshake included.
@@ -259,40 +259,6 @@ def worker_threads(client, address: str, error: type) -> int:
     except TimeoutError:
         raise error(f"scheduler {address}: no worker joined within {wait_workers:g} s") from None
     return max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
-
-
-def dask_map(address: str, function, chunks_of, each, error: type) -> None:
-    """Run ``function(*args, chunk)`` for every chunk on the Dask scheduler at ``address``.
-
-    Parameters
-    ----------
-    address : str
-        ``tcp://host:port`` of the scheduler.
-    function : callable
-        Picklable, importable on the workers: ``function(chunk) -> result``.
-    chunks_of : callable
-        ``chunks_of(worker_threads) -> list of chunks`` (the caller sizes them once the
-        cluster's size is known).
-    each : callable
-        ``each(result)``, called in this thread as each chunk finishes.
-    error : type
-        The exception for a scheduler that does not answer or has no worker.
-    """
-    from dask.distributed import as_completed
-
-    client = connect(address, error)
-    futures = []
-    try:
-        threads = worker_threads(client, address, error)
-        futures = [client.submit(function, c, pure=False) for c in chunks_of(threads)]
-        for fut in as_completed(futures):
-            each(fut.result())
-    except BaseException:
-        if futures:
-            client.cancel(futures)
-        raise
-    finally:
-        client.close(timeout=2)
 
 
 def process_pool(jobs: int, initializer=None, initargs: tuple = ()):
