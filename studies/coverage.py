@@ -56,7 +56,7 @@ import numpy as np
 
 import ema_casadi as ema
 from ema_casadi import Signal
-from ema_casadi._util._parallel import process_map
+from ema_casadi._util._tasks import process_map
 from ema_casadi.identification import FitFailed, Record, identify
 from ema_casadi.signals import parse_signal
 

@@ -130,7 +130,8 @@ def test_a_tripped_check_is_one_line_its_status_nothing_written_and_the_apis_cla
     argv += ["--out", str(tmp_path / out)]
     raised = []
     refused = run_module._refused
-    monkeypatch.setattr(run_module, "_refused", lambda command, exc: raised.append(exc) or refused(command, exc))
+    monkeypatch.setattr(run_module, "_refused",
+                        lambda command, exc, flags=None: raised.append(exc) or refused(command, exc, flags))
     monkeypatch.chdir(tmp_path)
     status = main(argv)
     _, err = capsys.readouterr()
