@@ -63,6 +63,12 @@ def add_arguments(p):
     p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
                    help="estimate each record's initial state instead of starting at rest (a record cut from "
                         "a motion); bare: positions, speeds and the outer loops' integrals, or the states named")
+    p.add_argument("--method", default="single", metavar="METHOD",
+                   help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
+                        "parameters solved together, then finished by single shooting), or auto (single, then "
+                        "collocation where it fails); the intervals and verdict are single shooting's; default single")
+    p.add_argument("--nodes", type=int, default=None, metavar="N",
+                   help="--method multiple/collocation: intervals per record (at least 1); default one per ms")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
@@ -193,6 +199,10 @@ def _on(rule, *example, why=None) -> NoEffect:
 #: Each flag -> the combinations where it has no effect (refused; docs: cli).
 NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
+    "--method": (_on(_TRACK, *_TRENDS, "--method", "auto"), _on(_COMPARE_FIT, *_CMP, "--method", "auto")),
+    "--nodes": (_on(_TRACK, *_TRENDS, "--nodes", "50"), _on(_COMPARE_FIT, *_CMP, "--nodes", "50"),
+                NoEffect((*_FIT, "--nodes", "50"), "with --method single (it sets the grid of multiple shooting and "
+                         "collocation)", lambda a: a.method == "single")),
     "--track": (_on(_EXAMPLE, "--track"),),
     "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
                           "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),
@@ -227,7 +237,7 @@ _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "1
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
-           "--structural": "P_blend=0.05:0.2"}
+           "--structural": "P_blend=0.05:0.2", "--method": "auto", "--nodes": "50"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
@@ -263,7 +273,7 @@ def run(args) -> dict:
         kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
-              "estimate_x0": args.estimate_x0,
+              "estimate_x0": args.estimate_x0, "method": args.method, "nodes": args.nodes,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
               **({} if args.model_error is None else {"model_error": args.model_error}),
               **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
@@ -359,7 +369,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
-                 "--structural"):  # none
+                 "--structural", "--method", "--nodes"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -440,7 +450,7 @@ def _track(args, params, model, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs")}
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "method", "nodes")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:
@@ -461,7 +471,8 @@ def _example(args, params, model, out, progress) -> dict:
                                                       "hold": _holds(args.hold, model),
                                                       "hold_unidentifiable": args.hold_unidentifiable,
                                                       "sigma": _quantities(args.sigma, "--sigma", model),
-                                                      "bounds": _bounds(args.bounds),
+                                                      "bounds": _bounds(args.bounds), "method": args.method,
+                                                      "nodes": args.nodes,
                                                       "jobs": min(args.starts, args.jobs or cores())}, out)
     doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
                                               "these values, sensor noise added; fitted from the reference values"}
