@@ -68,7 +68,7 @@ def add_arguments(p):
                         "parameters solved together, then finished by single shooting), or auto (single, then "
                         "collocation where it fails); the intervals and verdict are single shooting's; default single")
     p.add_argument("--nodes", type=int, default=None, metavar="N",
-                   help="--method multiple/collocation: intervals per record (at least 1); default one per ms")
+                   help="--method multiple/collocation: intervals per record (at least 1); default one per 0.5 ms")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",

@@ -19,7 +19,7 @@ from . import _consistency, _misfit
 from ._failed import FitFailed
 from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
-from ._methods import check_method, run_method, transcribed_fit
+from ._methods import check_method, grid, run_method, transcribed_fit
 from ._problem import Predictor, free_parameters, given_model, marginal, x0_states
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty
@@ -114,8 +114,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         statistics, intervals and verdict are the single-shooting fit's in every case;
         ``info["method"]`` says which ran.
     nodes : int, optional
-        Multiple shooting and collocation: intervals per record (default about one per
-        millisecond of record); at least 1.
+        Multiple shooting and collocation: intervals per record (default one per 0.5 ms
+        of record); at least 1.
     progress : bool
         One line of progress on stderr.
     model : Model, optional
@@ -170,7 +170,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         return _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                        model_error, structural)
 
-    res = run_method(method, single, lambda how: transcribed_fit(model, recs, fr, model.p(), given, how, nodes))
+    res = run_method(method, single, lambda how: transcribed_fit(model, recs, fr, model.p(), given, how, nodes),
+                     sum(len(grid(r, nodes)) - 1 for r in recs))
     res.info["variant_overrides"] = dict(variants or {})
     return res
 
