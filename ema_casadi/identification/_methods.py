@@ -154,7 +154,7 @@ def transcribed_fit(model, recs, fr, base, given: dict, method: str, nodes: int 
     Returns
     -------
     dict
-        ``theta`` (SI), ``success``, ``status`` (IPOPT's), ``iterations``, ``wall_s``,
+        ``estimate`` (SI), ``success``, ``status`` (IPOPT's), ``iterations``, ``wall_s``,
         ``cost`` (per residual), ``nodes`` (intervals per record).
 
     Raises
@@ -208,14 +208,14 @@ def transcribed_fit(model, recs, fr, base, given: dict, method: str, nodes: int 
     opti.minimize(0.5 * ca.sumsqr(r) / M)
     res = solve_ipopt(opti, IPOPT, expand=method == "collocation")
     theta = np.array(res.value(p), float).ravel()[fr.index]
-    return {"theta": theta, "success": bool(res.success and res.status in SUCCESS), "status": res.status,
+    return {"estimate": theta, "success": bool(res.success and res.status in SUCCESS), "status": res.status,
             "iterations": res.iterations, "wall_s": time.perf_counter() - t0, "cost": float(res.value(opti.f)),
             "nodes": counts}
 
 
 def run_method(method: str, single, transcription, intervals: int = 0):
     """The fit by ``method``: ``single()`` (single shooting from the start values) or
-    ``single(theta)`` (from the estimate ``transcription(how)["theta"]`` of multiple
+    ``single(theta)`` (from the estimate ``transcription(how)["estimate"]`` of multiple
     shooting or collocation); ``auto``: single shooting, then :data:`FALLBACK` where
     it does not converge or its fit is inadequate, the better fit kept (adequate first,
     then the lower cost). ``info["method"]`` names the method of the result and
@@ -285,7 +285,7 @@ def _finished(how: str, single, transcription, tried: list):
         entry["outcome"] = f"IPOPT stopped ({est['status']}) after {est['iterations']} iterations"
         raise FitFailed(f"{how}: {entry['outcome']}", status="not converged")
     try:
-        res = single(est["theta"])
+        res = single(est["estimate"])
     except FitFailed as exc:
         entry["outcome"] = f"the single-shooting finish did not converge ({exc.reason})"
         exc.reason = f"{how}: {entry['outcome']}"
