@@ -50,9 +50,10 @@ METHODS = ("auto", "single", "multiple", "collocation")
 #: What ``auto`` tries where single shooting does not converge or its fit is inadequate.
 FALLBACK = "collocation"
 #: ``auto`` tries :data:`FALLBACK` only where the records' grids have at most this many
-#: intervals in all (the NLP's size: 9 states x 4 points per interval on the reference
-#: actuator); longer records stay with single shooting's outcome.
-AUTO_INTERVALS = 1500
+#: intervals in all (0.1 s of record at 2 kHz): measured under a load of 15-20 on 2
+#: cores, collocation took 28-70 s on 200 intervals and 97-400 s on 600 (37-126 s CPU),
+#: beyond the fit's time goal of a minute; longer records keep single shooting's outcome.
+AUTO_INTERVALS = 200
 #: The default interval of the transcription's grid (s): a sample interval of a 2 kHz
 #: record. From the true values of a noise-free 50 ms step record IPOPT converges on this
 #: grid (3 parameters, 105 iterations) and stops at its iteration limit on a 1 ms one.
