@@ -1,7 +1,8 @@
-"""The text report of one identification fit (``ema identify`` without --json)."""
+"""The text report of ``ema identify`` without --json: one fit, a trend, the example's records."""
 
 from __future__ import annotations
 
+import sys
 from functools import partial
 from pathlib import Path
 
@@ -127,3 +128,22 @@ def failure_text(result: dict) -> str:
     for hint in result.get("hints", []):
         parts.append(f"hint: {hint['text']}\n")
     return "".join(parts)
+
+
+def text_report(result: dict) -> None:
+    """Print the parameter table and the channels' residuals."""
+    w = sys.stdout.write
+    if "trend_truth" in result:  # --example-records
+        w("example records: " + ", ".join(f"{k} = {v:.4g}" for k, v in result["truth"].items()) + "\n")
+        for p in result["written"]:
+            w(f"wrote {p}\n")
+        return
+    if "trend" in result:
+        from ..identification import report_text
+
+        w(report_text(result))
+        return
+    if result.get("converged") is False:  # the reason goes to stderr; the last iterate here
+        w(failure_text(result))
+        return
+    w(fit_text(result))

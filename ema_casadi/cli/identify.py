@@ -38,7 +38,7 @@ from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
 from ._common import key_values
 from ._flags import NoEffect, check_bare, no_effect
-from ._identify_text import failure_text, fit_text
+from ._identify_text import text_report
 
 COMMAND = "identify"
 ORDER = 12
@@ -69,6 +69,12 @@ def add_arguments(p):
                         "friction curve fitted to the records' steady-speed segments under a known load: auto where "
                         "they tell one, records requires that (exit 2 otherwise), off (default) the file's values; "
                         "with --starts N the other starts are a Latin hypercube over those parameters")
+    p.add_argument("--method", default="single", metavar="METHOD",
+                   help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
+                        "parameters solved together, then finished by single shooting), or auto (single, then "
+                        "collocation where it fails); the intervals and verdict are single shooting's; default single")
+    p.add_argument("--nodes", type=int, default=None, metavar="N",
+                   help="--method multiple/collocation: intervals per record (at least 1); default one per 0.5 ms")
     p.add_argument("--max-evaluations", type=int, default=60, metavar="N",
                    help="model evaluations per fit; more means not converged (exit 3); default 60")
     p.add_argument("--model-error", type=float, default=None, metavar="SIGMAS",
@@ -192,6 +198,10 @@ NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
     "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "auto", why="with --track (each record is fitted "
                              "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "auto")),
+    "--method": (_on(_TRACK, *_TRENDS, "--method", "auto"), _on(_COMPARE_FIT, *_CMP, "--method", "auto")),
+    "--nodes": (_on(_TRACK, *_TRENDS, "--nodes", "50"), _on(_COMPARE_FIT, *_CMP, "--nodes", "50"),
+                NoEffect((*_FIT, "--nodes", "50"), "with --method single (it sets the grid of multiple shooting and "
+                         "collocation)", lambda a: a.method == "single")),
     "--track": (_on(_EXAMPLE, "--track"),),
     "--model-error": (_on(_TRACK, *_TRENDS, "--model-error", "2", why="with --track (a trend's fits are judged one "
                           "by one; give it without --track)"), _on(_EXAMPLE, "--model-error", "2")),
@@ -226,7 +236,8 @@ _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "1
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
-           "--structural": "P_blend=0.05:0.2", "--friction-start": "auto"}
+           "--structural": "P_blend=0.05:0.2", "--friction-start": "auto",
+           "--method": "auto", "--nodes": "50"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
@@ -267,6 +278,7 @@ def run(args) -> dict:
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
               "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
+              "method": args.method, "nodes": args.nodes,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
               **({} if args.model_error is None else {"model_error": args.model_error,
                                                       "allow_misfit": args.allow_misfit}),
@@ -363,7 +375,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
-                 "--structural", "--friction-start"):  # none
+                 "--structural", "--friction-start", "--method", "--nodes"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -446,7 +458,8 @@ def _track(args, params, model, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start")}
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start", "method",
+                                                 "nodes")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:
@@ -467,27 +480,12 @@ def _example(args, params, model, out, progress) -> dict:
                                                       "hold": _holds(args.hold, model),
                                                       "hold_unidentifiable": args.hold_unidentifiable,
                                                       "sigma": _quantities(args.sigma, "--sigma", model),
-                                                      "bounds": _bounds(args.bounds),
+                                                      "bounds": _bounds(args.bounds), "method": args.method,
+                                                      "nodes": args.nodes,
                                                       "jobs": min(args.starts, args.jobs or cores())}, out)
     doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "
                                               "these values, sensor noise added; fitted from the reference values"}
     return doc
 
 
-def report(result: dict) -> None:
-    """Print the parameter table and the channels' residuals."""
-    w = sys.stdout.write
-    if "trend_truth" in result:  # --example-records
-        w("example records: " + ", ".join(f"{k} = {v:.4g}" for k, v in result["truth"].items()) + "\n")
-        for p in result["written"]:
-            w(f"wrote {p}\n")
-        return
-    if "trend" in result:
-        from ..identification import report_text
-
-        w(report_text(result))
-        return
-    if result.get("converged") is False:  # the reason goes to stderr; the last iterate here
-        w(failure_text(result))
-        return
-    w(fit_text(result))
+report = text_report  # the command's text report (without --json)

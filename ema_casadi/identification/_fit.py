@@ -22,7 +22,8 @@ from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
 from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
-from ._problem import Predictor, free_parameters, given_model, marginal
+from ._methods import check_method, grid, run_method, transcribed_fit
+from ._problem import Predictor, free_parameters, given_model, marginal, x0_states
 from ._records import IdentificationError, Record, read_record
 from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
@@ -42,21 +43,14 @@ REGRID = 0.05
 #: there can hold a false optimum (one kernel's path: J_m 5 sd off, the cost 116 high).
 CONFIRMS = 2
 CONFIRM_EVALUATIONS = 8
-#: The states estimated by ``estimate_x0=True``: the mechanism's positions and speeds,
-#: what a record cut from the middle of a motion starts away from, and the integral
-#: parts of the outer (non-current) loops, which hold the current that carries the
-#: load and friction then. The currents and the current loops' integrals settle within
-#: a millisecond of any start (two samples at 2 kHz: not identifiable, and freeing
-#: them led the test fit into a worse local minimum); name them explicitly if needed.
-X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
 
 
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
              variants: dict | None = None, start: dict | None = None, starts: int = 1, seed: int = 0,
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, allow_misfit: bool = False,
-             jobs: int = 1, structural: dict | None = None, progress: bool = False,
-             model: Model | None = None, friction_start: str = "off") -> IdentResult:
+             jobs: int = 1, structural: dict | None = None, method: str = "single", nodes: int | None = None,
+             progress: bool = False, model: Model | None = None, friction_start: str = "off") -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -117,6 +111,17 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         plausible range adds a type-B component to the headline covariance, the
         estimates' linearised shift over the range (:mod:`._structural`); an entry for
         a parameter named in ``hold`` is that one's range.
+    method : {"single", "multiple", "collocation", "auto"}
+        How the estimate is found (:mod:`._methods`): single shooting (the
+        Levenberg-Marquardt fit from the start values); multiple shooting or Radau
+        collocation over the records (node states and parameters as decision variables,
+        IPOPT), finished by the single-shooting fit from their estimate; ``auto``: single
+        shooting, then collocation where it does not converge or is inadequate. The
+        statistics, intervals and verdict are the single-shooting fit's in every case;
+        ``info["method"]`` says which ran.
+    nodes : int, optional
+        Multiple shooting and collocation: intervals per record (default one per 0.5 ms
+        of record); at least 1.
     progress : bool
         One line of progress on stderr.
     friction_start : {"off", "auto", "records"}
@@ -158,45 +163,40 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         raise IdentificationError(f"hold_unidentifiable: expected True or False, got {hold_unidentifiable!r}")
     values, ranges, structural = check_hold(fr, hold, structural)
     structural = check_structural(model, structural, fr.names)
+    method, nodes = check_method(method, nodes, len(recs))
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
-    try:
-        fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
-                                fstart)
-    except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
-        if exc.iterate and exc.status == "not converged":
-            exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
-                                 [exc.iterate[n] for n in fr.names], fr.names)
-        raise
-    res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
-                  model_error, structural)
+
+    def single(first=None):
+        try:
+            fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
+                                    fstart, first)
+        except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
+            if exc.iterate and exc.status == "not converged":
+                exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
+                                     [exc.iterate[n] for n in fr.names], fr.names)
+            raise
+        res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
+                      model_error, structural)
+        if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
+            res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
+        return res
+
+    res = run_method(method, single, lambda how: transcribed_fit(model, recs, fr, model.p(), given, how, nodes),
+                     sum(len(grid(r, nodes)) - 1 for r in recs))
     res.info["variant_overrides"] = dict(variants or {})
-    if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
-        res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
     return res
 
 
-def x0_states(model, estimate_x0) -> tuple:
-    """The states whose initial values are estimated: none (False), the states with a
-    role in :data:`X0_ROLES` (True), or the names given (checked)."""
-    if estimate_x0 is False or estimate_x0 is None:
-        return ()
-    if estimate_x0 is True:
-        return tuple(n for n, s in model.state_info.items() if set(s.roles) & set(X0_ROLES)
-                     or ("controller_integral" in s.roles and s.loop not in (None, "current")))
-    names = [s.strip() for s in estimate_x0.split(",")] if isinstance(estimate_x0, str) else list(estimate_x0)
-    for n in names:
-        if n not in model.states:
-            raise IdentificationError(f"--estimate-x0 {n}: not a state of the model{nearest(n, model.states)}")
-    if not names or len(set(names)) < len(names):
-        raise IdentificationError("--estimate-x0: name each state once")
-    return tuple(names)
-
-
-def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec, design=None):
+def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec, design=None,
+                first=None):
     """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
     each from a fresh predictor, on ``jobs`` processes (the result does not depend on
-    ``jobs``: a worker's fit is the same computation, its final state handed back)."""
+    ``jobs``: a worker's fit is the same computation, its final state handed back);
+    ``first`` (SI values: a multiple-shooting or collocation estimate) replaces the first start."""
     points = start_points(fr, starts, seed, design if design and design["used"] else None)
+    if first is not None:
+        lo, hi = fr.z_bounds()
+        points[0] = np.clip(fr.z(first), lo, hi)
     results = []
     if jobs <= 1 or starts == 1:
         for z0 in points:

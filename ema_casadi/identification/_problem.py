@@ -36,6 +36,14 @@ from ._records import IdentificationError, Record, available_bytes
 #: time at worst.
 RTOL, ATOL = 1e-4, 1e-7
 
+#: The states estimated by ``estimate_x0=True``: the mechanism's positions and speeds,
+#: what a record cut from the middle of a motion starts away from, and the integral
+#: parts of the outer (non-current) loops, which hold the current that carries the
+#: load and friction then. The currents and the current loops' integrals settle within
+#: a millisecond of any start (two samples at 2 kHz: not identifiable, and freeing
+#: them led the test fit into a worse local minimum); name them explicitly if needed.
+X0_ROLES = ("rod_position", "shaft_angle", "rod_velocity", "shaft_speed")
+
 _CHECK = {f.name: f.metadata["check"] for cls in GROUPS.values() for f in fields(cls)}
 
 
@@ -440,3 +448,20 @@ def given_model(model, params: Parameters, variants: dict | None) -> Model:
         raise IdentificationError("model: not the model of these parameters and variants "
                                   "(build_model(params, variants))")
     return model
+
+
+def x0_states(model, estimate_x0) -> tuple:
+    """The states whose initial values are estimated: none (False), the states with a
+    role in :data:`X0_ROLES` (True), or the names given (checked)."""
+    if estimate_x0 is False or estimate_x0 is None:
+        return ()
+    if estimate_x0 is True:
+        return tuple(n for n, s in model.state_info.items() if set(s.roles) & set(X0_ROLES)
+                     or ("controller_integral" in s.roles and s.loop not in (None, "current")))
+    names = [s.strip() for s in estimate_x0.split(",")] if isinstance(estimate_x0, str) else list(estimate_x0)
+    for n in names:
+        if n not in model.states:
+            raise IdentificationError(f"--estimate-x0 {n}: not a state of the model{nearest(n, model.states)}")
+    if not names or len(set(names)) < len(names):
+        raise IdentificationError("--estimate-x0: name each state once")
+    return tuple(names)

@@ -45,6 +45,8 @@ def _run(argv, capsys):
     (GOOD, ["--sigma", "x_rd=0.3um"], ["--sigma x_rd", "did you mean 'x_rod'"]),
     (GOOD, ["--out", "{tmp}/fit.txt"], ["--out", ".toml"]),
     (GOOD, ["--profile", "c_v"], ["--profile c_v", "not a free parameter"]),
+    (GOOD, ["--method", "shooting"], ["method", "'shooting'", "auto, single, multiple, collocation"]),
+    (GOOD, ["--method", "collocation", "--nodes", "0"], ["nodes", "at least one per record"]),
 ])
 def test_mistakes_exit_2_with_one_line_and_nothing_written(tmp_path, capsys, content, flags, words):
     rec = tmp_path / "r.csv"
@@ -121,6 +123,17 @@ def test_every_exit_prints_one_json_document(tmp_path, capsys, monkeypatch, reco
     code, out, err = _run(argv, capsys)
     if case in ("not converged", "failed"):
         assert out.startswith(f"status: {case}\nlast iterate: F_seal = ") and err.count("\n") == 1, out
+
+
+def test_the_json_names_the_method_that_ran(capsys, record):
+    """--method auto on a record single shooting fits: single shooting ran, said so in
+    the document (``method`` and what each method tried did)."""
+    code, out, err = _run(["identify", REF, str(record), "--free", "F_seal", "--method", "auto", "--json",
+                           "--no-progress"], capsys)
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["method"] == "single"
+    assert doc["methods"] == [{"method": "single", "outcome": "converged"}]
 
 
 def test_a_fit_writes_the_file_and_the_report(tmp_path, capsys, record):
