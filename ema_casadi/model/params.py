@@ -15,6 +15,7 @@ them as an input: changing a value never rebuilds a model.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -695,14 +696,25 @@ def checked(name: str, value, where: str | None = None) -> float:
         How to name it in the message (default the name; the command line passes its flag).
     """
     where = where or name
-    rules = {n: {k: v for k, v in f.metadata.items() if k != "table"}
-             for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
+    rules = _rules()
     if name in LOOP_FLAGS:
         return number(value, where, ParameterError)
     if name not in rules:
         raise UnknownParameterError(_unknown("checked", name, rules))
     value = value.item() if isinstance(value, np.generic) else value
     return _check_value(where, "", "", rules[name], value, plain=True, bare=True)
+
+
+@functools.cache
+def _rules() -> dict:
+    """Flat parameter name -> its field's rule (its metadata but the table), built once."""
+    return {n: {k: v for k, v in f.metadata.items() if k != "table"}
+            for cls in GROUPS.values() for f in fields(cls) for n in _flat_names(f)}
+
+
+def is_parameter(name: str) -> bool:
+    """Whether :func:`checked` knows ``name`` (a flat parameter or a loop flag)."""
+    return name in LOOP_FLAGS or name in _rules()
 
 
 def checked_rule(rule: str, value, where: str) -> float:

@@ -186,19 +186,18 @@ def check_value_range(inp, faults, sig: Signal, t_end: float, where: str, error:
     error : type
         The exception raised.
     """
-    from ..model.params import TEMP, ParameterError, UnknownParameterError, checked, checked_rule
+    from ..model.params import TEMP, ParameterError, checked, checked_rule, is_parameter
 
     label = f"{where} '{sig.text}'" if sig.text else where
     for value in sig.span(t_end):
         try:
             if isinstance(inp.default, str):
-                checked(inp.default, value, label)
+                if is_parameter(inp.default):  # an instance's own name (A_eta): checked as finite only
+                    checked(inp.default, value, label)
             elif inp.kind == "temperature":
                 checked_rule(TEMP, value, label)
             elif faults and not any(f.rate for f in faults):
                 faults[0].check(value, label, error, healthy=True)
-        except UnknownParameterError:  # an instance's own name (A_eta): its value is checked as finite only
-            pass
         except ParameterError as exc:
             raise error(str(exc)) from None
 

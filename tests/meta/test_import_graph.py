@@ -191,7 +191,7 @@ MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 80
 #: Reviewed long modules: path -> (ceiling in lines, why it stays one module).
 LONG_MODULES = {
-    "ema_casadi/model/params.py": (720, "the typed parameters: the groups (the optional sensor, fault, monitor "
+    "ema_casadi/model/params.py": (735, "the typed parameters: the groups (the optional sensor, fault, monitor "
                                         "and airframe tables with them, one field helper and one set of checks; "
                                         "a set of several actuators' tables delegated to the model's instances), "
                                         "their fields' rules, reading a file and checking one value by the same "
