@@ -479,10 +479,7 @@ def _cases(where: str, entry: dict, kinds: dict, duration: float, variants: dict
         raise FaultError(f"{where} target: unknown target {target!r}{nearest(str(target), targets)} for a {kind} "
                          f"fault; choose one of {', '.join(targets)}")
     fault = targets[target]
-    for key, allowed in fault.requires:  # a case that would run and mean nothing
-        if variants.get(key) not in allowed:
-            raise FaultError(f"{where} kind: a {kind} fault needs {key} = {' or '.join(allowed)}, the model has "
-                             f"{key} = {variants.get(key)} ({fault.doc})")
+    fault.check_requires(variants, f"{where} kind", FaultError)  # a case that would run and mean nothing
     onsets = _axis(f"{where} onset", entry.get("onset"), duration / 4)
     for t in onsets:
         if not 0 < t < duration:

@@ -162,6 +162,9 @@ def check_range(model: Model, name: str, sig: Signal, t_end: float, where: str, 
     """
     faults = [f for part in model.parts for f in part.faults if f.input == name]
     check_value_range(model.input_info[name], faults, sig, t_end, where, error)
+    if any(v != 0 for v in sig.span(t_end)):  # driven: a fault that would run and mean nothing
+        for f in faults:
+            f.check_requires(model.variants, where, error)
 
 
 def check_value_range(inp, faults, sig: Signal, t_end: float, where: str, error: type = SignalError) -> None:

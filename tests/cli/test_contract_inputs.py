@@ -63,6 +63,8 @@ CASES["input-T_amb-below-absolute-zero"] = Case([*SIM, "--variant", "thermal=lum
                                                 ["--input T_amb", "-273.15"])
 CASES["input-a_jam-2"] = Case([*SIM, "--variant", "faults=on", "--input", "a_jam=2"],
                               ["--input a_jam", "jam fault [0, 1]"])
+CASES["input-a_shear-rigid"] = Case([*SIM, "--variant", "faults=on", "--variant", "screw=rigid", "--input",
+                                     "a_shear=step:1@0.0005"], ["--input a_shear", "needs screw = elastic"])
 CASES["input-a_shear-1.5"] = Case([*SIM, "--variant", "faults=on", "--input", "a_shear=1.5"],
                                   ["--input a_shear", "disconnect fault [0, 1]"])
 CASES["input-eta-read-by-no-one"] = Case([*SIM, "--variant", "thermal=lumped", "--input", "eta=0.8"],
@@ -168,8 +170,9 @@ def test_refused_with_one_line(case_id, tmp_path, capsys, monkeypatch):
 # -- the same values from the Python API -------------------------------------------------------
 @pytest.fixture(scope="module")
 def models(params):
-    return {v: E.build_model(params, dict([v.split("=")]) if v else None)
-            for v in ("", "thermal=lumped", "faults=on", "airframe=transport", "inverter=pwm")}
+    return {v: E.build_model(params, dict(kv.split("=") for kv in v.split(",")) if v else None)
+            for v in ("", "thermal=lumped", "faults=on", "airframe=transport", "inverter=pwm",
+                      "faults=on,screw=rigid")}
 
 
 def _write(tmp, name, content) -> str:
@@ -194,6 +197,8 @@ def _api_cases():
         "T_amb": (lambda c: sim(c["m"]["thermal=lumped"], 0.001, T_amb=-300.0), S, "-273.15"),
         "a_jam": (lambda c: sim(c["m"]["faults=on"], 0.001, a_jam=2.0), S, "jam fault"),
         "a_shear": (lambda c: sim(c["m"]["faults=on"], 0.001, a_shear="1.5"), S, "disconnect fault"),
+        "a_shear-rigid": (lambda c: sim(c["m"]["faults=on,screw=rigid"], 0.001, a_shear="step:1@0.0005"), S,
+                          "needs screw = elastic"),
         "eta-no-effect": (lambda c: sim(c["m"]["thermal=lumped"], 0.001, eta=0.8), S, "has no effect"),
         "sweep-eta": (lambda c: E.load_sweep(_write(c["tmp"], "s.toml", SWEEP.format(inputs="eta = 1.5")),
                                              c["params"]), E.SweepError, "inputs eta"),

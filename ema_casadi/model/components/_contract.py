@@ -258,6 +258,14 @@ class Fault:
     rate: bool = False
     requires: tuple = ()
 
+    def check_requires(self, variants: dict, where: str, error: type) -> None:
+        """``error`` naming ``where`` unless the model's ``variants`` are what this fault
+        needs (:attr:`requires`: a case that would run and mean nothing otherwise)."""
+        for key, allowed in self.requires:
+            if variants.get(key) not in allowed:
+                raise error(f"{where}: a {self.kind} fault needs {key} = {' or '.join(allowed)}, the model has "
+                            f"{key} = {variants.get(key)} ({self.doc})")
+
     def check(self, value: float, where: str, error: type, healthy: bool = False) -> float:
         """``value`` as a severity of this fault: within [lo, hi] (``healthy``: or 0, the
         input undriven), else ``error`` naming ``where``; the one range check of a
