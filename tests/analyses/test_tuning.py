@@ -29,7 +29,8 @@ POOR_START = T.Requirements(separation=0.0, command_noise=0.0)
 def _margins(L):
     """Independent GM/PM from python-control: every crossover in 0.01 Hz - 100 kHz
     (outside, python-control reports spurious ones near 0 Hz and ~1e9 Hz)."""
-    gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
+    with np.errstate(invalid="ignore"):  # python-control compares NaN phases inside
+        gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
     gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(v, float)) for v in (gm, pm, wpc, wgc))
     keep_pc = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5) & np.isfinite(gm)
     keep_gc = (wgc > 2 * np.pi * 1e-2) & (wgc < 2 * np.pi * 1e5)
@@ -372,7 +373,8 @@ def _cascade_failures(model, op, req, I_max):
     for k, loop in enumerate(order):
         lin = lz.linear_model(model, op, open_loops=order[:k + 1])
         L = _outer_open_loop(lin, loop)
-        gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
+        with np.errstate(invalid="ignore"):  # python-control compares NaN phases inside
+            gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
         gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(v, float)) for v in (gm, pm, wpc, wgc))
         sel_pc = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5) & np.isfinite(gm)
         sel_gc = (wgc > 2 * np.pi * 1e-2) & (wgc < 2 * np.pi * 1e5)

@@ -67,7 +67,8 @@ def _crossings(L):
     """python-control: GM (dB, signed: < 0 = the gain may only fall) at every phase
     crossover and the angular distance to -1 (deg) at every gain crossover, with their
     frequencies (Hz), in 0.01 Hz - 100 kHz (outside, spurious ones near 0 and ~1e9 Hz)."""
-    gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
+    with np.errstate(invalid="ignore"):  # python-control compares NaN phases inside
+        gm, pm, _, wpc, wgc, _ = ct.stability_margins(L, returnall=True)
     gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(v, float)) for v in (gm, pm, wpc, wgc))
     kp = (wpc > 2 * np.pi * 1e-2) & (wpc < 2 * np.pi * 1e5) & np.isfinite(gm) & (gm > 0)
     kg = (wgc > 2 * np.pi * 1e-2) & (wgc < 2 * np.pi * 1e5)
