@@ -90,7 +90,7 @@ def main():
             else:
                 from dask.distributed import LocalCluster
 
-                with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+                with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl:
                     sweep(parse_sweep(description(2 * n), params), scheduler=cl.scheduler_address)  # workers warm
                     res, wall, cpu = timed(spec, scheduler=cl.scheduler_address)
             rows.append((kind, n, args.runs, wall, cpu, res.rows[: len(ref)] == ref))

@@ -141,7 +141,7 @@ def main():
 
         t0 = time.perf_counter()
         with LocalCluster(n_workers=args.jobs, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster:
+                          dashboard_address=":0") as cluster:
             t_cluster = time.perf_counter() - t0
             sweep(parse_sweep(description(2), params), scheduler=cluster.scheduler_address)  # workers warm
             t0 = time.perf_counter()

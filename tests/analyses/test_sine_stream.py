@@ -255,7 +255,7 @@ def test_dask_local_cluster_gives_the_local_result(params):
     kw = dict(amplitudes=[pct(0.5), pct(5)], freqs=[1.0, 8.0])
     local = fr.sine_stream(params, **kw)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         remote = fr.sine_stream(params, scheduler=cluster.scheduler_address, **kw)
     assert remote.info["scheduler"] == cluster.scheduler_address
     for k in ("gain_db", "phase_deg", "periods"):

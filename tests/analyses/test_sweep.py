@@ -45,7 +45,7 @@ def test_grid_and_monte_carlo_rows_are_the_same_on_one_two_workers_and_dask(para
     sweep(spec, tmp_path / "procs.csv", jobs=2)
     sweep(spec, tmp_path / "threads.csv", jobs=2, backend="threads")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         sweep(spec, tmp_path / "dask.csv", scheduler=cluster.scheduler_address)
     ref = (tmp_path / "one.csv").read_bytes()
     for name in ("procs", "threads", "dask"):

@@ -51,7 +51,7 @@ def test_a_scheduler_that_never_answers_times_out(silent_server, monkeypatch, ca
 def test_a_scheduler_without_workers_times_out(monkeypatch, capsys):
     distributed = pytest.importorskip("dask.distributed")
     monkeypatch.setenv("EMA_CASADI_WORKERS_TIMEOUT", "1")
-    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
         t0 = time.perf_counter()
         status = main([*ARGS, "--scheduler", cluster.scheduler_address])
         took = time.perf_counter() - t0

@@ -260,7 +260,17 @@ class Fault:
 
     def check_requires(self, variants: dict, where: str, error: type) -> None:
         """``error`` naming ``where`` unless the model's ``variants`` are what this fault
-        needs (:attr:`requires`: a case that would run and mean nothing otherwise)."""
+        needs (:attr:`requires`: a case that would run and mean nothing otherwise).
+
+        Parameters
+        ----------
+        variants : dict
+            The model's variant key -> value.
+        where : str
+            How to name the fault in the message (``"--input a_shear"``).
+        error : type
+            The exception raised.
+        """
         for key, allowed in self.requires:
             if variants.get(key) not in allowed:
                 raise error(f"{where}: a {self.kind} fault needs {key} = {' or '.join(allowed)}, the model has "
