@@ -115,12 +115,14 @@ def clean_records(params, model: str = "blend_rk4", t_scale: float = 0.25) -> li
     return out
 
 
-def realisation(clean: list[dict], seed: int) -> list[Record]:
-    """The records with seeded noise (record k: seed * 100 + k)."""
+def realisation(clean: list[dict], seed: int, noise: dict | None = None) -> list[Record]:
+    """The records with seeded noise (record k: seed * 100 + k; channel -> sd ``noise``,
+    default :data:`NOISE`)."""
+    noise = noise or NOISE
     recs = []
     for k, c in enumerate(clean):
         rng = np.random.default_rng(seed * 100 + k)
-        ch = {n: v + rng.normal(0.0, NOISE[n], len(v)) for n, v in c["channels"].items()}
+        ch = {n: v + rng.normal(0.0, noise[n], len(v)) for n, v in c["channels"].items()}
         recs.append(Record(f"{c['name']}.csv", c["t"], dict(c["inputs"]), ch))
     return recs
 

@@ -64,6 +64,7 @@ from scipy.integrate import solve_ivp
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "studies"))
+import coverage  # noqa: E402
 import numpy_model  # noqa: E402
 
 import ema_casadi as ema  # noqa: E402
@@ -193,13 +194,8 @@ def check(rig: str = "gauss") -> dict:
 
 
 def realisation(clean: list[dict], seed: int) -> list[Record]:
-    """The records with seeded noise (record k: seed * 100 + k)."""
-    recs = []
-    for k, c in enumerate(clean):
-        rng = np.random.default_rng(seed * 100 + k)
-        ch = {n: v + rng.normal(0.0, NOISE[n], len(v)) for n, v in c["channels"].items()}
-        recs.append(Record(f"{c['name']}.csv", c["t"], dict(c["inputs"]), ch))
-    return recs
+    """The records with seeded noise (record k: seed * 100 + k), as the coverage study's."""
+    return coverage.realisation(clean, seed, NOISE)
 
 
 def write_records(rig: str, folder, seed: int = 0) -> list[Path]:

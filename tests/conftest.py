@@ -12,6 +12,16 @@ from ema_casadi import build_model, load_parameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = ROOT / "models" / "cesa_ema.toml"
+#: A fault file of one disconnect, mid-run under a steady slew (the faults tests' case).
+DISCONNECT = """
+[scenario]
+duration = 0.1
+x_cmd = "ramp:40mm/s"
+
+[[fault]]
+kind = "disconnect"
+onset = 0.05
+"""
 #: A two-run sweep file (two backlash values, 10 ms at RK4 0.1 ms on the hybrid friction, inside
 #: its 0.44 ms stability limit; one metric): the smallest valid description, the base the
 #: bad-input batteries alter one key at a time

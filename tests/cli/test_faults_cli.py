@@ -8,7 +8,7 @@ import sys
 import pytest
 
 import ema_casadi as ema
-from conftest import REFERENCE, ROOT, assert_glance
+from conftest import DISCONNECT, REFERENCE, ROOT, assert_glance
 
 SMALL = """
 [scenario]
@@ -146,17 +146,6 @@ def test_a_threshold_study_below_its_minimum_of_runs_is_refused(tmp_path, n):
     assert f"healthy runs {n}:" in proc.stderr and f"give at least {MIN_STUDY_RUNS}" in proc.stderr
     assert not out.exists()
     assert f"at least {MIN_STUDY_RUNS}: the study's minimum" in " ".join(_ema("--help").stdout.split())
-
-
-DISCONNECT = """
-[scenario]
-duration = 0.1
-x_cmd = "ramp:40mm/s"
-
-[[fault]]
-kind = "disconnect"
-onset = 0.05
-"""
 
 
 @pytest.mark.parametrize("args, words", [

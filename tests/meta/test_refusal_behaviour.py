@@ -18,19 +18,9 @@ from dataclasses import dataclass
 import pytest
 
 import ema_casadi as ema
-from conftest import REFERENCE
+from conftest import DISCONNECT, REFERENCE
 from ema_casadi.cli import _run as run_module
 from ema_casadi.cli import main
-
-DISCONNECT = """
-[scenario]
-duration = 0.1
-x_cmd = "ramp:40mm/s"
-
-[[fault]]
-kind = "disconnect"
-onset = 0.05
-"""
 
 SWEEP = """
 [sweep]
