@@ -45,7 +45,7 @@ the exit status and whether the friction options are named.
 
 Usage::
 
-    python studies/witness.py [--rig hump|lugre] [--n 20] [--jobs 1] [--friction-start auto]
+    python studies/witness.py [--rig hump|lugre|gauss] [--n 20] [--jobs 1] [--friction-start auto] [--from-truth]
         [--default] [--json]
 """
 
@@ -217,8 +217,9 @@ def write_records(rig: str, folder, seed: int = 0) -> list[Path]:
 
 
 def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: bool = False,
-            max_evaluations: int = 60, starts: int = 1) -> dict:
-    """One realisation's fit: verdict, estimates, robust intervals, wall and CPU time."""
+            max_evaluations: int = 60, starts: int = 1, from_truth: bool = False) -> dict:
+    """One realisation's fit: verdict, estimates, robust intervals, wall and CPU time;
+    ``from_truth``: started at :data:`TRUTH` (the statistics without the search)."""
     params = ema.load_parameters()
     variants, extra = ({}, {}) if default else STRUCTURE[rig]
     if extra:
@@ -227,7 +228,8 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         res = identify(params, realisation(clean, seed), free, sigma=NOISE, variants=variants or None,
-                       friction_start=friction_start, max_evaluations=max_evaluations, starts=starts)
+                       friction_start=friction_start, max_evaluations=max_evaluations, starts=starts,
+                       start={k: TRUTH[k] for k in free} if from_truth else None)
     except FitFailed as exc:
         return {"seed": seed, "status": exc.status, "reason": exc.reason, "hints": bool(getattr(exc, "hints", None)),
                 "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
@@ -235,6 +237,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
             "adequate": bool(res.adequacy["adequate"]), "estimate": dict(res.estimate),
             "interval": {k: list(v) for k, v in res.interval.items()},
             "hints": res.info.get("hints"), "evaluations": res.info.get("evaluations"),
+            "prediction_accuracy": res.info.get("prediction_accuracy"),
             "friction_start": {k: v for k, v in res.info.get("friction_start", {}).items()
                                if k in ("used", "values", "fitted", "why", "start_costs")}, "cost": res.info["cost"],
             "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
@@ -245,11 +248,12 @@ def _worker(item):
 
 
 def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto", default: bool = False,
-          jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None, starts: int = 1) -> dict:
+          jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None, starts: int = 1,
+          from_truth: bool = False) -> dict:
     """The study of the module docstring for one rig; ``log``: a file each fit's
     document is appended to as one JSON line (a partial study survives)."""
     clean = clean_records(RIG.get(rig, rig))
-    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts) for i in range(n)]
+    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts, from_truth) for i in range(n)]
     if jobs > 1:
         from ema_casadi._util._parallel import process_map
 
@@ -318,6 +322,8 @@ def main(argv=None) -> int:
     ap.add_argument("--max-evaluations", type=int, default=60)
     ap.add_argument("--starts", type=int, default=1, help="identify's starts per fit (a Latin hypercube after a "
                     "friction start)")
+    ap.add_argument("--from-truth", action="store_true", help="start every fit at the truth (the statistics "
+                    "without the search)")
     ap.add_argument("--default", action="store_true", help="fit the default structure (no hump parameters)")
     ap.add_argument("--write", default=None, metavar="DIR", help="only write realisation --seed as CSV into DIR")
     ap.add_argument("--check", action="store_true", help="only the rig against the model at the truth (noise levels)")
@@ -340,7 +346,8 @@ def main(argv=None) -> int:
         print(json.dumps(check(args.rig)))
         return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
-                jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log, starts=args.starts)
+                jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log, starts=args.starts,
+                from_truth=args.from_truth)
     if args.json:
         Path(args.json).write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(table(doc))

@@ -17,6 +17,7 @@ from ..model.params import Parameters
 from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
+from ._accuracy import refined
 from ._failed import FitFailed
 from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
@@ -24,7 +25,7 @@ from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
 from ._methods import check_method, grid, run_method, transcribed_fit
 from ._problem import Predictor, free_parameters, given_model, marginal, x0_states
-from ._records import IdentificationError, Record, read_record
+from ._records import IdentificationError, Record, read_record, record_list
 from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
 from ._starts import fit_state, install_state
@@ -151,7 +152,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     if isinstance(free, str):
         free = [s.strip() for s in free.split(",") if s.strip()]
     model = given_model(model, params, variants)
-    recs = [r if isinstance(r, Record) else read_record(r, model) for r in _as_list(records)]
+    recs = [r if isinstance(r, Record) else read_record(r, model) for r in record_list(records)]
     if not recs:
         raise IdentificationError("records: give at least one record")
     fr, fstart = friction_start_of(model, recs, free_parameters(model, free, bounds, start), friction_start)
@@ -170,6 +171,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         try:
             fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
                                     fstart, first)
+            fit, best, accuracy = refined(fit, best, lambda rtol, atol: _Fit(
+                Predictor(model, recs, fr, model.p(), xs, rtol, atol), given, max_evaluations, progress))
         except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
             if exc.iterate and exc.status == "not converged":
                 exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
@@ -177,6 +180,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
             raise
         res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                       model_error, structural)
+        res.info["prediction_accuracy"] = accuracy
         if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
             res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
         return res
@@ -249,12 +253,6 @@ def _starts_in_worker(payload, chunk) -> dict:
             continue
         outs[k] = {"out": out, "state": fit_state(fit)}
     return outs
-
-
-def _as_list(records) -> list:
-    if isinstance(records, (str, Record)) or hasattr(records, "__fspath__"):
-        return [records]
-    return list(records)
 
 
 def _sigmas(recs, sigma) -> dict:
@@ -468,7 +466,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tupl
         keep = [n for n in fr.names if n not in held]
         base = fit.pred.base.copy()
         base[fr.index] = [held[n]["held_at"] if n in held else v for n, v in zip(fr.names, theta, strict=True)]
-        pred = Predictor(model, recs, fr.subset(keep, theta), base, fit.pred.x0_states)
+        pred = Predictor(model, recs, fr.subset(keep, theta), base, fit.pred.x0_states, fit.pred.rtol, fit.pred.atol)
         sig = {c: out["sigma"][c] for c in out["estimated"]}
         fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
         z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])

@@ -31,7 +31,7 @@ from .._util._checks import nearest
 from .._util._errors import InputError
 from ..signals import KIND_OF_UNIT, Signal, SignalError, read_text, table_header, table_rows, unit_scale
 
-__all__ = ["Record", "read_record", "IdentificationError", "MAX_BYTES"]
+__all__ = ["Record", "read_record", "record_list", "IdentificationError", "MAX_BYTES"]
 
 #: Largest working set of one fit (samples x states x (free parameters + 1) x 8 bytes for
 #: the trajectories and their sensitivities, plus the residual Jacobian): 2 GiB, or less
@@ -362,3 +362,10 @@ def _scale(unit: str, si: str, where: str, model) -> float:
         return unit_scale(unit, kind, where, float(model.params.actuator.stroke))
     except SignalError as exc:
         raise IdentificationError(str(exc)) from None
+
+
+def record_list(records) -> list:
+    """``records`` as a list: one record (a path or a :class:`Record`) or a sequence of them."""
+    if isinstance(records, (str, Record)) or hasattr(records, "__fspath__"):
+        return [records]
+    return list(records)
