@@ -100,6 +100,13 @@ def fit_text(result: dict) -> str:
     for v in result.get("validation", []):
         w(f"validation {Path(v['record']).name}: {v['channel']} NRMSE {v['nrmse']:.4g}, "
           f"lag-1 autocorrelation {v['autocorr_lag1']:+.3f}\n")
+    acc = result.get("prediction_accuracy") or {}
+    checks = acc.get("checks", ())
+    if len(checks) > 1:
+        w(f"predictions tightened to rtol {acc['rtol']:.0e} (coarser ones moved the estimates)\n")
+    if checks and checks[-1]["largest_shift_sd"] > acc["shift_tol_sd"]:
+        w(f"predictions at rtol {acc['rtol']:.0e}: a tenth of it would still move {checks[-1]['parameter']} by "
+          f"{checks[-1]['largest_shift_sd']:.2g} sd\n")
     w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

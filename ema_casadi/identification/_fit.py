@@ -136,7 +136,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     Returns
     -------
     IdentResult
-        Estimates, intervals, correlation, identifiability, residuals, trajectories.
+        Estimates, intervals, correlation, identifiability, residuals, trajectories;
+        ``info["prediction_accuracy"]``: the predictions checked at the optimum (:mod:`._accuracy`).
 
     Raises
     ------

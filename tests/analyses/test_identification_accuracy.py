@@ -50,6 +50,14 @@ def test_the_refined_fit_is_the_fine_tolerance_fit(params, stick_slip, monkeypat
     off = {k: abs(refined.estimate[k] - fine.estimate[k]) / fine.std[k] for k in TRUTH}
     assert max(off.values()) < 0.2, off
     assert max(abs(coarse.estimate[k] - fine.estimate[k]) / fine.std[k] for k in TRUTH) > 1.0
+    # the report says so: the JSON document carries the checks, the text names the tolerance
+    from ema_casadi.cli._identify_text import fit_text
+
+    doc = refined.to_dict()
+    assert doc["prediction_accuracy"] == acc
+    assert "predictions tightened to rtol 1e-05" in fit_text({**doc, "wall_time": 0.0})
+    text = fit_text({**coarse.to_dict(), "wall_time": 0.0})
+    assert "predictions tightened" not in text and "a tenth of it would still move v_st" in text
 
 
 def test_a_fit_already_accurate_is_checked_once(params, tmp_path):
