@@ -194,6 +194,7 @@ def run_compilers(commands: list) -> list[tuple[int, str]]:
                     os.killpg(proc.pid, signal.SIGKILL)
             for proc in procs:
                 proc.wait()
+                proc.stdout.close()  # communicate() did not get to it: the pipe is closed here
             raise
     return out
 

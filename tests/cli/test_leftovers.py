@@ -178,5 +178,6 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
     first = proc.stdout.read(1)
     proc.stdout.close()  # the reader goes away after one byte
     err = proc.stderr.read().decode()
+    proc.stderr.close()
     assert proc.wait(timeout=120) == 141, err
     assert first == b"{" and err == ""
