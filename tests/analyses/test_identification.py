@@ -10,6 +10,8 @@ position 0.3 um, q-current 0.05 A).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -190,7 +192,7 @@ def test_the_fitted_file_keeps_the_layout(example_fit, tmp_path, params):
     out = example_fit.write(tmp_path / "fitted.toml")
     text = out.read_text()
     assert text.startswith("# Fitted by ema identify")
-    src = open(params.source, encoding="utf-8").read().splitlines()
+    src = Path(params.source).read_text(encoding="utf-8").splitlines()
     body = [line for line in text.splitlines() if not line.startswith("# ") or line in src]
     assert len(body) == len(src)
     back = ema.load_parameters(out)

@@ -22,7 +22,7 @@ def test_json_points_and_files(tmp_path, capsys):
     # the reference set's predictions: flat to ~6 Hz at small amplitude, ~ -5 deg at 1 Hz
     assert abs(pt["gain_db"]) < 0.2 and -7 < pt["phase_deg"] < -3 and pt["converged"]
     assert {"distortion", "i_q_amp", "i_q_phase_deg"} <= set(pt)
-    rows = list(csv.DictReader(out.open()))
+    rows = list(csv.DictReader(out.read_text().splitlines()))
     assert len(rows) == 8 and float(rows[0]["amplitude_m"]) == pytest.approx(0.375e-3)
     assert png.stat().st_size > 10_000
     assert str(out) in r["written"] and str(png) in r["written"]
