@@ -104,9 +104,13 @@ def fit_text(result: dict) -> str:
     checks = acc.get("checks", ())
     if len(checks) > 1:
         w(f"predictions tightened to rtol {acc['rtol']:.0e} (coarser ones moved the estimates)\n")
-    if checks and checks[-1]["largest_shift_sd"] > acc["shift_tol_sd"]:
+    num = acc.get("numerical")
+    if num:
+        name, sd = max(num["relative_sd"].items(), key=lambda kv: kv[1])
         w(f"predictions at rtol {acc['rtol']:.0e}: a tenth of it would still move {checks[-1]['parameter']} by "
-          f"{checks[-1]['largest_shift_sd']:.2g} sd\n")
+          f"{checks[-1]['largest_shift_sd']:.2g} sd (a hundredth: {num['parameter']} by "
+          f"{num['largest_shift_sd']:.2g} sd at most); the intervals include this numerical term "
+          f"(largest: {name} +-{100 * sd:.2g} % sd)\n")
     w(f"{result['evaluations']} model evaluations, {result['wall_time']:.2f} s\n")
     for p in result.get("written", []):
         w(f"wrote {p}\n")

@@ -17,7 +17,7 @@ from ..model.params import Parameters
 from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
-from ._accuracy import refined
+from ._accuracy import add_numerical, refined
 from ._failed import FitFailed
 from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
@@ -441,7 +441,7 @@ def robust_of(fit: _Fit, out: dict, structural: dict | None = None) -> dict:
     type-B term of the ``structural`` constants (:mod:`._structural`) where declared."""
     _, e, _ = fit._raw(out["z_full"])
     rob = robust_covariance(out["J"], out["r"], record_blocks(e))
-    return add_structural(rob, structural_covariance(fit, out, structural or {}))
+    return add_numerical(add_structural(rob, structural_covariance(fit, out, structural or {})), out)
 
 
 def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tuple,

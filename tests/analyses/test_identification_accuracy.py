@@ -50,6 +50,13 @@ def test_the_refined_fit_is_the_fine_tolerance_fit(params, stick_slip, monkeypat
     off = {k: abs(refined.estimate[k] - fine.estimate[k]) / fine.std[k] for k in TRUTH}
     assert max(off.values()) < 0.2, off
     assert max(abs(coarse.estimate[k] - fine.estimate[k]) / fine.std[k] for k in TRUTH) > 1.0
+    # left at 1e-4, the coarse fit's intervals carry the numerical term (the shifts toward
+    # 1e-5 and 1e-6): the 1e-6 estimates lie within 0.31-0.84 of its standard deviations
+    # (measured; < 1.5 asserted, inside its 95 % intervals), its sd 1.8-9.4 x the fine fit's
+    num = coarse.info["prediction_accuracy"]["numerical"]
+    assert num["compared_rtol"] == pytest.approx([1e-5, 1e-6]) and num["largest_shift_sd"] > 1.0
+    assert max(abs(coarse.estimate[k] - fine.estimate[k]) / coarse.std[k] for k in TRUTH) < 1.5
+    assert "numerical" not in refined.info["prediction_accuracy"]
     # the report says so: the JSON document carries the checks, the text names the tolerance
     from ema_casadi.cli._identify_text import fit_text
 
@@ -58,6 +65,7 @@ def test_the_refined_fit_is_the_fine_tolerance_fit(params, stick_slip, monkeypat
     assert "predictions tightened to rtol 1e-05" in fit_text({**doc, "wall_time": 0.0})
     text = fit_text({**coarse.to_dict(), "wall_time": 0.0})
     assert "predictions tightened" not in text and "a tenth of it would still move v_st" in text
+    assert "the intervals include this numerical term" in text
 
 
 def test_a_fit_already_accurate_is_checked_once(params, tmp_path):
