@@ -46,7 +46,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SHIFT_TOL", "RCOND", "RTOL_MIN", "estimate_shift", "refined", "add_numerical"]
+__all__ = ["SHIFT_TOL", "RCOND", "RTOL_MIN", "estimate_shift", "refined", "add_numerical",
+           "numerical_of"]
 
 #: The largest shift of an estimate (standard deviations) the predictions' error may cause:
 #: a 95 % interval shifted by 0.2 sd still holds the truth 94.5 % of the time.
@@ -91,6 +92,17 @@ def add_numerical(robust: dict, out: dict) -> dict:
     if out.get("numerical_cov") is None:
         return robust
     return {**robust, "cov": robust["cov"] + out["numerical_cov"], "cov_numerical": out["numerical_cov"]}
+
+
+def numerical_of(out: dict, names, keep) -> dict:
+    """``{"numerical_cov": ...}`` of the parameters ``keep`` (of ``names``) where the
+    optimum ``out`` has a numerical covariance, else empty: the term carried to a fit
+    that holds the others (the same coordinates; the held ones' shifts are dropped with
+    them, their own type-B range taking their place)."""
+    if out.get("numerical_cov") is None:
+        return {}
+    idx = [list(names).index(n) for n in keep]
+    return {"numerical_cov": np.asarray(out["numerical_cov"])[np.ix_(idx, idx)]}
 
 
 def _numerical(fit, out: dict, make_fit, first) -> dict:

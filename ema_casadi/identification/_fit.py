@@ -17,7 +17,7 @@ from ..model.params import Parameters
 from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
-from ._accuracy import add_numerical, refined
+from ._accuracy import add_numerical, numerical_of, refined
 from ._failed import FitFailed
 from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
@@ -471,7 +471,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tupl
         sig = {c: out["sigma"][c] for c in out["estimated"]}
         fit2 = _Fit(pred, {**fit.given, **sig}, fit.max_eval, fit.progress)
         z0 = np.concatenate([pred.free.z(pred.free.theta0), out["z_full"][len(fr.names):]])
-        out = {**fit2.run(z0), "estimated": out["estimated"]}
+        out = {**fit2.run(z0), "estimated": out["estimated"], **numerical_of(out, fr.names, keep)}
         fit, fr = fit2, pred.free
         typeb = {**(structural or {}), **{n: tuple(h["range"]) for n, h in held.items()}}
         unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, typeb))
