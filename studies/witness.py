@@ -30,7 +30,7 @@ inputs are the sampled tables the fit is driven by (linear between samples). The
 noise-free records are integrated once per rig by SciPy's LSODA (rtol 1e-11, absolute
 tolerances a thousandth of each state's resolution, steps below a sample) and cached
 under ``out/witness``. At rtol 1e-9 the rig's load cell differed from the toolkit's
-converged solution by 0.15-0.25 of its noise (RMS): over the records' 25 000 samples a
+converged solution by 0.15-0.25 of its noise (RMS): over the records' 33 100 residuals a
 systematic error that size moves the best-determined estimates by several standard
 deviations, so coverage measured against such records is the rig's integration error's.
 

@@ -58,10 +58,11 @@ RCOND = 1e-10
 RTOL_MIN = 1e-6
 
 
-def estimate_shift(fit, out: dict, fine, step: bool = False):
-    """Per free parameter: the shift (standard deviations) of the estimates at the
-    optimum ``out`` of ``fit`` if its predictions were those of ``fine`` (a fit on the
-    same records at a finer tolerance); the module docstring's formula.
+def estimate_shift(fit, out: dict, fine) -> tuple[np.ndarray, np.ndarray]:
+    """Per free parameter: the shift of the estimates at the optimum ``out`` of ``fit``
+    if its predictions were those of ``fine`` (a fit on the same records at a finer
+    tolerance), in standard deviations and in optimiser coordinates; the module
+    docstring's formula.
 
     Parameters
     ----------
@@ -69,8 +70,6 @@ def estimate_shift(fit, out: dict, fine, step: bool = False):
         The fit and the same fit at a finer tolerance.
     out : dict
         The fit's optimum (``z``, ``z_full``, ``r``, ``J_full``, ``sigma``).
-    step : bool
-        Also return the shift itself (optimiser coordinates of the free parameters).
     """
     n = len(fit.pred.free.names)
     fine.pred.dx0 = [np.array(d, float) for d in fit.pred.dx0]
@@ -81,8 +80,7 @@ def estimate_shift(fit, out: dict, fine, step: bool = False):
     dz = Vt[keep].T @ ((U[:, keep].T @ (r_fine - out["r"])) / s[keep])  # the step in what the records determine
     sd = np.sqrt(np.sum((Vt[keep] / s[keep, None]) ** 2, axis=0))
     sd[np.sum(Vt[~keep] ** 2, axis=0) > RCOND] = np.inf  # on an undetermined direction: no shift that matters
-    shift = np.abs(dz[:n] / sd[:n])
-    return (shift, dz[:n]) if step else shift
+    return np.abs(dz[:n] / sd[:n]), dz[:n]
 
 
 def add_numerical(robust: dict, out: dict) -> dict:
@@ -110,7 +108,7 @@ def _numerical(fit, out: dict, make_fit, first) -> dict:
     toward a tenth (``first``: its (shift, step)) and a hundredth of the tolerance, their
     mean outer product as a covariance (``out["numerical_cov"]``); the report."""
     rtol, atol = fit.pred.rtol, fit.pred.atol
-    second = estimate_shift(fit, out, make_fit(rtol / 100, atol / 100), True)
+    second = estimate_shift(fit, out, make_fit(rtol / 100, atol / 100))
     steps = [first[1], second[1]]
     out["numerical_cov"] = sum(np.outer(d, d) for d in steps) / len(steps)
     fr = fit.pred.free
@@ -141,7 +139,7 @@ def refined(fit, out: dict, make_fit) -> tuple:
     while True:
         rtol, atol = fit.pred.rtol, fit.pred.atol
         fine = make_fit(rtol / 10, atol / 10)
-        shift, step = estimate_shift(fit, out, fine, True)
+        shift, step = estimate_shift(fit, out, fine)
         worst = int(np.argmax(shift))
         checks.append({"rtol": rtol, "largest_shift_sd": float(shift[worst]),
                        "parameter": fit.pred.free.names[worst]})
