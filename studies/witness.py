@@ -35,8 +35,9 @@ systematic error that size moves the best-determined estimates by several standa
 deviations, so coverage measured against such records is the rig's integration error's.
 
 The study fits ``n`` noise realisations per rig from the reference start with the
-matching structure (:data:`STRUCTURE`; ``hump``: ``stribeck = on``, the model's
-Gaussian hump, so a structure error of shape; ``lugre``: ``friction = lugre``, the
+matching structure (:data:`STRUCTURE`; ``hump``: ``stribeck = on`` with the shape
+exponent ``delta_st = 1``, the model's exponential hump, written apart from the rig's;
+``lugre``: ``friction = lugre``, the
 model's LuGre with sigma_0 = 1e10 N/m and sigma_1 = 0 as the rig's: stiff bristles
 are not identifiable from 0.3 um position noise; ``lugre_smooth``: the LuGre rig's
 records fitted with ``friction = lugre_smooth``, ``stribeck = on``, LuGre on the
@@ -50,7 +51,7 @@ the exit status and whether the friction options are named.
 Usage::
 
     python studies/witness.py [--rig hump|lugre|gauss] [--n 20] [--jobs 1] [--friction-start auto] [--from-truth]
-        [--default] [--json]
+        [--starts 6 --fit-jobs 2 --coarse-to-fine] [--default] [--json]
 """
 
 from __future__ import annotations
@@ -93,7 +94,7 @@ T_SCALE = 0.25
 SPEEDS = (6e-3, 8e-3, 12e-3, 16e-3, 32e-3, 64e-3)
 DWELL = 0.08
 #: The structure each rig is fitted with (matching), and its parameters beyond the file's.
-STRUCTURE = {"hump": ({"stribeck": "on"}, {}), "gauss": ({"stribeck": "on"}, {}),
+STRUCTURE = {"hump": ({"stribeck": "on"}, {"delta_st": 1.0}), "gauss": ({"stribeck": "on"}, {}),
              "lugre": ({"friction": "lugre"}, {"sigma_0": SIGMA_0, "sigma_1": 0.0}),
              "lugre_smooth": ({"friction": "lugre_smooth", "stribeck": "on"}, {"sigma_0": SIGMA_0, "sigma_1": 0.0})}
 #: The rig that makes the records of each structure's name.
@@ -224,7 +225,8 @@ def write_records(rig: str, folder, seed: int = 0) -> list[Path]:
 
 
 def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: bool = False,
-            max_evaluations: int = 60, starts: int = 1, from_truth: bool = False) -> dict:
+            max_evaluations: int = 60, starts: int = 1, from_truth: bool = False, coarse: bool = False,
+            jobs: int = 1) -> dict:
     """One realisation's fit: verdict, estimates, robust intervals, wall and CPU time;
     ``from_truth``: started at :data:`TRUTH` (the statistics without the search)."""
     params = ema.load_parameters()
@@ -236,6 +238,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
     try:
         res = identify(params, realisation(clean, seed), free, sigma=NOISE, variants=variants or None,
                        friction_start=friction_start, max_evaluations=max_evaluations, starts=starts,
+                       coarse_to_fine=coarse, jobs=jobs,
                        start={k: TRUTH[k] for k in free} if from_truth else None)
     except FitFailed as exc:
         return {"seed": seed, "status": exc.status, "reason": exc.reason, "hints": bool(getattr(exc, "hints", None)),
@@ -244,6 +247,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
             "adequate": bool(res.adequacy["adequate"]), "estimate": dict(res.estimate),
             "interval": {k: list(v) for k, v in res.interval.items()},
             "hints": res.info.get("hints"), "evaluations": res.info.get("evaluations"),
+            "coarse_to_fine": res.info.get("coarse_to_fine"),
             "prediction_accuracy": res.info.get("prediction_accuracy"),
             "friction_start": {k: v for k, v in res.info.get("friction_start", {}).items()
                                if k in ("used", "values", "fitted", "why", "start_costs")}, "cost": res.info["cost"],
@@ -256,11 +260,12 @@ def _worker(item):
 
 def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto", default: bool = False,
           jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None, starts: int = 1,
-          from_truth: bool = False) -> dict:
+          from_truth: bool = False, coarse: bool = False, fit_jobs: int = 1) -> dict:
     """The study of the module docstring for one rig; ``log``: a file each fit's
     document is appended to as one JSON line (a partial study survives)."""
     clean = clean_records(RIG.get(rig, rig))
-    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts, from_truth) for i in range(n)]
+    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts, from_truth, coarse, fit_jobs)
+             for i in range(n)]
     if jobs > 1:
         from ema_casadi._util._parallel import process_map
 
@@ -329,6 +334,9 @@ def main(argv=None) -> int:
     ap.add_argument("--max-evaluations", type=int, default=60)
     ap.add_argument("--starts", type=int, default=1, help="identify's starts per fit (a Latin hypercube after a "
                     "friction start)")
+    ap.add_argument("--coarse-to-fine", action="store_true", help="identify(coarse_to_fine=True): block means "
+                    "of the residuals first (with --starts N: every start at the coarsest level, the best continued)")
+    ap.add_argument("--fit-jobs", type=int, default=1, help="identify's worker processes for its starts")
     ap.add_argument("--from-truth", action="store_true", help="start every fit at the truth (the statistics "
                     "without the search)")
     ap.add_argument("--default", action="store_true", help="fit the default structure (no hump parameters)")
@@ -354,7 +362,7 @@ def main(argv=None) -> int:
         return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
                 jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log, starts=args.starts,
-                from_truth=args.from_truth)
+                from_truth=args.from_truth, coarse=args.coarse_to_fine, fit_jobs=args.fit_jobs)
     if args.json:
         Path(args.json).write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(table(doc))

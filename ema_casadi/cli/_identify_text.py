@@ -34,6 +34,15 @@ def _parameters(result: dict, w) -> None:
             w(f"{'':<10}   note: {d['note']}\n")
 
 
+def _coarse(cf, w) -> None:
+    """Coarse to fine's line: each level's block length and cost."""
+    if cf:
+        w("coarse to fine: residuals averaged over blocks of "
+          + ", ".join(f"{1e3 * lv['block_s']:g} ms (cost {lv['cost']:.6g})" for lv in cf["levels"])
+          + f", then every sample; {cf['evaluations']} coarse evaluations"
+          + (f" ({cf['starts']} starts at the coarsest level)" if cf["starts"] > 1 else "") + "\n")
+
+
 def fit_text(result: dict) -> str:
     """The parameter table, the channels' residuals, the verdict and what was written.
 
@@ -55,8 +64,10 @@ def fit_text(result: dict) -> str:
           + "".join(f"; {k} kept ({why})" for k, why in fs["kept"].items()) + "\n")
         costs = fs.get("start_costs", [])
         if len(costs) > 1:
-            w(f"  {len(costs)} starts (Latin hypercube over the friction parameters), costs "
+            w(f"  {len(costs)} starts (Latin hypercube over the friction parameters), costs"
+              + (" at the coarsest level " if result.get("coarse_to_fine") else " ")
               + ", ".join("not converged" if c is None else f"{c:.6g}" for c in costs) + "\n")
+    _coarse(result.get("coarse_to_fine"), w)
     _parameters(result, w)
     units = result.get("channel_units", {})
     for c in result["channels"]:

@@ -69,6 +69,10 @@ def add_arguments(p):
                         "friction curve fitted to the records' steady-speed segments under a known load: auto where "
                         "they tell one, records requires that (exit 2 otherwise), off (default) the file's values; "
                         "with --starts N the other starts are a Latin hypercube over those parameters")
+    p.add_argument("--coarse-to-fine", action="store_true",
+                   help="fit the residuals' means over 200, 100, 50 and 25 ms blocks before every sample: records "
+                        "with stick-slip make the cost over every sample rugged in the breakaway, the block means' "
+                        "smooth; with --starts N every start is fitted at 200 ms and the lowest goes on")
     p.add_argument("--method", default="single", metavar="METHOD",
                    help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
                         "parameters solved together, then finished by single shooting), or auto (single, then "
@@ -198,6 +202,8 @@ NO_EFFECT = {
     "--free": (), "--sigma": (), "--max-evaluations": (), "--allow-misfit": (), "--report": (), "--example-records": (),
     "--friction-start": (_on(_TRACK, *_TRENDS, "--friction-start", "auto", why="with --track (each record is fitted "
                              "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "auto")),
+    "--coarse-to-fine": (_on(_TRACK, *_TRENDS, "--coarse-to-fine", why="with --track (each record is fitted "
+                             "alone from the file's values)"), _on(_EXAMPLE, "--coarse-to-fine")),
     "--method": (_on(_TRACK, *_TRENDS, "--method", "auto"), _on(_COMPARE_FIT, *_CMP, "--method", "auto")),
     "--nodes": (_on(_TRACK, *_TRENDS, "--nodes", "50"), _on(_COMPARE_FIT, *_CMP, "--nodes", "50"),
                 NoEffect((*_FIT, "--nodes", "50"), "with --method single (it sets the grid of multiple shooting and "
@@ -278,6 +284,7 @@ def run(args) -> dict:
               "starts": args.starts, "max_evaluations": args.max_evaluations,
               "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
               "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
+              "coarse_to_fine": args.coarse_to_fine,
               "method": args.method, "nodes": args.nodes,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
               **({} if args.model_error is None else {"model_error": args.model_error,
@@ -375,7 +382,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
-                 "--structural", "--friction-start", "--method", "--nodes"):  # none
+                 "--structural", "--friction-start", "--coarse-to-fine", "--method", "--nodes"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -421,7 +428,7 @@ def _compare(args, params, model, records, free, kw, out) -> dict:
     cmp = compare(params, records, free, options, sigma=kw["sigma"], variants=dict(args.variant) or None,
                   max_fits=max_fits, max_evaluations=kw["max_evaluations"], progress=kw["progress"],
                   estimate_x0=kw["estimate_x0"], model_error=kw.get("model_error"),
-                  friction_start=kw["friction_start"],
+                  friction_start=kw["friction_start"], coarse_to_fine=kw["coarse_to_fine"],
                   allow_misfit=kw.get("allow_misfit", False))
     best = cmp.best
     if best is None:  # every combination failed: their reasons, one document
@@ -458,8 +465,8 @@ def _track(args, params, model, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start", "method",
-                                                 "nodes")}
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start",
+                                                 "coarse_to_fine", "method", "nodes")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:

@@ -132,7 +132,7 @@ def bic(result) -> float:
 def compare(params, records, free, options: dict, *, sigma: dict | None = None, variants: dict | None = None,
             max_fits: int = MAX_FITS, max_evaluations: int = 60, progress: bool = False,
             estimate_x0=False, model_error: float | None = None, friction_start: str = "off",
-            allow_misfit: bool = False) -> Comparison:
+            allow_misfit: bool = False, coarse_to_fine: bool = False) -> Comparison:
     """Fit every combination of ``options`` and rank them (module docstring).
 
     Parameters
@@ -150,7 +150,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
     options : dict
         Variant or option key -> values to compare (``{"anti_windup": ["backcalc",
         "clamping"]}``).
-    sigma, variants, max_evaluations, progress, estimate_x0, model_error, friction_start, allow_misfit
+    sigma, variants, max_evaluations, progress, estimate_x0, model_error, friction_start, allow_misfit, coarse_to_fine
         As for :func:`~ema_casadi.identification.identify`.
     max_fits : int
         Most combinations (refused above).
@@ -168,6 +168,7 @@ def compare(params, records, free, options: dict, *, sigma: dict | None = None, 
         try:
             res = identify(params, records, mine, sigma=sigma, variants=combo, max_evaluations=max_evaluations,
                            progress=progress, estimate_x0=estimate_x0, friction_start=friction_start,
+                           coarse_to_fine=coarse_to_fine,
                            allow_misfit=allow_misfit,
                            **({} if model_error is None else {"model_error": model_error}))
         except FitFailed as exc:

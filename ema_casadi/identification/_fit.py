@@ -14,36 +14,22 @@ from .._util._parallel import check_main_guard
 from .._util._tasks import run_tasks
 from ..model.assembly import Model, build_model
 from ..model.params import Parameters
-from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
-from ..simulation import RunFailed, progress_bar
 from . import _consistency, _misfit
 from ._accuracy import add_numerical, numerical_of, refined
+from ._coarse import coarse_to_fine
 from ._failed import FitFailed
+from ._fitting import _Fit
 from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
 from ._hints import friction_hint, hints_at, hump_score
 from ._hold import check_hold, held_doc
 from ._methods import check_method, grid, run_method, transcribed_fit
-from ._problem import Predictor, free_parameters, given_model, marginal, x0_states
+from ._problem import Predictor, free_parameters, given_model, x0_states
 from ._records import IdentificationError, Record, read_record, record_list
 from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
 from ._starts import fit_state, install_state
 from ._structural import add_structural, check_structural, structural_covariance
-
-#: Relative change of the estimated noise levels below which their re-estimation stops.
-SIGMA_TOL = 0.02
-#: Re-estimation rounds of the noise levels at most.
-SIGMA_ROUNDS = 6
-#: Evaluations within this distance (in log-parameters) of the point where the step
-#: sequences were chosen replay them (the cost is then a smooth function, so the small
-#: steps near the optimum compare like with like); farther ones choose them anew.
-REGRID = 0.05
-#: Confirmations of an optimum on steps chosen there (:meth:`_Fit._confirmed`): an
-#: adaptive run can accept a step whose error its estimate misses, and a grid chosen
-#: there can hold a false optimum (one kernel's path: J_m 5 sd off, the cost 116 high).
-CONFIRMS = 2
-CONFIRM_EVALUATIONS = 8
 
 
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
@@ -51,7 +37,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              max_evaluations: int = 60, hold=None, hold_unidentifiable: bool = False, estimate_x0=False,
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, allow_misfit: bool = False,
              jobs: int = 1, structural: dict | None = None, method: str = "single", nodes: int | None = None,
-             progress: bool = False, model: Model | None = None, friction_start: str = "off") -> IdentResult:
+             progress: bool = False, model: Model | None = None, friction_start: str = "off",
+             coarse_to_fine: bool = False) -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -129,6 +116,16 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         Free friction parameters started at the steady-state curve of the records' steady
         segments (:mod:`._friction_start`): ``auto`` where they tell one, ``records``
         requires that (else an IdentificationError), ``off`` (default) the file's values.
+    coarse_to_fine : bool
+        Fit the residuals' means over blocks of :data:`._coarse.COARSE_BLOCKS_S` (0.2 s, then
+        0.1, 0.05, 0.025 s) in turn before every sample: where the records hold
+        stick-slip, whose timing moves with the breakaway force by more than the noise,
+        the cost over every sample is rugged (a local minimum every few tenths of a
+        per cent of the breakaway) and the block means' is smooth. With ``starts`` > 1
+        every start is fitted at the coarsest level and the lowest continues
+        (``info["coarse_to_fine"]``: the levels' costs, their evaluations, which do not
+        count against ``max_evaluations``; ``start_costs`` at the coarsest level). The
+        statistics are those of the fit on every sample. Default False.
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller and passed
         down; default built here (a worker process of ``jobs`` builds its own).
@@ -149,6 +146,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     t_wall = time.perf_counter()
     instance(params, Parameters, "params", IdentificationError, " (from load_parameters)")
     starts = integer(starts, "starts", IdentificationError, minimum=1)
+    if not isinstance(coarse_to_fine, bool):
+        raise IdentificationError(f"coarse_to_fine: expected True or False, got {coarse_to_fine!r}")
     max_evaluations = integer(max_evaluations, "max_evaluations", IdentificationError, minimum=2)
     if isinstance(free, str):
         free = [s.strip() for s in free.split(",") if s.strip()]
@@ -171,7 +170,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     def single(first=None):
         try:
             fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
-                                    fstart, first)
+                                    fstart, first, coarse_to_fine)
             fit, best, accuracy = refined(fit, best, lambda rtol, atol: _Fit(
                 Predictor(model, recs, fr, model.p(), xs, rtol, atol), given, max_evaluations, progress))
         except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
@@ -182,6 +181,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                       model_error, structural)
         res.info["prediction_accuracy"] = accuracy
+        if coarse_to_fine:
+            res.info["coarse_to_fine"] = {**best["coarse_to_fine"], "start_costs": best["start_costs"]}
         if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
             res.info["friction_start"] = {**fstart, "start_costs": best["start_costs"]}
         return res
@@ -193,15 +194,18 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
 
 
 def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec, design=None,
-                first=None):
+                first=None, coarse=False):
     """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
     each from a fresh predictor, on ``jobs`` processes (the result does not depend on
     ``jobs``: a worker's fit is the same computation, its final state handed back);
-    ``first`` (SI values: a multiple-shooting or collocation estimate) replaces the first start."""
+    ``first`` (SI values: a multiple-shooting or collocation estimate) replaces the first start;
+    ``coarse``: coarse to fine (:func:`._coarse.coarse_to_fine`)."""
     points = start_points(fr, starts, seed, design if design and design["used"] else None)
     if first is not None:
         lo, hi = fr.z_bounds()
         points[0] = np.clip(fr.z(first), lo, hi)
+    if coarse:
+        return coarse_to_fine(_new_fit, model, progress, points, jobs, spec)
     results = []
     if jobs <= 1 or starts == 1:
         for z0 in points:
@@ -233,6 +237,11 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
         raise FitFailed(why, status="not converged")
     _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
     return fit, {**out, "start_costs": [o["cost"] if f is not None else None for f, o in results]}
+
+
+def _new_fit(model, recs, fr, xs, given, max_evaluations, progress):
+    """A fresh fit (coarse to fine's factory, in this process or a worker)."""
+    return _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
 
 
 _WORKER_MODEL = [None, None]  # (payload, its model) in a worker process
@@ -272,168 +281,6 @@ def _sigmas(recs, sigma) -> dict:
         if vals and all(isinstance(v, float) and v > 0 for v in vals):
             out[c] = float(np.mean(vals))
     return out
-
-
-class _Fit:
-    """One fit: residuals and Jacobian from one prediction, the noise re-estimation
-    around the least-squares solve."""
-
-    def __init__(self, pred: Predictor, given: dict, max_evaluations: int, progress: bool):
-        self.pred, self.given, self.max_eval, self.progress = pred, given, max_evaluations, progress
-        self.channels = sorted({c for r in pred.records for c in r.channels})
-        self.regrid = REGRID  # farther than this from where the steps were chosen: choose them anew
-        self._cache = None
-        self.z_grid = None
-        self.failure = ""
-        self.evaluations = 0
-        self.history = []  # per evaluation: its cost (the round's weights), for the JSON of every exit
-        self.round, self._logged = 0, None
-
-    # -- residuals -------------------------------------------------------------------
-    def errors(self, theta):
-        """(predictions, e per (record, channel), de/dz per (record, channel)); e =
-        measured - model, from the second sample on (the first fixes the start)."""
-        preds = self.pred.predict(theta)
-        e, de = {}, {}
-        m, n_rec = len(self.pred.x0_states), len(preds)
-        first = 0 if m else 1  # an estimated start is fitted to the first sample too
-        for i, (rec, pr) in enumerate(zip(self.pred.records, preds, strict=True)):
-            for c, meas in rec.channels.items():
-                e[i, c] = meas[first:] - pr["y"][c][first:]
-                de[i, c] = -pr["dy"][c][first:]
-                if m:  # the record's own initial-state columns; zero for the other records'
-                    d0 = np.zeros((len(e[i, c]), m * n_rec))
-                    d0[:, i * m : (i + 1) * m] = -pr["dy0"][c][first:]
-                    de[i, c] = np.hstack([de[i, c], d0])
-        return preds, e, de
-
-    def weighted(self, e, de, sig):
-        keys = sorted(e, key=lambda k: (k[0], k[1]))
-        r = np.concatenate([e[k] / sig[k[1]] for k in keys])
-        J = np.concatenate([de[k] / sig[k[1]] for k in keys])
-        return r, J
-
-    def _raw(self, z):
-        """(predictions, e, de) at ``z``, or None where the run failed; the last one kept."""
-        z = np.asarray(z, float)
-        key = z.tobytes()
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1]
-        if self.z_grid is None or np.max(np.abs(z - self.z_grid)) > self.regrid:
-            self.pred.refresh()  # far from where the step sequences were chosen: choose them here
-            self.z_grid = z.copy()
-        self.evaluations += 1
-        n = len(self.pred.free.names)
-        self.pred.dx0 = list(z[n:].reshape(len(self.pred.records), -1)) if self.pred.x0_states else self.pred.dx0
-        try:
-            raw = self.errors(self.pred.free.theta(z[:n]))
-            if not all(np.all(np.isfinite(v)) for d in raw[1:] for v in d.values()):
-                raw, self.failure = None, "non-finite model values"
-        except RunFailed as exc:
-            raw, self.failure = None, exc.reason
-        self._cache = (key, raw)
-        progress_bar(min(1.0, self.evaluations / self.max_eval), self.progress, "identify",
-                     f"evaluation {self.evaluations}")
-        return raw
-
-    def _eval(self, z, sig):
-        """Weighted residuals and Jacobian at ``z`` (None, None where the run failed)."""
-        raw = self._raw(z)
-        if raw is None:
-            return None, None
-        r, J = self.weighted(raw[1], raw[2], sig)
-        key = (np.asarray(z, float).tobytes(), self.round)
-        if key != self._logged:  # each point once per round (a cached one is not a new evaluation)
-            self._logged = key
-            self.history.append({"evaluation": self.evaluations, "cost": 0.5 * float(r @ r), "round": self.round})
-        return r, J
-
-    def failed(self, what: str, z, cost=None, status: str = "not converged") -> FitFailed:
-        """The :class:`FitFailed` of this fit at optimiser point ``z`` (its last iterate)."""
-        fr = self.pred.free
-        theta = fr.theta(np.asarray(z, float)[: len(fr.names)])
-        return FitFailed(what, status=status, iterate=dict(zip(fr.names, theta.tolist(), strict=True)),
-                         cost=None if cost is None or not np.isfinite(cost) else float(cost), history=self.history)
-
-    # -- the fit ---------------------------------------------------------------------
-    def _confirmed(self, sig, z, lo, hi, budget, tol) -> dict:
-        """Levenberg-Marquardt from ``z``, its optimum confirmed on step sequences chosen
-        there: where the Gauss-Newton step still predicts a decrease above 10 x the
-        tolerance, the fit goes on from there (at most :data:`CONFIRMS` times, each
-        within :data:`CONFIRM_EVALUATIONS`); where it is confirmed, or going on does not
-        converge (a misfit far above the noise: the grids resolve its optimum no finer),
-        the optimum on its own grid is kept."""
-        sol = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, budget, tol)
-        if not sol["converged"]:
-            raise self.failed(f"did not converge within {self.max_eval} model evaluations ({sol['message']})",
-                              sol["z"], sol["cost"])
-        for _ in range(CONFIRMS):
-            z = sol["z"]
-            if self.z_grid is not None and np.array_equal(z, self.z_grid):
-                return sol
-            kept = (self._cache, list(self.pred.steps), self.z_grid)
-            self._cache, self.z_grid = None, z.copy()
-            self.pred.refresh()
-            r, J = self._eval(z, sig)
-            room = min(CONFIRM_EVALUATIONS, self.max_eval - self.evaluations + 1)
-            nxt = None
-            if r is not None and gauss_newton_decrease(r, J, z, lo, hi) >= 10 * tol and room >= 2:
-                nxt = levenberg_marquardt(lambda zz: self._eval(np.asarray(zz), sig), z, lo, hi, room, tol)
-            if nxt is None or not nxt["converged"]:
-                self._cache, self.pred.steps, self.z_grid = kept
-                return sol
-            sol = nxt
-        return sol
-
-    def run(self, z0) -> dict:
-
-        fr = self.pred.free
-        n_x0 = len(self.pred.x0_states) * len(self.pred.records)
-        z0 = np.asarray(z0, float)
-        if len(z0) == len(fr.names):
-            z0 = np.concatenate([z0, np.zeros(n_x0)])
-        self.z_grid = None
-        raw = self._raw(z0)
-        if raw is None:
-            raise self.failed(f"the model run fails at the start values: {self.failure}", z0, status="failed")
-        e0 = raw[1]
-        sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
-        sig = {c: (v if v > 0 else 1.0) for c, v in sig.items()}
-        lo, hi = fr.z_bounds()
-        lo, hi = np.concatenate([lo, np.full(n_x0, -np.inf)]), np.concatenate([hi, np.full(n_x0, np.inf)])
-        z = np.clip(np.asarray(z0, float), lo, hi)
-        estimate = [c for c in self.channels if c not in self.given]
-
-        for _round in range(SIGMA_ROUNDS):
-            self.round = _round
-            if _round:  # the step sequences chosen anew at a later round's start, then frozen
-                self._cache, self.z_grid = None, None
-            budget = self.max_eval - self.evaluations + 1  # the round's start may be the cached point
-            if budget < 2:
-                raise self.failed(f"did not converge within {self.max_eval} model evaluations", z)
-            tol = COST_TOL if _round or not estimate else 1e3 * COST_TOL  # the first weights are provisional
-            sol = self._confirmed(sig, z, lo, hi, budget, tol)
-            z = sol["z"]
-            if not estimate:
-                break
-            _, e, _ = self._raw(z)
-            n_tot = sum(len(v) for v in e.values())
-            dof = max(1e-3, 1.0 - len(z) / n_tot)
-            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in estimate}
-            change = max(abs(new[c] / sig[c] - 1) for c in estimate)
-            sig = {**sig, **new}
-            if change < SIGMA_TOL:
-                break
-        r, J = self._eval(z, sig)
-        progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
-        n = len(fr.names)
-        return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
-                "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
-
-
-def _rms(arrays) -> float:
-    a = np.concatenate(arrays) if arrays else np.zeros(1)
-    return float(np.sqrt(np.mean(a * a)))
 
 
 def robust_of(fit: _Fit, out: dict, structural: dict | None = None) -> dict:

@@ -39,12 +39,14 @@ Modes: ``auto`` uses the curve where the records' steady segments tell at least 
 free friction parameter, and otherwise starts from the file's values, saying why
 (``info["friction_start"]["why"]``); ``records`` requires it (an
 :class:`IdentificationError` otherwise: records without steady segments under a known
-load); ``off`` (the default) starts from the file's values. Why off by default: on the witness rigs
-(``studies/witness.py``) ``auto`` narrows the valley the fit ends in (median seal
-friction +3.4 % against +7.0 % from the file's values, viscous -33 % against -91 %)
-but brings no fit to the truth, and on the benchmark records the file's values already
-converge; ``auto`` would change the start, and so the path, of every fit on records
-with steady segments, for no fit that then succeeds.
+load); ``off`` (the default) starts from the file's values. Why off by default: alone,
+``auto`` narrows the valley a fit on the witness rigs (``studies/witness.py``) ends in
+(median seal friction +3.4 % against +7.0 % from the file's values, viscous -33 %
+against -91 %) but brings no fit to the truth; with ``coarse_to_fine`` and ``starts``
+(:mod:`._coarse`: the starts compared on block means, where the cost is smooth) it
+does on many (the identification guide's witness section), and on the benchmark
+records the file's values already converge: ``auto`` would change the start, and so
+the path, of every fit on records with steady segments.
 """
 
 from __future__ import annotations

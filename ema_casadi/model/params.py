@@ -106,6 +106,8 @@ class Friction:
     v_s: float = _p("m/s", POS, "smoothing velocity of the smooth variant (m/s)")
     eps: float = _p("m/s", POS, "stick dead band of the hybrid variant (m/s)")
     v_st: float = _p("m/s", POS, "Stribeck velocity of the optional hump and of the LuGre curve (m/s)")
+    delta_st: float = _p("1", POS, "Stribeck shape exponent: the hump decays as exp(-(|v|/v_st)^delta_st); 2 Gaussian, "
+                         "1 exponential (-)", default=2.0)
     sigma_0: float = _p("N/m", POS, "LuGre bristle stiffness: pre-sliding deflection F/sigma_0 (N/m)", default=1.0e7)
     sigma_1: float = _p("N*s/m", NONNEG, "LuGre bristle damping (N s/m)", default=5.0e3)
 

@@ -334,12 +334,12 @@ def test_a_false_optimum_of_a_replayed_grid_is_not_reported(params, example, mon
     below the 3 sd displacement (measured 0.10 sd on the Sandybridge kernel). The noise
     levels are given, so the fit is one round (an estimated level's later rounds would
     start afresh)."""
-    from ema_casadi.identification import _fit
+    from ema_casadi.identification import _fitting
 
     paths, _ = example
     sigma = {"x_rod": 3e-7, "i_q": 0.05}
     good = idn.identify(params, paths, free=list(idn.EXAMPLE_TRUTH), sigma=sigma)
-    real = _fit.levenberg_marquardt
+    real = _fitting.levenberg_marquardt
     sd = good.std["F_seal"] / good.estimate["F_seal"]  # in log F_seal
     solves = []
 
@@ -353,7 +353,7 @@ def test_a_false_optimum_of_a_replayed_grid_is_not_reported(params, example, mon
         r, J = evaluate(z)
         return {**out, "z": z, "r": r, "J": J, "cost": 0.5 * float(r @ r)}
 
-    monkeypatch.setattr(_fit, "levenberg_marquardt", stops_early)
+    monkeypatch.setattr(_fitting, "levenberg_marquardt", stops_early)
     res = idn.identify(params, paths, free=list(idn.EXAMPLE_TRUTH), sigma=sigma)
     assert len(solves) >= 2
     for name, value in good.estimate.items():

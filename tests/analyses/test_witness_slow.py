@@ -50,3 +50,24 @@ def test_compare_ranks_the_hump_first(params, hump_files):
     cmp = idn.compare(params, hump_files, list(witness.TRUTH), {"stribeck": ["off", "on"]}, sigma=witness.NOISE)
     assert cmp.rows[0]["variants"]["stribeck"] == "on"
     assert cmp.rows[0]["bic"] < cmp.rows[1]["bic"]
+
+
+def test_coarse_to_fine_reaches_the_truth_where_the_plain_fit_does_not(params):
+    """The control rig (the model's own Gaussian hump, transcribed in the study),
+    realisation 1, from the reference start with the friction start: fitted on every
+    sample the fit stops in the valley (measured: r_start -6.6 %, v_st -16 %, c_v -61 %,
+    cost 62 843 against 17 047 at the truth); coarse to fine with six starts reaches the
+    truth (measured: every estimate within 0.5 %, c_v within 1 %), within the study's
+    tolerances (2 %, c_v and v_st 10 %)."""
+    from ema_casadi import identification as idn
+
+    clean = witness.clean_records("gauss")
+    recs = witness.realisation(clean, 1)
+    kw = {"sigma": witness.NOISE, "variants": {"stribeck": "on"}, "friction_start": "auto"}
+    fit = idn.identify(params, recs, list(witness.TRUTH), starts=6, coarse_to_fine=True, **kw)
+    err = {k: fit.estimate[k] / v - 1 for k, v in witness.TRUTH.items()}
+    assert all(abs(err[k]) <= witness.TOLERANCE[k] for k in err), err
+    assert fit.info["coarse_to_fine"]["starts"] == 6
+    plain = idn.identify(params, recs, list(witness.TRUTH), **kw)
+    assert plain.info["cost"] > 2 * fit.info["cost"]
+    assert abs(plain.estimate["r_start"] / witness.TRUTH["r_start"] - 1) > witness.TOLERANCE["r_start"]

@@ -68,8 +68,30 @@ def _s(v, v_s, shape):
     raise ValueError(f"friction shape '{shape}' not one of {SHAPES}")
 
 
+def stribeck_hump(v, P):
+    """The Stribeck hump's decay e^-(|v|/v_st)^delta_st (-): 1 at rest, falling with the
+    speed; delta_st = 2 (the default) is the Gaussian hump, 1 the exponential one
+    (Armstrong-Helouvry's generalised Stribeck curve). delta_st = 2 is written as
+    e^-(v/v_st)^2; another exponent through max(|v|/v_st, 1e-300), so that its
+    derivatives (also with respect to delta_st) stay finite at rest.
+
+    Parameters
+    ----------
+    v : SX or float
+        Velocity at the contact (m/s).
+    P : SimpleNamespace
+        Parameter symbols by flat name (uses ``v_st``, ``delta_st``).
+    """
+    x = v / P.v_st
+    gauss = ca.exp(-(x**2))
+    if isinstance(P.delta_st, (int, float)):
+        return gauss if P.delta_st == 2 else ca.exp(-ca.power(ca.fmax(ca.fabs(x), 1e-300), P.delta_st))
+    return ca.if_else(P.delta_st == 2, gauss, ca.exp(-ca.power(ca.fmax(ca.fabs(x), 1e-300), P.delta_st)))
+
+
 def smooth(v, F_r, P, shape="tanh", stribeck=False):
-    """Simplified friction (eq. 3): F_r s(v) [+ (F_start - F_r) e^-(v/v_st)^2 s(v)] + c_v v.
+    """Simplified friction (eq. 3): F_r s(v) [+ (F_start - F_r) h(v) s(v)] + c_v v, with
+    the hump h(v) = e^-(|v|/v_st)^delta_st (:func:`stribeck_hump`).
 
     Returns (F_friction (N), its Coulomb part without the viscous term (N)).
 
@@ -90,7 +112,7 @@ def smooth(v, F_r, P, shape="tanh", stribeck=False):
     s = _s(v, P.v_s, shape)
     F_c = F_r * s
     if stribeck:
-        F_c = F_c + (P.r_start - 1) * F_r * ca.exp(-((v / P.v_st) ** 2)) * s
+        F_c = F_c + (P.r_start - 1) * F_r * stribeck_hump(v, P) * s
     return F_c + P.c_v * v, F_c
 
 
@@ -194,7 +216,7 @@ class Smooth(Part):
     inputs = (F_EXT,)
     outputs = _OUT
     heat = {"P_friction": "screw", "P_viscous": "screw"}
-    params = _PARAMS + ("v_s", "r_start", "v_st")
+    params = _PARAMS + ("v_s", "r_start", "v_st", "delta_st")
     small_signal = {"friction": {"off": {"F_seal": 0.0, "C_bear": 0.0}}}
     options = {"friction_shape": SHAPES, "stribeck": ("off", "on")}
 
@@ -257,7 +279,8 @@ V_REST = 1e-12
 
 
 def stribeck_curve(v, F_r, P):
-    """The Stribeck curve g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2) with F_c = F_r,
+    """The Stribeck curve g(v) = F_c + (F_s - F_c) h(v) with F_c = F_r, h the hump
+    e^-(|v|/v_st)^delta_st (:func:`stribeck_hump`),
     F_s = r_start F_r, v_s = v_st (N): the steady-state LuGre friction without the
     viscous part.
 
@@ -270,7 +293,7 @@ def stribeck_curve(v, F_r, P):
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``r_start``, ``v_st``).
     """
-    return F_r * (1 + (P.r_start - 1) * ca.exp(-((v / P.v_st) ** 2)))
+    return F_r * (1 + (P.r_start - 1) * stribeck_hump(v, P))
 
 
 def lugre_rate(v, z, g, P):
@@ -309,7 +332,7 @@ class LuGre(Part):
     outputs = _OUT + (Output("z_ss", "m", "steady-state bristle deflection at the contact velocity", kind="aux"),)
     heat = Smooth.heat
     stored = ("E_bristle",)
-    params = _PARAMS + ("r_start", "v_st", "sigma_0", "sigma_1")
+    params = _PARAMS + ("r_start", "v_st", "delta_st", "sigma_0", "sigma_1")
     # off: no Coulomb friction and no bristles, viscous c_v only (as the other laws)
     small_signal = {"friction": {"off": {"F_seal": 0.0, "C_bear": 0.0, "sigma_0": 0.0, "sigma_1": 0.0}}}
 
@@ -364,8 +387,8 @@ def smooth_bristle_rate(v, z, F_r, P, shape="tanh", stribeck=False):
     """Bristle rate dz/dt = v - sigma_0 z |v|/g(v) on the smooth law's curve
     g(v) = |F_c(v)| (:func:`smooth`'s Coulomb part), written without 0/0 (m/s):
     |v|/g(v) = (w/F_r) h(v/w) / hump(v), h = :func:`x_over_tanh`, w = v_s (tanh) or
-    2 v_s (Fermi: 2/(1 + e^-u) - 1 = tanh(u/2)), hump = 1 + (r_start - 1) e^-(v/v_st)^2
-    with ``stribeck``, else 1. F_r is floored at G_MIN (only a set without Coulomb
+    2 v_s (Fermi: 2/(1 + e^-u) - 1 = tanh(u/2)), hump = 1 + (r_start - 1) h(v)
+    (:func:`stribeck_hump`) with ``stribeck``, else 1. F_r is floored at G_MIN (only a set without Coulomb
     friction reaches it).
 
     Parameters
@@ -387,7 +410,7 @@ def smooth_bristle_rate(v, z, F_r, P, shape="tanh", stribeck=False):
     if shape not in SHAPES:
         raise ValueError(f"friction shape '{shape}' not one of {SHAPES}")
     w = P.v_s if shape == "tanh" else 2 * P.v_s
-    hump = 1 + (P.r_start - 1) * ca.exp(-((v / P.v_st) ** 2)) if stribeck else 1
+    hump = 1 + (P.r_start - 1) * stribeck_hump(v, P) if stribeck else 1
     return v - P.sigma_0 * z * w * x_over_tanh(v / w) / (ca.fmax(F_r, G_MIN) * hump)
 
 
@@ -410,7 +433,7 @@ class LuGreSmooth(Part):
     outputs = LuGre.outputs
     heat = Smooth.heat
     stored = ("E_bristle",)
-    params = _PARAMS + ("v_s", "r_start", "v_st", "sigma_0", "sigma_1")
+    params = _PARAMS + ("v_s", "r_start", "v_st", "delta_st", "sigma_0", "sigma_1")
     small_signal = LuGre.small_signal
     options = Smooth.options
 
