@@ -155,7 +155,9 @@ def friction_hint(model, records, preds, errors, sigma, estimated, free, score=N
                                                   f"{best}: {rivals[best]:.3g})" if best else "")
            + f"; {100 * got['share']:.0f} % of the systematic misfit sits at reversals and starts "
            f"({100 * got['time_share']:.0f} % of the time)")
-    text = f"{why}: the friction structure is the suspect; candidates: {names}; compare: {candidates[0]['command']}"
+    text = (f"{why}: the friction structure is the suspect; candidates: {names}; compare: {candidates[0]['command']}"
+            "; then fit the chosen structure with --friction-start auto --starts 6 --coarse-to-fine where the "
+            "records stick and slip (their cost is rugged in the breakaway)")
     return [{"kind": "friction", "text": text, **got, "at_switching": at_switching, "score": hump,
              "candidates": candidates}]
 
