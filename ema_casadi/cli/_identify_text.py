@@ -40,7 +40,9 @@ def _coarse(cf, w) -> None:
         w("coarse to fine: residuals averaged over blocks of "
           + ", ".join(f"{1e3 * lv['block_s']:g} ms (cost {lv['cost']:.6g})" for lv in cf["levels"])
           + f", then every sample; {cf['evaluations']} coarse evaluations"
-          + (f" ({cf['starts']} starts at the coarsest level)" if cf["starts"] > 1 else "") + "\n")
+          + (f" ({cf['starts']} starts at the coarsest level)" if cf["starts"] > 1 else "")
+          + f"; kept the {cf['kept']} end (" + ", ".join(f"{k} {v:.6g}" for k, v in cf["costs"].items())
+          + " at the first weights)\n")
 
 
 def fit_text(result: dict) -> str:

@@ -83,3 +83,24 @@ def test_coarse_to_fine_must_be_a_bool(records):
     p, paths, free = records
     with pytest.raises(IdentificationError, match="coarse_to_fine"):
         ema.identify(p, paths, free, coarse_to_fine="yes")
+
+
+def test_coarse_to_fine_never_ends_above_the_plain_fit(params, tmp_path):
+    """The identification guide's four records, seven parameters 20-40 % from the file's
+    values: the 200 ms level stops far from the truth (measured: seal friction 97 N for
+    225, cost 19 111 where the noise's share is about 80) and the fit on every sample
+    from there ends inadequate (cost 149 709 at the first weights); the plain fit from
+    the file's values, also run, converges (25 011) and is kept: the same estimates as
+    without coarse to fine."""
+    from ema_casadi import identification
+
+    recs, truth = identification.recovery_records(params, tmp_path)
+    free = list(truth)
+    sigma = {"x_rod": 3e-7, "i_q": 0.05}
+    plain = ema.identify(params, recs, free, sigma=sigma)
+    res = ema.identify(params, recs, free, sigma=sigma, coarse_to_fine=True)
+    cf = res.info["coarse_to_fine"]
+    assert cf["kept"] == "plain" and cf["costs"]["coarse"] > 2 * cf["costs"]["plain"]
+    assert res.adequacy["adequate"]
+    for k in free:
+        assert abs(res.estimate[k] - plain.estimate[k]) < 1e-3 * plain.std[k], k
