@@ -72,7 +72,8 @@ def add_arguments(p):
     p.add_argument("--coarse-to-fine", action="store_true",
                    help="fit the residuals' means over 200, 100, 50 and 25 ms blocks before every sample: records "
                         "with stick-slip make the cost over every sample rugged in the breakaway, the block means' "
-                        "smooth; with --starts N every start is fitted at 200 ms and the lowest goes on")
+                        "smooth; with --starts N every start is fitted at 200 ms and the lowest goes on; the fit "
+                        "on every sample also runs from the first start and the lower cost is kept")
     p.add_argument("--method", default="single", metavar="METHOD",
                    help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
                         "parameters solved together, then finished by single shooting), or auto (single, then "

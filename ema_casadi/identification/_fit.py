@@ -125,7 +125,9 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         every start is fitted at the coarsest level and the lowest continues
         (``info["coarse_to_fine"]``: the levels' costs, their evaluations, which do not
         count against ``max_evaluations``; ``start_costs`` at the coarsest level). The
-        statistics are those of the fit on every sample. Default False.
+        fit on every sample runs from the ladder's end and from the first start, the
+        lower cost at the first weights kept (``kept``, ``costs``); the statistics are
+        that fit's. Default False.
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller and passed
         down; default built here (a worker process of ``jobs`` builds its own).
