@@ -36,6 +36,7 @@ from .._util._tasks import run_tasks
 from ..model.assembly import build_model
 from ..optimisation import COST_TOL, levenberg_marquardt
 from ._failed import FitFailed
+from ._fitting import new_fit
 from ._records import IdentificationError
 
 #: The block lengths (s), coarsest first, over which the residuals are averaged before
@@ -103,32 +104,27 @@ def _coarsest(fit, z0, sig):
     return z, docs[0]["cost"], docs
 
 
-def coarse_to_fine(make, model, progress: bool, points, jobs: int, spec) -> tuple:
+def coarse_to_fine(model, progress: bool, points, jobs: int, spec) -> tuple:
     """(fit, its optimum) coarse to fine (module docstring) from the starts ``points``
-    (optimiser coordinates); ``make(model, recs, fr, xs, given, max_evaluations,
-    progress)`` makes a fresh ``_Fit`` (a module-level function: a worker process gets
-    it too); ``spec``: identify's ``(params, variants, recs, fr, xs, given,
-    max_evaluations)``. The optimum carries
-    ``coarse_to_fine`` (the levels of the start kept, the coarse evaluations, the
-    starts) and ``start_costs`` (each start's cost at the coarsest level)."""
-    _, _, recs, fr, xs, given, max_evaluations = spec
-
-    def new_fit(show):
-        return make(model, recs, fr, xs, given, max_evaluations, show)
-
-    fit = new_fit(progress)
+    (optimiser coordinates) on ``model``; ``spec``: identify's ``(params, variants,
+    recs, fr, xs, given, max_evaluations)``. The optimum carries ``coarse_to_fine``
+    (the levels of the start kept, the coarse evaluations, the starts, which end was
+    kept and both ends' costs at the first weights) and ``start_costs`` (each start's
+    cost at the coarsest level)."""
+    fit_spec = (model, *spec[2:])
+    fit = new_fit(*fit_spec, progress)
     sig = fit.start_sigma(points[0])
     z, docs, blocks, costs, spent = points[0], [], COARSE_BLOCKS_S, None, 0
     if len(points) > 1:
         got = {}
         if jobs <= 1:
             for k, z0 in enumerate(points):
-                one = new_fit(False)  # a fresh fit per start, as in a worker
+                one = new_fit(*fit_spec, False)  # a fresh fit per start, as in a worker
                 got[k] = _coarsest(one, z0, sig)
                 spent += one.coarse_evaluations
         else:
             check_main_guard(IdentificationError, f"identify(starts={len(points)}, jobs={jobs})")
-            run_tasks(_in_worker, (*spec, points, sig, make), range(len(points)), got.update,
+            run_tasks(_in_worker, (*spec, points, sig), range(len(points)), got.update,
                       jobs=min(jobs, len(points)), error=IdentificationError)
             spent = sum(g[3] for g in got.values() if not isinstance(g, str))
         costs = [None if isinstance(got[k], str) else got[k][1] for k in range(len(points))]
@@ -137,16 +133,14 @@ def coarse_to_fine(make, model, progress: bool, points, jobs: int, spec) -> tupl
             raise FitFailed(f"none of the {len(points)} starts converged ({got[0]})", status="failed")
         best = min(ok)[1]
         z, docs, blocks = got[best][0], got[best][2], COARSE_BLOCKS_S[1:]
-        fit = new_fit(progress)
+        fit = new_fit(*fit_spec, progress)
     z, more = levels(fit, z, sig, blocks)
     spent += fit.coarse_evaluations
-    ends = {"coarse": _on_every_sample(fit, z)}
-    plain = new_fit(progress)
-    ends["plain"] = _on_every_sample(plain, points[0])
-    done = {k: (f, o) for k, (f, o) in zip(ends, ((fit, ends["coarse"]), (plain, ends["plain"])), strict=True)
-            if not isinstance(o, FitFailed)}
+    plain = new_fit(*fit_spec, progress)
+    ends = {"coarse": (fit, _on_every_sample(fit, z)), "plain": (plain, _on_every_sample(plain, points[0]))}
+    done = {k: fo for k, fo in ends.items() if not isinstance(fo[1], FitFailed)}
     if not done:
-        raise ends["coarse"]
+        raise ends["coarse"][1]
     # the two optima compared at the same (the first) weights
     cost = {k: 0.5 * float(np.sum(f._eval(o["z_full"], sig)[0] ** 2)) for k, (f, o) in done.items()}
     kept = min(cost, key=lambda k: (cost[k], k != "coarse"))
@@ -170,12 +164,12 @@ _WORKER_MODEL = [None, None]  # (payload, its model) in a worker process
 def _in_worker(payload, chunk) -> dict:
     """Start index -> (its point, cost, level docs, evaluations) at the coarsest level,
     or why it failed, for the starts ``chunk`` in a worker process."""
-    params, variants, recs, fr, xs, given, max_evaluations, points, sig, make = payload
+    params, variants, recs, fr, xs, given, max_evaluations, points, sig = payload
     if _WORKER_MODEL[0] is not payload:
         _WORKER_MODEL[:] = [payload, build_model(params, variants)]
     model, outs = _WORKER_MODEL[1], {}
     for k in chunk:
-        fit = make(model, recs, fr, xs, given, max_evaluations, False)
+        fit = new_fit(model, recs, fr, xs, given, max_evaluations, False)
         got = _coarsest(fit, points[k], sig)
         outs[k] = got if isinstance(got, str) else (*got, fit.coarse_evaluations)
     return outs

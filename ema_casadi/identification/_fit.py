@@ -18,7 +18,7 @@ from . import _consistency, _misfit
 from ._accuracy import add_numerical, numerical_of, refined
 from ._coarse import coarse_to_fine
 from ._failed import FitFailed
-from ._fitting import _Fit
+from ._fitting import _Fit, new_fit
 from ._friction_start import friction_start as friction_start_of
 from ._friction_start import start_points
 from ._hints import friction_hint, hints_at, hump_score
@@ -177,7 +177,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
                 Predictor(model, recs, fr, model.p(), xs, rtol, atol), given, max_evaluations, progress))
         except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
             if exc.iterate and exc.status == "not converged":
-                exc.hints = hints_at(_Fit(Predictor(model, recs, fr, model.p(), xs), given, 2, False),
+                exc.hints = hints_at(new_fit(model, recs, fr, xs, given, 2, False),
                                      [exc.iterate[n] for n in fr.names], fr.names)
             raise
         res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
@@ -207,11 +207,11 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
         lo, hi = fr.z_bounds()
         points[0] = np.clip(fr.z(first), lo, hi)
     if coarse:
-        return coarse_to_fine(_new_fit, model, progress, points, jobs, spec)
+        return coarse_to_fine(model, progress, points, jobs, spec)
     results = []
     if jobs <= 1 or starts == 1:
         for z0 in points:
-            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            fit = new_fit(model, recs, fr, xs, given, max_evaluations, progress)
             try:
                 results.append((fit, fit.run(z0)))
             except FitFailed as exc:
@@ -227,7 +227,7 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
             if isinstance(got, str):
                 results.append((None, got))
                 continue
-            fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
+            fit = new_fit(model, recs, fr, xs, given, max_evaluations, progress)
             install_state(fit, got["state"])
             results.append((fit, got["out"]))
     done = [(k, f, o) for k, (f, o) in enumerate(results) if f is not None]
@@ -241,11 +241,6 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
     return fit, {**out, "start_costs": [o["cost"] if f is not None else None for f, o in results]}
 
 
-def _new_fit(model, recs, fr, xs, given, max_evaluations, progress):
-    """A fresh fit (coarse to fine's factory, in this process or a worker)."""
-    return _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)
-
-
 _WORKER_MODEL = [None, None]  # (payload, its model) in a worker process
 
 
@@ -257,7 +252,7 @@ def _starts_in_worker(payload, chunk) -> dict:
         _WORKER_MODEL[:] = [payload, build_model(params, variants)]
     model, outs = _WORKER_MODEL[1], {}
     for k in chunk:
-        fit = _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, False)
+        fit = new_fit(model, recs, fr, xs, given, max_evaluations, False)
         try:
             out = fit.run(points[k])
         except FitFailed as exc:

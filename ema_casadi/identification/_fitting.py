@@ -215,3 +215,9 @@ class _Fit:
 def _rms(arrays) -> float:
     a = np.concatenate(arrays) if arrays else np.zeros(1)
     return float(np.sqrt(np.mean(a * a)))
+
+
+def new_fit(model, recs, fr, xs, given, max_evaluations, progress) -> _Fit:
+    """A fresh fit of ``recs`` on ``model`` (its parameter vector the base) from a fresh
+    predictor: free set ``fr``, estimated initial states ``xs``, given noise levels."""
+    return _Fit(Predictor(model, recs, fr, model.p(), xs), given, max_evaluations, progress)

@@ -82,11 +82,13 @@ def stribeck_hump(v, P):
     P : SimpleNamespace
         Parameter symbols by flat name (uses ``v_st``, ``delta_st``).
     """
-    x = v / P.v_st
+    x, delta = v / P.v_st, P.delta_st
     gauss = ca.exp(-(x**2))
-    if isinstance(P.delta_st, (int, float)):
-        return gauss if P.delta_st == 2 else ca.exp(-ca.power(ca.fmax(ca.fabs(x), 1e-300), P.delta_st))
-    return ca.if_else(P.delta_st == 2, gauss, ca.exp(-ca.power(ca.fmax(ca.fabs(x), 1e-300), P.delta_st)))
+    numeric = isinstance(delta, (int, float))
+    if numeric and delta == 2:
+        return gauss
+    general = ca.exp(-ca.power(ca.fmax(ca.fabs(x), 1e-300), delta))
+    return general if numeric else ca.if_else(delta == 2, gauss, general)
 
 
 def smooth(v, F_r, P, shape="tanh", stribeck=False):
