@@ -51,7 +51,7 @@ the exit status and whether the friction options are named.
 Usage::
 
     python studies/witness.py [--rig hump|lugre|gauss] [--n 20] [--jobs 1] [--friction-start auto] [--from-truth]
-        [--starts 6 --fit-jobs 2 --coarse-to-fine] [--default] [--json]
+        [--starts 6 --fit-jobs 2 --coarse-to-fine] [--unsettled leave-out] [--default] [--json]
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def write_records(rig: str, folder, seed: int = 0) -> list[Path]:
 
 def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: bool = False,
             max_evaluations: int = 60, starts: int = 1, from_truth: bool = False, coarse: bool = False,
-            jobs: int = 1) -> dict:
+            jobs: int = 1, unsettled: str = "keep") -> dict:
     """One realisation's fit: verdict, estimates, robust intervals, wall and CPU time;
     ``from_truth``: started at :data:`TRUTH` (the statistics without the search)."""
     params = ema.load_parameters()
@@ -238,7 +238,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
     try:
         res = identify(params, realisation(clean, seed), free, sigma=NOISE, variants=variants or None,
                        friction_start=friction_start, max_evaluations=max_evaluations, starts=starts,
-                       coarse_to_fine=coarse, jobs=jobs,
+                       coarse_to_fine=coarse, jobs=jobs, unsettled=unsettled,
                        start={k: TRUTH[k] for k in free} if from_truth else None)
     except FitFailed as exc:
         return {"seed": seed, "status": exc.status, "reason": exc.reason, "hints": bool(getattr(exc, "hints", None)),
@@ -247,7 +247,7 @@ def one_fit(rig: str, clean, seed: int, friction_start: str = "auto", default: b
             "adequate": bool(res.adequacy["adequate"]), "estimate": dict(res.estimate),
             "interval": {k: list(v) for k, v in res.interval.items()},
             "hints": res.info.get("hints"), "evaluations": res.info.get("evaluations"),
-            "coarse_to_fine": res.info.get("coarse_to_fine"),
+            "coarse_to_fine": res.info.get("coarse_to_fine"), "unsettled": res.info.get("unsettled"),
             "prediction_accuracy": res.info.get("prediction_accuracy"),
             "friction_start": {k: v for k, v in res.info.get("friction_start", {}).items()
                                if k in ("used", "values", "fitted", "why", "start_costs")}, "cost": res.info["cost"],
@@ -260,11 +260,12 @@ def _worker(item):
 
 def study(rig: str, n: int = 20, *, seed: int = 0, friction_start: str = "auto", default: bool = False,
           jobs: int = 1, max_evaluations: int = 60, progress: bool = True, log=None, starts: int = 1,
-          from_truth: bool = False, coarse: bool = False, fit_jobs: int = 1) -> dict:
+          from_truth: bool = False, coarse: bool = False, fit_jobs: int = 1, unsettled: str = "keep") -> dict:
     """The study of the module docstring for one rig; ``log``: a file each fit's
     document is appended to as one JSON line (a partial study survives)."""
     clean = clean_records(RIG.get(rig, rig))
-    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts, from_truth, coarse, fit_jobs)
+    items = [(rig, clean, seed + i, friction_start, default, max_evaluations, starts, from_truth, coarse, fit_jobs,
+              unsettled)
              for i in range(n)]
     if jobs > 1:
         from ema_casadi._util._parallel import process_map
@@ -334,6 +335,8 @@ def main(argv=None) -> int:
     ap.add_argument("--max-evaluations", type=int, default=60)
     ap.add_argument("--starts", type=int, default=1, help="identify's starts per fit (a Latin hypercube after a "
                     "friction start)")
+    ap.add_argument("--unsettled", choices=("keep", "leave-out"), default="keep",
+                    help="identify(unsettled=...): leave-out gives the chaotic bursts' samples weight zero")
     ap.add_argument("--coarse-to-fine", action="store_true", help="identify(coarse_to_fine=True): block means "
                     "of the residuals first (with --starts N: every start at the coarsest level, the best continued)")
     ap.add_argument("--fit-jobs", type=int, default=1, help="identify's worker processes for its starts")
@@ -362,7 +365,8 @@ def main(argv=None) -> int:
         return 0
     doc = study(args.rig, args.n, seed=args.seed, friction_start=args.friction_start, default=args.default,
                 jobs=args.jobs, max_evaluations=args.max_evaluations, log=args.log, starts=args.starts,
-                from_truth=args.from_truth, coarse=args.coarse_to_fine, fit_jobs=args.fit_jobs)
+                from_truth=args.from_truth, coarse=args.coarse_to_fine, fit_jobs=args.fit_jobs,
+                unsettled=args.unsettled)
     if args.json:
         Path(args.json).write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(table(doc))

@@ -45,6 +45,15 @@ def _coarse(cf, w) -> None:
           + " at the first weights)\n")
 
 
+def _unsettled(doc, w) -> None:
+    """The samples left out (``--unsettled leave-out``): the rule, each channel's windows."""
+    if doc is None:
+        return
+    w(f"unsettled samples left out: {doc['samples']} ({doc['rule']})"
+      + "".join(f"; {Path(c['record']).name} {c['channel']} " + ", ".join(f"{a:.3f}-{b:.3f} s" for a, b in c["windows"])
+                for c in doc["channels"]) + "\n")
+
+
 def fit_text(result: dict) -> str:
     """The parameter table, the channels' residuals, the verdict and what was written.
 
@@ -70,6 +79,7 @@ def fit_text(result: dict) -> str:
               + (" at the coarsest level " if result.get("coarse_to_fine") else " ")
               + ", ".join("not converged" if c is None else f"{c:.6g}" for c in costs) + "\n")
     _coarse(result.get("coarse_to_fine"), w)
+    _unsettled(result.get("unsettled"), w)
     _parameters(result, w)
     units = result.get("channel_units", {})
     for c in result["channels"]:

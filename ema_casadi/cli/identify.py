@@ -36,8 +36,8 @@ from pathlib import Path
 
 from .._util._parallel import cores
 from . import UserError, add_progress, check_output_dir, check_output_path, load, progress_of
-from ._common import key_values
-from ._flags import NoEffect, check_bare, no_effect
+from ._flags import NoEffect, no_effect
+from ._identify_parse import bounds, holds, quantities
 from ._identify_text import text_report
 
 COMMAND = "identify"
@@ -74,6 +74,10 @@ def add_arguments(p):
                         "with stick-slip make the cost over every sample rugged in the breakaway, the block means' "
                         "smooth; with --starts N every start is fitted at 200 ms and the lowest goes on; the fit "
                         "on every sample also runs from the first start and the lower cost is kept")
+    p.add_argument("--unsettled", choices=("keep", "leave-out"), default="keep",
+                   help="leave-out: give weight zero to the samples the model predicts differently at rtol 1e-8 and "
+                        "1e-10 by more than the noise level, +-10 ms (chaotic stick-slip bursts no parameter value "
+                        "predicts), in the fit and its statistics; the windows are reported; default keep")
     p.add_argument("--method", default="single", metavar="METHOD",
                    help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
                         "parameters solved together, then finished by single shooting), or auto (single, then "
@@ -121,51 +125,6 @@ def add_arguments(p):
     add_progress(p)
 
 
-def _bounds(items, flag="--bounds") -> dict:
-    out = {}
-    for name, text in key_values(items, flag).items():
-        lo, sep, hi = text.partition(":")
-        try:
-            a, b = float(lo), float(hi)
-        except ValueError:
-            raise UserError(f"{flag} {name}={text}: expected LO:HI, two numbers (SI)") from None
-        if not sep or math.isnan(a) or math.isnan(b):
-            raise UserError(f"{flag} {name}={text}: expected LO:HI, two numbers (SI)")
-        if not a < b:
-            raise UserError(f"{flag} {name}={text}: LO must be below HI")
-        out[name] = (a, b)
-    return out
-
-
-def _quantities(items, flag, model) -> dict:
-    """NAME=VALUE with the unit of NAME's quantity (a signal's or a parameter's)."""
-    from ..signals import KIND_OF_UNIT, SignalError, parse_quantity
-
-    units = {**model.units, **model.params.units(), "gain_db": "dB", "phase_deg": "deg"}  # + frequency records
-    out = {}
-    for name, text in key_values(items, flag).items():
-        if name not in units:
-            from .._util._checks import nearest
-
-            raise UserError(f"{flag} {name}: not a model signal or parameter{nearest(name, units)}")
-        kind = KIND_OF_UNIT.get(units[name])
-        try:
-            out[name] = parse_quantity(text, kind, units[name]) if kind else float(text)
-        except (SignalError, ValueError):
-            raise UserError(f"{flag} {name}={text}: expected a number (SI) or a quantity in a "
-                            f"{kind or units.get(name, 'SI')} unit") from None
-        if name in model.units:  # a signal's value (a parameter's bounds are checked as parameters)
-            check_bare(flag, name, text, out[name], kind, units[name], model)
-    return out
-
-
-def _holds(items, model) -> dict:
-    """--hold NAME[=VALUE]: name -> value (SI; a unit of the parameter's quantity) or None
-    (its start value)."""
-    bare = {s.strip(): None for s in items if "=" not in s}
-    return {**bare, **_quantities([s for s in items if "=" in s], "--hold", model)}
-
-
 def _split(args) -> list:
     """The records; a first positional that is not a .toml file is a record (then the
     model is the packaged reference, args.model set to None)."""
@@ -205,6 +164,10 @@ NO_EFFECT = {
                              "alone from the file's values)"), _on(_EXAMPLE, "--friction-start", "auto")),
     "--coarse-to-fine": (_on(_TRACK, *_TRENDS, "--coarse-to-fine", why="with --track (each record is fitted "
                              "alone from the file's values)"), _on(_EXAMPLE, "--coarse-to-fine")),
+    "--unsettled": (_on(_TRACK, *_TRENDS, "--unsettled", "leave-out", why="with --track (each record is fitted alone "
+                        "from the file's values)"), _on(_EXAMPLE, "--unsettled", "leave-out"),
+                    _on(_COMPARE_FIT, *_CMP, "--unsettled", "leave-out", why="with --compare (each structure would "
+                        "leave out its own samples, and their BICs would not compare)")),
     "--method": (_on(_TRACK, *_TRENDS, "--method", "auto"), _on(_COMPARE_FIT, *_CMP, "--method", "auto")),
     "--nodes": (_on(_TRACK, *_TRENDS, "--nodes", "50"), _on(_COMPARE_FIT, *_CMP, "--nodes", "50"),
                 NoEffect((*_FIT, "--nodes", "50"), "with --method single (it sets the grid of multiple shooting and "
@@ -244,7 +207,7 @@ _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "1
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
            "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
            "--structural": "P_blend=0.05:0.2", "--friction-start": "auto",
-           "--method": "auto", "--nodes": "50"}
+           "--unsettled": "leave-out", "--method": "auto", "--nodes": "50"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
                    lambda a: a.example_records is not None)
 for _flag in [f for f in NO_EFFECT if f != "--example-records"]:  # --example-records writes and stops: all idle
@@ -281,16 +244,16 @@ def run(args) -> dict:
         if args.free is None:
             raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
         free = [s.strip() for s in args.free.split(",") if s.strip()]
-        kw = {"bounds": _bounds(args.bounds), "sigma": _quantities(args.sigma, "--sigma", model),
+        kw = {"bounds": bounds(args.bounds), "sigma": quantities(args.sigma, "--sigma", model),
               "starts": args.starts, "max_evaluations": args.max_evaluations,
-              "hold": _holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
+              "hold": holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
               "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
-              "coarse_to_fine": args.coarse_to_fine,
+              "coarse_to_fine": args.coarse_to_fine, "unsettled": args.unsettled,
               "method": args.method, "nodes": args.nodes,
               "jobs": min(args.starts, args.jobs or cores()), "progress": progress,
               **({} if args.model_error is None else {"model_error": args.model_error,
                                                       "allow_misfit": args.allow_misfit}),
-              **({"structural": _bounds(args.structural, "--structural")} if args.structural else {})}
+              **({"structural": bounds(args.structural, "--structural")} if args.structural else {})}
         if args.track:
             return _track(args, params, model, records, free, kw)
         if args.compare:
@@ -383,7 +346,8 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
     for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
-                 "--structural", "--friction-start", "--coarse-to-fine", "--method", "--nodes"):  # none
+                 "--structural", "--friction-start", "--coarse-to-fine", "--unsettled", "--method",
+                 "--nodes"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
                   "values, none held)")
     from ..identification import report_names
@@ -460,14 +424,14 @@ def identify_api(params, recs, free, **kw):
 def _track(args, params, model, records, free, kw) -> dict:
     from ..identification import track
 
-    limits = _quantities(args.limit, "--limit", model)
+    limits = quantities(args.limit, "--limit", model)
     report = check_output_dir(args.report, ("trend.png", "trend.json"), "--report")
     if args.out is not None:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
     kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start",
-                                                 "coarse_to_fine", "method", "nodes")}
+                                                 "coarse_to_fine", "unsettled", "method", "nodes")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
     if report is not None:
@@ -485,10 +449,10 @@ def _example(args, params, model, out, progress) -> dict:
         free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
         doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
                                                       "max_evaluations": args.max_evaluations,
-                                                      "hold": _holds(args.hold, model),
+                                                      "hold": holds(args.hold, model),
                                                       "hold_unidentifiable": args.hold_unidentifiable,
-                                                      "sigma": _quantities(args.sigma, "--sigma", model),
-                                                      "bounds": _bounds(args.bounds), "method": args.method,
+                                                      "sigma": quantities(args.sigma, "--sigma", model),
+                                                      "bounds": bounds(args.bounds), "method": args.method,
                                                       "nodes": args.nodes,
                                                       "jobs": min(args.starts, args.jobs or cores())}, out)
     doc["example"] = {"truth": truth, "note": "records simulated by the toolkit from the reference set with "

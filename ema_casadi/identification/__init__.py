@@ -23,7 +23,8 @@ from ._misfit import MAX_MODEL_ERROR, check_model_error
 from ._plot import report_names
 from ._problem import Free, Predictor, free_parameters
 from ._records import MAX_BYTES, IdentificationError, Record, read_record
-from ._result import CORRELATED, WIDE, Z95, IdentResult, autocorrelation, uncertainty
+from ._residual_tests import autocorrelation
+from ._result import CORRELATED, WIDE, Z95, IdentResult, uncertainty
 from ._synthetic import (
     EXAMPLE_TRUTH,
     GUIDE_FILES,

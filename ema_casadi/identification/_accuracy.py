@@ -150,7 +150,7 @@ def refined(fit, out: dict, make_fit) -> tuple:
                               "numerical": _numerical(fit, out, make_fit, (shift, step))}
         evaluations, history = fit.pred.evaluations + fine.pred.evaluations, list(fit.history)
         extra = {k: v for k, v in out.items() if k not in ("z", "z_full", "sigma", "r", "J", "J_full", "cost",
-                                                            "message", "estimated")}
+                                                            "message", "estimated", "samples")}
         fine.pred.evaluations = 0
         out = {**fine.run(out["z_full"]), **extra}
         fine.pred.evaluations += evaluations

@@ -38,6 +38,7 @@ from ..optimisation import COST_TOL, levenberg_marquardt
 from ._failed import FitFailed
 from ._fitting import new_fit
 from ._records import IdentificationError
+from ._unsettled import marked
 
 #: The block lengths (s), coarsest first, over which the residuals are averaged before
 #: the fit on every sample.
@@ -104,13 +105,14 @@ def _coarsest(fit, z0, sig):
     return z, docs[0]["cost"], docs
 
 
-def coarse_to_fine(model, progress: bool, points, jobs: int, spec) -> tuple:
+def coarse_to_fine(model, progress: bool, points, jobs: int, spec, leave_out: bool = False) -> tuple:
     """(fit, its optimum) coarse to fine (module docstring) from the starts ``points``
     (optimiser coordinates) on ``model``; ``spec``: identify's ``(params, variants,
     recs, fr, xs, given, max_evaluations)``. The optimum carries ``coarse_to_fine``
     (the levels of the start kept, the coarse evaluations, the starts, which end was
     kept and both ends' costs at the first weights) and ``start_costs`` (each start's
-    cost at the coarsest level)."""
+    cost at the coarsest level); ``leave_out``: the records' unsettled samples at the
+    ladder's end left out of both fits on every sample (:mod:`._unsettled`)."""
     fit_spec = (model, *spec[2:])
     fit = new_fit(*fit_spec, progress)
     sig = fit.start_sigma(points[0])
@@ -136,6 +138,9 @@ def coarse_to_fine(model, progress: bool, points, jobs: int, spec) -> tuple:
         fit = new_fit(*fit_spec, progress)
     z, more = levels(fit, z, sig, blocks)
     spent += fit.coarse_evaluations
+    if leave_out:
+        fit_spec = (model, marked(fit, z, sig), *spec[3:])
+        fit = new_fit(*fit_spec, progress)
     plain = new_fit(*fit_spec, progress)
     ends = {"coarse": (fit, _on_every_sample(fit, z)), "plain": (plain, _on_every_sample(plain, points[0]))}
     done = {k: fo for k, fo in ends.items() if not isinstance(fo[1], FitFailed)}

@@ -34,7 +34,7 @@ from scipy import stats
 from .._util._parallel import cores
 from ..optimisation import levenberg_marquardt
 from ._problem import Predictor, marginal
-from ._result import MISFIT_P
+from ._residual_tests import MISFIT_P
 
 #: A direction counts as determined by one record when its 95 % half-width (in the
 #: optimiser's coordinates, log-parameters) is below log 1.5: 1.96 / s < log 1.5.
@@ -154,7 +154,8 @@ def _record_residuals(e, de, sig, k):
 
 def _joint_std(J, n, out, free, theta) -> np.ndarray:
     """Standard deviations of the joint estimates (SI), initial states marginalised."""
-    s2 = float(out["r"] @ out["r"]) / max(1, len(out["r"]) - J.shape[1]) if out["estimated"] else 1.0
+    N = out.get("samples", len(out["r"]))
+    s2 = float(out["r"] @ out["r"]) / max(1, N - J.shape[1]) if out["estimated"] else 1.0
     Jm = marginal(J, n)
     return np.sqrt(np.maximum(np.diag(s2 * np.linalg.pinv(Jm.T @ Jm)), 0)) * np.abs(free.dtheta_dz(theta))
 

@@ -9,7 +9,8 @@ from .._util._checks import nearest
 from ..model.assembly import build_model
 from ._problem import Predictor
 from ._records import IdentificationError, Record, read_record
-from ._result import Z95, autocorrelation, channel_stats
+from ._residual_tests import autocorrelation, channel_stats
+from ._result import Z95
 
 #: chi-square(1) 95 % quantile: the profile interval is where the cost rises by
 #: CHI2_95 s^2 / 2 above its minimum.

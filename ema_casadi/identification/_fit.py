@@ -30,6 +30,8 @@ from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
 from ._starts import fit_state, install_state
 from ._structural import add_structural, check_structural, structural_covariance
+from ._unsettled import ROUNDS, check_marks, check_unsettled, marked
+from ._unsettled import report as unsettled_report
 
 
 def identify(params: Parameters, records, free, *, bounds: dict | None = None, sigma: dict | None = None,
@@ -38,7 +40,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
              consistency: bool = True, model_error: float = _misfit.MODEL_ERROR, allow_misfit: bool = False,
              jobs: int = 1, structural: dict | None = None, method: str = "single", nodes: int | None = None,
              progress: bool = False, model: Model | None = None, friction_start: str = "off",
-             coarse_to_fine: bool = False) -> IdentResult:
+             coarse_to_fine: bool = False, unsettled: str = "keep") -> IdentResult:
     """Fit named parameters of ``params`` to test records.
 
     Parameters
@@ -128,6 +130,12 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         fit on every sample runs from the ladder's end and from the first start, the
         lower cost at the first weights kept (``kept``, ``costs``); the statistics are
         that fit's. Default False.
+    unsettled : {"keep", "leave-out"}
+        ``leave-out``: the samples the model predicts differently at rtol 1e-8 and
+        1e-10 (by more than the noise level, +-10 ms: chaotic stick-slip bursts) get
+        weight zero in the fit and its statistics (:mod:`._unsettled`), found at the
+        point the fit on every sample starts from; ``info["unsettled"]`` lists them.
+        Default ``keep`` (every sample counts).
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller and passed
         down; default built here (a worker process of ``jobs`` builds its own).
@@ -167,22 +175,29 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     values, ranges, structural = check_hold(fr, hold, structural)
     structural = check_structural(model, structural, fr.names)
     method, nodes = check_method(method, nodes, len(recs))
+    leave_out = check_unsettled(unsettled)
+    check_marks(recs)
     spec = (params, variants, recs, fr, xs, given, max_evaluations)
 
     def single(first=None):
         try:
             fit, best = _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec,
-                                    fstart, first, coarse_to_fine)
+                                    fstart, first, coarse_to_fine, leave_out)
+            if leave_out:
+                fit, best, points = _settled(fit, best, progress)
+            marks = fit.pred.records  # with the samples left out marked (unsettled="leave-out")
             fit, best, accuracy = refined(fit, best, lambda rtol, atol: _Fit(
-                Predictor(model, recs, fr, model.p(), xs, rtol, atol), given, max_evaluations, progress))
+                Predictor(model, marks, fr, model.p(), xs, rtol, atol), given, max_evaluations, progress))
         except FitFailed as exc:  # where the misfit sits at the last iterate: a structure hint
             if exc.iterate and exc.status == "not converged":
                 exc.hints = hints_at(new_fit(model, recs, fr, xs, given, 2, False),
                                      [exc.iterate[n] for n in fr.names], fr.names)
             raise
-        res = _finish(fit, best, recs, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
+        res = _finish(fit, best, marks, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                       model_error, structural)
         res.info["prediction_accuracy"] = accuracy
+        if leave_out:
+            res.info["unsettled"] = {**unsettled_report(marks), "points": points}
         if coarse_to_fine:
             res.info["coarse_to_fine"] = {**best["coarse_to_fine"], "start_costs": best["start_costs"]}
         if fstart["mode"] != "off":  # the curve, or why not, and each start's cost
@@ -196,18 +211,23 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
 
 
 def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, seed, jobs, spec, design=None,
-                first=None, coarse=False):
+                first=None, coarse=False, leave_out=False):
     """(fit, its optimum): the lowest-cost fit of ``starts`` (ties: the earlier start),
     each from a fresh predictor, on ``jobs`` processes (the result does not depend on
     ``jobs``: a worker's fit is the same computation, its final state handed back);
     ``first`` (SI values: a multiple-shooting or collocation estimate) replaces the first start;
-    ``coarse``: coarse to fine (:func:`._coarse.coarse_to_fine`)."""
+    ``coarse``: coarse to fine (:func:`._coarse.coarse_to_fine`); ``leave_out``: the
+    records' unsettled samples left out (:mod:`._unsettled`), found at the first start
+    (coarse to fine: at the ladder's end)."""
     points = start_points(fr, starts, seed, design if design and design["used"] else None)
     if first is not None:
         lo, hi = fr.z_bounds()
         points[0] = np.clip(fr.z(first), lo, hi)
     if coarse:
-        return coarse_to_fine(model, progress, points, jobs, spec)
+        return coarse_to_fine(model, progress, points, jobs, spec, leave_out)
+    if leave_out:
+        recs = marked(new_fit(model, recs, fr, xs, given, max_evaluations, False), points[0])
+        spec = (*spec[:2], recs, *spec[3:])
     results = []
     if jobs <= 1 or starts == 1:
         for z0 in points:
@@ -239,6 +259,35 @@ def _best_start(model, recs, fr, xs, given, max_evaluations, progress, starts, s
         raise FitFailed(why, status="not converged")
     _, fit, out = min(done, key=lambda t: (t[2]["cost"], t[0]))
     return fit, {**out, "start_costs": [o["cost"] if f is not None else None for f, o in results]}
+
+
+def _settled(fit, best, progress):
+    """(fit, optimum) with the samples unsettled at the optimum left out too
+    (:mod:`._unsettled`): where the predictions at the optimum part on samples not yet
+    left out, those are added and the fit goes on from the optimum, at most
+    :data:`._unsettled.ROUNDS` times (whether a burst is chaotic moves with the
+    parameters: found at the start point alone, the windows miss some that the
+    optimum's predictions have). Returns (fit, optimum, the points searched); the
+    evaluations and cost history carry over."""
+    points = 1  # the start point's (or the ladder end's) detection
+    for _ in range(ROUNDS):
+        more = marked(fit, best["z_full"], best["sigma"], fit.pred.records)
+        points += 1
+        if sum(int(b.sum()) for r in more for b in r.left_out.values()) == \
+                sum(int(b.sum()) for r in fit.pred.records for b in r.left_out.values()):
+            break
+        pred = fit.pred
+        nxt = _Fit(Predictor(pred.model, more, pred.free, pred.base, pred.x0_states, pred.rtol, pred.atol),
+                   fit.given, fit.max_eval, progress)
+        extra = {k: v for k, v in best.items() if k in ("coarse_to_fine", "start_costs")}
+        try:
+            out = nxt.run(best["z_full"])
+        except FitFailed:
+            break  # the last optimum, on the windows found so far, stands
+        nxt.pred.evaluations += pred.evaluations
+        nxt.history = fit.history + nxt.history
+        fit, best = nxt, {**out, **extra}
+    return fit, best, points
 
 
 _WORKER_MODEL = [None, None]  # (payload, its model) in a worker process
@@ -299,7 +348,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tupl
     fr = fit.pred.free
     start = dict(zip(fr.names, fr.theta0.tolist(), strict=True))
     estimated = bool(out["estimated"])
-    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural))
+    unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, structural), out["samples"])
     evaluations = fit.pred.evaluations
     history = list(fit.history)
     if hold_wide:
@@ -318,7 +367,7 @@ def _finish(fit: _Fit, out: dict, recs, model: Model, params, t_wall, hold: tupl
         out = {**fit2.run(z0), "estimated": out["estimated"], **numerical_of(out, fr.names, keep)}
         fit, fr = fit2, pred.free
         typeb = {**(structural or {}), **{n: tuple(h["range"]) for n, h in held.items()}}
-        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, typeb))
+        unc = uncertainty(fr, out["z"], out["J"], out["r"], estimated, robust_of(fit, out, typeb), out["samples"])
         evaluations += pred.evaluations
         history += fit2.history
     theta = fr.theta(out["z"])

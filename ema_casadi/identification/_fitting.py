@@ -11,6 +11,7 @@ from ..optimisation import COST_TOL, gauss_newton_decrease, levenberg_marquardt
 from ..simulation import RunFailed, progress_bar
 from ._failed import FitFailed
 from ._problem import Predictor, marginal
+from ._unsettled import kept
 
 #: Relative change of the estimated noise levels below which their re-estimation stops.
 SIGMA_TOL = 0.02
@@ -48,7 +49,8 @@ class _Fit:
     # -- residuals -------------------------------------------------------------------
     def errors(self, theta):
         """(predictions, e per (record, channel), de/dz per (record, channel)); e =
-        measured - model, from the second sample on (the first fixes the start)."""
+        measured - model, from the second sample on (the first fixes the start); zero
+        (both) on the samples a record leaves out (:mod:`._unsettled`)."""
         preds = self.pred.predict(theta)
         e, de = {}, {}
         m, n_rec = len(self.pred.x0_states), len(preds)
@@ -61,7 +63,20 @@ class _Fit:
                     d0 = np.zeros((len(e[i, c]), m * n_rec))
                     d0[:, i * m : (i + 1) * m] = -pr["dy0"][c][first:]
                     de[i, c] = np.hstack([de[i, c], d0])
+                keep = kept(rec, c, first)
+                if keep is not None:
+                    e[i, c] = np.where(keep, e[i, c], 0.0)
+                    de[i, c] = np.where(keep[:, None], de[i, c], 0.0)
         return preds, e, de
+
+    def samples(self, e) -> dict:
+        """(record, channel) -> the samples of ``e`` that count (all but those left out)."""
+        first = 0 if self.pred.x0_states else 1
+        out = {}
+        for (i, c), v in e.items():
+            keep = kept(self.pred.records[i], c, first)
+            out[i, c] = len(v) if keep is None else int(keep.sum())
+        return out
 
     def weighted(self, e, de, sig):
         """Weighted residuals and Jacobian; at a coarse level (:attr:`blocks`) the
@@ -173,7 +188,9 @@ class _Fit:
         if raw is None:
             raise self.failed(f"the model run fails at the start values: {self.failure}", z0, status="failed")
         e0 = raw[1]
-        sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c]) for c in self.channels}
+        n0 = self.samples(e0)
+        sig = {c: self.given.get(c) or _rms([e0[k] for k in e0 if k[1] == c], [n0[k] for k in e0 if k[1] == c])
+               for c in self.channels}
         return {c: (v if v > 0 else 1.0) for c, v in sig.items()}
 
     def run(self, z0) -> dict:
@@ -198,9 +215,10 @@ class _Fit:
             if not estimate:
                 break
             _, e, _ = self._raw(z)
-            n_tot = sum(len(v) for v in e.values())
-            dof = max(1e-3, 1.0 - len(z) / n_tot)
-            new = {c: _rms([e[k] for k in e if k[1] == c]) / np.sqrt(dof) for c in estimate}
+            counts = self.samples(e)
+            dof = max(1e-3, 1.0 - len(z) / sum(counts.values()))
+            new = {c: _rms([e[k] for k in e if k[1] == c], [counts[k] for k in e if k[1] == c]) / np.sqrt(dof)
+                   for c in estimate}
             change = max(abs(new[c] / sig[c] - 1) for c in estimate)
             sig = {**sig, **new}
             if change < SIGMA_TOL:
@@ -209,12 +227,14 @@ class _Fit:
         progress_bar(1.0, self.progress, "identify", f"{self.evaluations} evaluations")
         n = len(fr.names)
         return {"z": z[:n], "z_full": z, "sigma": sig, "r": r, "J": marginal(J, n), "J_full": J,
-                "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate}
+                "cost": 0.5 * float(r @ r), "message": sol["message"], "estimated": estimate,
+                "samples": sum(self.samples(self._raw(z)[1]).values())}
 
 
-def _rms(arrays) -> float:
+def _rms(arrays, counts) -> float:
+    """The RMS of ``arrays`` over ``counts`` samples (their left-out samples are zeros)."""
     a = np.concatenate(arrays) if arrays else np.zeros(1)
-    return float(np.sqrt(np.mean(a * a)))
+    return float(np.sqrt(np.sum(a * a) / max(1, sum(counts))))
 
 
 def new_fit(model, recs, fr, xs, given, max_evaluations, progress) -> _Fit:

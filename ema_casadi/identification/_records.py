@@ -64,6 +64,9 @@ class Record:
         File-level fields (name -> float or str): time stamps, noise levels.
     t0 : float
         The record's own first time stamp (s), subtracted from ``t``.
+    left_out : dict
+        Channel -> bool per sample: samples the fit gives weight zero (the model's
+        unsettled predictions, :mod:`._unsettled`); empty: every sample counts.
     """
 
     path: str
@@ -72,6 +75,7 @@ class Record:
     channels: dict
     fields: dict = field(default_factory=dict)
     t0: float = 0.0
+    left_out: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:

@@ -7,7 +7,7 @@ import ema_casadi as ema
 from ema_casadi.cli._identify_text import fit_text
 from ema_casadi.identification import example_records
 from ema_casadi.identification._misfit import verdict
-from ema_casadi.identification._result import MISFIT_P
+from ema_casadi.identification._residual_tests import MISFIT_P
 from ema_casadi.identification._synthetic import EXAMPLE_TRUTH, synthetic_record
 
 SIGMA = {"x_rod": 3e-7, "i_q": 0.05}

@@ -71,3 +71,25 @@ def test_coarse_to_fine_reaches_the_truth_where_the_plain_fit_does_not(params):
     plain = idn.identify(params, recs, list(witness.TRUTH), **kw)
     assert plain.info["cost"] > 2 * fit.info["cost"]
     assert abs(plain.estimate["r_start"] / witness.TRUTH["r_start"] - 1) > witness.TOLERANCE["r_start"]
+
+
+def test_leaving_out_the_chaotic_bursts_reaches_the_truth(params):
+    """The exponential-hump rig, realisation 0, from the reference start with the
+    friction start, six starts and coarse to fine: fitted on every sample it ended in a
+    local minimum (measured: cost 42 400, r_start +1.1 %, c_v +41 %); with the chaotic
+    bursts left out (``unsettled="leave-out"``, measured: 926 samples, cost 16 132) every
+    estimate is within the study's tolerances, and the JSON and text report name the
+    windows left out."""
+    from ema_casadi import identification as idn
+    from ema_casadi.cli._identify_text import fit_text
+
+    recs = witness.realisation(witness.clean_records("hump"), 0)
+    res = idn.identify(params.replace(delta_st=1.0), recs, list(witness.TRUTH), sigma=witness.NOISE,
+                       variants={"stribeck": "on"}, friction_start="auto", starts=6, coarse_to_fine=True,
+                       unsettled="leave-out")
+    err = {k: res.estimate[k] / v - 1 for k, v in witness.TRUTH.items()}
+    assert all(abs(err[k]) <= witness.TOLERANCE[k] for k in err), err
+    doc = res.to_dict()
+    left = {(c["record"], c["channel"]): c["windows"] for c in doc["unsettled"]["channels"]}
+    assert any(a <= 0.70 <= b for a, b in left[("push.csv", "F_in")])
+    assert "unsettled samples left out:" in fit_text(doc)
