@@ -76,8 +76,9 @@ def add_arguments(p):
                         "on every sample also runs from the first start and the lower cost is kept")
     p.add_argument("--unsettled", choices=("keep", "leave-out"), default="keep",
                    help="leave-out: give weight zero to the samples the model predicts differently at rtol 1e-8 and "
-                        "1e-10 by more than the noise level, +-10 ms (chaotic stick-slip bursts no parameter value "
-                        "predicts), in the fit and its statistics; the windows are reported; default keep")
+                        "1e-10 by more than a third of the noise level, +-20 ms (chaotic stick-slip bursts no "
+                        "parameter value predicts), in the fit and its statistics; the windows are reported; "
+                        "default keep")
     p.add_argument("--method", default="single", metavar="METHOD",
                    help="single (shooting from the start values), multiple (shooting) or collocation (node states and "
                         "parameters solved together, then finished by single shooting), or auto (single, then "

@@ -132,7 +132,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         that fit's. Default False.
     unsettled : {"keep", "leave-out"}
         ``leave-out``: the samples the model predicts differently at rtol 1e-8 and
-        1e-10 (by more than the noise level, +-10 ms: chaotic stick-slip bursts) get
+        1e-10 (by more than a third of the noise level, +-20 ms: chaotic stick-slip bursts) get
         weight zero in the fit and its statistics (:mod:`._unsettled`), found at the
         point the fit on every sample starts from; ``info["unsettled"]`` lists them.
         Default ``keep`` (every sample counts).

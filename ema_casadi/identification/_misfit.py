@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..signals import format_quantity
+from ._unsettled import kept
 
 #: Running-mean window of the systematic misfit (s): 20 ms, 40 samples at 2 kHz (the
 #: noise floor of the mean is then 0.16 noise levels).
@@ -143,9 +144,16 @@ def misfits(records, preds, errors, sigma, estimated, model, units) -> list[dict
             dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
             w = int(max(5, min(len(e), round(WINDOW_S / dt))))
             m = running_mean(e, w)
-            s_n = float(np.sqrt(np.mean(np.diff(e) ** 2) / 2)) if c in estimated else float(sigma[c])
+            keep = kept(rec, c, len(rec.t) - len(e))  # left-out samples (zeros) count nowhere
+            if keep is None:
+                keep, de = slice(None), np.diff(e)
+            else:  # the running mean over the kept samples; the noise from kept neighbours
+                frac = running_mean(keep.astype(float), w)
+                m = np.where(keep & (frac > 0), m / np.maximum(frac, 1e-12), 0.0)
+                de = np.diff(e)[keep[1:] & keep[:-1]]
+            s_n = float(np.sqrt(np.mean(de**2) / 2)) if c in estimated and len(de) else float(sigma[c])
             floor = s_n**2 / w
-            sys = float(np.sqrt(max(0.0, np.mean(m * m) - floor)))
+            sys = float(np.sqrt(max(0.0, np.mean(m[keep] ** 2) - floor)))
             excess = np.maximum(m * m - floor, 0.0)
             tot = float(excess.sum())
             shares = {s: (float(excess[lab == j].sum()) / tot if tot > 0 else 0.0) for j, s in enumerate(SEGMENTS)}

@@ -11,19 +11,25 @@ steps record's stops). A least-squares fit over every sample then has its optimu
 wherever a burst happens to line up with the rig's, not at the truth.
 
 The rule: at the point the fit on every sample starts from (coarse to fine: the
-ladder's end; else the first start), the records are predicted at the two tolerances
-:data:`RTOLS`; a sample of a channel where the two differ by more than its noise level
-(given, else the residuals' RMS there) is *unsettled*, and so is every sample within
-:data:`MARGIN_S` of one. Those samples get weight zero in the fit and in every statistic
-(chi-square and its sample count, the noise re-estimation, whiteness, the records'
-consistency, the accuracy check); the report (``info["unsettled"]``) lists each channel's
-windows. What the model predicts the same at both tolerances is what it can be fitted
-to; where it does not, no parameter value predicts the record, and a misfit there says
-nothing about the parameters.
+ladder's end; else the first start), and again at each optimum, the records are
+predicted at the two tolerances :data:`RTOLS`; a sample of a channel where the two differ
+by more than :data:`THRESHOLD` times its noise level (given, else the residuals' RMS) is
+*unsettled*, and so is every sample within :data:`MARGIN_S` of one. Those samples get
+weight zero in the fit and in every statistic (chi-square and its sample count, the
+noise re-estimation, whiteness, the records' consistency, the accuracy check);
+the report (``info["unsettled"]``) lists each channel's windows. What the model
+predicts the same at both tolerances is what it can be fitted to; where it does not,
+no parameter value predicts the record, and a misfit there says nothing about the
+parameters.
 
-Measured on that rig (realisations 0, 1, 5 and 8, whose fits over every sample missed
-the truth): 476 samples left out; every estimate then within its tolerance (r_start
-0.24 %, c_v 7 %), the cost at the noise's share of the kept samples.
+Why a third of a noise level and 20 ms: with one noise level and 10 ms, the fits of
+realisations 1-10 from the reference start were within tolerance in 9 of 10, but the
+robust intervals covered F_seal and r_start in only 8 of 10; fitted from the truth,
+realisation 2 ended 2.3 sd off in F_seal (-0.25 %) with four of nine intervals
+missing. Differences below one noise level over a burst's hundred samples are still
+systematic. With a third and 20 ms (at the truth: 1 099 samples of the 6 620 on the
+hump rig, 200 on the control rig) the same fit from the truth ended with F_seal
++0.014 % (0.1 sd) and v_st -1.5 % (1.5 sd), all nine intervals covering.
 """
 
 from __future__ import annotations
@@ -36,14 +42,16 @@ from ._failed import FitFailed
 from ._problem import ATOL, RTOL, Predictor
 from ._records import IdentificationError
 
-__all__ = ["RTOLS", "MARGIN_S", "MAX_SHARE", "ROUNDS", "check_unsettled", "check_marks", "unsettled", "mark",
-           "marked", "kept", "report"]
+__all__ = ["RTOLS", "THRESHOLD", "MARGIN_S", "MAX_SHARE", "ROUNDS", "check_unsettled", "check_marks", "unsettled",
+           "mark", "marked", "kept", "report"]
 
 #: The two tolerances whose predictions are compared.
 RTOLS = (1e-8, 1e-10)
+#: A sample is unsettled where the two predictions differ by more than this many noise levels.
+THRESHOLD = 0.3
 #: Samples within this time (s) of an unsettled one are left out too: a burst's edges
 #: differ by less than the noise while its middle differs by more.
-MARGIN_S = 0.01
+MARGIN_S = 0.02
 #: A channel of a record with more than this share unsettled ends the fit as failed
 #: (naming it): the fit would rest on too little of the record.
 MAX_SHARE = 0.5
@@ -90,7 +98,7 @@ def unsettled(fit, z, sig: dict) -> list[dict]:
         w = int(round(MARGIN_S / dt))
         marks = {}
         for c in rec.channels:
-            bad = np.abs(np.asarray(a["y"][c]) - np.asarray(b["y"][c])) > sig[c]
+            bad = np.abs(np.asarray(a["y"][c]) - np.asarray(b["y"][c])) > THRESHOLD * sig[c]
             if w and bad.any():
                 bad = np.convolve(bad.astype(float), np.ones(2 * w + 1), mode="same") > 0.5
             marks[c] = bad
@@ -142,5 +150,5 @@ def report(recs) -> dict:
             windows = [[float(rec.t[a]), float(rec.t[b - 1])] for a, b in zip(edges[::2], edges[1::2], strict=True)]
             rows.append({"record": rec.path, "channel": c, "samples": int(bad.sum()), "windows": windows})
             total += int(bad.sum())
-    return {"rule": f"predictions at rtol {RTOLS[0]:g} and {RTOLS[1]:g} differ by more than the noise level, "
-                    f"+-{1e3 * MARGIN_S:g} ms", "samples": total, "channels": rows}
+    return {"rule": f"predictions at rtol {RTOLS[0]:g} and {RTOLS[1]:g} differ by more than {THRESHOLD:g} x the "
+                    f"noise level, +-{1e3 * MARGIN_S:g} ms", "samples": total, "channels": rows}

@@ -77,8 +77,8 @@ def test_bad_unsettled_refused(example):
 
 def test_the_hump_rigs_chaotic_burst_is_found():
     """The exponential-hump witness rig's push record at its true parameters: the
-    load-cell predictions at rtol 1e-8 and 1e-10 part by more than the noise in the
-    burst after the slew back (measured: 0.6675-0.7555 s with the +-10 ms margin),
+    load-cell predictions at rtol 1e-8 and 1e-10 part by more than a third of the noise
+    in the burst after the slew back (measured: 0.657-0.78 s with the +-20 ms margin),
     and nowhere before the first slew ends (0.3 s). The same record of
     the control rig (the model's own Gaussian hump) has no such burst."""
     sys.path.insert(0, str(ROOT / "studies"))
@@ -99,7 +99,7 @@ def test_the_hump_rigs_chaotic_burst_is_found():
     inside = (t > 0.686) & (t < 0.734)
     assert hump[inside].mean() > 0.5
     assert not hump[t < 0.3].any()
-    assert hump.mean() < 0.15  # measured 0.113: one window, 0.6675-0.7555 s, of the 0.78 s record
+    assert hump.mean() < 0.2  # measured 0.158: one window, 0.657 s to the record's end (0.78 s)
     edges = np.flatnonzero(np.diff(hump.astype(int)))
     assert np.all(np.diff(edges)[::2] >= 2 * MARGIN_S / (t[1] - t[0]))  # each window at least the margins wide
     assert not found["gauss"][(t > 0.6) & (t < 0.8)].any()
