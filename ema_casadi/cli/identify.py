@@ -59,6 +59,9 @@ def add_arguments(p):
                    help="noise standard deviation of a channel, repeatable (0.3um, 0.05A, 10N; bare: SI); "
                         "default: the record's field sigma_CHANNEL, else estimated from the residuals")
     p.add_argument("--starts", type=int, default=1, metavar="N", help="fits from N starts (best kept); default 1")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="--starts: the seed of the other starts (a second run with another seed tells whether the "
+                        "search's outcome is the records' or the starts'); default 0")
     p.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="--starts: worker processes (the result does not depend on it); default the cores")
     p.add_argument("--estimate-x0", nargs="?", const=True, default=False, metavar="STATE[,STATE...]",
@@ -192,6 +195,10 @@ NO_EFFECT = {
                   "--report DIR)"),),
     "--starts": (_on(_TRACK, *_TRENDS, "--starts", "3", why="with --track (each record is fitted once, from the "
                      "file's values)"), _on(_COMPARE_FIT, *_CMP, "--starts", "3")),
+    "--seed": (_on(_TRACK, *_TRENDS, "--seed", "1", why="with --track (each record is fitted once, from the "
+                   "file's values)"), _on(_COMPARE_FIT, *_CMP, "--seed", "1"),
+               NoEffect((*_FIT, "--seed", "1"), "with one start (it draws the other starts)",
+                        lambda a: a.starts == 1)),
     "--jobs": (_on(_TRACK, *_TRENDS, "--jobs", "2", why="with --track (each record is fitted once, in turn)"),
                _on(_COMPARE_FIT, *_CMP, "--jobs", "2"),
                NoEffect((*_FIT, "--jobs", "2"), "with one start (the workers run the --starts fits in parallel)",
@@ -206,7 +213,7 @@ NO_EFFECT = {
 _SAMPLE = {"--free": "F_seal", "--sigma": "x_rod=0.3um", "--max-evaluations": "10", "--report": "rep",
            "--compare": "anti_windup=backcalc,clamping", "--max-fits": "2", "--profile": "F_seal",
            "--validate": "c.csv", "--limit": "F_seal=300N", "--stamp": "hours", "--out": "f.toml", "--starts": "2",
-           "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
+           "--seed": "1", "--jobs": "2", "--bounds": "F_seal=1:500", "--model-error": "2", "--hold": "F_seal",
            "--structural": "P_blend=0.05:0.2", "--friction-start": "auto",
            "--unsettled": "leave-out", "--method": "auto", "--nodes": "50"}
 _WRITES = NoEffect((), "with --example-records (it writes the records and stops; fit them after)",
@@ -246,7 +253,7 @@ def run(args) -> dict:
             raise UserError("--free: name the parameters to fit, e.g. --free F_seal,c_v,J_m")
         free = [s.strip() for s in args.free.split(",") if s.strip()]
         kw = {"bounds": bounds(args.bounds), "sigma": quantities(args.sigma, "--sigma", model),
-              "starts": args.starts, "max_evaluations": args.max_evaluations,
+              "starts": args.starts, "seed": args.seed, "max_evaluations": args.max_evaluations,
               "hold": holds(args.hold, model), "hold_unidentifiable": args.hold_unidentifiable,
               "estimate_x0": args.estimate_x0, "friction_start": args.friction_start,
               "coarse_to_fine": args.coarse_to_fine, "unsettled": args.unsettled,
@@ -346,7 +353,7 @@ def _fit_frequency(args, params, records, free, kw, out) -> dict:
     for flag in ("track", "profile", "validate", "estimate_x0"):
         if getattr(args, flag):
             raise UserError(f"--{flag.replace('_', '-')} is for time-series records, not frequency responses")
-    for flag in ("--starts", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
+    for flag in ("--starts", "--seed", "--jobs", "--bounds", "--hold", "--hold-unidentifiable", "--model-error",
                  "--structural", "--friction-start", "--coarse-to-fine", "--unsettled", "--method",
                  "--nodes"):  # none
         no_effect(args, flag, "with frequency-response records (one fit through the linear model from the file's "
@@ -431,7 +438,7 @@ def _track(args, params, model, records, free, kw) -> dict:
         raise UserError("--out with --track: a trend has one fit per record; use --report DIR")
     if kw["estimate_x0"] is not False:
         raise UserError("--estimate-x0 with --track: a trend's records start at rest (fit them one by one instead)")
-    kw = {k: v for k, v in kw.items() if k not in ("starts", "estimate_x0", "jobs", "friction_start",
+    kw = {k: v for k, v in kw.items() if k not in ("starts", "seed", "estimate_x0", "jobs", "friction_start",
                                                  "coarse_to_fine", "unsettled", "method", "nodes")}
     tr = track(params, records, free, stamp=args.stamp, limits=limits, **kw, model=model)
     doc = tr.to_dict()
@@ -448,7 +455,7 @@ def _example(args, params, model, out, progress) -> dict:
     with scratch_dir() as tmp:
         paths, truth = example_records(params, tmp)
         free = list(truth) if args.free is None else [s.strip() for s in args.free.split(",") if s.strip()]
-        doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts,
+        doc = _fit(args, params, model, paths, free, {"progress": progress, "starts": args.starts, "seed": args.seed,
                                                       "max_evaluations": args.max_evaluations,
                                                       "hold": holds(args.hold, model),
                                                       "hold_unidentifiable": args.hold_unidentifiable,

@@ -156,6 +156,7 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
     t_wall = time.perf_counter()
     instance(params, Parameters, "params", IdentificationError, " (from load_parameters)")
     starts = integer(starts, "starts", IdentificationError, minimum=1)
+    seed = integer(seed, "seed", IdentificationError, minimum=0)
     if not isinstance(coarse_to_fine, bool):
         raise IdentificationError(f"coarse_to_fine: expected True or False, got {coarse_to_fine!r}")
     max_evaluations = integer(max_evaluations, "max_evaluations", IdentificationError, minimum=2)

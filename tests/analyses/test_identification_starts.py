@@ -104,3 +104,23 @@ def test_coarse_to_fine_never_ends_above_the_plain_fit(params, tmp_path):
     assert res.adequacy["adequate"]
     for k in free:
         assert abs(res.estimate[k] - plain.estimate[k]) < 1e-3 * plain.std[k], k
+
+
+def test_the_command_passes_its_seed(records, monkeypatch):
+    """``--seed N`` reaches ``identify(seed=N)`` (the other starts' draw); a negative seed
+    is refused by the API in one line."""
+    from ema_casadi.cli import identify as cmd
+    from ema_casadi.cli import main
+
+    p, paths, free = records
+    seen = {}
+
+    def fake(params, recs, names, **kw):
+        seen.update(kw)
+        raise IdentificationError("stop here")
+
+    monkeypatch.setattr(cmd, "identify_api", fake)
+    assert main(["identify", *map(str, paths), "--free", ",".join(free), "--starts", "2", "--seed", "7"]) == 2
+    assert seen["seed"] == 7 and seen["starts"] == 2
+    with pytest.raises(IdentificationError, match="seed"):
+        ema.identify(p, paths, free, starts=2, seed=-1)
