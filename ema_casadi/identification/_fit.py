@@ -134,7 +134,9 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         ``leave-out``: the samples the model predicts differently at rtol 1e-8 and
         1e-10 (by more than a third of the noise level, +-20 ms: chaotic stick-slip bursts) get
         weight zero in the fit and its statistics (:mod:`._unsettled`), found at the
-        point the fit on every sample starts from; ``info["unsettled"]`` lists them.
+        point the fit on every sample starts from and at each optimum (at most two more,
+        the fit going on from each); ``info["unsettled"]`` lists them and the points
+        searched.
         Default ``keep`` (every sample counts).
     model : Model, optional
         The model of ``params`` and ``variants``, built once by the caller and passed
