@@ -199,8 +199,8 @@ def identify(params: Parameters, records, free, *, bounds: dict | None = None, s
         res = _finish(fit, best, marks, model, params, t_wall, (values, ranges, hold_unidentifiable), consistency,
                       model_error, structural)
         res.info["prediction_accuracy"] = accuracy
-        if leave_out:
-            res.info["unsettled"] = {**unsettled_report(marks), "points": points}
+        if leave_out or any(r.left_out for r in marks):  # found here, or the records' own marks
+            res.info["unsettled"] = {**unsettled_report(marks), "points": points if leave_out else 0}
         if coarse_to_fine:
             res.info["coarse_to_fine"] = {**best["coarse_to_fine"], "start_costs": best["start_costs"]}
         if fstart["mode"] != "off":  # the curve, or why not, and each start's cost

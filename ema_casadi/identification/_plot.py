@@ -19,7 +19,8 @@ def _scale(result, channel):
 
 def fit_figure(result, k: int):
     """Measured and fitted channels of record ``k`` over time, with the residuals (in
-    units of the channel's noise level) below each.
+    units of the channel's noise level) below each; the windows left out of the fit
+    (``info["unsettled"]``) shaded.
 
     Parameters
     ----------
@@ -32,6 +33,8 @@ def fit_figure(result, k: int):
 
     tr = result.trajectories[k]
     chans = list(tr["measured"])
+    left = {c["channel"]: c["windows"] for c in (result.info.get("unsettled") or {}).get("channels", [])
+            if c["record"] == tr["record"]}
     fig, axes = plt.subplots(2 * len(chans), 1, figsize=(8, 2.6 * len(chans) + 0.6), sharex=True, squeeze=False,
                              gridspec_kw={"height_ratios": [3, 1] * len(chans)})
     for j, c in enumerate(chans):
@@ -45,6 +48,11 @@ def fit_figure(result, k: int):
         ax_r.plot(tr["t"], r, lw=0.5, color="C3")
         ax_r.axhline(0, color="k", lw=0.5)
         ax_r.set_ylabel("resid. / σ", fontsize=8)
+        for n, (a, b) in enumerate(left.get(c, [])):  # the samples left out of the fit (weight zero)
+            ax.axvspan(a, b, color="0.88", zorder=0, label=None if n else "left out (unsettled)")
+            ax_r.axvspan(a, b, color="0.88", zorder=0)
+        if c in left:
+            ax.legend(loc="best", fontsize=8)
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{Path(tr['record']).name}: measured vs fitted", fontsize=10)
     fig.tight_layout()

@@ -8,6 +8,7 @@ import dataclasses
 import subprocess
 import sys
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ import ema_casadi as ema
 from conftest import ROOT
 from ema_casadi.identification import IdentificationError, example_records, read_record
 from ema_casadi.identification._fitting import new_fit
+from ema_casadi.identification._plot import fit_figure
 from ema_casadi.identification._problem import free_parameters
 from ema_casadi.identification._unsettled import MARGIN_S, unsettled
 from ema_casadi.model.assembly import build_model
@@ -34,7 +36,8 @@ def test_a_window_left_out_weighs_nothing(example):
     """100 samples of one record's rod position corrupted by 50 noise levels and marked
     left out: the fit is the one of the clean records with the same marks, bit for bit
     (the residuals there are zero whatever was measured), and the chi-square counts
-    the samples kept (the first sample fixes the start and is never counted)."""
+    the samples kept (the first sample fixes the start and is never counted); the
+    marks are reported and shaded in the record's figure."""
     p, recs, free = example
     rec = recs[0]
     bad = np.zeros(rec.n, bool)
@@ -48,6 +51,11 @@ def test_a_window_left_out_weighs_nothing(example):
     (row,) = [c for c in b.channels if c["record"] == rec.path and c["channel"] == "x_rod"]
     assert row["samples"] == rec.n - 1 - 100
     assert b.adequacy["adequate"]
+    (window,) = b.info["unsettled"]["channels"]  # the records' own marks, reported
+    assert window["samples"] == 100 and window["windows"] == [[rec.t[rec.n // 3], rec.t[rec.n // 3 + 99]]]
+    fig = fit_figure(b, 0)  # the window shaded on the rod position and its residuals
+    assert len([ax for ax in fig.axes if ax.patches]) == 2
+    plt.close(fig)
 
 
 def test_records_without_chaotic_bursts_lose_nothing(example):
