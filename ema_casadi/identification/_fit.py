@@ -274,7 +274,7 @@ def _settled(fit, best, progress):
     evaluations and cost history carry over."""
     points = 1  # the start point's (or the ladder end's) detection
     for _ in range(ROUNDS):
-        more = marked(fit, best["z_full"], best["sigma"], fit.pred.records)
+        more = marked(fit, best["z_full"], best["sigma"])
         points += 1
         if sum(int(b.sum()) for r in more for b in r.left_out.values()) == \
                 sum(int(b.sum()) for r in fit.pred.records for b in r.left_out.values()):

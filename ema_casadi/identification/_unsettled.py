@@ -80,8 +80,9 @@ def check_marks(recs) -> None:
 
 def unsettled(fit, z, sig: dict) -> list[dict]:
     """Per record of ``fit`` (a ``_Fit``): channel -> bool per sample, True where the
-    predictions at :data:`RTOLS` at the optimiser point ``z`` differ by more than the
-    channel's noise level ``sig[c]``, widened by :data:`MARGIN_S` each side."""
+    predictions at :data:`RTOLS` at the optimiser point ``z`` differ by more than
+    :data:`THRESHOLD` times the channel's noise level ``sig[c]``, widened by
+    :data:`MARGIN_S` each side."""
     pred = fit.pred
     n = len(pred.free.names)
     z = np.asarray(z, float)
@@ -114,20 +115,20 @@ def mark(recs, marks) -> list:
             if bad.mean() > MAX_SHARE:
                 raise FitFailed(
                     f"unsettled: {rec.path}: {c} differs between rtol {RTOLS[0]:g} and {RTOLS[1]:g} by more "
-                    f"than its noise level on {100 * bad.mean():.0f} % of the samples (more than "
+                    f"than {THRESHOLD:g} x its noise level on {100 * bad.mean():.0f} % of the samples (more than "
                     f"{100 * MAX_SHARE:g} %): the model cannot predict this record; fit it with "
                     "unsettled='keep' or leave it out", status="failed")
     return [dataclasses.replace(rec, left_out={c: np.asarray(b, bool) for c, b in m.items() if b.any()})
             for rec, m in zip(recs, marks, strict=True)]
 
 
-def marked(fit, z, sig: dict | None = None, before=None) -> list:
+def marked(fit, z, sig: dict | None = None) -> list:
     """The records of ``fit`` marked (:func:`mark`) at the optimiser point ``z`` with
-    the noise levels ``sig`` (default: the fit's first weights there); ``before``:
-    records already marked whose marks are kept too (the union)."""
+    the noise levels ``sig`` (default: the fit's first weights there), the marks they
+    carry already (found earlier, or the records' own) kept too: the union."""
     sig = sig or fit.start_sigma(z)
     marks = unsettled(fit, fit.full(z), sig)
-    for m, rec in zip(marks, before or (), strict=False):
+    for m, rec in zip(marks, fit.pred.records, strict=True):
         for c, bad in rec.left_out.items():
             m[c] = m[c] | bad
     return mark(fit.pred.records, marks)

@@ -37,7 +37,8 @@ def test_a_window_left_out_weighs_nothing(example):
     left out: the fit is the one of the clean records with the same marks, bit for bit
     (the residuals there are zero whatever was measured), and the chi-square counts
     the samples kept (the first sample fixes the start and is never counted); the
-    marks are reported and shaded in the record's figure."""
+    marks are reported, shaded in the record's figure, and kept when the fit also
+    searches for unsettled samples."""
     p, recs, free = example
     rec = recs[0]
     bad = np.zeros(rec.n, bool)
@@ -53,6 +54,9 @@ def test_a_window_left_out_weighs_nothing(example):
     assert b.adequacy["adequate"]
     (window,) = b.info["unsettled"]["channels"]  # the records' own marks, reported
     assert window["samples"] == 100 and window["windows"] == [[rec.t[rec.n // 3], rec.t[rec.n // 3 + 99]]]
+    # searched for unsettled samples too (the example has none): the records' own marks stay
+    c = ema.identify(p, clean, free, sigma=SIGMA, consistency=False, unsettled="leave-out")
+    assert c.estimate == a.estimate and c.info["unsettled"]["samples"] == 100
     fig = fit_figure(b, 0)  # the window shaded on the rod position and its residuals
     assert len([ax for ax in fig.axes if ax.patches]) == 2
     plt.close(fig)
