@@ -30,7 +30,7 @@ from ._result import IdentResult, initial_states, uncertainty
 from ._robust import record_blocks, robust_covariance
 from ._starts import fit_state, install_state
 from ._structural import add_structural, check_structural, structural_covariance
-from ._unsettled import ROUNDS, check_marks, check_unsettled, marked
+from ._unsettled import ROUNDS, check_marks, check_unsettled, left_out_count, marked
 from ._unsettled import report as unsettled_report
 
 
@@ -276,8 +276,7 @@ def _settled(fit, best, progress):
     for _ in range(ROUNDS):
         more = marked(fit, best["z_full"], best["sigma"])
         points += 1
-        if sum(int(b.sum()) for r in more for b in r.left_out.values()) == \
-                sum(int(b.sum()) for r in fit.pred.records for b in r.left_out.values()):
+        if left_out_count(more) == left_out_count(fit.pred.records):  # a union: nothing new
             break
         pred = fit.pred
         nxt = _Fit(Predictor(pred.model, more, pred.free, pred.base, pred.x0_states, pred.rtol, pred.atol),

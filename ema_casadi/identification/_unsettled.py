@@ -43,7 +43,7 @@ from ._problem import ATOL, RTOL, Predictor
 from ._records import IdentificationError
 
 __all__ = ["RTOLS", "THRESHOLD", "MARGIN_S", "MAX_SHARE", "ROUNDS", "check_unsettled", "check_marks", "unsettled",
-           "mark", "marked", "kept", "report"]
+           "mark", "marked", "kept", "left_out_count", "report"]
 
 #: The two tolerances whose predictions are compared.
 RTOLS = (1e-8, 1e-10)
@@ -141,15 +141,19 @@ def kept(rec, c: str, first: int = 0) -> np.ndarray | None:
     return None if bad is None else ~bad[first:]
 
 
+def left_out_count(recs) -> int:
+    """The samples the records ``recs`` leave out, over every channel."""
+    return sum(int(b.sum()) for rec in recs for b in rec.left_out.values())
+
+
 def report(recs) -> dict:
     """``info["unsettled"]``: the rule and, per record and channel, the samples left out
     and their windows (start, end in s)."""
-    rows, total = [], 0
+    rows = []
     for rec in recs:
         for c, bad in rec.left_out.items():
             edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(int), [0]])))
             windows = [[float(rec.t[a]), float(rec.t[b - 1])] for a, b in zip(edges[::2], edges[1::2], strict=True)]
             rows.append({"record": rec.path, "channel": c, "samples": int(bad.sum()), "windows": windows})
-            total += int(bad.sum())
     return {"rule": f"predictions at rtol {RTOLS[0]:g} and {RTOLS[1]:g} differ by more than {THRESHOLD:g} x the "
-                    f"noise level, +-{1e3 * MARGIN_S:g} ms", "samples": total, "channels": rows}
+                    f"noise level, +-{1e3 * MARGIN_S:g} ms", "samples": left_out_count(recs), "channels": rows}
